@@ -1,0 +1,67 @@
+"""The ``rodlab`` command line.
+
+Every subcommand lives next to the code it drives and exposes ``main(argv: list[str]) -> int``.
+This file only dispatches (imports are lazy, so ``rodlab sim`` never imports torch or viser).
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+
+# command -> "module:function"; "bench" has its own table below.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "sim": ("sim.cli:sim_main", "simulate a scene headless and write an .npz"),
+    "train": ("policies.cli:train_main", "train a SAC policy on a task (headless)"),
+    "eval": ("policies.cli:eval_main", "evaluate a policy file on a task"),
+    "record": ("policies.recording.cli:record_main", "record episodes to a rerun .rrd file"),
+    "inspect": ("policies.recording.cli:inspect_main", "summarise a recorded .rrd file"),
+    "workbench": ("workbench.cli:workbench_main", "open the interactive web workbench"),
+}
+BENCH: dict[str, tuple[str, str]] = {
+    "sim": ("sim.cli:bench_sim_main", "time one batched sim step / control step"),
+    "env": ("policies.cli:bench_env_main", "time one batched vector-env step of a task"),
+    "accuracy": ("benchmarks.accuracy:main", "run time against error, with PyElastica"),
+    "stress": ("benchmarks.stress:main", "numerical stress test"),
+    "throughput": ("benchmarks.throughput:main", "throughput and scaling, with PyElastica"),
+    "train": ("policies.cli:bench_train_main", "time one training iteration (env step + updates)"),
+}
+
+
+def _usage() -> str:
+    lines = ["usage: rodlab COMMAND [options]   (rodlab COMMAND --help for details)", "", "commands:"]
+    for name, (_, doc) in COMMANDS.items():
+        lines.append(f"  {name:<11} {doc}")
+    lines.append("  bench KIND  benchmarks: " + ", ".join(BENCH))
+    return "\n".join(lines)
+
+
+def _call(target: str, argv: list[str]) -> int:
+    mod_name, fn_name = target.split(":")
+    try:
+        mod = importlib.import_module(mod_name)
+    except ModuleNotFoundError as exc:  # a command whose module is not built yet
+        print(f"rodlab: this command is not available ({exc})", file=sys.stderr)
+        return 2
+    rc = getattr(mod, fn_name)(argv)
+    return int(rc or 0)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print(_usage())
+        return 0
+    cmd, rest = argv[0], argv[1:]
+    if cmd == "bench":
+        if not rest or rest[0] not in BENCH:
+            print("usage: rodlab bench {" + ",".join(BENCH) + "} [options]", file=sys.stderr)
+            return 2
+        return _call(BENCH[rest[0]][0], rest[1:])
+    if cmd not in COMMANDS:
+        print(f"rodlab: unknown command {cmd!r}\n\n{_usage()}", file=sys.stderr)
+        return 2
+    return _call(COMMANDS[cmd][0], rest)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
