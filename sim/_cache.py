@@ -1,0 +1,60 @@
+"""Guard against stale numba caches.
+
+numba's ``cache=True`` only checks the source file of the cached function itself, so a change in a callee
+defined in another module (an energy, ``frames.py``, ``contact_kernels.py``) would leave the fused kernels in
+``solve.py`` stale. :func:`invalidate_if_sources_changed` hashes all kernel sources and, when the hash differs
+from the stamp written last time, deletes the cached ``*.nbi``/``*.nbc`` files of those modules.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+_HERE = Path(__file__).resolve().parent
+_SOURCES = ["frames.py", "banded.py", "solve.py", "contact_kernels.py", "geometry_distance.py", "energies/stretch.py",
+            "energies/bend_twist.py", "energies/planar.py"]
+
+
+def _cache_dirs() -> list[Path]:
+    dirs = [_HERE / "__pycache__", _HERE / "energies" / "__pycache__"]
+    env = os.environ.get("NUMBA_CACHE_DIR")
+    if env:
+        dirs.append(Path(env))
+    return dirs
+
+
+def invalidate_if_sources_changed() -> bool:
+    """Delete the numba cache files of the sim kernels if their sources changed. Returns True if it did."""
+    h = hashlib.sha256()
+    for rel in _SOURCES:
+        p = _HERE / rel
+        try:
+            h.update(rel.encode() + b"\0" + p.read_bytes())
+        except OSError:
+            h.update(rel.encode() + b"\0missing")
+    digest = h.hexdigest()
+    stamp = _HERE / "__pycache__" / "kernel_sources.sha256"
+    try:
+        if stamp.read_text().strip() == digest:
+            return False
+    except OSError:
+        pass
+    stems = {Path(r).stem for r in _SOURCES}
+    for d in _cache_dirs():
+        if not d.is_dir():
+            continue
+        for f in d.rglob("*"):
+            if f.suffix in (".nbi", ".nbc") and f.name.split(".")[0] in stems:
+                try:
+                    f.unlink()
+                except OSError:
+                    pass
+    try:
+        stamp.parent.mkdir(exist_ok=True)
+        tmp = stamp.with_suffix(f".tmp{os.getpid()}")
+        tmp.write_text(digest + "\n")
+        os.replace(tmp, stamp)
+    except OSError:
+        pass
+    return True

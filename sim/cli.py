@@ -1,0 +1,159 @@
+"""`rodlab sim` (simulate a scene headless) and `rodlab bench sim` (time one batched step)."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["sim_main", "bench_sim_main"]
+
+
+def _atomic_savez(path: str, **arrays) -> None:
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=p.name + ".", suffix=".tmp.npz", dir=str(p.parent))
+    os.close(fd)
+    try:
+        np.savez_compressed(tmp, **arrays)
+        os.replace(tmp, p)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def sim_main(argv: list[str] | None = None) -> int:
+    """rodlab sim SCENE.toml --duration T [--envs B] [--every K] [--out FILE.npz]"""
+    ap = argparse.ArgumentParser(prog="rodlab sim", description="Simulate a scene headless (rest controls).")
+    ap.add_argument("scene", help="scene TOML file")
+    ap.add_argument("--duration", type=float, required=True, help="simulated time [s]")
+    ap.add_argument("--envs", type=int, default=1, help="number of environments (default 1)")
+    ap.add_argument("--every", type=int, default=1, help="record every K-th step (default 1)")
+    ap.add_argument("--out", help="write time, node_pos, edge_theta, newton_iters, converged, max_penetration, "
+                                  "contact_count, contact_force (and per-contact rows) to this .npz")
+    a = ap.parse_args(argv)
+    from . import Simulator, build_model, load_scene
+    from .scene import SceneError
+    if a.envs < 1 or a.every < 1 or not a.duration > 0:
+        print("rodlab sim: --envs and --every must be >= 1 and --duration > 0", file=sys.stderr)
+        return 2
+    try:
+        spec = load_scene(a.scene)
+    except SceneError as exc:
+        print(f"rodlab sim: {exc}", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    model = build_model(spec)
+    sim = Simulator(model, envs=a.envs)
+    state = sim.reset()
+    ctrl = sim.make_control()
+    sim.step(state.copy(), ctrl)  # compile / load kernels outside the timing
+    t_ready = time.perf_counter() - t0
+    n = max(1, int(round(a.duration / model.dt)))
+    frames: dict[str, list] = {"time": [], "node_pos": [], "edge_theta": [], "newton_iters": [], "converged": [],
+                               "max_penetration": [], "contact_count": [], "contact_force": []}
+    crow = ("contact_edge", "contact_obstacle", "contact_rod_point", "contact_normal", "contact_normal_force",
+            "contact_friction_force", "contact_gap") if sim.obstacles.count else ()
+    for name in crow:
+        frames[name] = []
+    iters = []
+    t1 = time.perf_counter()
+    for k in range(1, n + 1):
+        st = sim.step(state, ctrl)
+        iters.append(st.newton_iters.copy())
+        if k % a.every == 0 or k == n:
+            frames["time"].append(k * model.dt)
+            frames["node_pos"].append(state.node_pos.copy())
+            frames["edge_theta"].append(np.array(state.edge_theta))
+            frames["newton_iters"].append(st.newton_iters.copy())
+            frames["converged"].append(st.converged.copy())
+            # contact (sim/contact_kernels.py): max penetration (B,) [m], count (B,), total force on the rod (B, 3)
+            # [N] = sum of normal_force * normal + friction over the reported rows; per-row arrays (B, C, ...)
+            frames["max_penetration"].append(st.max_penetration.copy())
+            frames["contact_count"].append(st.contact_count.copy())
+            frames["contact_force"].append((st.contact_normal_force[..., None] * st.contact_normal
+                                            + st.contact_friction_force).sum(axis=1))
+            for name in crow:
+                frames[name].append(getattr(st, name).copy())
+    wall = time.perf_counter() - t1
+    if a.out:
+        _atomic_savez(a.out, **{k: np.asarray(v) for k, v in frames.items()})
+        print(f"rodlab sim: wrote {len(frames['time'])} frames to {a.out}")
+    tip = state.node_pos[:, -1]
+    it = np.asarray(iters)
+    print(f"scene {a.scene}: {n} steps of {model.dt:g} s, {a.envs} env(s), mode {model.mode}")
+    print(f"tip position env 0 [m]: {np.array2string(tip[0], precision=5)}")
+    print(f"newton iterations per step: mean {it.mean():.2f}, max {it.max()}; failed envs: {int(state.failed.sum())}")
+    print(f"time per step: {wall / n * 1e3:.3f} ms (kernels ready in {t_ready:.2f} s)")
+    return 0
+
+
+def bench_sim_main(argv: list[str] | None = None) -> int:
+    """rodlab bench sim [--scene S] [--envs B] [--steps n] [--repeats r] [--json] [--out FILE]"""
+    ap = argparse.ArgumentParser(prog="rodlab bench sim", description="Median time of one batched sim step.")
+    ap.add_argument("--scene", default=str(Path(__file__).resolve().parents[1] / "assets" / "scenes" / "arm.toml"))
+    ap.add_argument("--envs", type=int, default=500)
+    ap.add_argument("--steps", type=int, default=20, help="timed steps per repeat")
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--control-interval", type=int, default=2, help="sim steps per control step (default 2)")
+    ap.add_argument("--json", action="store_true", help="print one JSON object")
+    ap.add_argument("--out", help="also write the JSON to this file")
+    a = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    from . import Simulator, build_model, load_scene
+    from .warmup import warmup
+    compile_s = warmup()
+    import_and_compile_s = time.perf_counter() - t0
+    model = build_model(load_scene(a.scene))
+    sim = Simulator(model, envs=a.envs)
+    state = sim.reset()
+    ctrl = sim.make_control()
+    rng = np.random.default_rng(0)
+    rate = 0.01 * rng.uniform(-1, 1, size=(a.envs, 1, 2))
+    for _ in range(3):
+        sim.step(state, ctrl)
+    per_step, per_ctrl, cpu = [], [], []
+    for _ in range(a.repeats):
+        for _ in range(a.steps):
+            ctrl.kappa_bar[:, 1:-1, :] += rate / a.control_interval
+            c0 = time.process_time()
+            s0 = time.perf_counter()
+            sim.step(state, ctrl)
+            per_step.append(time.perf_counter() - s0)
+            cpu.append(time.process_time() - c0)
+        for _ in range(max(1, a.steps // a.control_interval)):
+            s0 = time.perf_counter()
+            for _ in range(a.control_interval):
+                ctrl.kappa_bar[:, 1:-1, :] += rate / a.control_interval
+                sim.step(state, ctrl)
+            per_ctrl.append(time.perf_counter() - s0)
+    import numba
+    res = {
+        "scene": a.scene, "envs": a.envs, "nodes": model.node_count, "mode": model.mode,
+        "newton_max_iter": model.newton_max_iter, "threads": numba.get_num_threads(),
+        "ms_per_step_median": 1e3 * statistics.median(per_step),
+        "ms_per_step_min": 1e3 * min(per_step),
+        "cpu_ms_per_step_median": 1e3 * statistics.median(cpu),
+        "ms_per_control_step_median": 1e3 * statistics.median(per_ctrl),
+        "control_interval": a.control_interval,
+        "compile_s": compile_s, "import_and_compile_s": import_and_compile_s,
+        "failed_envs": int(state.failed.sum()),
+    }
+    text = json.dumps(res, indent=None if a.json else 2)
+    if a.out:
+        Path(a.out).write_text(json.dumps(res, indent=2) + "\n")
+    if a.json:
+        print(text)
+    else:
+        print(f"{a.envs} envs x {model.node_count} nodes ({model.mode}), {res['threads']} threads: "
+              f"{res['ms_per_step_median']:.2f} ms per sim step (median; min {res['ms_per_step_min']:.2f}), "
+              f"{res['ms_per_control_step_median']:.2f} ms per {a.control_interval}-step control step; "
+              f"kernels ready in {compile_s:.2f} s")
+    return 0

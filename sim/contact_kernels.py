@@ -1,0 +1,520 @@
+"""IMC contact and friction kernels (numba), called per env from ``sim.solve`` (physics.md §4).
+
+Model: every rod edge is a capsule of the rod radius ``r``. For each (edge, obstacle) candidate the
+gap is ``g = Delta - r - R`` (``Delta`` the exact centre-line distance, ``R`` the obstacle radius for
+spheres/capsules, 0 for boxes and meshes); planes act per node with ``g = n.(x_k - p) - r``. Energy
+``E(g) = k softplus(-K1 g)^2 / K1^2`` (K1 = 15/delta, one stable formula); gradient ``E' grad Delta``,
+Hessian ``E'' grad Delta grad Delta^T + E' hess Delta`` over the edge's two nodes (6 DOFs).
+
+Ownership (physics.md §4.7 artefact 1): a pair whose closest rod point is the edge's end node is left
+to the next edge; a pair at the start node is skipped when the previous edge of the same obstacle is
+strictly closer. So each local minimum of the distance along the rod is counted once.
+
+Friction (§4.6 "rod vs rigid obstacle", [REC]): smooth Coulomb with lagged ``n`` and ``s`` (no
+derivatives through them), skipped when ``friction_on`` is False (Newton iteration 0).
+
+``cd`` is the tuple built by :meth:`sim.obstacles.ObstacleSet.kernel_data`:
+``(kind (M,), p0 (B,M,3), p1 (B,M,3), rot (B,M,3,3), radius (B,M), half (M,3), mesh_root (M,),
+tri (T,3,3), node_lo (K,3), node_hi (K,3), node_child (K,2), node_range (K,2), cand (B,C,2) int64,
+cand_count (B,), params (4,) [rod_radius, ...], active (B,M) bool, box (B,M,2,3) world AABBs,
+iter_flag (B,) int64 (0 right after the broad phase: friction is skipped on that first Newton iteration),
+scratch_f (B,128), scratch_m (B,2,6,6), scratch_i (B,128) int64 per-env work space (no allocation in the kernels))``.
+Kinds: 0 plane (p0 point, p1 unit normal), 1 sphere (p0 centre), 2 capsule (p0, p1 axis ends),
+3 box (p0 centre, rot, half), 4 mesh (p0, rot, mesh_root = BVH root node).
+Shapes: ``x``, ``x_prev``, ``x_start``, ``x_guess`` (N, >=3) [m]; ``grad`` (N, 3); ``hess`` (N-1, 6, 6)
+(edge j's block over (x_j, x_{j+1}); row = residual component, may be non-symmetric).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .geometry_distance import (
+    closest_seg_box,
+    closest_seg_point,
+    closest_seg_seg,
+    closest_seg_triangle,
+    dist_derivs,
+    vdot,
+    vlerp,
+    vsub,
+)
+
+__all__ = ["contact_broadphase", "contact_accumulate", "contact_report", "imc_energy", "friction_block",
+           "PLANE", "SPHERE", "CAPSULE", "BOX", "MESH"]
+
+PLANE = 0
+SPHERE = 1
+CAPSULE = 2
+BOX = 3
+MESH = 4
+
+
+@njit(cache=True)
+def imc_energy(g, k, delta):
+    """IMC squared-softplus energy of gap g [m]: returns (E [J], dE/dg [N], d2E/dg2 [N/m])."""
+    K1 = 15.0 / delta
+    s = -K1 * g
+    L = max(s, 0.0) + math.log1p(math.exp(-abs(s)))
+    if s >= 0.0:
+        sig = 1.0 / (1.0 + math.exp(-s))
+    else:
+        ex = math.exp(s)
+        sig = ex / (1.0 + ex)
+    return k * L * L / (K1 * K1), -2.0 * k * L * sig / K1, 2.0 * k * (sig * sig + L * sig * (1.0 - sig))
+
+
+@njit(cache=True)
+def friction_block(va, vb, s, n, lam, d2E, mu, nu, dt, fr, J):
+    """Smooth Coulomb friction of one contact on edge nodes (a, b), weights (1-s, s).
+
+    ``va``, ``vb`` node velocities [m/s] (obstacles are static), ``n`` unit normal (lagged), ``lam`` =
+    -E'(g) >= 0 normal force [N], ``d2E`` = E''(g). Writes the residual ``fr`` (6,) (= minus the friction
+    force on the nodes) and its Jacobian ``J`` (6, 6) w.r.t. the node positions (through the velocity
+    (x - x_prev)/dt and through lam; n and s held fixed). Returns the total friction force on the rod
+    as a tuple [N].
+    """
+    fr[:] = 0.0
+    J[:, :] = 0.0
+    w0 = 1.0 - s
+    w1 = s
+    vc = (w0 * va[0] + w1 * vb[0], w0 * va[1] + w1 * vb[1], w0 * va[2] + w1 * vb[2])
+    vn = vdot(vc, n)
+    vt = (vc[0] - vn * n[0], vc[1] - vn * n[1], vc[2] - vn * n[2])
+    vtn = math.sqrt(vdot(vt, vt))
+    if vtn <= 1e-15 or lam <= 0.0 or mu <= 0.0:
+        return (0.0, 0.0, 0.0)
+    t = (vt[0] / vtn, vt[1] / vtn, vt[2] / vtn)
+    if vtn > nu:
+        gam = 1.0
+        dgam = 0.0
+    else:
+        K2 = 15.0 / nu
+        gam = 2.0 / (1.0 + math.exp(-K2 * vtn)) - 1.0
+        dgam = 0.5 * K2 * (1.0 - gam * gam)
+    w = (w0, w1)
+    c = mu * lam * gam
+    for kk in range(2):
+        for i in range(3):
+            fr[3 * kk + i] = c * w[kk] * t[i]
+    # (mu lam / dt) [dgam t t^T + gam/|vt| (P - t t^T)] w_k w_l  -  mu E'' gam w_k w_l t n^T
+    a1 = mu * lam / dt
+    for i in range(3):
+        for j in range(3):
+            P = (1.0 if i == j else 0.0) - n[i] * n[j]
+            blk = a1 * (dgam * t[i] * t[j] + gam / vtn * (P - t[i] * t[j])) - mu * d2E * gam * t[i] * n[j]
+            for kk in range(2):
+                for ll in range(2):
+                    J[3 * kk + i, 3 * ll + j] = blk * w[kk] * w[ll]
+    return (-c * t[0], -c * t[1], -c * t[2])
+
+
+@njit(cache=True)
+def _to_local(p, R, x):
+    d = (x[0] - p[0], x[1] - p[1], x[2] - p[2])
+    return (R[0, 0] * d[0] + R[1, 0] * d[1] + R[2, 0] * d[2],
+            R[0, 1] * d[0] + R[1, 1] * d[1] + R[2, 1] * d[2],
+            R[0, 2] * d[0] + R[1, 2] * d[1] + R[2, 2] * d[2])
+
+
+@njit(cache=True)
+def _rot(R, v):
+    return (R[0, 0] * v[0] + R[0, 1] * v[1] + R[0, 2] * v[2],
+            R[1, 0] * v[0] + R[1, 1] * v[1] + R[1, 2] * v[2],
+            R[2, 0] * v[0] + R[2, 1] * v[1] + R[2, 2] * v[2])
+
+
+@njit(cache=True, inline="always")
+def _box_lb2(lo0, lo1, lo2, hi0, hi1, hi2, slo, shi):
+    """Squared distance between the box [lo, hi] and the box [slo, shi] (0 if they overlap)."""
+    d0 = max(0.0, lo0 - shi[0], slo[0] - hi0)
+    d1 = max(0.0, lo1 - shi[1], slo[1] - hi1)
+    d2 = max(0.0, lo2 - shi[2], slo[2] - hi2)
+    return d0 * d0 + d1 * d1 + d2 * d2
+
+
+@njit(cache=True)
+def _mesh_closest(al, bl, root, nlo, nhi, nch, nrg, tri, reach, stack):
+    """Closest triangle of a mesh BVH to segment (al, bl) (local frame) within ``reach``.
+
+    Nearest-first traversal: a node is skipped when the distance between its box and the segment's box
+    exceeds the best distance found so far (or ``reach``), so the cost follows the triangles near the
+    segment. Returns ``(dist, s, nfree, q, d1, d2, nrm)``; dist = inf when nothing is within reach.
+    """
+    z = (0.0, 0.0, 0.0)
+    slo = (min(al[0], bl[0]), min(al[1], bl[1]), min(al[2], bl[2]))
+    shi = (max(al[0], bl[0]), max(al[1], bl[1]), max(al[2], bl[2]))
+    best = reach
+    found = False
+    bs = 0.0
+    bnf = 0
+    bq = z
+    bd1 = z
+    bd2 = z
+    bn = z
+    stack[0] = root
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        nd = stack[sp]
+        if _box_lb2(nlo[nd, 0], nlo[nd, 1], nlo[nd, 2], nhi[nd, 0], nhi[nd, 1], nhi[nd, 2], slo, shi) > best * best:
+            continue
+        if nch[nd, 0] < 0:
+            st = nrg[nd, 0]
+            for t in range(st, st + nrg[nd, 1]):
+                v0 = (tri[t, 0, 0], tri[t, 0, 1], tri[t, 0, 2])
+                v1 = (tri[t, 1, 0], tri[t, 1, 1], tri[t, 1, 2])
+                v2 = (tri[t, 2, 0], tri[t, 2, 1], tri[t, 2, 2])
+                if _box_lb2(min(v0[0], v1[0], v2[0]), min(v0[1], v1[1], v2[1]), min(v0[2], v1[2], v2[2]),
+                            max(v0[0], v1[0], v2[0]), max(v0[1], v1[1], v2[1]), max(v0[2], v1[2], v2[2]),
+                            slo, shi) > best * best:
+                    continue
+                d, s, nf, q, d1, d2, nr = closest_seg_triangle(al, bl, v0, v1, v2)
+                if d < best or (d <= best and not found):
+                    best = d
+                    found = True
+                    bs = s
+                    bnf = nf
+                    bq = q
+                    bd1 = d1
+                    bd2 = d2
+                    bn = nr
+        elif sp + 2 <= stack.shape[0]:
+            c0 = nch[nd, 0]
+            c1 = nch[nd, 1]
+            l0 = _box_lb2(nlo[c0, 0], nlo[c0, 1], nlo[c0, 2], nhi[c0, 0], nhi[c0, 1], nhi[c0, 2], slo, shi)
+            l1 = _box_lb2(nlo[c1, 0], nlo[c1, 1], nlo[c1, 2], nhi[c1, 0], nhi[c1, 1], nhi[c1, 2], slo, shi)
+            if l0 <= l1:  # push the farther child first: the nearer one is visited next
+                stack[sp] = c1
+                stack[sp + 1] = c0
+            else:
+                stack[sp] = c0
+                stack[sp + 1] = c1
+            sp += 2
+    if not found:
+        return np.inf, bs, bnf, bq, bd1, bd2, bn
+    return best, bs, bnf, bq, bd1, bd2, bn
+
+
+@njit(cache=True)
+def _eval_edge(cd, e, o, a, b, r, reach, g6, H6, nhat, ws, stack, derivs=True):
+    """Gap [m], closest rod parameter s and obstacle point of edge (a, b) vs obstacle o (not a plane).
+
+    Fills g6/H6/nhat (derivatives of Delta, if ``derivs``) when the gap is < reach - r; returns
+    gap = inf otherwise.
+    """
+    (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
+     scm, sci) = cd
+    z = (0.0, 0.0, 0.0)
+    k = kind[o]
+    P = (p0[e, o, 0], p0[e, o, 1], p0[e, o, 2])
+    R = rad[e, o]
+    if k == SPHERE:
+        s = closest_seg_point(a, b, P)
+        x = vlerp(a, b, s)
+        dd = math.sqrt(vdot(vsub(x, P), vsub(x, P)))
+        if dd - r - R >= reach - r:
+            return np.inf, s, P
+        if not derivs:
+            return dd - r - R, s, P
+        d = dist_derivs(a, b, s, P, 0, z, z, z, g6, H6, nhat, ws)
+        return d - r - R, s, P
+    if k == CAPSULE:
+        Q = (p1[e, o, 0], p1[e, o, 1], p1[e, o, 2])
+        s, u = closest_seg_seg(a, b, P, Q)
+        x = vlerp(a, b, s)
+        y = vlerp(P, Q, u)
+        dd = math.sqrt(vdot(vsub(x, y), vsub(x, y)))
+        if dd - r - R >= reach - r:
+            return np.inf, s, y
+        if not derivs:
+            return dd - r - R, s, y
+        nf = 1 if (u > 1e-12 and u < 1.0 - 1e-12) else 0
+        d = dist_derivs(a, b, s, y, nf, vsub(Q, P), z, z, g6, H6, nhat, ws)
+        return d - r - R, s, y
+    Rm = rot[e, o]
+    al = _to_local(P, Rm, a)
+    bl = _to_local(P, Rm, b)
+    if k == BOX:
+        h = (half[o, 0], half[o, 1], half[o, 2])
+        sd, s, mask, ql, nl = closest_seg_box(al, bl, h, ws)
+        q = _rot(Rm, ql)
+        q = (q[0] + P[0], q[1] + P[1], q[2] + P[2])
+        if sd - r >= reach - r:
+            return np.inf, s, q
+        if not derivs:
+            return sd - r, s, q
+        if mask < 0:  # centre line inside the box: Gauss-Newton normal, no curvature term
+            n = _rot(Rm, nl)
+            for i in range(3):
+                nhat[i] = n[i]
+                g6[i] = (1.0 - s) * n[i]
+                g6[3 + i] = s * n[i]
+            H6[:, :] = 0.0
+            return sd - r, s, q
+        nf = 0
+        d1 = z
+        d2 = z
+        for i in range(3):
+            if mask & (1 << i):
+                col = (Rm[0, i], Rm[1, i], Rm[2, i])
+                if nf == 0:
+                    d1 = col
+                else:
+                    d2 = col
+                nf += 1
+        d = dist_derivs(a, b, s, q, nf, d1, d2, z, g6, H6, nhat, ws)
+        return d - r, s, q
+    if k == MESH:
+        dl, s, nf, ql, d1l, d2l, nl = _mesh_closest(al, bl, mroot[o], nlo, nhi, nch, nrg, tri, reach, stack)
+        if dl == np.inf:
+            return np.inf, s, z
+        q = _rot(Rm, ql)
+        q = (q[0] + P[0], q[1] + P[1], q[2] + P[2])
+        if not derivs:
+            return dl - r, s, q
+        d = dist_derivs(a, b, s, q, nf, _rot(Rm, d1l), _rot(Rm, d2l), _rot(Rm, nl), g6, H6, nhat, ws)
+        return d - r, s, q
+    return np.inf, 0.0, z
+
+
+@njit(cache=True)
+def _row3(x, k):
+    return (x[k, 0], x[k, 1], x[k, 2])
+
+
+@njit(cache=True)
+def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemble, grad, hess, report,
+                  out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
+                  out_normal_force, out_friction_force, out_gap, out_max_penetration):
+    (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
+     scm, sci) = cd
+    ws = scf[e, 0:64]
+    g6 = scf[e, 64:70]
+    nhat = scf[e, 70:73]
+    fr = scf[e, 73:79]
+    H6 = scm[e, 0]
+    Jf = scm[e, 1]
+    stack = sci[e]
+    N = x.shape[0]
+    nc = ccount[e]
+    energy = 0.0
+    rc = 0
+    cap = out_gap.shape[1] if report else 0
+    maxpen = 0.0
+    prev_j = -2
+    prev_o = -1
+    prev_gap = np.inf
+    do_fric = friction_on and mu > 0.0
+    for c in range(nc):
+        j = cand[e, c, 0]
+        o = cand[e, c, 1]
+        if kind[o] == PLANE:
+            xk = _row3(x, j)
+            n = (p1[e, o, 0], p1[e, o, 1], p1[e, o, 2])
+            gap = n[0] * (xk[0] - p0[e, o, 0]) + n[1] * (xk[1] - p0[e, o, 1]) + n[2] * (xk[2] - p0[e, o, 2]) - r
+            if gap >= delta:
+                continue
+            E, dE, d2E = imc_energy(gap, k, delta)
+            energy += E
+            blk = j if j < N - 1 else N - 2
+            sl = 3 * (j - blk)
+            ff = (0.0, 0.0, 0.0)
+            if do_fric:
+                xp = _row3(x_prev, j)
+                v = ((xk[0] - xp[0]) / dt, (xk[1] - xp[1]) / dt, (xk[2] - xp[2]) / dt)
+                ff = friction_block(v, v, 0.0, n, -dE, d2E, mu, nu, dt, fr, Jf)
+            if assemble:
+                for i in range(3):
+                    grad[j, i] += dE * n[i]
+                    for m in range(3):
+                        hess[blk, sl + i, sl + m] += d2E * n[i] * n[m]
+                if do_fric:
+                    for i in range(3):
+                        grad[j, i] += fr[i]
+                        for m in range(3):
+                            hess[blk, sl + i, sl + m] += Jf[i, m]
+            if report:
+                maxpen = max(maxpen, -gap)
+                if rc < cap:
+                    out_edge[e, rc] = j
+                    out_obstacle[e, rc] = o
+                    for i in range(3):
+                        out_rod_point[e, rc, i] = xk[i]
+                        out_obstacle_point[e, rc, i] = xk[i] - (gap + r) * n[i]
+                        out_normal[e, rc, i] = n[i]
+                        out_friction_force[e, rc, i] = ff[i]
+                    out_normal_force[e, rc] = -dE
+                    out_gap[e, rc] = gap
+                    rc += 1
+            continue
+        a = _row3(x, j)
+        b = _row3(x, j + 1)
+        gap, s, q = _eval_edge(cd, e, o, a, b, r, r + delta, g6, H6, nhat, ws, stack)
+        keep = gap < delta
+        if keep and s >= 1.0 and j < N - 2 and c + 1 < nc and cand[e, c + 1, 0] == j + 1 \
+                and cand[e, c + 1, 1] == o:
+            keep = False  # the next edge owns its start node
+        if keep and s <= 0.0 and prev_j == j - 1 and prev_o == o and prev_gap < gap - 1e-10:
+            keep = False  # the previous edge holds a strictly closer point: node j is no local minimum
+        prev_j = j
+        prev_o = o
+        prev_gap = gap
+        if not keep:
+            continue
+        E, dE, d2E = imc_energy(gap, k, delta)
+        energy += E
+        n = (nhat[0], nhat[1], nhat[2])
+        ff = (0.0, 0.0, 0.0)
+        if do_fric:
+            xa0 = _row3(x_prev, j)
+            xb0 = _row3(x_prev, j + 1)
+            va = ((a[0] - xa0[0]) / dt, (a[1] - xa0[1]) / dt, (a[2] - xa0[2]) / dt)
+            vb = ((b[0] - xb0[0]) / dt, (b[1] - xb0[1]) / dt, (b[2] - xb0[2]) / dt)
+            ff = friction_block(va, vb, s, n, -dE, d2E, mu, nu, dt, fr, Jf)
+        if assemble:
+            for i in range(3):
+                grad[j, i] += dE * g6[i]
+                grad[j + 1, i] += dE * g6[3 + i]
+            for i in range(6):
+                for m in range(6):
+                    hess[j, i, m] += d2E * g6[i] * g6[m] + dE * H6[i, m]
+            if do_fric:
+                for i in range(3):
+                    grad[j, i] += fr[i]
+                    grad[j + 1, i] += fr[3 + i]
+                for i in range(6):
+                    for m in range(6):
+                        hess[j, i, m] += Jf[i, m]
+        if report:
+            maxpen = max(maxpen, -gap)
+            if rc < cap:
+                xr = vlerp(a, b, s)
+                out_edge[e, rc] = j
+                out_obstacle[e, rc] = o
+                for i in range(3):
+                    out_rod_point[e, rc, i] = xr[i]
+                    out_obstacle_point[e, rc, i] = q[i]
+                    out_normal[e, rc, i] = n[i]
+                    out_friction_force[e, rc, i] = ff[i]
+                out_normal_force[e, rc] = -dE
+                out_gap[e, rc] = gap
+                rc += 1
+    if report:
+        out_count[e] = rc
+        out_max_penetration[e] = maxpen
+    return energy
+
+
+@njit(cache=True)
+def _plane_gap(cd, e, o, xx, kk):
+    p0 = cd[1]
+    p1 = cd[2]
+    return (p1[e, o, 0] * (xx[kk, 0] - p0[e, o, 0]) + p1[e, o, 1] * (xx[kk, 1] - p0[e, o, 1])
+            + p1[e, o, 2] * (xx[kk, 2] - p0[e, o, 2]))
+
+
+@njit(cache=True)
+def contact_broadphase(e, cd, x_start, x_guess, margin):
+    """Fill env ``e``'s candidate list: pairs whose gap may fall below ``margin`` [m] anywhere on the straight
+    path from ``x_start`` to ``x_guess`` (one test at the midway configuration, inflated by half the motion). Pass as ``x_guess`` the predicted end of the (sub)step ``x0 + h u`` so that the list covers
+    the motion of the step (the Newton guess x0 + 0.01 h u also works for slow motion).
+
+    Candidates are (edge j, obstacle o) for non-plane obstacles and (node k, plane o), stored
+    obstacle-major with increasing j (the ownership rule relies on that order). Returns the count.
+    """
+    (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
+     scm, sci) = cd
+    r = params[0]
+    N = x_start.shape[0]
+    M = kind.shape[0]
+    cap = cand.shape[1]
+    ws = scf[e, 0:64]
+    g6 = scf[e, 64:70]
+    nhat = scf[e, 70:73]
+    H6 = scm[e, 0]
+    stack = sci[e]
+    infl = r + margin
+    # rod AABB over both configurations
+    lo0 = min(x_start[:, 0].min(), x_guess[:, 0].min())
+    lo1 = min(x_start[:, 1].min(), x_guess[:, 1].min())
+    lo2 = min(x_start[:, 2].min(), x_guess[:, 2].min())
+    hi0 = max(x_start[:, 0].max(), x_guess[:, 0].max())
+    hi1 = max(x_start[:, 1].max(), x_guess[:, 1].max())
+    hi2 = max(x_start[:, 2].max(), x_guess[:, 2].max())
+    cnt = 0
+    for o in range(M):
+        if not active[e, o]:
+            continue
+        if (obox[e, o, 0, 0] > hi0 + infl or obox[e, o, 1, 0] < lo0 - infl or obox[e, o, 0, 1] > hi1 + infl
+                or obox[e, o, 1, 1] < lo1 - infl or obox[e, o, 0, 2] > hi2 + infl
+                or obox[e, o, 1, 2] < lo2 - infl):
+            continue
+        kd = kind[o]
+        if kd == PLANE:
+            for kk in range(N):
+                best = min(_plane_gap(cd, e, o, x_start, kk), _plane_gap(cd, e, o, x_guess, kk)) - r
+                if best < margin and cnt < cap:
+                    cand[e, cnt, 0] = kk
+                    cand[e, cnt, 1] = o
+                    cnt += 1
+            continue
+        for j in range(N - 1):
+            # edge AABB (both configurations) against the obstacle AABB
+            elo0 = min(x_start[j, 0], x_start[j + 1, 0], x_guess[j, 0], x_guess[j + 1, 0]) - infl
+            ehi0 = max(x_start[j, 0], x_start[j + 1, 0], x_guess[j, 0], x_guess[j + 1, 0]) + infl
+            elo1 = min(x_start[j, 1], x_start[j + 1, 1], x_guess[j, 1], x_guess[j + 1, 1]) - infl
+            ehi1 = max(x_start[j, 1], x_start[j + 1, 1], x_guess[j, 1], x_guess[j + 1, 1]) + infl
+            elo2 = min(x_start[j, 2], x_start[j + 1, 2], x_guess[j, 2], x_guess[j + 1, 2]) - infl
+            ehi2 = max(x_start[j, 2], x_start[j + 1, 2], x_guess[j, 2], x_guess[j + 1, 2]) + infl
+            if (obox[e, o, 0, 0] > ehi0 or obox[e, o, 1, 0] < elo0 or obox[e, o, 0, 1] > ehi1
+                    or obox[e, o, 1, 1] < elo1 or obox[e, o, 0, 2] > ehi2 or obox[e, o, 1, 2] < elo2):
+                continue
+            # midway configuration; every configuration on the straight path start -> predicted end is
+            # within dmax (half the larger node motion) of it, and the gap is 1-Lipschitz in node motion
+            a = vlerp(_row3(x_start, j), _row3(x_guess, j), 0.5)
+            b = vlerp(_row3(x_start, j + 1), _row3(x_guess, j + 1), 0.5)
+            da = vsub(_row3(x_guess, j), _row3(x_start, j))
+            db = vsub(_row3(x_guess, j + 1), _row3(x_start, j + 1))
+            dmax = 0.5 * math.sqrt(max(vdot(da, da), vdot(db, db)))
+            gap, s, q = _eval_edge(cd, e, o, a, b, r, r + margin + dmax, g6, H6, nhat, ws, stack, False)
+            hit = gap < margin + dmax
+            if hit and cnt < cap:
+                cand[e, cnt, 0] = j
+                cand[e, cnt, 1] = o
+                cnt += 1
+    ccount[e] = cnt
+    cd[17][e] = 0  # next accumulate = Newton iteration 0 of this (sub)step: no friction
+    return cnt
+
+
+@njit(cache=True)
+def contact_accumulate(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, friction_on, grad, hess):
+    """Add the contact (+ friction) residual into ``grad`` (N, 3) [N] and Jacobian blocks into ``hess``
+    (N-1, 6, 6) [N/m] for env ``e``'s candidates at positions ``x``; return the contact energy [J].
+
+    Friction (if ``friction_on``) is skipped on the first call after ``contact_broadphase`` (Newton
+    iteration 0 of the (sub)step, physics.md §4.6)."""
+    fr_on = friction_on and cd[17][e] > 0
+    cd[17][e] = 1
+    return _contact_pass(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, fr_on, True, grad, hess,
+                         False, cd[20][e, :0], cd[12][e, :0], cd[12][e, :0], cd[19][e, :0, :, :3],
+                         cd[19][e, :0, :, :3], cd[19][e, :0, :, :3], cd[18][e:e, :0], cd[19][e, :0, :, :3],
+                         cd[18][e:e, :0], cd[18][e, :0])
+
+
+@njit(cache=True)
+def contact_report(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, friction_on,
+                   out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
+                   out_normal_force, out_friction_force, out_gap, out_max_penetration):
+    """Fill env ``e``'s StepStats contact rows (up to capacity C) and max penetration [m]; return energy [J].
+
+    Rows: edge (node for planes), obstacle, rod point, obstacle point [m], unit normal (obstacle -> rod),
+    normal force magnitude [N], friction force on the rod [N] (3,), gap [m]. Velocities (x - x_prev)/dt.
+    """
+    return _contact_pass(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, friction_on, False, cd[18][e:e, :3], cd[19][e, :0],
+                         True,
+                         out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
+                         out_normal_force, out_friction_force, out_gap, out_max_penetration)

@@ -1,0 +1,233 @@
+"""Bending and twisting of one interior node of a 3-D rod (physics.md §2.2, §2.3).
+
+E_b = 1/(2 l_i) [EI1 (κ1 − κ̄1)² + EI2 (κ2 − κ̄2)²],  E_t = GJ/(2 l_i) (τ − τ̄)², τ = θ_f − θ_e + β.
+Full-Newton symmetric Hessians (∇κ∇κᵀ + (κ − κ̄)∇²κ), exact at the frame-transport base (§2.4).
+Local 11-DOF order: [x_{i−1}(3), θ_e, x_i(3), θ_f, x_{i+1}(3)] = global DOFs 4(i−1) … 4(i−1)+10.
+Curvatures and twist are integrated (dimensionless / rad); EI [N·m²], GJ [N·m²], l_i [m].
+"""
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from sim.frames import add, axpy, cross, dot, norm, scale, sub
+
+__all__ = ["bend_twist_element", "material_curvatures"]
+
+_OPT = dict(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"})
+
+
+@njit(inline="always", **_OPT)
+def _skew_row(V, r, a, b):
+    """([v]×)_{ab} for v = V[r], with [v]× w = v × w."""
+    if a == b:
+        return 0.0
+    if a == 0:
+        return -V[r, 2] if b == 1 else V[r, 1]
+    if a == 1:
+        return V[r, 2] if b == 0 else -V[r, 0]
+    return -V[r, 1] if b == 0 else V[r, 0]
+
+
+@njit(**_OPT)
+def material_curvatures(xm, xi, xp, m1e, m2e, m1f, m2f):
+    """(κ1, κ2) of node i from positions and material directors (3-tuples)."""
+    e = sub(xi, xm)
+    f = sub(xp, xi)
+    te = scale(1.0 / norm(e), e)
+    tf = scale(1.0 / norm(f), f)
+    kb = scale(2.0 / (1.0 + dot(te, tf)), cross(te, tf))
+    return 0.5 * dot(kb, add(m2e, m2f)), -0.5 * dot(kb, add(m1e, m1f))
+
+
+@njit(**_OPT)
+def bend_twist_element(xm, xi, xp, d1e, d2e, d1f, d2f, the, thf, beta, kbar1, kbar2, taubar,
+                       EI1, EI2, GJ, lv, g, H, wk, with_hess):
+    """Energy, gradient and Hessian of bending + twisting at one interior node.
+
+    xm, xi, xp: node positions x_{i−1}, x_i, x_{i+1} (3-tuples, m); d1e, d2e, d1f, d2f: reference directors
+    of edges i−1 (e) and i (f); the, thf: twist angles [rad]; beta: reference twist [rad].
+    Writes g (11,), and H (11, 11) if with_hess; wk is (17, 11) scratch. Returns (E_bend, E_twist) [J].
+    """
+    e = sub(xi, xm)
+    f = sub(xp, xi)
+    ne = norm(e)
+    nf = norm(f)
+    te = scale(1.0 / ne, e)
+    tf = scale(1.0 / nf, f)
+    ce = math.cos(the)
+    se = math.sin(the)
+    cf = math.cos(thf)
+    sf = math.sin(thf)
+    m1e = axpy(ce, d1e, scale(se, d2e))
+    m2e = axpy(-se, d1e, scale(ce, d2e))
+    m1f = axpy(cf, d1f, scale(sf, d2f))
+    m2f = axpy(-sf, d1f, scale(cf, d2f))
+    chi = 1.0 + dot(te, tf)
+    ichi = 1.0 / chi
+    kb = scale(2.0 * ichi, cross(te, tf))
+    k1 = 0.5 * dot(kb, add(m2e, m2f))
+    k2 = -0.5 * dot(kb, add(m1e, m1f))
+    tau = thf - the + beta
+    tt = scale(ichi, add(te, tf))
+    mt1 = scale(ichi, add(m1e, m1f))
+    mt2 = scale(ichi, add(m2e, m2f))
+    a1v = cross(tf, mt2)   # a
+    b1v = cross(te, mt2)   # b
+    c2v = cross(tf, mt1)   # c
+    d2v = cross(te, mt1)   # d
+    ine = 1.0 / ne
+    inf = 1.0 / nf
+    Dk1e = scale(ine, axpy(-k1, tt, a1v))
+    Dk1f = scale(inf, axpy(-k1, tt, scale(-1.0, b1v)))
+    Dk2e = scale(ine, axpy(-k2, tt, scale(-1.0, c2v)))
+    Dk2f = scale(inf, axpy(-k2, tt, d2v))
+    Dte = scale(0.5 * ine, kb)
+    Dtf = scale(0.5 * inf, kb)
+    kbm1e = dot(kb, m1e)
+    kbm1f = dot(kb, m1f)
+    kbm2e = dot(kb, m2e)
+    kbm2f = dot(kb, m2f)
+    gk1 = wk[0]
+    gk2 = wk[1]
+    gt = wk[2]
+    for a in range(3):
+        gk1[a] = -Dk1e[a]
+        gk1[4 + a] = Dk1e[a] - Dk1f[a]
+        gk1[8 + a] = Dk1f[a]
+        gk2[a] = -Dk2e[a]
+        gk2[4 + a] = Dk2e[a] - Dk2f[a]
+        gk2[8 + a] = Dk2f[a]
+        gt[a] = -Dte[a]
+        gt[4 + a] = Dte[a] - Dtf[a]
+        gt[8 + a] = Dtf[a]
+    gk1[3] = -0.5 * kbm1e
+    gk1[7] = -0.5 * kbm1f
+    gk2[3] = -0.5 * kbm2e
+    gk2[7] = -0.5 * kbm2f
+    gt[3] = -1.0
+    gt[7] = 1.0
+    s1 = EI1 / lv
+    s2 = EI2 / lv
+    s3 = GJ / lv
+    dk1 = k1 - kbar1
+    dk2 = k2 - kbar2
+    dtw = tau - taubar
+    c1 = s1 * dk1
+    c2 = s2 * dk2
+    c3 = s3 * dtw
+    for p in range(11):
+        g[p] = c1 * gk1[p] + c2 * gk2[p] + c3 * gt[p]
+    if with_hess:
+        ie2 = ine * ine
+        if2 = inf * inf
+        ief = ine * inf
+        # copy the 3-vectors into rows of the scratch wk (indexing a tuple with a loop variable compiles to a
+        # switch in numba, which made this section ~5x slower)
+        V = wk[3:]
+        for a in range(3):
+            V[0, a] = tt[a]
+            V[1, a] = te[a]
+            V[2, a] = tf[a]
+            V[3, a] = kb[a]
+            V[4, a] = m1e[a]
+            V[5, a] = m2e[a]
+            V[6, a] = m1f[a]
+            V[7, a] = m2f[a]
+            V[8, a] = a1v[a]
+            V[9, a] = b1v[a]
+            V[10, a] = c2v[a]
+            V[11, a] = d2v[a]
+            V[12, a] = mt1[a]
+            V[13, a] = mt2[a]
+        for a in range(3):
+            for b in range(3):
+                tta, ttb = V[0, a], V[0, b]
+                tea, teb = V[1, a], V[1, b]
+                tfa, tfb = V[2, a], V[2, b]
+                kba, kbb = V[3, a], V[3, b]
+                ttab = tta * ttb
+                dab = 1.0 if a == b else 0.0
+                pe = dab - tea * teb
+                pf = dab - tfa * tfb
+                # κ1
+                k1ee = ((2.0 * k1 * ttab - (V[8, a] * ttb + tta * V[8, b])) - k1 * pe * ichi
+                        + 0.25 * (kba * V[5, b] + V[5, a] * kbb)) * ie2
+                k1ff = ((2.0 * k1 * ttab + (V[9, a] * ttb + tta * V[9, b])) - k1 * pf * ichi
+                        + 0.25 * (kba * V[7, b] + V[7, a] * kbb)) * if2
+                k1ef = (-k1 * (dab + tea * tfb) * ichi
+                        + 2.0 * k1 * ttab - V[8, a] * ttb + tta * V[9, b] - _skew_row(V, 13, a, b)) * ief
+                # κ2
+                k2ee = ((2.0 * k2 * ttab + (V[10, a] * ttb + tta * V[10, b])) - k2 * pe * ichi
+                        - 0.25 * (kba * V[4, b] + V[4, a] * kbb)) * ie2
+                k2ff = ((2.0 * k2 * ttab - (V[11, a] * ttb + tta * V[11, b])) - k2 * pf * ichi
+                        - 0.25 * (kba * V[6, b] + V[6, a] * kbb)) * if2
+                k2ef = (-k2 * (dab + tea * tfb) * ichi
+                        + 2.0 * k2 * ttab + V[10, a] * ttb - tta * V[11, b] + _skew_row(V, 12, a, b)) * ief
+                # τ
+                tee = -0.25 * (kba * (teb + ttb) + (tea + tta) * kbb) * ie2
+                tff = -0.25 * (kba * (tfb + ttb) + (tfa + tta) * kbb) * if2
+                tef = 0.5 * (2.0 * ichi * _skew_row(V, 1, a, b) - kba * ttb) * ief
+                Aee = c1 * k1ee + c2 * k2ee + c3 * tee
+                Aff = c1 * k1ff + c2 * k2ff + c3 * tff
+                Aef = c1 * k1ef + c2 * k2ef + c3 * tef
+                H[a, b] = Aee
+                H[a, 4 + b] = -Aee + Aef
+                H[a, 8 + b] = -Aef
+                H[4 + a, 8 + b] = Aef
+                H[4 + a, 4 + b] = Aee + Aff
+                H[8 + a, 8 + b] = Aff
+        # H[i,i] needs −Aef − Afe, H[i,i+1] needs −Aff: second pass using the (a, b) blocks above
+        for a in range(3):
+            for b in range(3):
+                aef_ab = H[4 + a, 8 + b]
+                aef_ba = H[4 + b, 8 + a]
+                H[4 + a, 4 + b] = H[4 + a, 4 + b] - aef_ab - aef_ba
+        for a in range(3):
+            for b in range(3):
+                H[4 + a, 8 + b] = H[4 + a, 8 + b] - H[8 + a, 8 + b]
+        # edge–θ columns
+        for gi in range(2):
+            col = 3 if gi == 0 else 7
+            kbm1g = kbm1e if gi == 0 else kbm1f
+            kbm2g = kbm2e if gi == 0 else kbm2f
+            r1 = 4 if gi == 0 else 6   # row of m1g in V
+            r2 = r1 + 1                # row of m2g
+            for a in range(3):
+                a1 = (a + 1) % 3
+                a2 = (a + 2) % 3
+                # (u × w)_a = u_{a1} w_{a2} − u_{a2} w_{a1}
+                tfm1 = V[2, a1] * V[r1, a2] - V[2, a2] * V[r1, a1]
+                tem1 = V[1, a1] * V[r1, a2] - V[1, a2] * V[r1, a1]
+                tfm2 = V[2, a1] * V[r2, a2] - V[2, a2] * V[r2, a1]
+                tem2 = V[1, a1] * V[r2, a2] - V[1, a2] * V[r2, a1]
+                tta = V[0, a]
+                ve = (c1 * (0.5 * kbm1g * tta - tfm1 * ichi) + c2 * (0.5 * kbm2g * tta - tfm2 * ichi)) * ine
+                vf = (c1 * (0.5 * kbm1g * tta + tem1 * ichi) + c2 * (0.5 * kbm2g * tta + tem2 * ichi)) * inf
+                H[a, col] = -ve
+                H[col, a] = -ve
+                H[4 + a, col] = ve - vf
+                H[col, 4 + a] = ve - vf
+                H[8 + a, col] = vf
+                H[col, 8 + a] = vf
+        H[3, 3] = c1 * (-0.5 * kbm2e) + c2 * (0.5 * kbm1e)
+        H[7, 7] = c1 * (-0.5 * kbm2f) + c2 * (0.5 * kbm1f)
+        H[3, 7] = 0.0
+        H[7, 3] = 0.0
+        # mirror the upper off-diagonal node blocks (0,4), (0,8), (4,8) to the lower ones
+        for a in range(3):
+            for b in range(3):
+                H[4 + b, a] = H[a, 4 + b]
+                H[8 + b, a] = H[a, 8 + b]
+                H[8 + b, 4 + a] = H[4 + a, 8 + b]
+        for p in range(11):
+            u1 = s1 * gk1[p]
+            u2 = s2 * gk2[p]
+            u3 = s3 * gt[p]
+            for q in range(p, 11):
+                H[p, q] += u1 * gk1[q] + u2 * gk2[q] + u3 * gt[q]
+        for p in range(11):
+            for q in range(p + 1, 11):
+                H[q, p] = H[p, q]
+    return 0.5 * (s1 * dk1 * dk1 + s2 * dk2 * dk2), 0.5 * s3 * dtw * dtw

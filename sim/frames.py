@@ -1,0 +1,147 @@
+"""Frames of the discrete rod (physics.md §1.3): parallel transport, reference/material frames, reference twist.
+
+Small vectors are passed as 3-tuples of floats (stack values inside numba). Array functions work on one
+environment: ``x`` node positions (N, 3) [m], per-edge arrays (N-1, 3), per-node arrays (N,).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["cross", "dot", "transport", "rotate_about", "signed_angle", "initial_reference_frames",
+           "update_frames", "reference_twist"]
+
+_OPT = dict(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"})
+
+
+@njit(inline="always", **_OPT)
+def dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(inline="always", **_OPT)
+def cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@njit(inline="always", **_OPT)
+def add(a, b):
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+@njit(inline="always", **_OPT)
+def sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+@njit(inline="always", **_OPT)
+def scale(s, a):
+    return (s * a[0], s * a[1], s * a[2])
+
+
+@njit(inline="always", **_OPT)
+def axpy(s, a, b):
+    """s*a + b"""
+    return (s * a[0] + b[0], s * a[1] + b[1], s * a[2] + b[2])
+
+
+@njit(inline="always", **_OPT)
+def norm(a):
+    return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+
+
+@njit(**_OPT)
+def transport(u, ta, tb):
+    """Parallel transport P(u; ta -> tb) of a vector u ⟂ ta, then re-orthonormalised against tb (unit tb)."""
+    b = cross(ta, tb)
+    nb = norm(b)
+    if nb > 0.0:
+        bh = scale(1.0 / nb, b)
+        na = cross(ta, bh)
+        nbv = cross(tb, bh)
+        out = axpy(dot(u, ta), tb, axpy(dot(u, na), nbv, scale(dot(u, bh), bh)))
+    else:
+        out = u
+    out = axpy(-dot(out, tb), tb, out)
+    return scale(1.0 / norm(out), out)
+
+
+@njit(**_OPT)
+def rotate_about(u, t, ang):
+    """Rodrigues rotation of u about the unit axis t by ang [rad]."""
+    c = math.cos(ang)
+    s = math.sin(ang)
+    txu = cross(t, u)
+    tu = dot(t, u)
+    return (u[0] * c + txu[0] * s + t[0] * tu * (1.0 - c),
+            u[1] * c + txu[1] * s + t[1] * tu * (1.0 - c),
+            u[2] * c + txu[2] * s + t[2] * tu * (1.0 - c))
+
+
+@njit(**_OPT)
+def signed_angle(a, b, n):
+    """Angle from a to b [rad], signed by the axis n."""
+    c = cross(a, b)
+    ang = math.atan2(norm(c), dot(a, b))
+    if dot(n, c) < 0.0:
+        ang = -ang
+    return ang
+
+
+@njit(**_OPT)
+def update_frames(x, d1_old, t_old, beta_old, t, d1, d2, elen, beta):
+    """Time-parallel frames at positions x (N, 3) from the step-start frames.
+
+    Writes unit tangents ``t``, reference directors ``d1``, ``d2`` (N-1, 3), edge lengths ``elen`` (N-1,)
+    and reference twists ``beta`` (N,) (0 at both end nodes). Returns the minimum edge length.
+    """
+    ne = x.shape[0] - 1
+    lmin = np.inf
+    for j in range(ne):
+        e = (x[j + 1, 0] - x[j, 0], x[j + 1, 1] - x[j, 1], x[j + 1, 2] - x[j, 2])
+        le = norm(e)
+        elen[j] = le
+        lmin = min(lmin, le)
+        tj = scale(1.0 / le, e)
+        to = (t_old[j, 0], t_old[j, 1], t_old[j, 2])
+        u = transport((d1_old[j, 0], d1_old[j, 1], d1_old[j, 2]), to, tj)
+        v = cross(tj, u)
+        for a in range(3):
+            t[j, a] = tj[a]
+            d1[j, a] = u[a]
+            d2[j, a] = v[a]
+    beta[0] = 0.0
+    beta[ne] = 0.0
+    for i in range(1, ne):
+        beta[i] = reference_twist(d1, t, i, beta_old[i])
+    return lmin
+
+
+@njit(**_OPT)
+def reference_twist(d1, t, i, beta_old_i):
+    """Reference twist β_i [rad] at interior node i, computed incrementally from β_old (§1.3)."""
+    ta = (t[i - 1, 0], t[i - 1, 1], t[i - 1, 2])
+    tb = (t[i, 0], t[i, 1], t[i, 2])
+    u = transport((d1[i - 1, 0], d1[i - 1, 1], d1[i - 1, 2]), ta, tb)
+    u = rotate_about(u, tb, beta_old_i)
+    return beta_old_i + signed_angle(u, (d1[i, 0], d1[i, 1], d1[i, 2]), tb)
+
+
+def initial_reference_frames(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Space-parallel reference frames of a polyline x (N, 3): returns (d1, t), each (N-1, 3).
+
+    First edge: d1 = t × (0,0,-1), or t × (0,1,0) if that is shorter than 1e-6; normalised ([REC]).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    e = np.diff(x, axis=0)
+    t = e / np.linalg.norm(e, axis=1, keepdims=True)
+    d1 = np.empty_like(t)
+    c = np.cross(t[0], np.array([0.0, 0.0, -1.0]))
+    if np.linalg.norm(c) < 1e-6:
+        c = np.cross(t[0], np.array([0.0, 1.0, 0.0]))
+    d1[0] = c / np.linalg.norm(c)
+    for j in range(1, len(t)):
+        d1[j] = transport(tuple(d1[j - 1]), tuple(t[j - 1]), tuple(t[j]))
+    return d1, t

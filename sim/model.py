@@ -1,0 +1,158 @@
+"""Model: frozen parameters of one rod scene (physics.md §1.2, §1.5), built from a SceneSpec.
+
+Arrays are read-only. Shapes: N nodes, N-1 edges; ``dof_*`` arrays are per DOF of one env, flattened
+node-major: 3-D ``4N`` ([x, y, z, θ] per node, θ of the last node a dummy), 2-D ``2N`` ([x, z]).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from .frames import initial_reference_frames
+from .obstacles import ObstacleSet
+from .scene import SceneSpec
+
+__all__ = ["Model", "build_model"]
+
+
+def _ro(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """Frozen rod + solver parameters. Units SI; curvatures integrated (dimensionless)."""
+
+    spec: SceneSpec
+    mode: Literal["3d", "2d"]
+    node_count: int
+    dt: float                        # [s]
+    gravity: np.ndarray              # (3,) [m/s^2]
+    damping: float                   # [1/s], F_k = -damping * m_k * v_k
+    integrator: Literal["backward_euler", "midpoint"]
+    line_search: Literal["none", "backtrack"]
+    newton_tol: float
+    newton_dtol: float               # [m/s]
+    newton_max_iter: int
+    accept_unconverged: bool
+    radius: float                    # [m]
+    EA: float                        # [N]
+    EI1: float                       # [N m^2]
+    EI2: float                       # [N m^2]
+    GJ: float                        # [N m^2]
+    rest_node_pos: np.ndarray        # (N, 3) [m] initial = rest configuration
+    rest_edge_length: np.ndarray     # (N-1,) [m]
+    voronoi_length: np.ndarray       # (N,) [m]
+    node_mass: np.ndarray            # (N,) [kg]
+    edge_twist_inertia: np.ndarray   # (N-1,) [kg m^2] = rho J lbar_j  ([REC])
+    rest_ref_d1: np.ndarray          # (N-1, 3) initial space-parallel reference director
+    rest_tangent: np.ndarray         # (N-1, 3)
+    rest_kappa_bar: np.ndarray       # (N, 2) integrated natural curvature of the rest shape (rows 0, N-1 = 0)
+    rest_tau_bar: np.ndarray         # (N,) natural twist of the rest shape [rad]
+    dof_mass: np.ndarray             # (ndof,) [kg] or [kg m^2]
+    dof_fixed: np.ndarray            # (ndof,) bool, constrained DOFs (identity rows)
+    dof_gravity: np.ndarray          # (ndof,) [N] gravity force m_k g
+    planar_component: int            # 2-D: which 3-D curvature component is in-plane (0: κ1, 1: κ2)
+    planar_sign: float               # 2-D: κ_2D = planar_sign * κ_component
+    plane_y: float                   # 2-D: the y of the motion plane [m]
+    locked_edges: tuple[int, ...]
+    obstacles: ObstacleSet
+
+    @property
+    def edge_count(self) -> int:
+        return self.node_count - 1
+
+    @property
+    def dofs_per_node(self) -> int:
+        return 4 if self.mode == "3d" else 2
+
+
+def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
+    """Build the Model of ``spec``.
+
+    ``locked_edges``: extra edges j whose nodes x_j, x_{j+1} and twist angle θ^j are constrained (kept at the
+    values the State holds; set ``state.dof[:, j, 3]`` to impose a twist angle). Used e.g. by the pure-twist
+    check; ``rod.clamp = "first_edge"`` locks edge 0 the same way.
+    """
+    rod, sim = spec.rod, spec.sim
+    N = rod.nodes
+    d = np.asarray(rod.direction, dtype=np.float64)
+    s = np.linspace(0.0, rod.length, N)
+    x = np.asarray(rod.start, dtype=np.float64)[None, :] + s[:, None] * d[None, :]
+    lbar = np.linalg.norm(np.diff(x, axis=0), axis=1)
+    vor = np.empty(N)
+    vor[0] = 0.5 * lbar[0]
+    vor[-1] = 0.5 * lbar[-1]
+    vor[1:-1] = 0.5 * (lbar[:-1] + lbar[1:])
+    r = rod.radius
+    A = math.pi * r * r
+    mass = rod.density * A * vor
+    Jp = math.pi * r ** 4 / 2.0
+    theta_inertia = rod.density * Jp * lbar
+    E = rod.youngs_modulus
+    G = E / (2.0 * (1.0 + rod.poisson_ratio))
+    EA = E * A
+    EI = E * math.pi * r ** 4 / 4.0
+    GJ = G * Jp
+    d1, t = initial_reference_frames(x)
+    kbar = np.zeros((N, 2))
+    for i in range(1, N - 1):
+        te, tf = t[i - 1], t[i]
+        kb = 2.0 * np.cross(te, tf) / (1.0 + te @ tf)
+        d2e, d2f = np.cross(te, d1[i - 1]), np.cross(tf, d1[i])
+        kbar[i, 0] = 0.5 * kb @ (d2e + d2f)
+        kbar[i, 1] = -0.5 * kb @ (d1[i - 1] + d1[i])
+    g = np.asarray(sim.gravity, dtype=np.float64)
+    locked = set(int(j) for j in locked_edges)
+    for j in locked:
+        if not 0 <= j < N - 1:
+            raise ValueError(f"locked_edges: edge index {j} out of range [0, {N - 2}]")
+    if rod.clamp == "first_edge":
+        locked.add(0)
+    # in-plane component for 2-D (physics.md §1.6): κb = -κ_2D ŷ, κ1 = -κ_2D (m2·ŷ), κ2 = κ_2D (m1·ŷ)
+    d2_0 = np.cross(t[0], d1[0])
+    if abs(d2_0[1]) > 0.5:
+        pc, ps = 0, float(-np.sign(d2_0[1]))
+    else:
+        pc, ps = 1, float(np.sign(d1[0][1]) or 1.0)
+    if sim.mode == "3d":
+        ndn = 4
+        dmass = np.empty((N, 4))
+        dmass[:, :3] = mass[:, None]
+        dmass[:-1, 3] = theta_inertia
+        dmass[-1, 3] = 1.0
+        fixed = np.zeros((N, 4), dtype=bool)
+        fixed[-1, 3] = True
+        for j in locked:
+            fixed[j, :3] = True
+            fixed[j + 1, :3] = True
+            fixed[j, 3] = True
+        grav = np.zeros((N, 4))
+        grav[:, :3] = mass[:, None] * g[None, :]
+    else:
+        ndn = 2
+        dmass = np.repeat(mass[:, None], 2, axis=1)
+        fixed = np.zeros((N, 2), dtype=bool)
+        for j in locked:
+            fixed[j, :] = True
+            fixed[j + 1, :] = True
+        grav = mass[:, None] * g[None, [0, 2]]
+    del ndn
+    return Model(
+        spec=spec, mode=sim.mode, node_count=N, dt=sim.dt, gravity=_ro(g), damping=sim.damping,
+        integrator=sim.integrator, line_search=sim.line_search, newton_tol=sim.newton_tol,
+        newton_dtol=sim.newton_dtol, newton_max_iter=sim.newton_max_iter,
+        accept_unconverged=sim.accept_unconverged, radius=r, EA=EA, EI1=EI, EI2=EI, GJ=GJ,
+        rest_node_pos=_ro(x), rest_edge_length=_ro(lbar), voronoi_length=_ro(vor), node_mass=_ro(mass),
+        edge_twist_inertia=_ro(theta_inertia), rest_ref_d1=_ro(d1), rest_tangent=_ro(t),
+        rest_kappa_bar=_ro(kbar), rest_tau_bar=_ro(np.zeros(N)), dof_mass=_ro(dmass.ravel()),
+        dof_fixed=_ro(fixed.ravel()), dof_gravity=_ro(grav.ravel()), planar_component=pc, planar_sign=ps,
+        plane_y=float(rod.start[1]), locked_edges=tuple(sorted(locked)),
+        obstacles=ObstacleSet.from_specs(spec.obstacles),
+    )

@@ -1,0 +1,266 @@
+"""Rigid static obstacles and IMC contact parameters: scene specs, TOML parse/dump, runtime arrays.
+
+Scene keys (SI units; every obstacle may carry ``name = "..."``)::
+
+    [[obstacle]] type = "capsule"  start [m], end [m], radius [m]
+    [[obstacle]] type = "sphere"   center [m], radius [m]
+    [[obstacle]] type = "plane"    point [m], normal (normalised here; contact side = +normal)
+    [[obstacle]] type = "box"      position [m], orientation (quaternion w,x,y,z; default identity),
+                                   half_extents [m]
+    [[obstacle]] type = "mesh"     file (relative to the scene file; STL/OBJ/PLY/GLB...), scale (number or
+                                   3 numbers, default 1), position [m], orientation (wxyz)
+    [contact] stiffness [N/m] (1e6), delta [m] (5e-3), friction mu [-] (0),
+              friction_velocity_tol [m/s] (1e-2), margin [m] (5e-2, broad-phase inflation), enabled (true)
+
+Poses: every obstacle has a per-env pose (position, quaternion wxyz). For capsule/sphere/plane the spec's
+coordinates are the obstacle's local frame (initial pose = identity); box and mesh start at their spec
+pose with geometry centred in the local frame. :meth:`ObstacleSet.set_pose` and
+:meth:`ObstacleSet.set_capsules` change poses/capsules per env in place (no rebuild; mesh BVHs stay in
+the mesh frame).
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .contact_mesh import MeshError, load_mesh_triangles
+from .tomlio import SceneError, check_unknown, format_value, take_bool, take_float, take_str, take_vec3
+
+__all__ = ["ObstacleSpec", "PlaneSpec", "SphereSpec", "CapsuleSpec", "BoxSpec", "MeshSpec", "ContactSpec",
+           "ObstacleSet", "parse_obstacles", "parse_contact", "dump_obstacles", "dump_contact", "KIND_CODES"]
+
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+_IDQ: Quat = (1.0, 0.0, 0.0, 0.0)
+KIND_CODES = {"plane": 0, "sphere": 1, "capsule": 2, "box": 3, "mesh": 4}
+
+
+@dataclass(frozen=True)
+class ObstacleSpec:
+    """Base of the rigid obstacle specs (use the subclasses)."""
+
+
+@dataclass(frozen=True)
+class PlaneSpec(ObstacleSpec):
+    """Half-space boundary through ``point`` [m] with unit ``normal`` (rod kept on the +normal side)."""
+
+    point: Vec3
+    normal: Vec3
+    name: str = ""
+    type = "plane"
+
+
+@dataclass(frozen=True)
+class SphereSpec(ObstacleSpec):
+    """Sphere: ``center`` [m], ``radius`` [m]."""
+
+    center: Vec3
+    radius: float
+    name: str = ""
+    type = "sphere"
+
+
+@dataclass(frozen=True)
+class CapsuleSpec(ObstacleSpec):
+    """Capsule: axis segment ``start``-``end`` [m], ``radius`` [m] (the paper's obstacles)."""
+
+    start: Vec3
+    end: Vec3
+    radius: float
+    name: str = ""
+    type = "capsule"
+
+
+@dataclass(frozen=True)
+class BoxSpec(ObstacleSpec):
+    """Box: centre ``position`` [m], ``orientation`` (wxyz, unit), ``half_extents`` [m] (> 0)."""
+
+    position: Vec3
+    half_extents: Vec3
+    orientation: Quat = _IDQ
+    name: str = ""
+    type = "box"
+
+
+@dataclass(frozen=True)
+class MeshSpec(ObstacleSpec):
+    """Triangle mesh: ``file`` as written in the scene, ``path`` resolved absolute path (default: ``file``
+    resolved against the working directory; specs compare by ``path``), ``scale``
+    (per axis, applied in the mesh frame), ``position`` [m], ``orientation`` (wxyz)."""
+
+    file: str = field(compare=False)
+    path: str = ""
+    scale: Vec3 = (1.0, 1.0, 1.0)
+    position: Vec3 = (0.0, 0.0, 0.0)
+    orientation: Quat = _IDQ
+    name: str = ""
+    type = "mesh"
+
+    def __post_init__(self) -> None:  # equality is by resolved path, not by how the file was written
+        if not self.path:
+            object.__setattr__(self, "path", str(Path(self.file).resolve()))
+
+
+@dataclass(frozen=True)
+class ContactSpec:
+    """IMC contact parameters: stiffness k [N/m], delta [m], friction mu [-], friction_velocity_tol [m/s],
+    margin [m] (broad-phase distance), enabled."""
+
+    stiffness: float = 1e6
+    delta: float = 5e-3
+    friction: float = 0.0
+    friction_velocity_tol: float = 1e-2
+    margin: float = 5e-2
+    enabled: bool = True
+
+
+_KEYS = {
+    "plane": {"point", "normal"},
+    "sphere": {"center", "radius"},
+    "capsule": {"start", "end", "radius"},
+    "box": {"position", "orientation", "half_extents"},
+    "mesh": {"file", "scale", "position", "orientation"},
+}
+
+
+def _take_quat(t: Mapping[str, Any], key: str, p: str, path: str | None) -> Quat:
+    v = t.get(key, list(_IDQ))
+    where = f"{path or '<scene>'}: {p}{key}"
+    if (not isinstance(v, (list, tuple)) or len(v) != 4
+            or not all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in v)):
+        raise SceneError(f"{where}: expected a quaternion [w, x, y, z] of 4 numbers, got {v!r}")
+    q = np.asarray(v, dtype=np.float64)
+    n = float(np.linalg.norm(q))
+    if not np.all(np.isfinite(q)) or not n > 1e-12:
+        raise SceneError(f"{where}: quaternion must be finite and non-zero, got {v!r}")
+    q = q / n
+    return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+
+
+def _unit(v: Vec3, where: str) -> Vec3:
+    n = float(np.linalg.norm(v))
+    if not n > 1e-12:
+        raise SceneError(f"{where}: must be a non-zero vector, got {list(v)}")
+    return (v[0] / n, v[1] / n, v[2] / n)
+
+
+def _parse_one(t: Mapping[str, Any], i: int, scene_path: str | None) -> ObstacleSpec:
+    p = f"obstacle[{i}]."
+    where = f"{scene_path or '<scene>'}: {p}"
+    typ = take_str(t, "type", p, scene_path, choices=tuple(_KEYS))
+    check_unknown(t, _KEYS[typ] | {"type", "name"}, p, scene_path)
+    name = take_str(t, "name", p, scene_path, "")
+    if typ == "plane":
+        return PlaneSpec(point=take_vec3(t, "point", p, scene_path),
+                         normal=_unit(take_vec3(t, "normal", p, scene_path), where + "normal"), name=name)
+    if typ == "sphere":
+        return SphereSpec(center=take_vec3(t, "center", p, scene_path),
+                          radius=take_float(t, "radius", p, scene_path, positive=True), name=name)
+    if typ == "capsule":
+        a = take_vec3(t, "start", p, scene_path)
+        b = take_vec3(t, "end", p, scene_path)
+        return CapsuleSpec(start=a, end=b, radius=take_float(t, "radius", p, scene_path, positive=True), name=name)
+    if typ == "box":
+        h = take_vec3(t, "half_extents", p, scene_path)
+        if min(h) <= 0:
+            raise SceneError(f"{where}half_extents: all must be > 0, got {list(h)}")
+        return BoxSpec(position=take_vec3(t, "position", p, scene_path), half_extents=h,
+                       orientation=_take_quat(t, "orientation", p, scene_path), name=name)
+    f = take_str(t, "file", p, scene_path)
+    sc = t.get("scale", 1.0)
+    if isinstance(sc, (int, float)) and not isinstance(sc, bool):
+        scale = (float(sc),) * 3
+    else:
+        scale = take_vec3(t, "scale", p, scene_path)
+    if not all(np.isfinite(scale)) or min(scale) <= 0:
+        raise SceneError(f"{where}scale: must be > 0 (a number or 3 numbers), got {sc!r}")
+    base = Path(scene_path).parent if scene_path else Path.cwd()
+    resolved = Path(f) if os.path.isabs(f) else (base / f)
+    try:
+        load_mesh_triangles(resolved, scale)
+    except MeshError as exc:
+        raise SceneError(f"{where}file: {exc}") from None
+    return MeshSpec(file=f, path=str(resolved.resolve()), scale=(scale[0], scale[1], scale[2]),
+                    position=take_vec3(t, "position", p, scene_path, (0.0, 0.0, 0.0)),
+                    orientation=_take_quat(t, "orientation", p, scene_path), name=name)
+
+
+def parse_obstacles(tables: Sequence[Mapping[str, Any]], scene_path: str | None) -> tuple[ObstacleSpec, ...]:
+    """Parse the ``[[obstacle]]`` array of tables; mesh files are loaded and validated here."""
+    return tuple(_parse_one(t, i, scene_path) for i, t in enumerate(tables))
+
+
+def parse_contact(table: Mapping[str, Any] | None, scene_path: str | None) -> ContactSpec:
+    """Parse the optional ``[contact]`` table."""
+    if table is None:
+        return ContactSpec()
+    p = "contact."
+    check_unknown(table, {"stiffness", "delta", "friction", "friction_velocity_tol", "margin", "enabled"}, p,
+                  scene_path)
+    d = ContactSpec()
+    return ContactSpec(
+        stiffness=take_float(table, "stiffness", p, scene_path, d.stiffness, positive=True),
+        delta=take_float(table, "delta", p, scene_path, d.delta, positive=True),
+        friction=take_float(table, "friction", p, scene_path, d.friction, nonnegative=True),
+        friction_velocity_tol=take_float(table, "friction_velocity_tol", p, scene_path, d.friction_velocity_tol,
+                                         positive=True),
+        margin=take_float(table, "margin", p, scene_path, d.margin, nonnegative=True),
+        enabled=take_bool(table, "enabled", p, scene_path, d.enabled),
+    )
+
+
+def dump_obstacles(obstacles: Sequence[ObstacleSpec], *, base_dir: str | os.PathLike | None = None) -> list[str]:
+    """TOML lines for the obstacles. Mesh ``file`` is written as loaded, or relative to ``base_dir``."""
+    lines: list[str] = []
+    for ob in obstacles:
+        if lines:
+            lines.append("")
+        lines += ["[[obstacle]]", f"type = {format_value(ob.type)}"]  # type: ignore[attr-defined]
+        if getattr(ob, "name", ""):
+            lines.append(f"name = {format_value(ob.name)}")  # type: ignore[attr-defined]
+        if isinstance(ob, MeshSpec):
+            f = ob.file
+            if base_dir is not None and ob.path:
+                f = os.path.relpath(ob.path, base_dir)
+            lines.append(f"file = {format_value(f)}")
+            sc = ob.scale[0] if ob.scale[0] == ob.scale[1] == ob.scale[2] else ob.scale
+            lines += [f"scale = {format_value(sc)}", f"position = {format_value(ob.position)}",
+                      f"orientation = {format_value(ob.orientation)}"]
+            continue
+        for key in sorted(_KEYS[ob.type]):  # type: ignore[attr-defined]
+            lines.append(f"{key} = {format_value(getattr(ob, key))}")
+    return lines
+
+
+def dump_contact(contact: ContactSpec) -> list[str]:
+    """TOML lines for the ``[contact]`` table."""
+    lines = ["[contact]"]
+    for k in ("stiffness", "delta", "friction", "friction_velocity_tol", "margin", "enabled"):
+        lines.append(f"{k} = {format_value(getattr(contact, k))}")
+    return lines
+
+
+def quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """Unit quaternions (..., 4) wxyz -> rotation matrices (..., 3, 3) (normalised here)."""
+    q = np.asarray(q, dtype=np.float64)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    R = np.empty(q.shape[:-1] + (3, 3))
+    R[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    R[..., 0, 1] = 2 * (x * y - w * z)
+    R[..., 0, 2] = 2 * (x * z + w * y)
+    R[..., 1, 0] = 2 * (x * y + w * z)
+    R[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    R[..., 1, 2] = 2 * (y * z - w * x)
+    R[..., 2, 0] = 2 * (x * z - w * y)
+    R[..., 2, 1] = 2 * (y * z + w * x)
+    R[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return R
+
+
+from .contact_set import ObstacleSet  # noqa: E402  (runtime arrays live in their own module)

@@ -1,0 +1,208 @@
+"""Scene files (TOML) -> frozen :class:`SceneSpec`, and back (:func:`dump_scene`).
+
+Keys (SI units)::
+
+    [sim]  dt [s], gravity [m/s^2] (3-vector), damping [1/s] (default 0; viscous force
+           F_k = -damping * m_k * v_k on every node), newton_tol [-] (relative force test),
+           newton_max_iter, accept_unconverged (bool), mode ("3d"|"2d", default "3d"),
+           integrator ("backward_euler"|"midpoint", default "backward_euler"),
+           line_search ("none"|"backtrack", default "none"), newton_dtol [m/s] (displacement
+           test, default 1e-2)
+    [rod]  nodes, length [m], radius [m], density [kg/m^3], youngs_modulus [Pa], poisson_ratio [-],
+           start [m] (3-vector), direction (3-vector, normalised here), clamp ("first_edge"|"none",
+           default "first_edge")
+    [[obstacle]], [contact]   parsed by ``sim.obstacles`` (see there)
+"""
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+from . import obstacles as _obs
+from .tomlio import (
+    SceneError,
+    check_unknown,
+    format_value,
+    take_bool,
+    take_float,
+    take_int,
+    take_str,
+    take_vec3,
+)
+
+__all__ = ["SceneError", "SimSpec", "RodSpec", "SceneSpec", "load_scene", "parse_scene", "dump_scene"]
+
+Mode = Literal["3d", "2d"]
+Integrator = Literal["backward_euler", "midpoint"]
+LineSearch = Literal["none", "backtrack"]
+Clamp = Literal["first_edge", "none"]
+
+
+@dataclass(frozen=True)
+class SimSpec:
+    """[sim] table. Units: dt [s], gravity [m/s^2], damping [1/s], newton_dtol [m/s]."""
+
+    dt: float
+    gravity: tuple[float, float, float]
+    newton_tol: float
+    newton_max_iter: int
+    accept_unconverged: bool
+    damping: float = 0.0
+    mode: Mode = "3d"
+    integrator: Integrator = "backward_euler"
+    line_search: LineSearch = "none"
+    newton_dtol: float = 1e-2
+
+
+@dataclass(frozen=True)
+class RodSpec:
+    """[rod] table. Units: length/radius [m], density [kg/m^3], youngs_modulus [Pa]. direction is unit."""
+
+    nodes: int
+    length: float
+    radius: float
+    density: float
+    youngs_modulus: float
+    poisson_ratio: float
+    start: tuple[float, float, float]
+    direction: tuple[float, float, float]
+    clamp: Clamp = "first_edge"
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """A whole scene. ``path`` is where it was loaded from (None if built in code)."""
+
+    sim: SimSpec
+    rod: RodSpec
+    obstacles: tuple = ()
+    contact: Any = field(default_factory=_obs.ContactSpec)
+    path: str | None = None
+
+
+_SIM_KEYS = {"dt", "gravity", "damping", "newton_tol", "newton_max_iter", "accept_unconverged", "mode",
+             "integrator", "line_search", "newton_dtol"}
+_ROD_KEYS = {"nodes", "length", "radius", "density", "youngs_modulus", "poisson_ratio", "start", "direction",
+             "clamp"}
+
+
+def _table(doc: dict, name: str, path: str | None, *, required: bool = True) -> dict | None:
+    if name not in doc:
+        if required:
+            raise SceneError(f"{path or '<scene>'}: [{name}]: missing required table")
+        return None
+    t = doc[name]
+    if not isinstance(t, dict):
+        raise SceneError(f"{path or '<scene>'}: {name}: expected a table [{name}]")
+    return t
+
+
+def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
+    """Validate a parsed TOML document into a SceneSpec (raises SceneError naming file/key/problem)."""
+    where = path or "<scene>"
+    for k in doc:
+        if k not in ("sim", "rod", "obstacle", "contact"):
+            raise SceneError(f"{where}: {k}: unknown table (allowed: sim, rod, obstacle, contact)")
+    s = _table(doc, "sim", path)
+    r = _table(doc, "rod", path)
+    assert s is not None and r is not None
+    check_unknown(s, _SIM_KEYS, "sim.", path)
+    check_unknown(r, _ROD_KEYS, "rod.", path)
+    sim = SimSpec(
+        dt=take_float(s, "dt", "sim.", path, positive=True),
+        gravity=take_vec3(s, "gravity", "sim.", path),
+        damping=take_float(s, "damping", "sim.", path, 0.0, nonnegative=True),
+        newton_tol=take_float(s, "newton_tol", "sim.", path, positive=True),
+        newton_max_iter=take_int(s, "newton_max_iter", "sim.", path, minimum=1),
+        accept_unconverged=take_bool(s, "accept_unconverged", "sim.", path),
+        mode=take_str(s, "mode", "sim.", path, "3d", choices=("3d", "2d")),  # type: ignore[arg-type]
+        integrator=take_str(s, "integrator", "sim.", path, "backward_euler",
+                            choices=("backward_euler", "midpoint")),  # type: ignore[arg-type]
+        line_search=take_str(s, "line_search", "sim.", path, "none",
+                             choices=("none", "backtrack")),  # type: ignore[arg-type]
+        newton_dtol=take_float(s, "newton_dtol", "sim.", path, 1e-2, positive=True),
+    )
+    nodes = take_int(r, "nodes", "rod.", path)
+    if nodes < 3:
+        raise SceneError(f"{where}: rod.nodes: must be >= 3, got {nodes}")
+    nu = take_float(r, "poisson_ratio", "rod.", path)
+    if not (-1.0 < nu <= 0.5):
+        raise SceneError(f"{where}: rod.poisson_ratio: must be in (-1, 0.5], got {nu!r}")
+    d = take_vec3(r, "direction", "rod.", path)
+    dn = math.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
+    if not dn > 1e-12:
+        raise SceneError(f"{where}: rod.direction: must be a non-zero vector, got {list(d)}")
+    d = (d[0] / dn, d[1] / dn, d[2] / dn)
+    rod = RodSpec(
+        nodes=nodes,
+        length=take_float(r, "length", "rod.", path, positive=True),
+        radius=take_float(r, "radius", "rod.", path, positive=True),
+        density=take_float(r, "density", "rod.", path, positive=True),
+        youngs_modulus=take_float(r, "youngs_modulus", "rod.", path, positive=True),
+        poisson_ratio=nu,
+        start=take_vec3(r, "start", "rod.", path),
+        direction=d,
+        clamp=take_str(r, "clamp", "rod.", path, "first_edge", choices=("first_edge", "none")),  # type: ignore
+    )
+    if sim.mode == "2d":
+        if abs(rod.direction[1]) > 1e-12:
+            raise SceneError(f"{where}: rod.direction: mode '2d' needs a direction in the x-z plane (y = 0), "
+                             f"got {list(rod.direction)}")
+        if sim.gravity[1] != 0.0:
+            raise SceneError(f"{where}: sim.gravity: mode '2d' needs gravity in the x-z plane (y = 0)")
+    obs_tables = doc.get("obstacle", [])
+    if not isinstance(obs_tables, list) or not all(isinstance(t, dict) for t in obs_tables):
+        raise SceneError(f"{where}: obstacle: expected an array of tables [[obstacle]]")
+    obstacles = _obs.parse_obstacles(obs_tables, path)
+    contact = _obs.parse_contact(_table(doc, "contact", path, required=False), path)
+    return SceneSpec(sim=sim, rod=rod, obstacles=tuple(obstacles), contact=contact, path=path)
+
+
+def load_scene(path: str | os.PathLike) -> SceneSpec:
+    """Read and validate a scene TOML file."""
+    p = str(path)
+    try:
+        with open(p, "rb") as fh:
+            doc = tomllib.load(fh)
+    except FileNotFoundError:
+        raise SceneError(f"{p}: file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{p}: invalid TOML: {exc}") from None
+    return parse_scene(doc, p)
+
+
+def scene_to_toml(spec: SceneSpec) -> str:
+    """The TOML text of a SceneSpec (all keys written explicitly)."""
+    lines = ["[sim]"]
+    for k in ("dt", "gravity", "damping", "newton_tol", "newton_max_iter", "accept_unconverged", "mode",
+              "integrator", "line_search", "newton_dtol"):
+        lines.append(f"{k} = {format_value(getattr(spec.sim, k))}")
+    lines += ["", "[rod]"]
+    for k in ("nodes", "length", "radius", "density", "youngs_modulus", "poisson_ratio", "start", "direction",
+              "clamp"):
+        lines.append(f"{k} = {format_value(getattr(spec.rod, k))}")
+    extra = _obs.dump_obstacles(spec.obstacles)
+    if extra:
+        lines += [""] + list(extra)
+    lines += [""] + list(_obs.dump_contact(spec.contact))
+    return "\n".join(lines) + "\n"
+
+
+def dump_scene(spec: SceneSpec, path: str | os.PathLike) -> None:
+    """Write ``spec`` as TOML to ``path`` atomically (tmp file + os.replace)."""
+    text = scene_to_toml(spec)
+    p = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=p.name + ".", suffix=".tmp", dir=str(p.parent or "."))
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, p)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise

@@ -1,0 +1,730 @@
+"""Per-env implicit Newton solve (3-D and 2-D), sub-step retry, and the fused batched numba kernels.
+
+One call of :func:`step_kernel_3d` / :func:`step_kernel_2d` advances every non-failed env by one step ``dt``
+(``prange`` over envs; env e only reads and writes row e, so a batch gives the same bits as envs alone).
+Per (sub)step (physics.md §3.4): guess x = x0 + 0.01·u·h on free DOFs; Newton: frames by time-parallel
+transport from the (sub)step-start frames, residual f and banded Jacobian J (constrained DOFs: identity rows
+and columns, zero RHS), force test ‖f‖ ≤ tol·‖f0‖, banded LU (pivots checked), x ← x − αΔx, displacement
+test max|Δx|/h < dtol on free position DOFs, accept at max_iter if allowed. Then backward Euler
+(u = (x − x0)/h) or implicit midpoint (BE solve over h/2, x_new = 2x_½ − x0, u_new = 2u_½ − u0), and the
+end-of-step frame update. Failure (non-finite, residual growth > 1e6, bad pivot, |strain| > 0.9, or
+unconverged when accept_unconverged is false) -> retry with 2, 4, 8, 16 sub-steps, else the env is restored
+and flagged failed.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .banded import band_lu_solve
+from .contact_kernels import contact_accumulate, contact_broadphase, contact_report
+from .energies.bend_twist import bend_twist_element, material_curvatures
+from .energies.planar import planar_bend_element
+from .energies.stretch import stretch_element, stretch_element_2d
+from .frames import update_frames
+
+__all__ = ["step_kernel_3d", "step_kernel_2d", "PRM_SIZE", "F_COLS", "I_COLS"]
+
+# indices into the float64 parameter vector ``prm``
+P_EA, P_EI1, P_EI2, P_GJ, P_DT, P_DAMP, P_TOL, P_DTOL, P_MAXIT, P_ACCEPT, P_INTEG, P_LS = range(12)
+P_RADIUS, P_CK, P_CDELTA, P_CMU, P_CNU, P_CFRIC, P_CMARGIN, P_NOBS, P_SIGN2D, P_PLANEY = range(12, 22)
+P_LEVELS, P_STRAIN = 22, 23
+PRM_SIZE = 24
+# columns of the float / int per-env outputs
+F_RES, F_RES0, F_ES, F_EB, F_ET, F_EC, F_EK, F_EG, F_PEN = range(9)
+F_COLS = 9
+I_ITERS, I_CONV, I_SUB, I_FAIL = range(4)
+I_COLS = 4
+
+_OPT = dict(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"})
+
+
+# ----------------------------------------------------------------------------------------------- 3-D
+@njit(**_OPT)
+def _assemble_3d(e, x, x0, u, h, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd,
+                 pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk, cg, ch, with_jac):
+    """Residual f (n,) and, if with_jac, banded Jacobian ab (n, 21) at x. Returns (‖f‖, Es, Eb, Et, Ec)."""
+    n = x.shape[0]
+    N = n // 4
+    kl = 10
+    EA = prm[P_EA]
+    EI1 = prm[P_EI1]
+    EI2 = prm[P_EI2]
+    GJ = prm[P_GJ]
+    damp = prm[P_DAMP]
+    ih = 1.0 / h
+    ih2 = ih * ih
+    for k in range(N):
+        for a in range(3):
+            pos[k, a] = x[4 * k + a]
+    update_frames(pos, d1o, to, bo, t, d1, d2, elen, beta)
+    if with_jac:
+        ab[:, :] = 0.0
+        for k in range(n, n + kl):
+            ab[k, kl] = 1.0
+    for k in range(n):
+        m = mass[k]
+        dxk = x[k] - x0[k]
+        fk = m * ih2 * (dxk - h * u[k]) - grav[k]
+        jk = m * ih2
+        if (k & 3) != 3:
+            fk += damp * m * dxk * ih
+            jk += damp * m * ih
+        f[k] = fk
+        if with_jac:
+            ab[k, kl] = jk
+    es = 0.0
+    for j in range(N - 1):
+        o0 = 4 * j
+        o1 = 4 * j + 4
+        ej, _ = stretch_element((x[o0], x[o0 + 1], x[o0 + 2]), (x[o1], x[o1 + 1], x[o1 + 2]), rest_len[j], EA,
+                                g6, H6, with_jac)
+        es += ej
+        for a in range(3):
+            f[o0 + a] += g6[a]
+            f[o1 + a] += g6[3 + a]
+        if with_jac:
+            for a in range(6):
+                r = o0 + a if a < 3 else o1 + a - 3
+                for b in range(6):
+                    c = o0 + b if b < 3 else o1 + b - 3
+                    ab[r, kl + c - r] += H6[a, b]
+    eb = 0.0
+    et = 0.0
+    for i in range(1, N - 1):
+        o = 4 * (i - 1)
+        ebi, eti = bend_twist_element(
+            (x[o], x[o + 1], x[o + 2]), (x[o + 4], x[o + 5], x[o + 6]), (x[o + 8], x[o + 9], x[o + 10]),
+            (d1[i - 1, 0], d1[i - 1, 1], d1[i - 1, 2]), (d2[i - 1, 0], d2[i - 1, 1], d2[i - 1, 2]),
+            (d1[i, 0], d1[i, 1], d1[i, 2]), (d2[i, 0], d2[i, 1], d2[i, 2]),
+            x[o + 3], x[o + 7], beta[i], kb[i, 0], kb[i, 1], tb[i], EI1, EI2, GJ, vor_len[i],
+            g11, H11, wk, with_jac)
+        eb += ebi
+        et += eti
+        for a in range(11):
+            f[o + a] += g11[a]
+        if with_jac:
+            for a in range(11):
+                r = o + a
+                for b in range(11):
+                    ab[r, kl + b - a] += H11[a, b]
+    ec = 0.0
+    if prm[P_NOBS] > 0:
+        for k in range(N):
+            for a in range(3):
+                pos0[k, a] = x0[4 * k + a]
+        cg[:, :] = 0.0
+        ch[:, :, :] = 0.0
+        ec = contact_accumulate(e, cd, pos, pos0, h, prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
+                                prm[P_CNU], prm[P_CFRIC] > 0, cg, ch)
+        for k in range(N):
+            for a in range(3):
+                f[4 * k + a] += cg[k, a]
+        if with_jac:
+            for j in range(N - 1):
+                for a in range(6):
+                    r = 4 * j + a if a < 3 else 4 * j + 1 + a
+                    for b in range(6):
+                        c = 4 * j + b if b < 3 else 4 * j + 1 + b
+                        ab[r, kl + c - r] += ch[j, a, b]
+    r2 = 0.0
+    for k in range(n):
+        if fixed[k]:
+            f[k] = 0.0
+            if with_jac:
+                for c in range(max(0, k - kl), min(n, k + kl + 1)):
+                    ab[k, kl + c - k] = 0.0
+                    ab[c, kl + k - c] = 0.0
+                ab[k, kl] = 1.0
+        else:
+            r2 += f[k] * f[k]
+    return math.sqrt(r2), es, eb, et, ec
+
+
+@njit(**_OPT)
+def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w):
+    """One implicit (sub)step of size h; on success x0, u, d1o, to, bo hold the new values.
+
+    Returns (status, iterations, converged, ‖f‖ last, ‖f0‖); status 0 = ok."""
+    (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch) = w
+    n = x0.shape[0]
+    N = n // 4
+    hs = h if prm[P_INTEG] == 0 else 0.5 * h
+    maxit = int(prm[P_MAXIT])
+    tol = prm[P_TOL]
+    dtol = prm[P_DTOL]
+    for k in range(n):
+        x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
+    if prm[P_NOBS] > 0:
+        for k in range(N):
+            for a in range(3):
+                pos0[k, a] = x0[4 * k + a]
+                pos[k, a] = x0[4 * k + a] + hs * u[4 * k + a]  # predicted end of step (contact: swept list)
+        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+    r0 = 0.0
+    r = 0.0
+    conv = False
+    it = 0
+    while it < maxit:
+        r, _, _, _, _ = _assemble_3d(e, x, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav,
+                                     prm, cd, pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk,
+                                     cg, ch, True)
+        if not np.isfinite(r):
+            return 1, it, False, r, r0
+        if it == 0:
+            r0 = r
+        elif r > 1e6 * r0:
+            return 2, it, False, r, r0
+        if r <= tol * r0 and (it > 0 or r == 0.0):
+            conv = True
+            break
+        for k in range(n):
+            dx[k] = f[k]
+        if band_lu_solve(ab, n, 10, dx) != 0:
+            return 3, it, False, r, r0
+        if prm[P_LS] > 0:
+            alpha = 1.0
+            for trial in range(5):
+                for k in range(n):
+                    xt[k] = x[k] - alpha * dx[k]
+                rt, _, _, _, _ = _assemble_3d(e, xt, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass,
+                                              fixed, grav, prm, cd, pos, pos0, t, d1, d2, elen, beta, f, ab,
+                                              g6, H6, g11, H11, wk, cg, ch, False)
+                if (np.isfinite(rt) and rt <= r) or trial == 4:
+                    break
+                alpha *= 0.5
+            for k in range(n):
+                x[k] = xt[k]
+        else:
+            for k in range(n):
+                x[k] -= dx[k]
+        it += 1
+        dmax = 0.0
+        for k in range(n):
+            if (k & 3) != 3 and not fixed[k]:
+                dmax = max(dmax, abs(dx[k]))
+        if not np.isfinite(dmax):
+            return 1, it, False, r, r0
+        if dmax / hs < dtol:
+            conv = True
+            break
+    if not conv and prm[P_ACCEPT] == 0:
+        return 4, it, False, r, r0
+    # velocity / position update (u_new into dx)
+    if prm[P_INTEG] == 0:
+        for k in range(n):
+            dx[k] = (x[k] - x0[k]) / h
+    else:
+        for k in range(n):
+            uh = (x[k] - x0[k]) / hs
+            x[k] = 2.0 * x[k] - x0[k]
+            dx[k] = 2.0 * uh - u[k]
+            if fixed[k]:
+                dx[k] = 0.0
+    for k in range(N):
+        for a in range(3):
+            pos[k, a] = x[4 * k + a]
+    update_frames(pos, d1o, to, bo, t, d1, d2, elen, beta)
+    for j in range(N - 1):
+        s = elen[j] / rest_len[j] - 1.0
+        if not abs(s) <= prm[P_STRAIN]:
+            return 5, it, conv, r, r0
+    for k in range(n):
+        if not (np.isfinite(x[k]) and np.isfinite(dx[k])):
+            return 1, it, conv, r, r0
+    for j in range(N - 1):
+        for a in range(3):
+            d1o[j, a] = d1[j, a]
+            to[j, a] = t[j, a]
+    for i in range(N):
+        if not np.isfinite(beta[i]):
+            return 1, it, conv, r, r0
+        bo[i] = beta[i]
+    for k in range(n):
+        x0[k] = x[k]
+        u[k] = dx[k]
+    return 0, it, conv, r, r0
+
+
+@njit(**_OPT)
+def _alloc_3d(N):
+    n = 4 * N
+    return (np.empty(n), np.empty(n), np.zeros(n + 10), np.empty(n), np.empty((n + 10, 21)), np.empty((N, 3)),
+            np.empty((N, 3)), np.empty((N - 1, 3)), np.empty((N - 1, 3)), np.empty((N - 1, 3)), np.empty(N - 1),
+            np.empty(N), np.empty(6), np.empty((6, 6)), np.empty(11), np.empty((11, 11)), np.empty((17, 11)),
+            np.zeros((N, 3)), np.zeros((N - 1, 6, 6)))
+
+
+@njit(**_OPT)
+def _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm):
+    """(E_stretch, E_bend, E_twist) [J] of a state whose stored frames (d1s, ts, bs) are at xs."""
+    N = xs.shape[0] // 4
+    EA = prm[P_EA]
+    es = 0.0
+    for j in range(N - 1):
+        o = 4 * j
+        ex = xs[o + 4] - xs[o]
+        ey = xs[o + 5] - xs[o + 1]
+        ez = xs[o + 6] - xs[o + 2]
+        eps = math.sqrt(ex * ex + ey * ey + ez * ez) / rest_len[j] - 1.0
+        es += 0.5 * EA * rest_len[j] * eps * eps
+    eb = 0.0
+    et = 0.0
+    m1 = np.empty((2, 3))
+    m2 = np.empty((2, 3))
+    for i in range(1, N - 1):
+        o = 4 * (i - 1)
+        for s in range(2):
+            j = i - 1 + s
+            th = xs[4 * j + 3]
+            c = math.cos(th)
+            sn = math.sin(th)
+            t0, t1, t2 = ts[j, 0], ts[j, 1], ts[j, 2]
+            a0, a1, a2 = d1s[j, 0], d1s[j, 1], d1s[j, 2]
+            b0, b1, b2 = t1 * a2 - t2 * a1, t2 * a0 - t0 * a2, t0 * a1 - t1 * a0
+            m1[s, 0], m1[s, 1], m1[s, 2] = c * a0 + sn * b0, c * a1 + sn * b1, c * a2 + sn * b2
+            m2[s, 0], m2[s, 1], m2[s, 2] = -sn * a0 + c * b0, -sn * a1 + c * b1, -sn * a2 + c * b2
+        k1, k2 = material_curvatures((xs[o], xs[o + 1], xs[o + 2]), (xs[o + 4], xs[o + 5], xs[o + 6]),
+                                     (xs[o + 8], xs[o + 9], xs[o + 10]), (m1[0, 0], m1[0, 1], m1[0, 2]),
+                                     (m2[0, 0], m2[0, 1], m2[0, 2]), (m1[1, 0], m1[1, 1], m1[1, 2]),
+                                     (m2[1, 0], m2[1, 1], m2[1, 2]))
+        lv = vor_len[i]
+        eb += 0.5 / lv * (prm[P_EI1] * (k1 - kb[i, 0]) ** 2 + prm[P_EI2] * (k2 - kb[i, 1]) ** 2)
+        tw = xs[o + 7] - xs[o + 3] + bs[i] - tb[i]
+        et += 0.5 * prm[P_GJ] / lv * tw * tw
+    return es, eb, et
+
+
+@njit(**_OPT)
+def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, crep, fo, io):
+    n = xs.shape[0]
+    N = n // 4
+    w = _alloc_3d(N)
+    x0 = np.empty(n)
+    u = np.empty(n)
+    d1o = np.empty((N - 1, 3))
+    to = np.empty((N - 1, 3))
+    bo = np.empty(N)
+    ok = False
+    iters = 0
+    conv_all = True
+    r = 0.0
+    r0 = 0.0
+    ns = 1
+    for level in range(int(prm[P_LEVELS])):
+        ns = 1 << level
+        h = prm[P_DT] / ns
+        x0[:] = xs
+        u[:] = us
+        d1o[:, :] = d1s
+        to[:, :] = ts
+        bo[:] = bs
+        ok = True
+        iters = 0
+        conv_all = True
+        for s in range(ns):
+            st, it, conv, r, r0s = _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed,
+                                               grav, prm, cd, w)
+            if s == 0:
+                r0 = r0s
+            iters += it
+            conv_all = conv_all and conv
+            if st != 0:
+                ok = False
+                break
+        if ok:
+            break
+    if ok:
+        xs[:] = x0
+        us[:] = u
+        d1s[:, :] = d1o
+        ts[:, :] = to
+        bs[:] = bo
+    # energies at the (new or restored) state; its stored frames are the frames at xs
+    (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch) = w
+    es, eb, et = _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm)
+    ec = 0.0
+    if prm[P_NOBS] > 0:
+        for k in range(N):
+            for a in range(3):
+                pos[k, a] = xs[4 * k + a]
+        cg[:, :] = 0.0
+        ch[:, :, :] = 0.0
+        ec = contact_accumulate(e, cd, pos, pos, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
+                                prm[P_CNU], prm[P_CFRIC] > 0, cg, ch)
+    ek = 0.0
+    eg = 0.0
+    for k in range(n):
+        ek += 0.5 * mass[k] * us[k] * us[k] * (0.0 if fixed[k] else 1.0)
+        eg -= grav[k] * xs[k]
+    fo[F_RES] = r if np.isfinite(r) else np.inf
+    fo[F_RES0] = r0 if np.isfinite(r0) else np.inf
+    fo[F_ES] = es
+    fo[F_EB] = eb
+    fo[F_ET] = et
+    fo[F_EC] = ec
+    fo[F_EK] = ek
+    fo[F_EG] = eg
+    io[I_ITERS] = iters
+    io[I_CONV] = 1 if (ok and conv_all) else 0
+    io[I_SUB] = ns
+    io[I_FAIL] = 0 if ok else 1
+    if prm[P_NOBS] > 0:
+        for k in range(N):
+            for a in range(3):
+                pos[k, a] = xs[4 * k + a]
+                pos0[k, a] = xs[4 * k + a] - prm[P_DT] * us[4 * k + a]  # step start (friction velocity)
+        contact_report(e, cd, pos, pos0, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU], prm[P_CNU],
+                       prm[P_CFRIC] > 0, crep[0], crep[1], crep[2], crep[3], crep[4], crep[5], crep[6], crep[7],
+                       crep[8], crep[9])
+    return ok
+
+
+@njit(parallel=True, **_OPT)
+def step_kernel_3d(dof, vel, d1s, ts, bs, times, failed, kappa_bar, tau_bar, rest_len, vor_len, mass, fixed,
+                   grav, prm, cd, crep, fo, io):
+    """Advance all non-failed envs by prm[P_DT]. dof/vel (B, 4N) views of State.dof; outputs fo (B, F_COLS),
+    io (B, I_COLS) and the contact report arrays crep."""
+    B = dof.shape[0]
+    for e in prange(B):
+        for c in range(F_COLS):
+            fo[e, c] = 0.0
+        for c in range(I_COLS):
+            io[e, c] = 0
+        if failed[e]:
+            continue
+        ok = _env_step_3d(e, dof[e], vel[e], d1s[e], ts[e], bs[e], kappa_bar[e], tau_bar[e], rest_len, vor_len,
+                          mass, fixed, grav, prm, cd, crep, fo[e], io[e])
+        if ok:
+            times[e] += prm[P_DT]
+        else:
+            failed[e] = True
+
+
+# ----------------------------------------------------------------------------------------------- 2-D
+@njit(**_OPT)
+def _assemble_2d(e, x, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, pos, pos0, f, ab,
+                 g4, H4, g6, H6, cg, ch, with_jac):
+    """2-D residual and banded Jacobian (half-bandwidth 5). Returns (‖f‖, Es, Eb, 0, Ec)."""
+    n = x.shape[0]
+    N = n // 2
+    kl = 5
+    EA = prm[P_EA]
+    EI = prm[P_EI1]
+    sgn = prm[P_SIGN2D]
+    damp = prm[P_DAMP]
+    ih = 1.0 / h
+    ih2 = ih * ih
+    if with_jac:
+        ab[:, :] = 0.0
+        for k in range(n, n + kl):
+            ab[k, kl] = 1.0
+    for k in range(n):
+        m = mass[k]
+        dxk = x[k] - x0[k]
+        f[k] = m * ih2 * (dxk - h * u[k]) - grav[k] + damp * m * dxk * ih
+        if with_jac:
+            ab[k, kl] = m * ih2 + damp * m * ih
+    es = 0.0
+    for j in range(N - 1):
+        o = 2 * j
+        ej, _ = stretch_element_2d((x[o], x[o + 1]), (x[o + 2], x[o + 3]), rest_len[j], EA, g4, H4, with_jac)
+        es += ej
+        for a in range(4):
+            f[o + a] += g4[a]
+        if with_jac:
+            for a in range(4):
+                for b in range(4):
+                    ab[o + a, kl + b - a] += H4[a, b]
+    eb = 0.0
+    for i in range(1, N - 1):
+        o = 2 * (i - 1)
+        ebi, _ = planar_bend_element((x[o], x[o + 1]), (x[o + 2], x[o + 3]), (x[o + 4], x[o + 5]),
+                                     sgn * kb[i, 0], EI, vor_len[i], g6, H6, with_jac)
+        eb += ebi
+        for a in range(6):
+            f[o + a] += g6[a]
+        if with_jac:
+            for a in range(6):
+                for b in range(6):
+                    ab[o + a, kl + b - a] += H6[a, b]
+    ec = 0.0
+    if prm[P_NOBS] > 0:
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos[k, 0] = x[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = x[2 * k + 1]
+            pos0[k, 0] = x0[2 * k]
+            pos0[k, 1] = py
+            pos0[k, 2] = x0[2 * k + 1]
+        cg[:, :] = 0.0
+        ch[:, :, :] = 0.0
+        ec = contact_accumulate(e, cd, pos, pos0, h, prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
+                                prm[P_CNU], prm[P_CFRIC] > 0, cg, ch)
+        for k in range(N):
+            f[2 * k] += cg[k, 0]
+            f[2 * k + 1] += cg[k, 2]
+        if with_jac:
+            for j in range(N - 1):
+                for a in range(4):
+                    la = (a // 2) * 3 + (0 if a % 2 == 0 else 2)
+                    r = 2 * j + a
+                    for b in range(4):
+                        lb = (b // 2) * 3 + (0 if b % 2 == 0 else 2)
+                        c = 2 * j + b
+                        ab[r, kl + c - r] += ch[j, la, lb]
+    r2 = 0.0
+    for k in range(n):
+        if fixed[k]:
+            f[k] = 0.0
+            if with_jac:
+                for c in range(max(0, k - kl), min(n, k + kl + 1)):
+                    ab[k, kl + c - k] = 0.0
+                    ab[c, kl + k - c] = 0.0
+                ab[k, kl] = 1.0
+        else:
+            r2 += f[k] * f[k]
+    return math.sqrt(r2), es, eb, 0.0, ec
+
+
+@njit(**_OPT)
+def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w):
+    """2-D analogue of _substep_3d (frames are updated by the caller)."""
+    (x, f, dx, xt, ab, pos, pos0, g4, H4, g6, H6, cg, ch) = w
+    n = x0.shape[0]
+    N = n // 2
+    hs = h if prm[P_INTEG] == 0 else 0.5 * h
+    maxit = int(prm[P_MAXIT])
+    tol = prm[P_TOL]
+    dtol = prm[P_DTOL]
+    for k in range(n):
+        x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
+    if prm[P_NOBS] > 0:
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos0[k, 0] = x0[2 * k]
+            pos0[k, 1] = py
+            pos0[k, 2] = x0[2 * k + 1]
+            pos[k, 0] = x0[2 * k] + hs * u[2 * k]  # predicted end of step (contact: swept list)
+            pos[k, 1] = py
+            pos[k, 2] = x0[2 * k + 1] + hs * u[2 * k + 1]
+        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+    r0 = 0.0
+    r = 0.0
+    conv = False
+    it = 0
+    while it < maxit:
+        r, _, _, _, _ = _assemble_2d(e, x, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, pos, pos0,
+                                     f, ab, g4, H4, g6, H6, cg, ch, True)
+        if not np.isfinite(r):
+            return 1, it, False, r, r0
+        if it == 0:
+            r0 = r
+        elif r > 1e6 * r0:
+            return 2, it, False, r, r0
+        if r <= tol * r0 and (it > 0 or r == 0.0):
+            conv = True
+            break
+        for k in range(n):
+            dx[k] = f[k]
+        if band_lu_solve(ab, n, 5, dx) != 0:
+            return 3, it, False, r, r0
+        if prm[P_LS] > 0:
+            alpha = 1.0
+            for trial in range(5):
+                for k in range(n):
+                    xt[k] = x[k] - alpha * dx[k]
+                rt, _, _, _, _ = _assemble_2d(e, xt, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd,
+                                              pos, pos0, f, ab, g4, H4, g6, H6, cg, ch, False)
+                if (np.isfinite(rt) and rt <= r) or trial == 4:
+                    break
+                alpha *= 0.5
+            for k in range(n):
+                x[k] = xt[k]
+        else:
+            for k in range(n):
+                x[k] -= dx[k]
+        it += 1
+        dmax = 0.0
+        for k in range(n):
+            if not fixed[k]:
+                dmax = max(dmax, abs(dx[k]))
+        if not np.isfinite(dmax):
+            return 1, it, False, r, r0
+        if dmax / hs < dtol:
+            conv = True
+            break
+    if not conv and prm[P_ACCEPT] == 0:
+        return 4, it, False, r, r0
+    if prm[P_INTEG] == 0:
+        for k in range(n):
+            dx[k] = (x[k] - x0[k]) / h
+    else:
+        for k in range(n):
+            uh = (x[k] - x0[k]) / hs
+            x[k] = 2.0 * x[k] - x0[k]
+            dx[k] = 2.0 * uh - u[k]
+            if fixed[k]:
+                dx[k] = 0.0
+    for j in range(N - 1):
+        ex = x[2 * j + 2] - x[2 * j]
+        ez = x[2 * j + 3] - x[2 * j + 1]
+        s = math.sqrt(ex * ex + ez * ez) / rest_len[j] - 1.0
+        if not abs(s) <= prm[P_STRAIN]:
+            return 5, it, conv, r, r0
+    for k in range(n):
+        if not (np.isfinite(x[k]) and np.isfinite(dx[k])):
+            return 1, it, conv, r, r0
+    for k in range(n):
+        x0[k] = x[k]
+        u[k] = dx[k]
+    return 0, it, conv, r, r0
+
+
+@njit(**_OPT)
+def _alloc_2d(N):
+    n = 2 * N
+    return (np.empty(n), np.empty(n), np.zeros(n + 5), np.empty(n), np.empty((n + 5, 11)), np.empty((N, 3)),
+            np.empty((N, 3)), np.empty(4), np.empty((4, 4)), np.empty(6), np.empty((6, 6)),
+            np.zeros((N, 3)), np.zeros((N - 1, 6, 6)))
+
+
+@njit(**_OPT)
+def _frames_from_2d(xs, py, d1s, ts, bs, pos, t, d1, d2, elen, beta):
+    """Update the 3-D frame arrays of a planar state (time-parallel transport from the stored ones)."""
+    N = xs.shape[0] // 2
+    for k in range(N):
+        pos[k, 0] = xs[2 * k]
+        pos[k, 1] = py
+        pos[k, 2] = xs[2 * k + 1]
+    update_frames(pos, d1s, ts, bs, t, d1, d2, elen, beta)
+    d1s[:, :] = d1
+    ts[:, :] = t
+    bs[:] = beta
+
+
+@njit(**_OPT)
+def _energies_2d(xs, kb, rest_len, vor_len, prm, g4, H4, g6, H6):
+    """(E_stretch, E_bend) [J] of a planar state."""
+    N = xs.shape[0] // 2
+    es = 0.0
+    for j in range(N - 1):
+        o = 2 * j
+        ej, _ = stretch_element_2d((xs[o], xs[o + 1]), (xs[o + 2], xs[o + 3]), rest_len[j], prm[P_EA], g4, H4, False)
+        es += ej
+    eb = 0.0
+    for i in range(1, N - 1):
+        o = 2 * (i - 1)
+        ebi, _ = planar_bend_element((xs[o], xs[o + 1]), (xs[o + 2], xs[o + 3]), (xs[o + 4], xs[o + 5]),
+                                     prm[P_SIGN2D] * kb[i, 0], prm[P_EI1], vor_len[i], g6, H6, False)
+        eb += ebi
+    return es, eb
+
+
+@njit(**_OPT)
+def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, crep, fo, io):
+    n = xs.shape[0]
+    N = n // 2
+    w = _alloc_2d(N)
+    x0 = np.empty(n)
+    u = np.empty(n)
+    ok = False
+    iters = 0
+    conv_all = True
+    r = 0.0
+    r0 = 0.0
+    ns = 1
+    for level in range(int(prm[P_LEVELS])):
+        ns = 1 << level
+        h = prm[P_DT] / ns
+        x0[:] = xs
+        u[:] = us
+        ok = True
+        iters = 0
+        conv_all = True
+        for s in range(ns):
+            st, it, conv, r, r0s = _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
+            if s == 0:
+                r0 = r0s
+            iters += it
+            conv_all = conv_all and conv
+            if st != 0:
+                ok = False
+                break
+        if ok:
+            break
+    (x, f, dx, xt, ab, pos, pos0, g4, H4, g6, H6, cg, ch) = w
+    if ok:
+        xs[:] = x0
+        us[:] = u
+        t = np.empty((N - 1, 3))
+        d1 = np.empty((N - 1, 3))
+        d2 = np.empty((N - 1, 3))
+        elen = np.empty(N - 1)
+        beta = np.empty(N)
+        _frames_from_2d(xs, prm[P_PLANEY], d1s, ts, bs, pos, t, d1, d2, elen, beta)
+    es, eb = _energies_2d(xs, kb, rest_len, vor_len, prm, g4, H4, g6, H6)
+    ec = 0.0
+    if prm[P_NOBS] > 0:
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos[k, 0] = xs[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = xs[2 * k + 1]
+        cg[:, :] = 0.0
+        ch[:, :, :] = 0.0
+        ec = contact_accumulate(e, cd, pos, pos, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
+                                prm[P_CNU], prm[P_CFRIC] > 0, cg, ch)
+    ek = 0.0
+    eg = 0.0
+    for k in range(n):
+        ek += 0.5 * mass[k] * us[k] * us[k] * (0.0 if fixed[k] else 1.0)
+        eg -= grav[k] * xs[k]
+    fo[F_RES] = r if np.isfinite(r) else np.inf
+    fo[F_RES0] = r0 if np.isfinite(r0) else np.inf
+    fo[F_ES] = es
+    fo[F_EB] = eb
+    fo[F_ET] = 0.0
+    fo[F_EC] = ec
+    fo[F_EK] = ek
+    fo[F_EG] = eg
+    io[I_ITERS] = iters
+    io[I_CONV] = 1 if (ok and conv_all) else 0
+    io[I_SUB] = ns
+    io[I_FAIL] = 0 if ok else 1
+    if prm[P_NOBS] > 0:
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos[k, 0] = xs[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = xs[2 * k + 1]
+            pos0[k, 0] = xs[2 * k] - prm[P_DT] * us[2 * k]  # step start (friction velocity)
+            pos0[k, 1] = py
+            pos0[k, 2] = xs[2 * k + 1] - prm[P_DT] * us[2 * k + 1]
+        contact_report(e, cd, pos, pos0, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU], prm[P_CNU],
+                       prm[P_CFRIC] > 0, crep[0], crep[1], crep[2], crep[3], crep[4], crep[5], crep[6], crep[7],
+                       crep[8], crep[9])
+    return ok
+
+
+@njit(parallel=True, **_OPT)
+def step_kernel_2d(dof, vel, d1s, ts, bs, times, failed, kappa_bar, rest_len, vor_len, mass, fixed, grav, prm,
+                   cd, crep, fo, io):
+    """2-D analogue of step_kernel_3d; dof/vel (B, 2N) views of State.dof ([x, z] per node)."""
+    B = dof.shape[0]
+    for e in prange(B):
+        for c in range(F_COLS):
+            fo[e, c] = 0.0
+        for c in range(I_COLS):
+            io[e, c] = 0
+        if failed[e]:
+            continue
+        ok = _env_step_2d(e, dof[e], vel[e], d1s[e], ts[e], bs[e], kappa_bar[e], rest_len, vor_len, mass, fixed,
+                          grav, prm, cd, crep, fo[e], io[e])
+        if ok:
+            times[e] += prm[P_DT]
+        else:
+            failed[e] = True

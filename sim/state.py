@@ -1,0 +1,131 @@
+"""State, Control and StepStats: struct-of-arrays with a leading env axis B (shapes and SI units below)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["State", "Control", "StepStats"]
+
+
+@dataclass(eq=False)
+class State:
+    """Dynamic state of B envs (N nodes).
+
+    dof            (B, N, 4) 3-D [x, y, z, θ] (m, rad; θ of edge j at node j, last θ a dummy = 0)
+                   or (B, N, 2) 2-D [x, z] (m)
+    dof_vel        same shape, (q_new − q_old)/h of the last (sub)step (m/s, rad/s)
+    edge_ref_d1    (B, N-1, 3) reference director d1 at the end of the last step (unit)
+    edge_tangent   (B, N-1, 3) unit tangent at the end of the last step
+    node_ref_twist (B, N) reference twist β [rad] (0 at both end nodes)
+    time           (B,) [s]
+    failed         (B,) bool, env failed irrecoverably and is frozen until reset
+    plane_y        2-D only: y of the motion plane [m] (used by node_pos)
+    """
+
+    dof: np.ndarray
+    dof_vel: np.ndarray
+    edge_ref_d1: np.ndarray
+    edge_tangent: np.ndarray
+    node_ref_twist: np.ndarray
+    time: np.ndarray
+    failed: np.ndarray
+    plane_y: float = 0.0
+
+    @property
+    def env_count(self) -> int:
+        return self.dof.shape[0]
+
+    @property
+    def is_2d(self) -> bool:
+        return self.dof.shape[-1] == 2
+
+    def _xyz(self, a: np.ndarray, fill: float) -> np.ndarray:
+        if not self.is_2d:
+            return a[..., :3]
+        out = np.empty(a.shape[:-1] + (3,))
+        out[..., 0] = a[..., 0]
+        out[..., 1] = fill
+        out[..., 2] = a[..., 1]
+        return out
+
+    @property
+    def node_pos(self) -> np.ndarray:
+        """(B, N, 3) node positions [m] (a view in 3-D, a copy in 2-D)."""
+        return self._xyz(self.dof, self.plane_y)
+
+    @property
+    def node_vel(self) -> np.ndarray:
+        """(B, N, 3) node velocities [m/s]."""
+        return self._xyz(self.dof_vel, 0.0)
+
+    @property
+    def edge_theta(self) -> np.ndarray:
+        """(B, N-1) twist angles θ [rad] (zeros in 2-D)."""
+        if self.is_2d:
+            return np.zeros(self.dof.shape[:2])[:, :-1]
+        return self.dof[:, :-1, 3]
+
+    def copy(self) -> "State":
+        return State(self.dof.copy(), self.dof_vel.copy(), self.edge_ref_d1.copy(), self.edge_tangent.copy(),
+                     self.node_ref_twist.copy(), self.time.copy(), self.failed.copy(), self.plane_y)
+
+
+@dataclass(eq=False)
+class Control:
+    """Per-env natural curvature/twist (the parameters the step reads).
+
+    kappa_bar (B, N, 2) integrated natural curvature [κ̄1, κ̄2] at nodes (dimensionless; rows 0, N-1 unused).
+              2-D mode: only kappa_bar[..., 0] is used; it is the 3-D component that is in-plane for the
+              rod's direction (κ1 for a +z rod), see docs/conventions.md.
+    tau_bar   (B, N) integrated natural twist [rad] at nodes (rows 0, N-1 unused; ignored in 2-D).
+    """
+
+    kappa_bar: np.ndarray
+    tau_bar: np.ndarray
+
+    def copy(self) -> "Control":
+        return Control(self.kappa_bar.copy(), self.tau_bar.copy())
+
+
+@dataclass(eq=False)
+class StepStats:
+    """Per-env results of one ``Simulator.step`` (leading axis B; C = contact report capacity).
+
+    newton_iters (B,) int (total over sub-steps), residual (B,) last evaluated ‖f‖ [mixed N, N·m],
+    residual0 (B,) first ‖f‖ of the step, converged (B,) bool, substeps (B,) int (1 = no retry),
+    failed (B,) bool (failed in this step), energy_* (B,) [J] at the end of the step, max_penetration (B,) [m],
+    contact_* rows (see docs/architecture.md).
+    """
+
+    newton_iters: np.ndarray
+    residual: np.ndarray
+    residual0: np.ndarray
+    converged: np.ndarray
+    substeps: np.ndarray
+    failed: np.ndarray
+    energy_stretch: np.ndarray
+    energy_bend: np.ndarray
+    energy_twist: np.ndarray
+    energy_contact: np.ndarray
+    energy_kinetic: np.ndarray
+    energy_gravity: np.ndarray
+    max_penetration: np.ndarray
+    contact_count: np.ndarray
+    contact_edge: np.ndarray
+    contact_obstacle: np.ndarray
+    contact_rod_point: np.ndarray
+    contact_obstacle_point: np.ndarray
+    contact_normal: np.ndarray
+    contact_normal_force: np.ndarray
+    contact_friction_force: np.ndarray
+    contact_gap: np.ndarray
+
+    @property
+    def energy_elastic(self) -> np.ndarray:
+        return self.energy_stretch + self.energy_bend + self.energy_twist
+
+    @property
+    def energy_total(self) -> np.ndarray:
+        """Elastic + contact + kinetic + gravity potential [J]."""
+        return self.energy_elastic + self.energy_contact + self.energy_kinetic + self.energy_gravity

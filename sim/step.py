@@ -1,0 +1,188 @@
+"""Simulator: reset(), step(), control helpers. ``step`` is a short recipe: validate -> fused kernel -> stats."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from . import solve as _solve
+from .model import Model
+from .state import Control, State, StepStats
+
+__all__ = ["Simulator"]
+
+IndexLike = int | Sequence[int] | np.ndarray | slice | None
+
+
+class Simulator:
+    """Batched implicit DER simulator for ``envs`` copies of ``model``.
+
+    ``step(state, ctrl)`` advances ``state`` in place by ``model.dt`` and returns :class:`StepStats`.
+    """
+
+    def __init__(self, model: Model, envs: int = 1) -> None:
+        if not isinstance(envs, (int, np.integer)) or envs < 1:
+            raise ValueError(f"envs must be a positive integer, got {envs!r}")
+        self.model = model
+        self.envs = B = int(envs)
+        m = model
+        c = m.spec.contact
+        prm = np.zeros(_solve.PRM_SIZE)
+        prm[_solve.P_EA], prm[_solve.P_EI1], prm[_solve.P_EI2], prm[_solve.P_GJ] = m.EA, m.EI1, m.EI2, m.GJ
+        prm[_solve.P_DT], prm[_solve.P_DAMP] = m.dt, m.damping
+        prm[_solve.P_TOL], prm[_solve.P_DTOL], prm[_solve.P_MAXIT] = m.newton_tol, m.newton_dtol, m.newton_max_iter
+        prm[_solve.P_ACCEPT] = 1.0 if m.accept_unconverged else 0.0
+        prm[_solve.P_INTEG] = 0.0 if m.integrator == "backward_euler" else 1.0
+        prm[_solve.P_LS] = 0.0 if m.line_search == "none" else 1.0
+        prm[_solve.P_RADIUS] = m.radius
+        prm[_solve.P_CK], prm[_solve.P_CDELTA], prm[_solve.P_CMU] = c.stiffness, c.delta, c.friction
+        prm[_solve.P_CNU], prm[_solve.P_CMARGIN] = c.friction_velocity_tol, c.margin
+        prm[_solve.P_CFRIC] = 1.0 if c.friction > 0 else 0.0
+        prm[_solve.P_NOBS] = float(m.obstacles.count if getattr(c, "enabled", True) else 0)
+        prm[_solve.P_SIGN2D], prm[_solve.P_PLANEY] = m.planar_sign, m.plane_y
+        prm[_solve.P_LEVELS], prm[_solve.P_STRAIN] = 5.0, 0.9
+        self._prm = prm
+        self._arr = tuple(np.array(a) for a in (m.rest_edge_length, m.voronoi_length, m.dof_mass, m.dof_fixed,
+                                                m.dof_gravity))
+        # per-Simulator obstacle poses (static meshes/BVHs shared with the model); tasks edit them through
+        # self.obstacles.set_pose / set_capsules, in place
+        self.obstacles = m.obstacles.for_envs(B, n_nodes=m.node_count, rod_radius=m.radius)
+        self._cd = self.obstacles.kernel_data()
+        C = int(self.obstacles.report_capacity)
+        self._crep = (np.zeros(B, np.int64), np.zeros((B, C), np.int64), np.zeros((B, C), np.int64),
+                      np.zeros((B, C, 3)), np.zeros((B, C, 3)), np.zeros((B, C, 3)), np.zeros((B, C)),
+                      np.zeros((B, C, 3)), np.zeros((B, C)), np.zeros(B))
+        self._fo = np.zeros((B, _solve.F_COLS))
+        self._io = np.zeros((B, _solve.I_COLS), np.int64)
+
+    # ------------------------------------------------------------------ state / control construction
+    def _rest_dof(self) -> np.ndarray:
+        m = self.model
+        x = m.rest_node_pos
+        if m.mode == "3d":
+            q = np.zeros((m.node_count, 4))
+            q[:, :3] = x
+        else:
+            q = x[:, [0, 2]].copy()
+        return q
+
+    def reset(self) -> State:
+        """State of all envs at the rest configuration, at rest, time 0."""
+        B, m = self.envs, self.model
+        q0 = self._rest_dof()
+        q = np.broadcast_to(q0, (B,) + q0.shape).copy()
+        return State(dof=q, dof_vel=np.zeros_like(q),
+                     edge_ref_d1=np.broadcast_to(m.rest_ref_d1, (B, m.node_count - 1, 3)).copy(),
+                     edge_tangent=np.broadcast_to(m.rest_tangent, (B, m.node_count - 1, 3)).copy(),
+                     node_ref_twist=np.zeros((B, m.node_count)), time=np.zeros(B), failed=np.zeros(B, bool),
+                     plane_y=m.plane_y if m.mode == "2d" else 0.0)
+
+    def _rest_control_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        m = self.model
+        kb = np.array(m.rest_kappa_bar)
+        if m.mode == "2d":
+            kb = np.stack([kb[:, m.planar_component], np.zeros(m.node_count)], axis=1)
+        return kb, np.array(m.rest_tau_bar)
+
+    def make_control(self) -> Control:
+        """Control with the rest natural curvature/twist for every env."""
+        kb, tb = self._rest_control_arrays()
+        B = self.envs
+        return Control(kappa_bar=np.broadcast_to(kb, (B,) + kb.shape).copy(),
+                       tau_bar=np.broadcast_to(tb, (B,) + tb.shape).copy())
+
+    def reset_envs(self, state: State, ctrl: Control | None, mask: np.ndarray) -> None:
+        """Reset the envs where ``mask`` (B,) is True to rest (state and, if given, control)."""
+        mask = np.asarray(mask, dtype=bool)
+        if mask.shape != (self.envs,):
+            raise ValueError(f"mask: expected shape ({self.envs},), got {mask.shape}")
+        fresh = self.reset()
+        for name in ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time", "failed"):
+            getattr(state, name)[mask] = getattr(fresh, name)[mask]
+        if ctrl is not None:
+            kb, tb = self._rest_control_arrays()
+            ctrl.kappa_bar[mask] = kb
+            ctrl.tau_bar[mask] = tb
+
+    # ------------------------------------------------------------------ control helpers
+    def set_natural_curvature(self, ctrl: Control, value, *, nodes: IndexLike = None, envs: IndexLike = None) -> None:
+        """ctrl.kappa_bar[envs, nodes, :] = value (broadcast; integrated curvature, dimensionless)."""
+        ctrl.kappa_bar[_ix(envs), _ix(nodes)] = value
+
+    def add_natural_curvature(self, ctrl: Control, delta, *, nodes: IndexLike = None, envs: IndexLike = None) -> None:
+        """ctrl.kappa_bar[envs, nodes, :] += delta; takes effect in the next ``step``."""
+        ctrl.kappa_bar[_ix(envs), _ix(nodes)] += delta
+
+    def set_natural_twist(self, ctrl: Control, value, *, nodes: IndexLike = None, envs: IndexLike = None) -> None:
+        """ctrl.tau_bar[envs, nodes] = value [rad]."""
+        ctrl.tau_bar[_ix(envs), _ix(nodes)] = value
+
+    def add_natural_twist(self, ctrl: Control, delta, *, nodes: IndexLike = None, envs: IndexLike = None) -> None:
+        """ctrl.tau_bar[envs, nodes] += delta [rad]."""
+        ctrl.tau_bar[_ix(envs), _ix(nodes)] += delta
+
+    # ------------------------------------------------------------------ stepping
+    def _check(self, state: State, ctrl: Control) -> None:
+        B, N = self.envs, self.model.node_count
+        nd = 4 if self.model.mode == "3d" else 2
+        want = {"dof": (B, N, nd), "dof_vel": (B, N, nd), "edge_ref_d1": (B, N - 1, 3), "edge_tangent": (B, N - 1, 3),
+                "node_ref_twist": (B, N), "time": (B,), "failed": (B,)}
+        for name, shp in want.items():
+            a = getattr(state, name)
+            if not isinstance(a, np.ndarray) or a.shape != shp:
+                raise ValueError(f"state.{name}: expected shape {shp}, got {getattr(a, 'shape', type(a))}")
+            dt = np.bool_ if name == "failed" else np.float64
+            if a.dtype != dt or not a.flags.c_contiguous or not a.flags.writeable:
+                raise ValueError(f"state.{name}: expected a writable C-contiguous {np.dtype(dt).name} array")
+        for name, shp in (("kappa_bar", (B, N, 2)), ("tau_bar", (B, N))):
+            a = getattr(ctrl, name)
+            if not isinstance(a, np.ndarray) or a.shape != shp:
+                raise ValueError(f"ctrl.{name}: expected shape {shp}, got {getattr(a, 'shape', type(a))}")
+            if not np.isfinite(a).all():
+                raise ValueError(f"ctrl.{name}: contains NaN or inf")
+
+    def step(self, state: State, ctrl: Control) -> StepStats:
+        """Advance every non-failed env of ``state`` by ``model.dt`` (in place) under ``ctrl``."""
+        self._check(state, ctrl)
+        kb = np.ascontiguousarray(ctrl.kappa_bar, dtype=np.float64)
+        tb = np.ascontiguousarray(ctrl.tau_bar, dtype=np.float64)
+        B = self.envs
+        q = state.dof.reshape(B, -1)
+        v = state.dof_vel.reshape(B, -1)
+        rl, vl, ms, fx, gr = self._arr
+        if self.model.mode == "3d":
+            _solve.step_kernel_3d(q, v, state.edge_ref_d1, state.edge_tangent, state.node_ref_twist, state.time,
+                                  state.failed, kb, tb, rl, vl, ms, fx, gr, self._prm, self._cd, self._crep,
+                                  self._fo, self._io)
+        else:
+            _solve.step_kernel_2d(q, v, state.edge_ref_d1, state.edge_tangent, state.node_ref_twist, state.time,
+                                  state.failed, kb, rl, vl, ms, fx, gr, self._prm, self._cd, self._crep,
+                                  self._fo, self._io)
+        return self._stats()
+
+    def _stats(self) -> StepStats:
+        fo, io, cr = self._fo, self._io, self._crep
+        s = _solve
+        return StepStats(
+            newton_iters=io[:, s.I_ITERS].copy(), residual=fo[:, s.F_RES].copy(), residual0=fo[:, s.F_RES0].copy(),
+            converged=io[:, s.I_CONV].astype(bool), substeps=io[:, s.I_SUB].copy(), failed=io[:, s.I_FAIL].astype(bool),
+            energy_stretch=fo[:, s.F_ES].copy(), energy_bend=fo[:, s.F_EB].copy(), energy_twist=fo[:, s.F_ET].copy(),
+            energy_contact=fo[:, s.F_EC].copy(), energy_kinetic=fo[:, s.F_EK].copy(),
+            energy_gravity=fo[:, s.F_EG].copy(), max_penetration=cr[9].copy(), contact_count=cr[0].copy(),
+            contact_edge=cr[1].copy(), contact_obstacle=cr[2].copy(), contact_rod_point=cr[3].copy(),
+            contact_obstacle_point=cr[4].copy(), contact_normal=cr[5].copy(), contact_normal_force=cr[6].copy(),
+            contact_friction_force=cr[7].copy(), contact_gap=cr[8].copy())
+
+    # ------------------------------------------------------------------ frames
+    def material_frames(self, state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(m1, m2, t), each (B, N-1, 3): material directors and unit tangents at the end of the last step."""
+        t = state.edge_tangent
+        d1 = state.edge_ref_d1
+        d2 = np.cross(t, d1)
+        th = state.edge_theta[..., None]
+        c, s = np.cos(th), np.sin(th)
+        return c * d1 + s * d2, -s * d1 + c * d2, t.copy()
+
+
+def _ix(i: IndexLike):
+    return slice(None) if i is None else i

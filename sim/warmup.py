@@ -1,0 +1,41 @@
+"""Compile (or load from the numba cache) the step kernels on a tiny model: ``python -m sim.warmup``."""
+from __future__ import annotations
+
+import sys
+import time
+
+__all__ = ["warmup"]
+
+
+def _tiny_spec(mode: str):
+    from .scene import RodSpec, SceneSpec, SimSpec
+    return SceneSpec(
+        sim=SimSpec(dt=0.01, gravity=(0.0, 0.0, -9.8), newton_tol=1e-3, newton_max_iter=2, accept_unconverged=True,
+                    mode=mode),  # type: ignore[arg-type]
+        rod=RodSpec(nodes=5, length=0.4, radius=0.01, density=1000.0, youngs_modulus=1e6, poisson_ratio=0.5,
+                    start=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0)))
+
+
+def warmup(*, verbose: bool = False) -> float:
+    """Compile/load the 3-D and 2-D kernels; returns the seconds it took."""
+    from .model import build_model
+    from .step import Simulator
+    t0 = time.perf_counter()
+    for mode in ("3d", "2d"):
+        if verbose:
+            print(f"sim.warmup: compiling the {mode} step kernel (first run only; cached afterwards)...",
+                  file=sys.stderr, flush=True)
+        sim = Simulator(build_model(_tiny_spec(mode)), envs=2)
+        state = sim.reset()
+        sim.step(state, sim.make_control())
+    return time.perf_counter() - t0
+
+
+def main() -> int:
+    dt = warmup(verbose=True)
+    print(f"sim.warmup: kernels ready in {dt:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,87 @@
+"""Shared helpers for the contact tests: evaluate the contact kernels on one env outside the solver."""
+from __future__ import annotations
+
+import numpy as np
+
+from sim.contact_kernels import contact_accumulate, contact_broadphase, contact_report
+from sim.obstacles import ObstacleSet
+
+K = 1e6
+DELTA = 5e-3
+R_ROD = 0.05
+
+
+def make_set(specs, n_nodes, *, rod_radius=R_ROD, envs=1):
+    os_ = ObstacleSet.from_specs(specs, envs=envs)
+    cd = os_.kernel_data(envs, n_nodes=n_nodes, rod_radius=rod_radius)
+    return os_, cd
+
+
+def accumulate(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, friction_on=False, margin=5e-2,
+               rod_radius=R_ROD, k=K, delta=DELTA, broadphase=True, e=0):
+    """Return (energy [J], grad (N,3), hess (N-1,6,6)) of the contact at positions x (N, 3)."""
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    xp = x.copy() if x_prev is None else np.ascontiguousarray(x_prev, dtype=np.float64)
+    if broadphase:
+        contact_broadphase(e, cd, x, x, margin)
+        cd[17][e] = 1  # evaluate as a Newton iteration >= 1 (friction is skipped on iteration 0)
+    g = np.zeros_like(x)
+    h = np.zeros((x.shape[0] - 1, 6, 6))
+    E = contact_accumulate(e, cd, x, xp, dt, rod_radius, k, delta, mu, nu, friction_on, g, h)
+    return E, g, h
+
+
+def report(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, cap=64, rod_radius=R_ROD, e=0, B=1, k=K,
+           delta=DELTA):
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    xp = x.copy() if x_prev is None else np.ascontiguousarray(x_prev, dtype=np.float64)
+    out = dict(count=np.zeros(B, np.int64), edge=np.zeros((B, cap), np.int64), obstacle=np.zeros((B, cap), np.int64),
+               rod_point=np.zeros((B, cap, 3)), obstacle_point=np.zeros((B, cap, 3)), normal=np.zeros((B, cap, 3)),
+               normal_force=np.zeros((B, cap)), friction_force=np.zeros((B, cap, 3)), gap=np.zeros((B, cap)),
+               max_penetration=np.zeros(B))
+    E = contact_report(e, cd, x, xp, dt, rod_radius, k, delta, mu, nu, True, out["count"], out["edge"],
+                       out["obstacle"], out["rod_point"], out["obstacle_point"], out["normal"], out["normal_force"],
+                       out["friction_force"], out["gap"], out["max_penetration"])
+    return E, out
+
+
+def dense_hessian(h, n):
+    """Assemble (N-1, 6, 6) edge blocks into a dense (3N, 3N) matrix."""
+    H = np.zeros((3 * n, 3 * n))
+    for j in range(n - 1):
+        H[3 * j:3 * j + 6, 3 * j:3 * j + 6] += h[j]
+    return H
+
+
+def fd_check(cd, x, *, eps=1e-7, **kw):
+    """Max errors of grad vs FD(energy) and Hessian vs FD(grad), relative to the scale of each."""
+    E, g, h = accumulate(cd, x, **kw)
+    n = x.shape[0]
+    H = dense_hessian(h, n)
+    gn = np.zeros(3 * n)
+    Hn = np.zeros((3 * n, 3 * n))
+    for i in range(3 * n):
+        xp = x.copy().reshape(-1)
+        xm = x.copy().reshape(-1)
+        xp[i] += eps
+        xm[i] -= eps
+        Ep, gp, _ = accumulate(cd, xp.reshape(n, 3), broadphase=False, **kw)
+        Em, gm, _ = accumulate(cd, xm.reshape(n, 3), broadphase=False, **kw)
+        gn[i] = (Ep - Em) / (2 * eps)
+        Hn[:, i] = (gp - gm).reshape(-1) / (2 * eps)
+    eg = np.abs(g.reshape(-1) - gn).max() / max(np.abs(gn).max(), 1e-9)
+    eh = np.abs(H - Hn).max() / max(np.abs(Hn).max(), 1e-9)
+    return E, eg, eh
+
+
+def place_at_gap(cd, x, target, *, iters=3):
+    """Translate the rod x (N, 3) along the contact normal until its smallest gap equals ``target`` [m]."""
+    x = np.array(x, dtype=np.float64)
+    for _ in range(iters):
+        contact_broadphase(0, cd, x, x, 1.0)
+        _, out = report(cd, x, x_prev=x, delta=1.0)
+        if out["count"][0] == 0:
+            raise AssertionError("place_at_gap: no contact within delta; start closer")
+        i = int(np.argmin(out["gap"][0, :out["count"][0]]))
+        x += (target - out["gap"][0, i]) * out["normal"][0, i]
+    return x

@@ -1,0 +1,38 @@
+"""The `rodlab` dispatcher: help, unknown commands, and that every table entry names a real function."""
+import importlib
+import subprocess
+import sys
+
+import pytest
+
+import rodlab_cli
+
+
+def test_help_lists_every_command(capsys):
+    assert rodlab_cli.main(["--help"]) == 0
+    out = capsys.readouterr().out
+    for name in rodlab_cli.COMMANDS:
+        assert name in out
+    assert "bench" in out
+
+
+def test_unknown_command_is_a_clear_error(capsys):
+    assert rodlab_cli.main(["frobnicate"]) == 2
+    assert "unknown command 'frobnicate'" in capsys.readouterr().err
+
+
+def test_unknown_bench_kind_is_a_clear_error(capsys):
+    assert rodlab_cli.main(["bench", "nope"]) == 2
+    assert "usage: rodlab bench" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("target", [t for t, _ in list(rodlab_cli.COMMANDS.values()) + list(rodlab_cli.BENCH.values())])
+def test_every_entry_resolves_to_a_callable(target):
+    mod_name, fn_name = target.split(":")
+    mod = importlib.import_module(mod_name)
+    assert callable(getattr(mod, fn_name))
+
+
+def test_console_script_runs():
+    r = subprocess.run([sys.executable, "-m", "rodlab_cli", "--help"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and "usage: rodlab" in r.stdout
