@@ -1,0 +1,291 @@
+"""Command-line entry points of ``policies`` (dispatched by rodlab_cli.py; each ``main(argv) -> int``).
+
+* ``rodlab train TASK [--envs 500] [--steps N] [--seed s] [--run-dir DIR] [--resume]`` -> train_main
+* ``rodlab eval POLICY [--task T] [--episodes 100] [--seed s] [--json]``             -> eval_main
+* ``rodlab bench train --task T [--envs 500] [--iters n] [--json]``                  -> bench_train_main
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+
+def _threads_env() -> None:
+    # one thread per process: the machine is shared and training runs two processes at most
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+
+
+# ----------------------------------------------------------------------------------------- train
+def train_main(argv: list[str]) -> int:
+    _threads_env()
+    from policies.train import Args, TrainError, train
+
+    d = Args()
+    p = argparse.ArgumentParser(prog="rodlab train", description="Train SAC on a rodlab task (headless). "
+                                "Defaults follow the paper (tasks.md §8.1).")
+    p.add_argument("task", nargs="?", default="", help="task short name (e.g. follow_target) or gymnasium id")
+    p.add_argument("--envs", type=int, default=None, help=f"parallel envs (default {d.num_envs})")
+    p.add_argument("--steps", type=int, default=d.total_steps, help="total env steps over all envs")
+    p.add_argument("--seed", type=int, default=d.seed)
+    p.add_argument("--run-dir", default="", help="run directory (default runs/<task>__s<seed>__<time>)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --run-dir from its checkpoint")
+    p.add_argument("--updates", type=int, default=d.updates_per_iter, help="gradient updates per iteration")
+    p.add_argument("--batch-size", type=int, default=d.batch_size)
+    p.add_argument("--buffer-size", type=int, default=d.buffer_size)
+    p.add_argument("--learning-starts", type=int, default=d.learning_starts)
+    p.add_argument("--checkpoint-minutes", type=float, default=d.checkpoint_minutes)
+    p.add_argument("--time-limit", type=float, default=0.0, metavar="MIN",
+                   help="stop (checkpoint + policy) after MIN minutes of wall-clock in this session")
+    p.add_argument("--no-replay-checkpoint", action="store_true", help="do not save the replay buffer")
+    p.add_argument("--threads", type=int, default=d.torch_threads, help="torch threads")
+    p.add_argument("--log-interval", type=float, default=d.log_interval_s, help="seconds between log lines")
+    a = p.parse_args(argv)
+    if a.resume and not a.run_dir:
+        p.error("--resume needs --run-dir")
+    if not a.resume and not a.task:
+        p.error("TASK is required")
+    if a.steps < 1 or (a.envs is not None and a.envs < 1):
+        p.error("--steps and --envs must be positive")
+    args = Args(task=a.task, num_envs=a.envs or d.num_envs, total_steps=a.steps, seed=a.seed, run_dir=a.run_dir,
+                updates_per_iter=a.updates, batch_size=a.batch_size, buffer_size=a.buffer_size,
+                learning_starts=a.learning_starts, checkpoint_minutes=a.checkpoint_minutes,
+                save_replay_buffer=not a.no_replay_checkpoint, torch_threads=a.threads,
+                log_interval_s=a.log_interval, time_limit_minutes=a.time_limit)
+    if a.resume:
+        cfg = os.path.join(a.run_dir, "config.json")
+        try:
+            saved_envs = json.load(open(cfg))["args"]["num_envs"]
+        except (OSError, KeyError, json.JSONDecodeError) as exc:
+            print(f"rodlab train: cannot read {cfg}: {exc}", file=sys.stderr)
+            return 2
+        if a.envs is not None and a.envs != saved_envs:
+            print(f"rodlab train: --resume keeps the run's {saved_envs} envs (got --envs {a.envs})", file=sys.stderr)
+            return 2
+        args.num_envs = saved_envs
+    try:
+        run_dir = train(args, resume=a.resume)
+    except TrainError as exc:
+        print(f"rodlab train: {exc}", file=sys.stderr)
+        return 2
+    print(f"run directory: {run_dir}  (policy: {run_dir / 'policy.zip'})")
+    return 0
+
+
+# ----------------------------------------------------------------------------------------- eval
+def eval_main(argv: list[str]) -> int:
+    _threads_env()
+    p = argparse.ArgumentParser(prog="rodlab eval", description="Evaluate a policy file on a task "
+                                "(paper's average discounted return + task metrics).")
+    p.add_argument("policy", help="policy .zip (policies/pretrained/*.zip, runs/*/policy.zip) or 'random'")
+    p.add_argument("--task", default=None, help="task (default: the one stored in the policy file)")
+    p.add_argument("--episodes", type=int, default=100)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seeds", type=int, default=1, help="evaluate seeds seed..seed+n-1")
+    p.add_argument("--envs", type=int, default=None, help="parallel envs (default min(episodes, 100))")
+    p.add_argument("--stochastic", action="store_true", help="sample actions instead of the mean")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    a = p.parse_args(argv)
+    import torch
+
+    torch.set_num_threads(1)
+    from policies.evaluate import evaluate
+    from policies.sac import PolicyLoadError
+    from policies.train import TrainError
+
+    try:
+        res = evaluate(a.policy, a.task, episodes=a.episodes, seed=a.seed, num_envs=a.envs,
+                       deterministic=not a.stochastic, eval_seeds=a.seeds)
+    except (PolicyLoadError, TrainError, ValueError) as exc:
+        print(f"rodlab eval: {exc}", file=sys.stderr)
+        return 2
+    if a.json:
+        print(json.dumps(res))
+        return 0
+    print(f"task {res['task']}  policy {res['policy']}  episodes {res['episodes']}  seed {res['seed']}")
+    print(f"  average discounted return  {res['avg_discounted_return_mean']:.2f} ± {res['avg_discounted_return_std']:.2f}"
+          f"   (undiscounted return {res['return_mean']:.2f} ± {res['return_std']:.2f})")
+    for key in ("final_tip_error", "final_orientation_error_deg", "final_yaw_error_deg"):
+        if f"{key}_mean" in res:
+            print(f"  {key:<28}{res[key + '_mean']:.4f} ± {res[key + '_std']:.4f}")
+    for key in ("reached_rate", "ever_reached_rate", "min_tip_error_mean", "episode_length_mean", "failures"):
+        if key in res:
+            print(f"  {key:<28}{res[key]}")
+    return 0
+
+
+# ----------------------------------------------------------------------------------------- bench train
+def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3, seed: int = 0,
+                threads: int = 1) -> dict:
+    """Time training iterations (one batched env step + ``updates`` gradient updates of batch 1024).
+
+    Returns ms per iteration split into policy (action sampling), env step, buffer add and updates.
+    The replay buffer is first filled with ``learning_starts`` random transitions (untimed).
+    """
+    import numpy as np
+    import torch
+
+    from policies.train import Args, build_model, make_sb3_env
+
+    torch.set_num_threads(threads)
+    args = Args(task=task, num_envs=envs, total_steps=max(envs * (iters + warmup + 10), 20_000), seed=seed)
+    t_build = time.perf_counter()
+    env = make_sb3_env(task, envs, seed)
+    model = build_model(args, env)
+    from stable_baselines3.common.logger import configure
+
+    model.set_logger(configure(None, [""]))
+    rb = model.replay_buffer
+    obs = env.reset()
+    build_s = time.perf_counter() - t_build
+    while rb.size() * envs < max(args.learning_starts, args.batch_size):
+        act = np.stack([env.action_space.sample() for _ in range(envs)])
+        nobs, rew, done, infos = env.step(act)
+        rb.add(obs, nobs, act, rew, done, infos)
+        obs = nobs
+    rows = []
+    for it in range(warmup + iters):
+        t0 = time.perf_counter()
+        act, _ = model.predict(obs, deterministic=False)
+        t1 = time.perf_counter()
+        nobs, rew, done, infos = env.step(act)
+        t2 = time.perf_counter()
+        rb.add(obs, nobs, model.policy.scale_action(act), rew, done, infos)
+        obs = nobs
+        t3 = time.perf_counter()
+        model.train(gradient_steps=args.updates_per_iter, batch_size=args.batch_size)
+        t4 = time.perf_counter()
+        if it >= warmup:
+            rows.append((t1 - t0, t2 - t1, t3 - t2, t4 - t3, t4 - t0))
+    env.close()
+    r = 1e3 * np.array(rows)
+    names = ["policy_ms", "env_step_ms", "buffer_add_ms", "update_ms", "iteration_ms"]
+    out = {"task": task, "envs": envs, "iters": iters, "updates_per_iter": args.updates_per_iter,
+           "batch_size": args.batch_size, "torch_threads": threads, "setup_s": round(build_s, 2)}
+    for j, nm in enumerate(names):
+        out[nm] = round(float(np.median(r[:, j])), 2)
+        out[nm.replace("_ms", "_ms_mean")] = round(float(r[:, j].mean()), 2)
+    out["env_steps_per_s"] = round(envs / (out["iteration_ms"] / 1e3), 1)
+    return out
+
+
+def bench_train_main(argv: list[str]) -> int:
+    _threads_env()
+    p = argparse.ArgumentParser(prog="rodlab bench train", description="Time one training iteration "
+                                "(batched env step + 4 SAC updates of batch 1024), split into env/update time.")
+    p.add_argument("--task", required=True)
+    p.add_argument("--envs", type=int, default=500)
+    p.add_argument("--iters", type=int, default=20)
+    p.add_argument("--warmup", type=int, default=3)
+    p.add_argument("--threads", type=int, default=1, help="torch threads")
+    p.add_argument("--json", action="store_true")
+    a = p.parse_args(argv)
+    from policies.train import TrainError
+
+    try:
+        res = bench_train(a.task, envs=a.envs, iters=a.iters, warmup=a.warmup, threads=a.threads)
+    except TrainError as exc:
+        print(f"rodlab bench train: {exc}", file=sys.stderr)
+        return 2
+    if a.json:
+        print(json.dumps(res))
+    else:
+        print(f"{res['task']}: {res['envs']} envs, {res['updates_per_iter']} updates x batch {res['batch_size']}, "
+              f"{res['torch_threads']} torch thread(s), median of {res['iters']} iterations")
+        print(f"  iteration {res['iteration_ms']:.1f} ms = policy {res['policy_ms']:.1f} + env step "
+              f"{res['env_step_ms']:.1f} + buffer {res['buffer_add_ms']:.1f} + updates {res['update_ms']:.1f} ms"
+              f"   ({res['env_steps_per_s']:.0f} env steps/s)")
+    return 0
+
+
+# ----------------------------------------------------------------------------------------- bench env
+# (owned by the tasks engineer: bench_env / bench_env_main)
+def bench_env(task: str, *, envs: int = 500, steps: int = 50, warmup: int = 3, seed: int = 0,
+              smoothing: str | None = None) -> dict:
+    """Time one batched vector-env step (actions in, observations/rewards out) of ``envs`` envs.
+
+    Actions are drawn uniformly in [-1, 1] before timing. Autoresets that fall in the timed window
+    are included (their cost shows in the mean, rarely in the median); ``reset_all_ms`` is a separate
+    full reset of every env (for the 3D obstacle task it includes sampling ``envs`` fences).
+    """
+    import numpy as np
+
+    from policies import make_vec_env
+
+    t0 = time.perf_counter()
+    kw = {} if smoothing is None else {"smoothing": smoothing}
+    venv = make_vec_env(task, envs, seed=seed, **kw)
+    setup_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    venv.reset()
+    reset_ms = 1e3 * (time.perf_counter() - t0)
+    rng = np.random.default_rng(seed)
+    shape = (envs,) + venv.single_action_space.shape
+    acts = rng.uniform(-1, 1, (warmup + steps,) + shape).astype(np.float32)
+    times = []
+    fails = 0
+    for k in range(warmup + steps):
+        t0 = time.perf_counter()
+        _, _, term, _, info = venv.step(acts[k])
+        dt = time.perf_counter() - t0
+        if k >= warmup:
+            times.append(dt)
+            fails += int(np.sum(info["failure_reason"] == "sim_failed"))
+    venv.close()
+    ms = 1e3 * np.asarray(times)
+    return {"task": venv.task_id, "envs": envs, "steps": steps, "substeps": venv.config.substeps,
+            "newton_max_iter": venv.config.newton_max_iter,
+            "ms_per_env_step_median": round(float(np.median(ms)), 3),
+            "ms_per_env_step_mean": round(float(ms.mean()), 3),
+            "ms_per_env_step_p90": round(float(np.percentile(ms, 90)), 3),
+            "reset_all_ms": round(reset_ms, 2), "setup_s": round(setup_s, 2), "sim_failures": fails,
+            "numba_threads": _numba_threads(), "cpu_count": os.cpu_count()}
+
+
+def _numba_threads() -> int | None:
+    try:
+        import numba
+
+        return int(numba.get_num_threads())
+    except Exception:  # pragma: no cover
+        return None
+
+
+def bench_env_main(argv: list[str]) -> int:
+    """``rodlab bench env --task T --envs B [--steps n] [--warmup k] [--threads t] [--json]``."""
+    p = argparse.ArgumentParser(prog="rodlab bench env", description="Time one batched vector-env step of a "
+                                "task (policy action in, observations/rewards out), all envs in one simulator call.")
+    p.add_argument("--task", required=True, help="short name (follow_target, follow_target_2d, ik4d, "
+                   "tight_obstacles_2d, random_obstacles_3d) or gymnasium id")
+    p.add_argument("--envs", type=int, default=500)
+    p.add_argument("--steps", type=int, default=50, help="timed steps")
+    p.add_argument("--warmup", type=int, default=3, help="untimed steps first (numba compile / caches)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--threads", type=int, default=None, help="numba threads (default: all cores)")
+    p.add_argument("--smoothing", choices=("intended", "reference", "none"), default=None)
+    p.add_argument("--json", action="store_true")
+    a = p.parse_args(argv)
+    if a.envs < 1 or a.steps < 1 or a.warmup < 0:
+        p.error("--envs and --steps must be positive, --warmup >= 0")
+    if a.threads is not None:
+        os.environ["NUMBA_NUM_THREADS"] = str(a.threads)
+    from policies.tasks import resolve_task
+
+    try:
+        resolve_task(a.task)
+    except ValueError as exc:
+        print(f"rodlab bench env: {exc}", file=sys.stderr)
+        return 2
+    res = bench_env(a.task, envs=a.envs, steps=a.steps, warmup=a.warmup, seed=a.seed, smoothing=a.smoothing)
+    if a.json:
+        print(json.dumps(res))
+    else:
+        print(f"{res['task']}: {res['envs']} envs, {res['substeps']} sim steps x {res['newton_max_iter']} Newton "
+              f"iterations per env step, {res['numba_threads']} numba thread(s)")
+        print(f"  env step  median {res['ms_per_env_step_median']:.1f} ms  mean {res['ms_per_env_step_mean']:.1f} ms"
+              f"  p90 {res['ms_per_env_step_p90']:.1f} ms   (full reset {res['reset_all_ms']:.0f} ms, "
+              f"sim failures {res['sim_failures']})")
+    return 0

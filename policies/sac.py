@@ -1,0 +1,312 @@
+"""SAC as configured in the reference (tasks.md §8.1-8.2), as a small extension of stable-baselines3.
+
+What SB3's ``SAC`` lacks and how it is added here (nothing else is changed):
+
+* **LayerNorm MLPs** (``LayerNormSACPolicy``): actor trunk and both critics are
+  ``Linear -> LayerNorm -> ReLU`` x 3 (256 units), built with SB3's own ``create_mlp``
+  (``post_linear_modules=[nn.LayerNorm]``). The Gaussian head (mean, log-std; log-std clipped to
+  [-20, 2] by SB3) is initialised with Xavier-uniform gain 0.3 and zero bias (reference head init).
+* **No entropy term in the critic target** (``RodSAC(entropy_in_target=False)``): the TD target is
+  ``r + gamma * (1 - done) * min_i Q_target_i(s', a')`` with ``a' ~ pi(s')``; alpha enters only the
+  actor and alpha losses (reference ``use_entropy_reward=False``).
+* **Target update every k gradient updates counted globally** (SB3 counts inside one ``train()``
+  call, so with 4 updates per call and interval 8 it would update every 4th update).
+* **Adam eps 1e-7** for all three optimizers (AdamTF); SB3 keeps three Adam instances where the
+  reference shares one. Adam is element-wise, so this is the same update rule.
+* **Timing**: ``last_update_time`` [s] of the most recent ``train()`` call, for logging/benchmarks.
+
+Policy-only files (``save_policy`` / ``load_policy``) are a small zip holding ``meta.json`` (task id,
+spaces, network config, format version) and ``policy.pt`` (actor + critic weights as a plain
+``state_dict``, loaded with ``torch.load(weights_only=True)``). No optimizer state, no replay buffer,
+no pickled classes. Errors while loading raise ``PolicyLoadError`` with a readable message.
+"""
+from __future__ import annotations
+
+import io
+import json
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch as th
+import torch.nn.functional as F
+from gymnasium import spaces
+from stable_baselines3 import SAC
+from stable_baselines3.common.torch_layers import create_mlp
+from stable_baselines3.common.utils import polyak_update
+from stable_baselines3.sac.policies import Actor, SACPolicy
+from torch import nn
+
+POLICY_FORMAT = "rodlab-sac-policy/1"
+
+
+class PolicyLoadError(Exception):
+    """A policy file could not be used (missing, corrupt, or made for a different task/shape)."""
+
+
+# --------------------------------------------------------------------------------------- networks
+class InplaceReLU(nn.ReLU):
+    """ReLU applied in place (saves one 1024x256 allocation per layer; safe after LayerNorm)."""
+
+    def __init__(self) -> None:
+        super().__init__(inplace=True)
+
+
+class LayerNormSACPolicy(SACPolicy):
+    """SB3 ``SACPolicy`` whose actor trunk and critics use Linear -> LayerNorm -> ReLU blocks.
+
+    Observation: flat Box (obs_dim,) float32. Action: Box (act_dim,) in [-1, 1] (tanh-squashed).
+    """
+
+    def __init__(self, *args: Any, head_init_gain: float = 0.3, **kwargs: Any):
+        self.head_init_gain = head_init_gain
+        super().__init__(*args, **kwargs)
+
+    def make_actor(self, features_extractor=None) -> Actor:
+        actor = super().make_actor(features_extractor)
+        arch = self.actor_kwargs["net_arch"]
+        actor.latent_pi = nn.Sequential(*create_mlp(actor.features_dim, -1, arch, actor.activation_fn,
+                                                    post_linear_modules=[nn.LayerNorm]))
+        if not actor.use_sde:
+            for head in (actor.mu, actor.log_std):
+                nn.init.xavier_uniform_(head.weight, gain=self.head_init_gain)
+                nn.init.zeros_(head.bias)
+        return actor.to(self.device)
+
+    def make_critic(self, features_extractor=None):
+        critic = super().make_critic(features_extractor)
+        arch = self.critic_kwargs["net_arch"]
+        act_dim = int(np.prod(self.action_space.shape))
+        in_dim = int(critic.features_extractor.features_dim) + act_dim
+        critic.q_networks = []
+        for idx in range(critic.n_critics):
+            q_net = nn.Sequential(*create_mlp(in_dim, 1, arch, self.net_args["activation_fn"],
+                                              post_linear_modules=[nn.LayerNorm]))
+            critic.add_module(f"qf{idx}", q_net)  # replaces the plain MLP registered by SB3
+            critic.q_networks.append(q_net)
+        return critic.to(self.device)
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        data = super()._get_constructor_parameters()
+        data["head_init_gain"] = self.head_init_gain
+        return data
+
+
+# --------------------------------------------------------------------------------------- algorithm
+class RodSAC(SAC):
+    """SB3 SAC with the reference's critic target and target-update cadence (see module docstring).
+
+    Extra keyword arguments: ``entropy_in_target`` (default False), ``adam_eps`` (default 1e-7).
+    ``target_update_interval`` counts gradient updates over the whole run.
+    """
+
+    def __init__(self, *args: Any, entropy_in_target: bool = False, adam_eps: float = 1e-7, **kwargs: Any):
+        self.entropy_in_target = entropy_in_target
+        self.adam_eps = adam_eps
+        self.last_update_time = 0.0
+        super().__init__(*args, **kwargs)
+
+    def _setup_model(self) -> None:
+        super()._setup_model()
+        if self.ent_coef_optimizer is not None:  # same eps as the other optimizers
+            self.ent_coef_optimizer = th.optim.Adam([self.log_ent_coef], lr=self.lr_schedule(1), eps=self.adam_eps)
+
+    @th.no_grad()
+    def td_target(self, data, alpha: th.Tensor) -> th.Tensor:
+        """TD target (batch, 1): r + gamma (1 - done) min_i Q'_i(s', a'), a' ~ pi(s');
+        minus alpha * log pi(a'|s') inside the bracket only when ``entropy_in_target``."""
+        next_a, next_logp = self.actor.action_log_prob(data.next_observations)
+        next_q = th.min(th.cat(self.critic_target(data.next_observations, next_a), dim=1), dim=1, keepdim=True).values
+        if self.entropy_in_target:
+            next_q = next_q - alpha * next_logp.reshape(-1, 1)
+        discounts = data.discounts if data.discounts is not None else self.gamma
+        return data.rewards + (1.0 - data.dones) * discounts * next_q
+
+    def train(self, gradient_steps: int, batch_size: int = 64) -> None:
+        import time
+
+        t0 = time.perf_counter()
+        self.policy.set_training_mode(True)
+        optimizers = [self.actor.optimizer, self.critic.optimizer]
+        if self.ent_coef_optimizer is not None:
+            optimizers.append(self.ent_coef_optimizer)
+        self._update_learning_rate(optimizers)
+
+        stats: dict[str, list[float]] = {"actor_loss": [], "critic_loss": [], "ent_coef": [], "ent_coef_loss": [],
+                                         "log_prob": [], "q_mean": []}
+        for _ in range(gradient_steps):
+            data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
+            actions_pi, log_prob = self.actor.action_log_prob(data.observations)
+            log_prob = log_prob.reshape(-1, 1)
+
+            # alpha (temperature) step
+            if self.ent_coef_optimizer is not None:
+                alpha = th.exp(self.log_ent_coef.detach())
+                alpha_loss = -(self.log_ent_coef * (log_prob + self.target_entropy).detach()).mean()
+                self.ent_coef_optimizer.zero_grad()
+                alpha_loss.backward()
+                self.ent_coef_optimizer.step()
+                stats["ent_coef_loss"].append(alpha_loss.item())
+            else:
+                alpha = self.ent_coef_tensor
+            stats["ent_coef"].append(alpha.item())
+
+            # critic step
+            target_q = self.td_target(data, alpha)
+            current_q = self.critic(data.observations, data.actions)
+            critic_loss = 0.5 * sum(F.mse_loss(q, target_q) for q in current_q)
+            self.critic.optimizer.zero_grad()
+            critic_loss.backward()
+            self.critic.optimizer.step()
+            stats["critic_loss"].append(critic_loss.item())
+            stats["q_mean"].append(current_q[0].mean().item())
+
+            # actor step (critic weights frozen meanwhile: their gradients would be discarded anyway)
+            critic_params = [p for p in self.critic.parameters() if p.requires_grad]
+            for p in critic_params:
+                p.requires_grad_(False)
+            q_pi = th.min(th.cat(self.critic(data.observations, actions_pi), dim=1), dim=1, keepdim=True).values
+            actor_loss = (alpha * log_prob - q_pi).mean()
+            self.actor.optimizer.zero_grad()
+            actor_loss.backward()
+            self.actor.optimizer.step()
+            for p in critic_params:
+                p.requires_grad_(True)
+            stats["actor_loss"].append(actor_loss.item())
+            stats["log_prob"].append(log_prob.mean().item())
+
+            # target update, every `target_update_interval` updates counted over the whole run
+            self._n_updates += 1
+            if self._n_updates % self.target_update_interval == 0:
+                polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
+                polyak_update(self.batch_norm_stats, self.batch_norm_stats_target, 1.0)
+
+        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+        for key, vals in stats.items():
+            if vals:
+                self.logger.record(f"train/{key}", float(np.mean(vals)))
+        self.last_update_time = time.perf_counter() - t0
+
+
+# --------------------------------------------------------------------------------------- policy files
+def _atomic_write_bytes(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
+    try:
+        os.fchmod(fd, 0o644)
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def save_policy(model: SAC, path: str | os.PathLike, *, task: str | None, extra: dict | None = None) -> Path:
+    """Write the policy only (actor + critics, no optimizer/replay buffer) to ``path`` (.zip), atomically.
+
+    ``task``: task id stored in ``meta.json`` so ``rodlab eval`` needs no ``--task``.
+    ``extra``: JSON-serialisable dict stored under ``meta["extra"]`` (e.g. training summary).
+    """
+    pol = model.policy
+    sd = {k: v for k, v in pol.state_dict().items() if not k.startswith("critic_target.")}
+    buf = io.BytesIO()
+    th.save(sd, buf)
+    meta = {
+        "format": POLICY_FORMAT,
+        "task": task,
+        "obs_shape": list(pol.observation_space.shape),
+        "obs_low": np.asarray(pol.observation_space.low, dtype=np.float64).clip(-1e30, 1e30).tolist(),
+        "obs_high": np.asarray(pol.observation_space.high, dtype=np.float64).clip(-1e30, 1e30).tolist(),
+        "action_low": np.asarray(pol.action_space.low, dtype=np.float64).tolist(),
+        "action_high": np.asarray(pol.action_space.high, dtype=np.float64).tolist(),
+        "net_arch": list(pol.actor_kwargs["net_arch"]),
+        "n_critics": int(pol.critic_kwargs["n_critics"]),
+        "head_init_gain": float(getattr(pol, "head_init_gain", 0.3)),
+        "extra": extra or {},
+    }
+    zbuf = io.BytesIO()
+    with zipfile.ZipFile(zbuf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("meta.json", json.dumps(meta, indent=1))
+        zf.writestr("policy.pt", buf.getvalue())
+    path = Path(path)
+    _atomic_write_bytes(path, zbuf.getvalue())
+    return path
+
+
+def read_policy_meta(path: str | os.PathLike) -> dict:
+    """Return ``meta.json`` of a policy zip (raises PolicyLoadError if absent/corrupt)."""
+    path = Path(path)
+    if not path.is_file():
+        raise PolicyLoadError(f"policy file not found: {path}")
+    try:
+        with zipfile.ZipFile(path) as zf:
+            names = set(zf.namelist())
+            if "meta.json" in names:
+                return json.loads(zf.read("meta.json"))
+            if "data" in names:  # a full SB3 checkpoint (model.zip of a run directory)
+                return {"format": "sb3", "task": _sidecar_task(path)}
+    except (zipfile.BadZipFile, OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise PolicyLoadError(f"policy file {path} is not a readable policy zip ({exc})") from None
+    raise PolicyLoadError(f"policy file {path} holds neither meta.json (rodlab policy) nor data (SB3 model)")
+
+
+def _sidecar_task(path: Path) -> str | None:
+    """Task id of an SB3 checkpoint: <name>.json next to it, or the run's config.json (one or two levels up)."""
+    for cand in (path.with_suffix(".json"), path.parent / "config.json", path.parent.parent / "config.json"):
+        if cand.is_file():
+            try:
+                data = json.loads(cand.read_text())
+            except (OSError, json.JSONDecodeError):
+                continue
+            task = data.get("task") or (data.get("args") or {}).get("task")
+            if task:
+                return task
+    return None
+
+
+def load_policy(path: str | os.PathLike, *, device: str = "cpu") -> tuple[SACPolicy, dict]:
+    """Load a policy file -> (SB3 ``SACPolicy`` in eval mode, meta dict).
+
+    Accepts the policy-only zip written by ``save_policy`` and full SB3 ``RodSAC`` checkpoints.
+    Raises ``PolicyLoadError`` on a missing or corrupt file.
+    """
+    path = Path(path)
+    meta = read_policy_meta(path)
+    try:
+        if meta.get("format") == "sb3":
+            model = RodSAC.load(path, device=device)
+            pol = model.policy
+            meta["obs_shape"] = list(pol.observation_space.shape)
+            meta["action_low"] = pol.action_space.low.tolist()
+            meta["action_high"] = pol.action_space.high.tolist()
+        elif meta.get("format") == POLICY_FORMAT:
+            obs_space = spaces.Box(np.asarray(meta["obs_low"], np.float32), np.asarray(meta["obs_high"], np.float32),
+                                   dtype=np.float32)
+            act_space = spaces.Box(np.asarray(meta["action_low"], np.float32),
+                                   np.asarray(meta["action_high"], np.float32), dtype=np.float32)
+            pol = LayerNormSACPolicy(obs_space, act_space, lambda _: 1e-3, net_arch=list(meta["net_arch"]),
+                                     n_critics=int(meta["n_critics"]),
+                                     head_init_gain=float(meta.get("head_init_gain", 0.3)))
+            with zipfile.ZipFile(path) as zf:
+                sd = th.load(io.BytesIO(zf.read("policy.pt")), map_location=device, weights_only=True)
+            missing, unexpected = pol.load_state_dict(sd, strict=False)
+            missing = [k for k in missing if not k.startswith("critic_target.")]
+            if missing or unexpected:
+                raise PolicyLoadError(f"policy file {path}: weights do not match the network "
+                                      f"(missing {missing[:3]}, unexpected {unexpected[:3]})")
+            pol.critic_target.load_state_dict(pol.critic.state_dict())
+        else:
+            raise PolicyLoadError(f"policy file {path}: unknown format {meta.get('format')!r}")
+    except PolicyLoadError:
+        raise
+    except (KeyError, ValueError, RuntimeError, zipfile.BadZipFile, EOFError, OSError) as exc:
+        raise PolicyLoadError(f"policy file {path} is corrupt or incompatible ({type(exc).__name__}: {exc})") from None
+    pol.set_training_mode(False)
+    return pol.to(device), meta

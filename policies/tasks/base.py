@@ -1,0 +1,263 @@
+"""Batched task core shared by the four tasks: B envs stepped by ONE ``sim.Simulator(envs=B)``.
+
+A :class:`BatchedTask` owns the simulator, its State/Control, an :class:`ActionConverter`, one
+``numpy.random.Generator`` per env and the per-env step counters. Everything per step is vectorised
+numpy over the B envs; only resets loop over the envs being reset (to draw from each env's own
+generator). The gymnasium single env (B = 1) and the batched VectorEnv are thin wrappers over it.
+
+Episode protocol (tasks.md §3): reset -> counter 0; each step converts the action, runs
+``substeps`` sim steps (increment injected before each), runs the task's post-step hook, builds the
+observation and the reward. ``truncated`` when the counter (before increment) equals
+``timeout_steps`` (so an episode has ``timeout_steps + 1`` steps). ``terminated`` with reward -10
+when the simulator failed during the step (``StepStats.failed``; reason ``"sim_failed"``) or the
+reward is NaN or < -10 (reason ``"reward_explosion"``). Observations are sanitised (no NaN/inf).
+
+Seeding: env i's generator is ``Generator(PCG64(SeedSequence(seed).spawn(B)[i]))`` for a batch
+seed, which equals ``SeedSequence(seed, spawn_key=(i,))``; a single env reset with
+``reset(seed=seed, options={"env_index": i})`` uses the same child and reproduces env i exactly.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+
+from policies.control import STATE_NODES, ActionConverter, ControlConfig, Smoothing
+
+from .rewards import FAILURE_REWARD
+
+__all__ = ["TaskConfig", "BatchedTask", "child_generator", "spawn_generators"]
+
+OBS_LIMIT = 1e6  # observations are clipped to +-OBS_LIMIT and NaN -> 0 (sanitising, O5)
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    """Settings common to every task (task configs subclass this and change the defaults).
+
+    dt: sim time step [s]; substeps: sim steps per control step; newton_max_iter: Newton iterations
+    per sim step (accepted unconverged); mode: "3d" or "2d" simulator mode; timeout_steps: episode
+    truncation counter (episode = timeout_steps + 1 control steps); smoothing: spatial mapping of the
+    action converter ("intended" default, "reference" = the paper's shifted mapping, "none");
+    scene: scene file path relative to the repo root (used if it exists, else the scene is built in
+    code; the task's sim settings above override the file's [sim] values).
+    """
+
+    dt: float = 0.05
+    substeps: int = 2
+    newton_max_iter: int = 2
+    newton_tol: float = 1e-3
+    mode: Literal["3d", "2d"] = "3d"
+    timeout_steps: int = 500
+    smoothing: Smoothing = "intended"
+    scene: str | None = "assets/scenes/arm.toml"
+
+    def __post_init__(self) -> None:
+        name = type(self).__name__
+        if self.mode not in ("3d", "2d"):
+            raise ValueError(f"{name}.mode must be '3d' or '2d', got {self.mode!r}")
+        if not (math.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(f"{name}.dt must be > 0, got {self.dt}")
+        for k in ("substeps", "newton_max_iter"):
+            if int(getattr(self, k)) < 1:
+                raise ValueError(f"{name}.{k} must be >= 1, got {getattr(self, k)}")
+        if int(self.timeout_steps) < 0:
+            raise ValueError(f"{name}.timeout_steps must be >= 0, got {self.timeout_steps}")
+        if self.smoothing not in ("intended", "reference", "none"):
+            raise ValueError(f"{name}.smoothing must be 'intended', 'reference' or 'none', got {self.smoothing!r}")
+
+
+def child_generator(seed: int, index: int = 0) -> np.random.Generator:
+    """Generator of env ``index`` for batch seed ``seed``: PCG64(SeedSequence(seed, spawn_key=(index,)))."""
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(int(seed), spawn_key=(int(index),))))
+
+
+def spawn_generators(seed: int | None, count: int) -> list[np.random.Generator]:
+    """``count`` generators from ``SeedSequence(seed).spawn(count)`` (fresh OS entropy if seed is None)."""
+    return [np.random.Generator(np.random.PCG64(s)) for s in np.random.SeedSequence(seed).spawn(count)]
+
+
+class BatchedTask:
+    """Base class of the batched task cores. Subclasses set ``obs_fields``/``control`` and the hooks.
+
+    Attributes: ``envs`` B; ``sim``, ``state``, ``ctrl``; ``converter``; ``rngs`` (B generators);
+    ``step_count`` (B,) int; ``obs_dim``; ``action_dim``.
+    Hooks: ``_reset_task(idx)``, ``_post_step()``, ``_fields() -> dict name -> (B, n)``,
+    ``_reward(fields) -> (reward (B,), terms dict, extra info dict)``.
+    """
+
+    #: (name, size) in the network's (alphabetical) concatenation order
+    obs_fields: ClassVar[tuple[tuple[str, int], ...]] = ()
+    control_kind: ClassVar[str] = "bend"
+
+    def __init__(self, config: TaskConfig, *, envs: int = 1, seed: int | None = None):
+        from .scenes import make_simulator  # lazy: needs sim
+
+        if int(envs) < 1:
+            raise ValueError(f"{type(self).__name__}: envs must be >= 1, got {envs}")
+        self.config = config
+        self.envs = B = int(envs)
+        self.sim, self.model = make_simulator(config, envs=B, task=self)
+        self.state = self.sim.reset()
+        self.ctrl = self.sim.make_control()
+        self.planar = config.mode == "2d"
+        self.converter = ActionConverter(self._control_config(), envs=B)
+        self.action_dim = self.converter.cfg.action_dim
+        self.obs_dim = int(sum(n for _, n in self.obs_fields))
+        self.rngs = spawn_generators(seed, B)
+        self.step_count = np.zeros(B, dtype=np.int64)
+        st = STATE_NODES
+        step = st[1] - st[0]
+        arith = all(b - a == step for a, b in zip(st, st[1:]))
+        self._nodes = slice(st[0], st[-1] + 1, step) if arith else np.asarray(st)   # basic slice -> views
+        self._all = np.ones(B, dtype=bool)
+
+    # ---------------------------------------------------------------- config
+    def _control_config(self) -> ControlConfig:
+        from policies.control import control_config
+
+        return control_config(self.control_kind, substeps=self.config.substeps,  # type: ignore[arg-type]
+                              smoothing=self.config.smoothing)
+
+    # ---------------------------------------------------------------- seeding
+    def seed(self, seed: int | Sequence[int] | None) -> None:
+        """Re-seed every env: int -> SeedSequence(seed).spawn(B); list of B ints -> child 0 of each."""
+        if seed is None or isinstance(seed, (int, np.integer)):
+            self.rngs = spawn_generators(None if seed is None else int(seed), self.envs)
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.envs or not all(isinstance(s, (int, np.integer)) for s in seeds):
+                raise ValueError(f"seed must be an int, None or a list of {self.envs} ints, got {seed!r}")
+            self.rngs = [child_generator(int(s), 0) for s in seeds]
+
+    # ---------------------------------------------------------------- episode
+    def reset(self, mask: np.ndarray | None = None) -> np.ndarray:
+        """Reset the envs in ``mask`` ((B,) bool, all if None); returns observations (B, obs_dim) of ALL envs."""
+        m = self._all if mask is None else np.asarray(mask, dtype=bool)
+        if m.shape != (self.envs,):
+            raise ValueError(f"reset mask has shape {m.shape}, expected ({self.envs},)")
+        idx = np.nonzero(m)[0]
+        if idx.size:
+            self._reset_task(idx)           # may change obstacles: before the sim reset
+            self.sim.reset_envs(self.state, self.ctrl, m)
+            self.converter.reset(m)
+            self.step_count[m] = 0
+        return self.observe()
+
+    def step(self, action) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """One control step of all B envs. action (B, action_dim) in [-1, 1].
+
+        Returns obs (B, obs_dim) float32, reward (B,) float64, terminated (B,), truncated (B,) bool,
+        info dict of (B,) arrays.
+        """
+        inc = self.converter.convert(action)
+        B = self.envs
+        failed = np.zeros(B, dtype=bool)
+        iters = np.zeros(B, dtype=np.int64)
+        unconv = np.zeros(B, dtype=np.int64)
+        retries = np.zeros(B, dtype=np.int64)
+        for k in range(self.config.substeps):
+            self.converter.apply(self.ctrl, inc, k)
+            stats = self.sim.step(self.state, self.ctrl)
+            failed |= np.asarray(stats.failed, dtype=bool)
+            iters += np.asarray(stats.newton_iters)
+            unconv += ~np.asarray(stats.converged, dtype=bool)
+            retries += np.asarray(stats.substeps) > 1
+        failed |= np.asarray(self.state.failed, dtype=bool)
+        self._post_step()
+        fields = self._fields()
+        obs = self._concat(fields)
+        reward, terms, extra = self._reward(fields)
+        truncated = self.step_count == self.config.timeout_steps
+        self.step_count += 1
+        explosion = ~failed & ~(reward >= FAILURE_REWARD)          # NaN or < -10
+        terminated = failed | explosion
+        reward = np.where(terminated, FAILURE_REWARD, reward)
+        truncated = truncated & ~terminated
+        reason = np.full(B, "", dtype=object)
+        reason[explosion] = "reward_explosion"
+        reason[failed] = "sim_failed"
+        info: dict[str, Any] = {f"reward/{k}": np.where(terminated, 0.0, v) for k, v in terms.items()}
+        info["reward/failure"] = np.where(terminated, FAILURE_REWARD, 0.0)
+        info.update(extra)
+        info["failed"] = terminated.copy()
+        info["failure_reason"] = reason
+        info["newton_iters"] = iters
+        info["unconverged_steps"] = unconv
+        info["retried_steps"] = retries
+        info["episode_step"] = self.step_count.copy()
+        return obs, reward, terminated, truncated, info
+
+    # ---------------------------------------------------------------- observation
+    def observe(self) -> np.ndarray:
+        """Current observations (B, obs_dim) float32 (no state change)."""
+        return self._concat(self._fields())
+
+    def _concat(self, fields: dict[str, np.ndarray]) -> np.ndarray:
+        B = self.envs
+        out = np.empty((B, self.obs_dim), dtype=np.float32)
+        i = 0
+        for name, n in self.obs_fields:
+            v = fields[name]
+            dst = out[:, i:i + n]
+            if v.ndim == 2:
+                dst[...] = v
+            else:
+                view = dst.view()
+                view.shape = v.shape          # a view (raises instead of silently copying)
+                view[...] = v
+            i += n
+        np.nan_to_num(out, copy=False, nan=0.0, posinf=OBS_LIMIT, neginf=-OBS_LIMIT)
+        np.clip(out, -OBS_LIMIT, OBS_LIMIT, out=out)
+        return out
+
+    def node_fields(self) -> dict[str, np.ndarray]:
+        """``state_pos`` / ``state_vel`` (B, 10, D) [m], [m/s] of the observed nodes; D = 2 (x, z) in 2D.
+
+        Views into ``state.dof`` / ``state.dof_vel`` (3D dof = [x, y, z, theta], 2D dof = [x, z]).
+        """
+        dof, vel = self.state.dof, self.state.dof_vel
+        if self.planar:
+            return {"state_pos": dof[:, self._nodes], "state_vel": vel[:, self._nodes]}
+        return {"state_pos": dof[:, self._nodes, :3], "state_vel": vel[:, self._nodes, :3]}
+
+    def tip_position(self) -> np.ndarray:
+        """(B, 3) [m] (B, 2) in 2D - the tip node's position."""
+        tip = self.state.dof[:, -1]
+        return tip if self.planar else tip[:, :3]
+
+    # ---------------------------------------------------------------- hooks
+    def _reset_task(self, idx: np.ndarray) -> None:  # pragma: no cover - overridden
+        pass
+
+    def _post_step(self) -> None:
+        pass
+
+    def _fields(self) -> dict[str, np.ndarray]:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def _reward(self, fields) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]]:
+        raise NotImplementedError  # pragma: no cover
+
+    # ---------------------------------------------------------------- misc
+    def obs_tip_distance(self, fields: dict[str, np.ndarray], target: np.ndarray) -> np.ndarray:
+        """(B,) tip-to-target distance [m] computed from the float32 observation values (as the reference)."""
+        D = 2 if self.planar else 3
+        sp = fields["state_pos"]
+        tip = np.asarray(sp[:, -1] if sp.ndim == 3 else sp[:, -D:], np.float32)
+        return self._distance(tip, np.asarray(target, np.float32))
+
+    @staticmethod
+    def _distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        diff = np.asarray(a, np.float64) - np.asarray(b, np.float64)
+        s = diff[:, 0] * diff[:, 0]
+        for k in range(1, diff.shape[1]):
+            s = s + diff[:, k] * diff[:, k]
+        return np.sqrt(s)
+
+    def close(self) -> None:
+        pass
+

@@ -1,0 +1,133 @@
+"""Training curves (PNG) and shipping of trained policies into ``policies/pretrained/``.
+
+    python -m policies.training_report plot RUN_DIR [RUN_DIR ...] --out docs/training_<task>.png
+    python -m policies.training_report ship RUN_DIR --name follow_target [--episodes 50] [--seed 100]
+
+``plot`` reads each run's ``metrics.csv`` (written by policies/train.py) and draws the training
+average discounted return (alf metric, stochastic policy) against env steps and against wall-clock.
+``ship`` copies ``RUN_DIR/policy.zip`` to ``policies/pretrained/<name>.zip`` and writes
+``<name>.json`` beside it: task, training config + summary, evaluation of the policy and of a random
+policy on the same seeds, and the paper's reference figure (Table II, DisMech -> DisMech).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import shutil
+import sys
+from pathlib import Path
+
+PAPER_TABLE_II = {  # DisMech -> DisMech average discounted return, mean ± std over seeds
+    "follow_target": (96.26, 9.37), "ik4d": (186.24, 63.18), "tight_obstacles_2d": (40.91, 2.98),
+    "random_obstacles_3d": (27.17, 19.03),
+}
+PRETRAINED = Path(__file__).resolve().parent / "pretrained"
+
+
+def read_metrics(run_dir: str | Path) -> dict[str, list[float]]:
+    """Columns of RUN_DIR/metrics.csv as float lists (empty dict if absent)."""
+    path = Path(run_dir) / "metrics.csv"
+    if not path.is_file():
+        return {}
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    return {k: [float(r[k]) for r in rows] for k in (rows[0].keys() if rows else [])}
+
+
+def plot_training_curves(run_dirs: list[str | Path], out_png: str | Path, *, title: str | None = None) -> Path:
+    """Two panels: avg discounted return vs env steps and vs wall-clock [h]; one line per run."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    for rd in run_dirs:
+        m = read_metrics(rd)
+        if not m:
+            continue
+        cfg = {}
+        if (Path(rd) / "config.json").is_file():
+            cfg = json.loads((Path(rd) / "config.json").read_text()).get("args", {})
+        label = f"{Path(rd).name} ({cfg.get('num_envs', '?')} envs)"
+        axes[0].plot(m["env_steps"], m["avg_disc_return_mean"], label=label)
+        axes[1].plot([w / 3600 for w in m["wall_s"]], m["avg_disc_return_mean"], label=label)
+        task = cfg.get("task")
+        if task in PAPER_TABLE_II:
+            for ax in axes:
+                ax.axhline(PAPER_TABLE_II[task][0], color="gray", ls="--", lw=1)
+            axes[0].text(0, PAPER_TABLE_II[task][0], " paper plateau (Table II)", color="gray", va="bottom", fontsize=8)
+    axes[0].set_xlabel("env steps (summed over envs)")
+    axes[1].set_xlabel("wall-clock [h] (2-core shared CPU)")
+    axes[0].set_ylabel("average discounted return (training, stochastic)")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    axes[1].legend(fontsize=8, loc="lower right")
+    fig.suptitle(title or "SAC training")
+    fig.tight_layout()
+    out = Path(out_png)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_suffix(".tmp.png")
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    tmp.replace(out)
+    return out
+
+
+def ship(run_dir: str | Path, name: str, *, episodes: int = 50, seed: int = 100, num_envs: int | None = None) -> dict:
+    """Copy the run's policy into policies/pretrained/<name>.zip and write <name>.json (with evaluation)."""
+    from policies.evaluate import evaluate
+    from policies.sac import _atomic_write_bytes
+
+    run_dir = Path(run_dir)
+    src = run_dir / "policy.zip"
+    PRETRAINED.mkdir(parents=True, exist_ok=True)
+    dst = PRETRAINED / f"{name}.zip"
+    tmp = dst.with_suffix(".zip.tmp")
+    shutil.copyfile(src, tmp)
+    tmp.replace(dst)
+    side = json.loads((run_dir / "policy.json").read_text())
+    cfg = json.loads((run_dir / "config.json").read_text())
+    ev = evaluate(dst, episodes=episodes, seed=seed, num_envs=num_envs)
+    rnd = evaluate("random", ev["task"], episodes=episodes, seed=seed, num_envs=num_envs)
+    out = {
+        "task": ev["task"], "policy_file": dst.name, "git_commit": cfg.get("git_commit"),
+        "config": cfg["args"], "training": side.get("training"), "target_entropy": cfg.get("target_entropy"),
+        "evaluation": ev, "random_policy_evaluation": rnd,
+        "paper_table_ii_dismech": PAPER_TABLE_II.get(ev["task"]),
+        "eval_command": f"rodlab eval policies/pretrained/{name}.zip --episodes {episodes} --seed {seed} --json",
+    }
+    _atomic_write_bytes(PRETRAINED / f"{name}.json", json.dumps(out, indent=1).encode())
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m policies.training_report")
+    sub = p.add_subparsers(dest="cmd", required=True)
+    pp = sub.add_parser("plot")
+    pp.add_argument("runs", nargs="+")
+    pp.add_argument("--out", required=True)
+    pp.add_argument("--title", default=None)
+    ps = sub.add_parser("ship")
+    ps.add_argument("run")
+    ps.add_argument("--name", required=True)
+    ps.add_argument("--episodes", type=int, default=50)
+    ps.add_argument("--seed", type=int, default=100)
+    ps.add_argument("--envs", type=int, default=None)
+    a = p.parse_args(argv)
+    if a.cmd == "plot":
+        print(plot_training_curves(a.runs, a.out, title=a.title))
+    else:
+        import torch
+
+        torch.set_num_threads(1)
+        res = ship(a.run, a.name, episodes=a.episodes, seed=a.seed, num_envs=a.envs)
+        ev, rnd = res["evaluation"], res["random_policy_evaluation"]
+        print(f"{a.name}: avg disc return {ev['avg_discounted_return_mean']:.2f} ± {ev['avg_discounted_return_std']:.2f} "
+              f"(random {rnd['avg_discounted_return_mean']:.2f}); paper {res['paper_table_ii_dismech']}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

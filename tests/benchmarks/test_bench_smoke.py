@@ -1,0 +1,72 @@
+"""Smoke tests: every benchmark runs in a tiny configuration and writes its documented output format."""
+import json
+
+import numpy as np
+import pytest
+
+from benchmarks import accuracy as acc
+from benchmarks import analysis as an
+from benchmarks.accuracy_extra import add_orders, plot_scene
+from benchmarks.common import pyplot, write_json
+
+TINY = {"dts": [0.05, 0.1], "nodes": [11], "solvers": ["paper", "conv"], "small_dt_solvers": ["conv"],
+        "el_nodes": [], "el_factors": [], "max_work": 1e9, "ref_nodes": 11, "ref_dt": 0.05, "el_ref_nodes": 11}
+
+
+def test_accuracy_static_tiny_writes_points_analysis_and_plots(tmp_path):
+    res = acc.bench_static(TINY, peer=False, repeats=1)
+    assert res["scene"] == "static" and len(res["points"]) == 4
+    for p in res["points"]:
+        assert {"sim", "solver", "nodes", "dt", "cost", "cost_wall", "error", "error_root_at_half_edge",
+                "newton_iters_mean", "stable", "load"} <= set(p)
+        assert p["stable"] and np.isfinite(p["error"]) and p["cost"] > 0
+        assert p["error"] < 0.2  # N = 11 clamp offset error is about 0.08
+    res["analysis"] = acc.analyse(res)
+    add_orders(res)
+    plot_scene(pyplot(), res, tmp_path)
+    assert (tmp_path / "accuracy_static_pareto.png").stat().st_size > 1000
+    path = write_json(tmp_path, "a.json", {"scenes": {"static": res}})
+    back = json.loads(path.read_text())
+    assert back["scenes"]["static"]["analysis"]["pareto_rodlab"]
+
+
+def test_accuracy_dynamic_tiny_tracks_the_beam():
+    res = acc.bench_dynamic({**TINY, "dts": [0.01], "nodes": [21], "solvers": ["conv"]}, peer=False, repeats=1)
+    (p,) = res["points"]
+    assert p["error"] < 1.0  # phase error of the N = 21 clamp offset over two periods (about 0.6)
+
+
+def test_accuracy_cli_rejects_unknown_scene(capsys):
+    with pytest.raises(SystemExit) as exc:
+        acc.main(["--scenes", "nope"])
+    assert exc.value.code == 2
+    assert "unknown scene" in capsys.readouterr().err
+
+
+def test_pareto_and_speedup_helpers():
+    pts = [{"cost": 1.0, "error": 0.5}, {"cost": 2.0, "error": 0.6}, {"cost": 3.0, "error": 0.1},
+           {"cost": 0.5, "error": None}]
+    fr = an.pareto_front(pts)
+    assert [p["cost"] for p in fr] == [1.0, 3.0]
+    other = [{"cost": 10.0, "error": 0.5}, {"cost": 60.0, "error": 0.1}]
+    tab = an.speedup_table(fr, an.pareto_front(other), levels=2)
+    assert tab[0]["speedup"] == pytest.approx(20.0) and tab[-1]["speedup"] == pytest.approx(10.0)
+    assert an.observed_order([1, 2, 4], [1, 4, 16]) == pytest.approx(2.0)
+
+
+def test_stress_functions_tiny():
+    from benchmarks.stress import SimCase, run_sim_case, run_task
+    r = run_sim_case(SimCase("tiny", nodes=11), envs=2, control_steps=3, actions="bang-bang", hold_steps=3)
+    assert r["nan"] == 0 and r["env_steps"] == 2 * (3 * 2 + 3)
+    assert {"failed_steps", "recovered_steps", "max_penetration_m", "energy_growth_max_J",
+            "newton_iters_hist"} <= set(r)
+    assert sum(r["newton_iters_hist"]) == r["env_steps"]
+    t = run_task("follow_target", envs=2, env_steps=4, actions="random")
+    assert t["nan"] == 0 and t["obs_nan"] == 0 and t["env_control_steps"] == 4
+
+
+def test_throughput_time_sim_tiny():
+    from benchmarks.throughput import arm_doc, time_sim
+    r = time_sim(arm_doc(nodes=11), envs=2, steps=1, repeats=1)
+    assert {"ms_per_step", "cpu_ms_per_step", "us_per_env_step", "iters_mean", "load"} <= set(r)
+    assert r["nan"] == 0 and r["ms_per_step"] > 0

@@ -1,0 +1,129 @@
+"""End-to-end: train -> checkpoint -> resume -> save -> load -> evaluate, signal checkpointing, bad input.
+
+Runs on the real follow_target task when it is registered, else on Pendulum-v1 (tiny nets, few steps).
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from policies.evaluate import evaluate
+from policies.sac import PolicyLoadError, load_policy, read_policy_meta
+from policies.train import Args, TrainError, train
+from tests.training.conftest import rodlab_task_ready
+
+REPO = Path(__file__).resolve().parents[2]
+TASK = "follow_target" if rodlab_task_ready("follow_target") else "Pendulum-v1"
+
+
+def _args(run_dir: Path, steps: int, **kw) -> Args:
+    base = dict(task=TASK, num_envs=4, total_steps=steps, seed=1, run_dir=str(run_dir), batch_size=32,
+                learning_starts=40, updates_per_iter=2, net_arch=[32, 32, 32], buffer_size=10_000, log_interval_s=0.0,
+                checkpoint_minutes=60.0)
+    base.update(kw)
+    return Args(**base)
+
+
+def test_train_checkpoint_resume_save_load_evaluate(tmp_path):
+    run = tmp_path / "run"
+    train(_args(run, 120))
+    cfg = json.loads((run / "config.json").read_text())
+    assert Args.from_json(cfg["args"]) == _args(run, 120, task=cfg["args"]["task"])  # config round-trips
+    assert cfg["git_commit"] and cfg["obs_shape"]
+    state1 = json.loads((run / "checkpoint" / "state.json").read_text())
+    assert state1["num_timesteps"] == 120
+    with np.load(run / "checkpoint" / "replay.npz") as z:
+        assert z["observations"].shape[:2] == (30, 4)  # 120 transitions / 4 envs, filled rows only
+    assert state1["n_updates"] > 0
+
+    train(_args(run, 200), resume=True)  # continues the step count, buffer and update counter
+    state2 = json.loads((run / "checkpoint" / "state.json").read_text())
+    assert state2["num_timesteps"] == 200
+    assert state2["n_updates"] == state1["n_updates"] + 2 * 20  # one iteration = 4 env steps + 2 updates
+    assert state2["wall_s"] >= state1["wall_s"]
+    with np.load(run / "checkpoint" / "replay.npz") as z:
+        assert z["observations"].shape[:2] == (50, 4)  # restored 30 rows + 20 new ones (buffer grown)
+    rows = (run / "metrics.csv").read_text().splitlines()
+    assert rows[0].startswith("env_steps,wall_s")
+    assert list((run / "tb").glob("**/events.out.tfevents*"))
+
+    meta = read_policy_meta(run / "policy.zip")
+    assert meta["task"] == cfg["args"]["task"]
+    pol, _ = load_policy(run / "policy.zip")
+    assert (run / "policy.zip").stat().st_size < (run / "checkpoint" / "model.zip").stat().st_size
+    res = evaluate(run / "policy.zip", episodes=2, seed=0, num_envs=2)  # task taken from the file
+    for key in ("avg_discounted_return_mean", "avg_discounted_return_std", "episodes", "task"):
+        assert key in res
+    assert res["episodes"] == 2 and np.isfinite(res["avg_discounted_return_mean"])
+    # the loaded policy acts like the trained one
+    obs = np.zeros((1, *pol.observation_space.shape), np.float32)
+    a1, _ = pol.predict(obs, deterministic=True)
+    assert a1.shape == (1, *pol.action_space.shape)
+
+
+def test_sigint_checkpoints_and_stops(tmp_path):
+    run = tmp_path / "run"
+    timer = threading.Timer(3.0, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        train(_args(run, 10_000_000, learning_starts=10**9))  # never finishes on its own
+    finally:
+        timer.cancel()
+    state = json.loads((run / "checkpoint" / "state.json").read_text())
+    assert 0 < state["num_timesteps"] < 10_000_000
+    side = json.loads((run / "policy.json").read_text())
+    assert side["training"]["stopped_early"] is True
+    assert (run / "policy.zip").is_file()
+
+
+def test_resume_errors_are_clear(tmp_path):
+    with pytest.raises(TrainError, match="config.json"):
+        train(_args(tmp_path / "nothing", 100), resume=True)
+    with pytest.raises(TrainError, match="unknown task"):
+        train(_args(tmp_path / "x", 100, task="no_such_task"))
+
+
+def test_bad_policy_files(tmp_path):
+    with pytest.raises(PolicyLoadError, match="not found"):
+        load_policy(tmp_path / "missing.zip")
+    bad = tmp_path / "corrupt.zip"
+    bad.write_bytes(b"PK\x03\x04 this is not a zip")
+    with pytest.raises(PolicyLoadError, match="not a readable policy zip"):
+        load_policy(bad)
+    import zipfile
+
+    weird = tmp_path / "weird.zip"
+    with zipfile.ZipFile(weird, "w") as zf:
+        zf.writestr("meta.json", json.dumps({"format": "rodlab-sac-policy/1", "task": "x"}))
+    with pytest.raises(PolicyLoadError, match="corrupt or incompatible"):
+        load_policy(weird)
+
+
+def test_policy_for_wrong_task_is_rejected(tmp_path):
+    run = tmp_path / "run"
+    train(_args(run, 80, task="Pendulum-v1", learning_starts=10**9))
+    with pytest.raises(PolicyLoadError, match="does not fit task"):
+        evaluate(run / "policy.zip", "MountainCarContinuous-v0", episodes=1)
+
+
+def test_cli_reports_bad_input_without_traceback(tmp_path, capsys):
+    from policies.cli import eval_main
+
+    assert eval_main([str(tmp_path / "missing.zip"), "--task", "Pendulum-v1"]) == 2
+    err = capsys.readouterr().err
+    assert "rodlab eval:" in err and "not found" in err and "Traceback" not in err
+    bad = tmp_path / "bad.zip"
+    bad.write_text("garbage")
+    out = subprocess.run([sys.executable, "-c", "import rodlab_cli, sys; sys.exit(rodlab_cli.main(sys.argv[1:]))",
+                          "eval", str(bad), "--task", "Pendulum-v1"], cwd=REPO, capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 2
+    assert "Traceback" not in out.stderr and "not a readable policy zip" in out.stderr

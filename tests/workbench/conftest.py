@@ -1,0 +1,73 @@
+"""Fixtures for the workbench tests.
+
+Browser tests share ONE headless Chromium, ONE in-process workbench server (port 0, no HDRI) and ONE
+page for the whole session (page loads are the slow part on a 2-core box); the ``wb_page`` fixture
+puts the workbench back into a clean teleop state before each test.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+SHOTS = Path(__file__).resolve().parents[2] / "docs" / "screenshots"
+
+
+@pytest.fixture(scope="session")
+def browser():
+    from workbench.browser import ChromiumMissing, chromium_path, launch
+
+    try:
+        chromium_path()
+    except ChromiumMissing as exc:
+        pytest.fail(str(exc), pytrace=False)
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = launch(p)
+        yield b
+        b.close()
+
+
+def make_app(wb=None, **kw):
+    from workbench.app import WorkbenchApp
+    from workbench.core import Workbench
+
+    wb = wb if wb is not None else Workbench.builtin()
+    return WorkbenchApp(wb, port=0, env_map=False, **kw).start()
+
+
+@pytest.fixture(scope="session")
+def shared(browser, tmp_path_factory):
+    """(app, page) shared by the browser tests."""
+    from workbench.browser import open_page
+
+    app = make_app(recordings_dir=tmp_path_factory.mktemp("recordings"))
+    page = open_page(browser, app, width=1280, height=800)
+    yield app, page
+    page.close()
+    app.stop()
+
+
+@pytest.fixture
+def wb_page(shared):
+    """The shared (app, page), back in a clean teleop state: no replay, no policy, no obstacles."""
+    app, page = shared
+    wb = app.wb
+    wb.close_replay()
+    wb.stop_policy()
+    while wb.obstacles:
+        wb.delete_obstacle(len(wb.obstacles) - 1)
+    wb.set_teleop_mode("absolute")
+    wb.reset()
+    wb.set_playing(True)
+    app.view.sync_obstacles(wb.obstacles, app._on_gizmo)
+    app.controls.sync_sliders()
+    app.request_render()
+    return app, page
+
+
+@pytest.fixture(scope="session")
+def shots_dir() -> Path:
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    return SHOTS

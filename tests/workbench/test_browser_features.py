@@ -1,0 +1,96 @@
+"""Real browser against a real workbench server: obstacles + gizmo, policies, recordings."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from workbench.browser import (
+    canvas_png,
+    drag_gizmo_x,
+    expand_folder,
+    image_diff_fraction,
+    newest_client,
+    slider_thumb,
+    wait_for,
+)
+
+pytestmark = pytest.mark.browser
+
+
+def test_add_obstacle_and_drag_gizmo_into_rod(wb_page, shots_dir):
+    app, page = wb_page
+    wb = app.wb
+    expand_folder(page, "Obstacles", "Add obstacle")
+    page.get_by_role("button", name="Add obstacle").click()  # default shape: sphere r 0.08 at (0.45, 0, 0.6)
+    wait_for(lambda: len(wb.obstacles) == 1 and len(app.view.obstacle_nodes) == 1, what="obstacle + gizmo")
+    gizmo = app.view.gizmo(0)
+    x0 = float(gizmo.position[0])
+    mid0 = wb.live.state.node_pos[0, 12].copy()
+    # drag the gizmo's x arrow towards the rod, to x ~ 0.1 (the sphere then overlaps the rod by ~3 cm)
+    drag_gizmo_x(page, newest_client(app), np.array([x0, 0.0, 0.6]), dist=-(x0 - 0.1))
+    wait_for(lambda: wb.obstacles[0].position[0] < x0 - 0.2, what="gizmo drag to reach the server")
+    assert float(gizmo.position[0]) < x0 - 0.2
+    # contact follows the move at once: the rod is pushed away from the sphere (towards -x)
+    wait_for(lambda: wb.live.state.node_pos[0, 12, 0] < mid0[0] - 0.005, timeout=20,
+             what=f"rod pushed by contact (sphere dragged to {np.round(wb.obstacles[0].position, 3)})")
+    wait_for(lambda: app.view.contact_arrows.visible, what="contact arrows drawn")
+    (shots_dir / "workbench_obstacles.png").write_bytes(page.screenshot(timeout=60000))
+
+
+def test_play_shipped_policy(wb_page, shots_dir):
+    from workbench.policy_session import policy_task, shipped_policies
+
+    files = shipped_policies()
+    if not files:
+        pytest.skip("no shipped policy in policies/pretrained/*.zip yet")
+    from policies.tasks import TASKS
+
+    app, page = wb_page
+    wb = app.wb
+    task = policy_task(files[0])
+    short = next((k for k, v in TASKS.items() if task in (k, v)), None)
+    assert short is not None, f"{files[0]} names an unknown task {task!r}"
+    expand_folder(page, "Policy", "Run policy")
+    page.get_by_label("Task").click()
+    page.get_by_role("option", name=short, exact=True).click()
+    page.get_by_label("Policy file").click()
+    page.get_by_role("option", name=files[0].name, exact=True).click()
+    page.get_by_role("button", name="Run policy").click()
+    wait_for(lambda: wb.policy is not None and wb.mode == "policy", timeout=60, what="policy session")
+    wait_for(lambda: wb.policy.scalars.get("episode_step", 0) >= 3, timeout=60, what="episode to advance")
+    r1, s1 = wb.policy.scalars["reward"], wb.policy.scalars["episode_step"]
+    wait_for(lambda: wb.policy.scalars["episode_step"] >= s1 + 3, timeout=60, what="more control steps")
+    assert np.isfinite(r1) and wb.policy.scalars["reward"] != r1
+    assert any(k.startswith("r_") for k in wb.policy.scalars)  # reward terms are live
+    expand_folder(page, "Plots", ".uplot")
+    (shots_dir / "workbench_policy.png").write_bytes(page.screenshot(timeout=60000))
+
+
+def test_open_recording_and_scrub(wb_page, shots_dir):
+    from workbench.core import Workbench
+
+    app, page = wb_page
+    wb = app.wb
+    rec = Workbench.builtin()  # a short recorded session of a bending rod
+    rec.start_recording(app.recordings_dir / "session.rrd")
+    for k in range(40):
+        rec.set_teleop_value(2, 0, 0.05 * k)
+        rec.step()
+    rec.stop_recording()
+    app.replay.refresh_list()
+    expand_folder(page, "Recordings", "Open recording")
+    page.get_by_role("button", name="Open recording").click()
+    wait_for(lambda: wb.mode == "replay" and wb.replay is not None, timeout=30, what="recording opened")
+    wait_for(lambda: app.view.last_frame is not None and app.view.last_frame.time == wb.replay.frame().time,
+             what="first frame drawn")
+    first = canvas_png(page)
+    tip_first = app.view.last_frame.tip.copy()
+    th = slider_thumb(page, "Timeline")
+    th.focus()
+    th.press("End")
+    wait_for(lambda: wb.replay.index == wb.replay.length - 1, what="timeline scrubbed on the server")
+    wait_for(lambda: np.linalg.norm(app.view.last_frame.tip - tip_first) > 0.1, what="new frame drawn")
+    # the page shows a different picture (poll: the browser draws asynchronously)
+    wait_for(lambda: image_diff_fraction(first, canvas_png(page)) > 0.002, timeout=30, what="the view to change")
+    expand_folder(page, "Plots", ".uplot")
+    (shots_dir / "workbench_replay.png").write_bytes(page.screenshot(timeout=60000))

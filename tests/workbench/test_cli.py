@@ -1,0 +1,71 @@
+"""``rodlab workbench`` command line: serves the default scene, rejects bad input clearly."""
+from __future__ import annotations
+
+import socket
+import threading
+import time
+import urllib.request
+
+from workbench.cli import default_scene, workbench_main
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_default_scene_is_the_obstacle_scene():
+    p = default_scene()
+    assert p is not None and p.name in ("default.toml", "arm.toml")
+
+
+def test_serves_the_page_on_localhost():
+    port = free_port()
+    rc = {}
+    t = threading.Thread(target=lambda: rc.setdefault("rc", workbench_main(
+        ["--port", str(port), "--seconds", "4", "--no-env-map"])))
+    t.start()
+    html = None
+    t_end = time.monotonic() + 60
+    while html is None and time.monotonic() < t_end:
+        try:
+            html = urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=2).read()
+        except OSError:
+            time.sleep(0.2)
+    t.join(120)
+    assert rc.get("rc") == 0
+    assert html is not None and b"<html" in html.lower()
+
+
+def test_missing_scene_file_is_a_clear_error(capsys, tmp_path):
+    assert workbench_main([str(tmp_path / "nope.toml")]) == 2
+    assert "nope.toml" in capsys.readouterr().err
+
+
+def test_invalid_scene_names_the_problem(capsys, tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[sim]\ndt = -1\n")
+    assert workbench_main([str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml" in err and "cannot load" in err
+
+
+def test_scene_and_task_together_are_rejected(capsys):
+    assert workbench_main(["x.toml", "--task", "follow_target"]) == 2
+    assert "not both" in capsys.readouterr().err
+
+
+def test_task_option_starts_a_policy_session():
+    from workbench.app import WorkbenchApp
+    from workbench.core import Workbench
+
+    app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False)
+    try:
+        app.policy.start_task("follow_target")
+        assert app.wb.mode == "policy" and app.wb.policy.task == "follow_target"
+        for _ in range(4):
+            app.wb.step()
+        assert app.wb.policy.scalars["episode_step"] == 2
+    finally:
+        app.stop()

@@ -1,0 +1,103 @@
+"""The web workbench: a viser server wired to a :class:`workbench.core.Workbench`.
+
+    app = WorkbenchApp(Workbench.from_path("assets/scenes/arm.toml"), port=8080).start()
+    ...
+    app.stop()
+
+The core holds all logic; this module only builds the page (panels in ``gui_*.py``), runs the
+sim thread (``runner.SimThread``) and redraws the scene (``view_scene.SceneView``).
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import viser
+
+from workbench.core import Workbench
+from workbench.frame import Frame
+from workbench.gui_controls import ControlsPanel
+from workbench.runner import SimThread
+from workbench.view_scene import SceneView
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+class WorkbenchApp:
+    """Server + page + sim thread.
+
+    Args:
+        wb: the core session.
+        host/port: where to serve (port 0 = any free port; read ``app.port``).
+        env_map: viser's HDRI lighting (off in tests: SwiftShader stalls on it).
+        speed: initial real-time factor (``float('inf')`` = as fast as possible).
+    """
+
+    def __init__(self, wb: Workbench, *, host: str = "127.0.0.1", port: int = 8080,
+                 env_map: bool = True, speed: float = 1.0, recordings_dir: str | Path | None = None):
+        self.wb = wb
+        self.recordings_dir = Path(recordings_dir) if recordings_dir else REPO_ROOT / "recordings"
+        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.server.gui.configure_theme(control_width="large", show_share_button=False)
+        self.view = SceneView(self.server, wb.live.n_nodes, env_map=env_map)
+        self.thread = SimThread(wb, self._render, speed=speed)
+        self.controls = ControlsPanel(self)
+        self.panels = [self.controls]
+        self._build_optional_panels()
+        self._last_gui = 0.0
+        wb.on_scene_changed.append(self._scene_changed)
+        self._scene_changed()
+
+    def _build_optional_panels(self) -> None:
+        from workbench.gui_obstacles import ObstaclesPanel
+        from workbench.gui_policy import PolicyPanel
+        from workbench.gui_replay import ReplayPanel
+
+        self.obstacles = ObstaclesPanel(self)
+        self.policy = PolicyPanel(self)
+        self.replay = ReplayPanel(self)
+        self.panels += [self.obstacles, self.policy, self.replay]
+
+    @property
+    def port(self) -> int:
+        return self.server.get_port()
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.port}/"
+
+    def start(self) -> "WorkbenchApp":
+        self._render(self.wb.frame())
+        self.thread.start()
+        return self
+
+    def stop(self) -> None:
+        self.thread.stop()
+        rec, self.wb.recorder = self.wb.recorder, None  # no lock: the sim thread may be mid-step
+        if rec is not None:
+            rec.close()
+        self.server.stop()
+
+    def request_render(self) -> None:
+        self.thread.request_render()
+
+    # ------------------------------------------------------------------ callbacks
+    def _scene_changed(self) -> None:
+        if self.wb.mode == "replay":
+            return
+        self.view.sync_obstacles(self.wb.obstacles, self._on_gizmo)
+        self.request_render()
+
+    def _on_gizmo(self, index: int, position, wxyz) -> None:
+        self.wb.set_obstacle_pose(index, position, wxyz)
+        self.request_render()
+
+    def _render(self, fr: Frame) -> None:
+        self.view.render(fr)
+        now = time.perf_counter()
+        if now - self._last_gui > 0.2:
+            self._last_gui = now
+            for p in self.panels:
+                upd = getattr(p, "update_status", None)
+                if upd is not None:
+                    upd()

@@ -1,0 +1,157 @@
+"""Headless Chromium helpers (Playwright) shared by the browser tests, the screenshot script and
+the frame-rate benchmark. Uses the system Chromium (never ``playwright install``).
+"""
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import time
+from typing import Callable
+
+import numpy as np
+
+CHROMIUM_CANDIDATES = ("/usr/bin/chromium", "/usr/lib/chromium/chromium", "/usr/bin/chromium-browser")
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+
+
+class ChromiumMissing(RuntimeError):
+    pass
+
+
+def chromium_path() -> str:
+    """Path of the system Chromium; raises ChromiumMissing with the install hint."""
+    env = os.environ.get("RODLAB_CHROMIUM")
+    for p in ((env,) if env else ()) + CHROMIUM_CANDIDATES:
+        if p and os.path.exists(p):
+            return p
+    found = shutil.which("chromium")
+    if found:
+        return found
+    raise ChromiumMissing("Chromium not found (looked at /usr/bin/chromium): install it with "
+                          "`make system-deps` (apt-get install -y chromium) (never `playwright install`)")
+
+
+def launch(playwright):
+    return playwright.chromium.launch(executable_path=chromium_path(), headless=True, args=CHROMIUM_ARGS)
+
+
+def wait_for(pred: Callable[[], bool], timeout: float = 15.0, interval: float = 0.05, what: str = "") -> None:
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end:
+        if pred():
+            return
+        time.sleep(interval)
+    raise TimeoutError(f"timed out after {timeout:.0f} s waiting for {what or pred}")
+
+
+def open_page(browser, app, *, width: int = 1280, height: int = 800):
+    """Open the workbench page and wait until the GUI and the camera are known server-side."""
+    page = browser.new_page(viewport={"width": width, "height": height})
+    n0 = len(app.server.get_clients())
+    page.goto(app.url)
+    page.get_by_text("Teleop", exact=True).first.wait_for(timeout=30000)
+    wait_for(lambda: len(app.server.get_clients()) > n0, 20, what="browser client")
+    client = newest_client(app)
+    wait_for(lambda: client.camera.image_width > 0, 20, what="camera message")
+    close_toasts(page)
+    return page
+
+
+def newest_client(app):
+    clients = app.server.get_clients()
+    return clients[max(clients)]
+
+
+def close_toasts(page) -> None:
+    """Hide viser's notifications (e.g. the "Software WebGL rendering detected" toast)."""
+    try:
+        page.add_style_tag(content=".mantine-Notifications-root { display: none !important; }")
+    except Exception:  # noqa: BLE001 - cosmetic
+        pass
+
+
+def wait_smooth(page, frames: int = 4, max_gap_ms: float = 400.0, timeout_ms: int = 15000) -> None:
+    """Wait for ``frames`` consecutive animation frames spaced less than ``max_gap_ms``."""
+    page.evaluate("""([n, gap, tmo]) => new Promise((res) => {
+        let last = performance.now(), ok = 0; const t0 = last;
+        function f(t) { if (t - last < gap) ok++; else ok = 0; last = t;
+          if (ok >= n || t - t0 > tmo) res(ok); else requestAnimationFrame(f); }
+        requestAnimationFrame(f); })""", [frames, max_gap_ms, timeout_ms])
+
+
+def slider_root(page, label: str):
+    lab = page.locator("label").filter(has_text=re.compile("^" + re.escape(label) + "$"))
+    return page.locator(f'[id="{lab.first.get_attribute("for")}"]')
+
+
+def slider_thumb(page, label: str):
+    return slider_root(page, label).get_by_role("slider")
+
+
+def project(cam, pts: np.ndarray, W: int, H: int) -> np.ndarray:
+    """World points (K, 3) -> page pixels (K, 2) with viser's client camera (OpenCV convention)."""
+    import viser.transforms as vtf
+
+    R = vtf.SO3(np.asarray(cam.wxyz)).as_matrix()
+    pc = (np.asarray(pts) - np.asarray(cam.position)) @ R
+    f = (H / 2) / np.tan(cam.fov / 2)
+    return np.stack([W / 2 + f * pc[:, 0] / pc[:, 2], H / 2 + f * pc[:, 1] / pc[:, 2]], 1)
+
+
+def drag_gizmo_x(page, client, origin: np.ndarray, *, scale: float | None = None, dist: float = 0.2) -> None:
+    """Drag a transform gizmo at ``origin`` along its +x arrow by roughly ``dist`` metres."""
+    if scale is None:
+        from workbench.view_scene import GIZMO_SCALE as scale
+    box = page.locator("canvas").first.bounding_box()
+    W, H = box["width"], box["height"]
+    a = origin + np.array([0.73 * scale, 0.0, 0.0])
+    b = a + np.array([dist, 0.0, 0.0])
+    uv = project(client.camera, np.stack([a, b]), W, H) + np.array([box["x"], box["y"]])
+    page.mouse.move(*uv[0])
+    page.mouse.down()
+    page.mouse.move(*uv[1], steps=8)
+    page.mouse.up()
+
+
+def canvas_png(page) -> bytes:
+    """Screenshot of the 3D canvas only."""
+    return page.locator("canvas").first.screenshot(timeout=60000)
+
+
+def canvas_variance(page) -> float:
+    return image_variance(canvas_png(page))
+
+
+def image_diff_fraction(a: bytes, b: bytes, *, level: float = 30.0) -> float:
+    """Fraction of pixels whose grey level differs by more than ``level`` between two PNGs."""
+    import io
+
+    from PIL import Image
+
+    ia = np.asarray(Image.open(io.BytesIO(a)).convert("L"), dtype=np.float64)
+    ib = np.asarray(Image.open(io.BytesIO(b)).convert("L"), dtype=np.float64)
+    if ia.shape != ib.shape:
+        return 1.0
+    return float(np.mean(np.abs(ia - ib) > level))
+
+
+def expand_folder(page, folder: str, probe: str) -> None:
+    """Open a GUI folder unless ``probe`` (a button name, or a CSS selector starting with '.') inside
+    it is already visible."""
+    btn = page.locator(probe) if probe.startswith(".") else page.get_by_role("button", name=probe)
+    if btn.count() and btn.first.is_visible():
+        return
+    page.get_by_text(folder, exact=True).first.click()
+    btn.first.wait_for(state="visible", timeout=10000)
+
+
+def image_variance(png_bytes: bytes) -> float:
+    """Pixel variance of a screenshot (0 = blank)."""
+    import io
+
+    from PIL import Image
+
+    img = np.asarray(Image.open(io.BytesIO(png_bytes)).convert("RGB"), dtype=np.float64)
+    return float(img.var())

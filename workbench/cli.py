@@ -1,0 +1,68 @@
+"""``rodlab workbench [SCENE.toml | --task T] [--host 127.0.0.1] [--port 8080]``."""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+DEFAULT_SCENES = (REPO_ROOT / "assets/scenes/default.toml", REPO_ROOT / "assets/scenes/arm.toml")
+
+
+def default_scene() -> Path | None:
+    """assets/scenes/default.toml, else arm.toml, else None (built-in rod)."""
+    for p in DEFAULT_SCENES:
+        if p.is_file():
+            return p
+    return None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="rodlab workbench", description="interactive web workbench (viser)")
+    ap.add_argument("scene", nargs="?", help="scene TOML (default: assets/scenes/default.toml or arm.toml)")
+    ap.add_argument("--task", help="start with this task's scene and its first shipped policy")
+    ap.add_argument("--host", default="127.0.0.1", help="bind address (default 127.0.0.1)")
+    ap.add_argument("--port", type=int, default=8080, help="port (busy -> next free one)")
+    ap.add_argument("--speed", type=float, default=1.0, help="real-time factor (default 1)")
+    ap.add_argument("--no-env-map", action="store_true", help="no HDRI lighting (faster in software GL)")
+    ap.add_argument("--seconds", type=float, default=None, help="quit after this many seconds (tests)")
+    return ap
+
+
+def workbench_main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
+    from workbench.app import WorkbenchApp
+    from workbench.core import Workbench
+
+    if args.scene and args.task:
+        print("rodlab workbench: give a scene file or --task, not both", file=sys.stderr)
+        return 2
+    scene = Path(args.scene) if args.scene else default_scene()
+    if scene is not None and not scene.is_file():
+        print(f"rodlab workbench: scene file not found: {scene}", file=sys.stderr)
+        return 2
+    try:
+        wb = Workbench.from_path(scene) if scene is not None else Workbench.builtin()
+    except Exception as exc:  # noqa: BLE001 - SceneError etc.: one clear line
+        print(f"rodlab workbench: cannot load {scene}: {exc}", file=sys.stderr)
+        return 2
+    app = WorkbenchApp(wb, host=args.host, port=args.port, env_map=not args.no_env_map, speed=args.speed)
+    if args.task:
+        try:
+            app.policy.start_task(args.task)
+        except Exception as exc:  # noqa: BLE001
+            print(f"rodlab workbench: cannot start task {args.task!r}: {exc}", file=sys.stderr)
+            app.stop()
+            return 2
+    app.start()
+    print(f"rodlab workbench: {scene or 'built-in rod'} at http://{args.host}:{app.port}/  (Ctrl-C to quit)")
+    t_end = None if args.seconds is None else time.monotonic() + args.seconds
+    try:
+        while t_end is None or time.monotonic() < t_end:
+            time.sleep(0.2)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        app.stop()
+    return 0

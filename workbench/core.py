@@ -1,0 +1,319 @@
+"""The workbench core: session state machine, independent of any GUI (testable headless).
+
+Modes: ``teleop`` (sliders drive the rod), ``policy`` (a policy drives a task episode; the
+user can take over by hand and hand back), ``replay`` (a recorded episode is shown; the live
+session is paused meanwhile). Every live sim step stores a :class:`Snapshot`, so the session can
+be rewound to any earlier frame and continued from there.
+
+Thread safety: every public method takes ``self.lock``; the sim thread (``workbench.runner``)
+and GUI callbacks call them concurrently.
+"""
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import Callable, Literal
+
+import numpy as np
+
+from workbench import obstacles as obst
+from workbench.frame import Frame
+from workbench.history import History, Snapshot
+from workbench.simbridge import LiveSim, load
+from workbench.teleop import Teleop
+
+Mode = Literal["teleop", "policy", "replay"]
+
+
+class Workbench:
+    """Headless workbench session around one live rod.
+
+    Args:
+        spec: a ``SceneSpec`` (``sim.load_scene``).
+        scene_path: where the scene came from (default for "save").
+        history: how many snapshots to keep for rewinding.
+        substeps: sim steps per teleop control step (delta mode).
+    """
+
+    def __init__(self, spec, *, scene_path: str | Path | None = None, history: int = 6000,
+                 substeps: int = 2):
+        self.lock = threading.RLock()
+        self.scene_path = Path(scene_path) if scene_path else None
+        self.live = LiveSim(spec)
+        self.teleop = Teleop(n_nodes=self.live.n_nodes, substeps=substeps)
+        self.mode: Mode = "teleop"
+        self.playing = True
+        self.history = History(history)
+        self.frame_index = 0
+        self.policy = None  # workbench.policy_session.PolicySession while a policy is loaded
+        self.hand_control = False  # user took over from the policy
+        self.replay = None  # workbench.replay.ReplaySession while a recording is open
+        self.recorder = None  # workbench.recorder.SessionRecorder while recording
+        self.obstacles: list[obst.ObstacleEdit] = obst.edits_from_spec(spec)
+        self.on_scene_changed: list[Callable[[], None]] = []
+        self._last_scalars: dict = {}
+        self._push_snapshot()
+
+    @classmethod
+    def from_path(cls, path: str | Path, **kw) -> "Workbench":
+        return cls(load(path), scene_path=path, **kw)
+
+    @classmethod
+    def builtin(cls, **kw) -> "Workbench":
+        """The paper arm (assets/scenes/arm.toml) without obstacles."""
+        from workbench.simbridge import builtin_spec
+
+        return cls(builtin_spec(), **kw)
+
+    # ------------------------------------------------------------------ stepping
+    def step(self) -> None:
+        """Advance the live session by one sim step (whatever the play state)."""
+        with self.lock:
+            if self.mode == "replay":
+                if self.replay is not None:
+                    self.replay.advance()
+                return
+            scalars: dict = {}
+            if self.policy is not None and self.mode == "policy":
+                hand = self.teleop if self.hand_control else None
+                self.policy.before_sim_step(self.live, hand=hand)
+                self.live.step()
+                scalars = self.policy.after_sim_step(self.live)
+                self._sync_policy_obstacles()
+            else:
+                self.teleop.apply(self.live.ctrl, self.live.rest_ctrl)
+                self.live.step()
+            self.frame_index += 1
+            self._last_scalars = {**self.live.step_scalars(), **scalars}
+            self._push_snapshot()
+            if self.recorder is not None:
+                self.recorder.log(self.frame())
+
+    def advance(self) -> bool:
+        """Step if playing; returns whether anything moved."""
+        with self.lock:
+            if self.mode == "replay":
+                return self.replay is not None and self.replay.advance()
+            if not self.playing:
+                return False
+            self.step()
+            return True
+
+    def set_playing(self, playing: bool) -> None:
+        with self.lock:
+            if self.mode == "replay" and self.replay is not None:
+                self.replay.playing = playing
+            else:
+                self.playing = bool(playing)
+
+    def reset(self) -> None:
+        """Fresh rod (and a fresh episode in policy mode); clears the rewind history."""
+        with self.lock:
+            self.live.reset()
+            self.teleop.reset()
+            if self.policy is not None:
+                self.policy.reset(self.live)
+                self._sync_policy_obstacles()
+            self.frame_index = 0
+            self._last_scalars = {}
+            self.history.clear()
+            self._push_snapshot()
+
+    def set_gravity(self, on: bool) -> None:
+        """Gravity on/off (teleop only: a task keeps its own settings)."""
+        with self.lock:
+            if self.policy is not None:
+                raise RuntimeError("gravity belongs to the task while a policy is loaded")
+            self.live.set_gravity(on)
+
+    # ------------------------------------------------------------------ frames
+    def frame(self) -> Frame:
+        """What to draw now (the replayed frame in replay mode)."""
+        with self.lock:
+            if self.mode == "replay" and self.replay is not None:
+                return self.replay.frame()
+            targets = self.policy.targets() if self.policy is not None else None
+            fr = self.live.frame(targets=targets, scalars=self._last_scalars)
+            if self.policy is not None:
+                fr.target_wxyz = self.policy.target_wxyz()
+            return fr
+
+    @property
+    def tip(self) -> np.ndarray:
+        with self.lock:
+            return self.live.tip
+
+    # ------------------------------------------------------------------ snapshots / rewind
+    def _push_snapshot(self) -> None:
+        self.history.append(Snapshot(
+            index=self.frame_index, time=float(np.asarray(self.live.state.time)[0]),
+            sim=self.live.snapshot(), teleop=self.teleop.snapshot(),
+            driver=self.policy.snapshot() if self.policy is not None else None,
+            mode=self.mode, scalars=dict(self._last_scalars)))
+
+    def rewind(self, index: int) -> None:
+        """Go back to frame ``index`` of this session; later frames are dropped, play pauses."""
+        with self.lock:
+            snap = self.history.get(int(index))
+            self.live.restore(snap.sim)
+            self.teleop.restore(snap.teleop)
+            if self.policy is not None and snap.driver is not None:
+                self.policy.restore(snap.driver)
+                self._sync_policy_obstacles()
+            self.frame_index = snap.index
+            self._last_scalars = dict(snap.scalars)
+            self.history.truncate_after(snap.index)
+            self.playing = False
+
+    # ------------------------------------------------------------------ modes
+    def set_teleop_mode(self, mode) -> None:
+        with self.lock:
+            self.teleop.set_mode(mode)
+
+    def set_teleop_value(self, k: int, comp: int, value: float) -> None:
+        with self.lock:
+            self.teleop.set_value(k, comp, value)
+
+    def start_policy(self, session) -> None:
+        """Hand the rod to a ``PolicySession``: the page shows its task's simulator and episode."""
+        with self.lock:
+            if self.policy is None:
+                self._teleop_live = self.live
+            self.policy = session
+            self.live = LiveSim.adopt(session.core)
+            self.obstacles = obst.edits_from_spec(self.live.base_spec) if self.live.base_spec else []
+            self._policy_obstacles_version = -1
+            self._sync_policy_obstacles(notify=False)
+            self.mode = "policy"
+            self.hand_control = False
+            self.frame_index = 0
+            self._last_scalars = {}
+            self.history.clear()
+            self._push_snapshot()
+            self.playing = True
+        for cb in list(self.on_scene_changed):
+            cb()
+
+    def _sync_policy_obstacles(self, *, notify: bool = True) -> None:
+        """Follow obstacles that the task re-places (new episode / rewind)."""
+        p = self.policy
+        if p is None or p.obstacles_version == getattr(self, "_policy_obstacles_version", None):
+            return
+        self._policy_obstacles_version = p.obstacles_version
+        edits = p.display_obstacles()
+        if edits is None:
+            return
+        self.obstacles = edits
+        if notify:
+            for cb in list(self.on_scene_changed):
+                cb()
+
+    def stop_policy(self) -> None:
+        """Back to teleop on the scene that was open before the policy."""
+        with self.lock:
+            if self.policy is None:
+                return
+            self.policy = None
+            self.hand_control = False
+            self.mode = "teleop"
+            self.live = getattr(self, "_teleop_live", self.live)
+            self.obstacles = obst.edits_from_spec(self.live.base_spec)
+            self.history.clear()
+            self._push_snapshot()
+        for cb in list(self.on_scene_changed):
+            cb()
+
+    def take_over(self) -> None:
+        """The user drives (teleop sliders, absolute values = what the policy reached)."""
+        with self.lock:
+            if self.policy is None:
+                return
+            self.hand_control = True
+            K, T = self.policy.accumulated()
+            self.teleop.mode = "absolute"
+            self.teleop.values[:, :2] = K
+            self.teleop.values[:, 2] = T
+
+    def hand_back(self) -> None:
+        """The policy drives again, continuing from the hand-set natural curvature."""
+        with self.lock:
+            if self.policy is None:
+                return
+            acc = self.teleop.accumulated()
+            self.policy.set_accumulated(acc[:, :2], acc[:, 2])
+            self.hand_control = False
+
+    def open_replay(self, session) -> None:
+        with self.lock:
+            self.replay = session
+            self.mode = "replay"
+
+    def close_replay(self) -> None:
+        with self.lock:
+            self.replay = None
+            self.mode = "policy" if self.policy is not None else "teleop"
+
+    # ------------------------------------------------------------------ obstacles / scene
+    def _replace_spec(self, spec, *, keep_state: bool = True) -> None:
+        if self.recorder is not None:
+            self.recorder.new_episode()
+        self.live.set_spec(spec, keep_state=keep_state)
+        self.obstacles = obst.edits_from_spec(spec)
+        for cb in list(self.on_scene_changed):
+            cb()
+
+    def add_obstacle(self, edit: "obst.ObstacleEdit") -> int:
+        """Add an obstacle (rebuilds the model, keeps the rod state); returns its index."""
+        with self.lock:
+            self._replace_spec(obst.spec_with(self.live.base_spec, self.obstacles + [edit]))
+            return len(self.obstacles) - 1
+
+    def delete_obstacle(self, index: int) -> None:
+        with self.lock:
+            edits = [e for i, e in enumerate(self.obstacles) if i != index]
+            self._replace_spec(obst.spec_with(self.live.base_spec, edits))
+
+    def set_obstacle_pose(self, index: int, position, wxyz) -> None:
+        """Move/rotate obstacle ``index``; contact follows at the next step (no rebuild)."""
+        with self.lock:
+            e = self.obstacles[index]
+            e.position = np.asarray(position, dtype=np.float64).reshape(3).copy()
+            e.wxyz = np.asarray(wxyz, dtype=np.float64).reshape(4).copy()
+            obst.apply_pose(self.live, index, e)
+            if self.recorder is not None:
+                self.recorder.new_episode()
+
+    def save_scene(self, path: str | Path) -> Path:
+        """Write the current scene (with edited obstacles) to TOML (``sim.scene`` dump)."""
+        with self.lock:
+            spec = obst.spec_with(self.live.base_spec, self.obstacles)
+            return obst.dump(spec, Path(path))
+
+    def load_scene(self, path: str | Path) -> None:
+        """Load a scene file; the rod is reset."""
+        with self.lock:
+            spec = load(path)
+            self.scene_path = Path(path)
+            self._replace_spec(spec, keep_state=False)
+            self.reset()
+
+    # ------------------------------------------------------------------ recording
+    def start_recording(self, path: str | Path) -> Path:
+        """Record every following live frame to ``path`` (.rrd) until :meth:`stop_recording`."""
+        from workbench.recorder import SessionRecorder
+
+        with self.lock:
+            if self.recorder is not None:
+                raise RuntimeError(f"already recording to {self.recorder.path}")
+            meta = {"policy": self.policy.name if self.policy is not None else "teleop",
+                    "task": self.policy.task if self.policy is not None else "",
+                    "scene": str(self.scene_path or ""), "source": "workbench"}
+            self.recorder = SessionRecorder(path, meta=meta, obstacles=lambda: self.obstacles,
+                                            rod_radius=self.live.rod_radius)
+            return self.recorder.path
+
+    def stop_recording(self) -> Path | None:
+        """Write the recording file; returns its path (None if no frame was recorded)."""
+        with self.lock:
+            rec, self.recorder = self.recorder, None
+        return rec.close() if rec is not None else None

@@ -1,0 +1,169 @@
+"""GUI: status line, play controls, display toggles, teleop sliders."""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from workbench.teleop import CONTROL_NODES, KAPPA_LIMIT, TWIST_LIMIT
+
+if TYPE_CHECKING:
+    from workbench.app import WorkbenchApp
+
+COMP_LABELS = ("κ1", "κ2", "τ")
+
+
+def slider_label(k: int, comp: int) -> str:
+    """Label of the teleop slider for control point k (0..4) and component comp (0..2)."""
+    return f"{COMP_LABELS[comp]} n{CONTROL_NODES[k]}"
+
+
+class ControlsPanel:
+    def __init__(self, app: "WorkbenchApp"):
+        self.app = app
+        gui = app.server.gui
+        wb = app.wb
+        self.status = gui.add_markdown("starting…")
+        with gui.add_folder("Run"):
+            self.playing = gui.add_checkbox("Playing", initial_value=wb.playing)
+            self.step_btn = gui.add_button("Step")
+            self.reset_btn = gui.add_button("Reset")
+            self.gravity = gui.add_checkbox("Gravity", initial_value=True)
+            self.speed = gui.add_slider("Speed (× real time)", min=0.1, max=4.0, step=0.1, initial_value=1.0)
+        with gui.add_folder("Display", expand_by_default=False):
+            self.color_by = gui.add_dropdown("Colour by", ("curvature", "strain", "none"),
+                                             initial_value="curvature")
+            self.frames = gui.add_checkbox("Material frames", initial_value=False)
+            self.contacts = gui.add_checkbox("Contacts", initial_value=True)
+            self.force_scale = gui.add_slider("Force arrow m/N", min=0.0005, max=0.05, step=0.0005,
+                                              initial_value=0.005)
+        with gui.add_folder("Teleop"):
+            self.mode = gui.add_dropdown("Teleop mode", ("absolute", "delta"), initial_value="absolute")
+            self.sliders: list[list] = []
+            for k in range(5):
+                row = []
+                for c in range(3):
+                    lim = TWIST_LIMIT if c == 2 else KAPPA_LIMIT
+                    s = gui.add_slider(slider_label(k, c), min=-round(lim, 2), max=round(lim, 2),
+                                       step=0.01, initial_value=0.0)
+                    row.append(s)
+                self.sliders.append(row)
+            self.zero_btn = gui.add_button("Zero sliders")
+        self._syncing = False
+        self._wire()
+
+    def _wire(self) -> None:
+        app, wb = self.app, self.app.wb
+
+        @self.playing.on_update
+        def _(_e) -> None:
+            wb.set_playing(self.playing.value)
+
+        @self.step_btn.on_click
+        def _(_e) -> None:
+            wb.set_playing(False)
+            self.set_quiet(self.playing, False)
+            wb.step()
+            app.request_render()
+
+        @self.reset_btn.on_click
+        def _(_e) -> None:
+            wb.reset()
+            self.sync_sliders()
+            app.request_render()
+
+        @self.gravity.on_update
+        def _(_e) -> None:
+            wb.set_gravity(self.gravity.value)
+
+        @self.speed.on_update
+        def _(_e) -> None:
+            app.thread.speed = float(self.speed.value)
+
+        @self.color_by.on_update
+        def _(_e) -> None:
+            app.view.overlays.color_by = self.color_by.value
+            app.request_render()
+
+        @self.frames.on_update
+        def _(_e) -> None:
+            app.view.overlays.frames = self.frames.value
+            app.request_render()
+
+        @self.contacts.on_update
+        def _(_e) -> None:
+            app.view.overlays.contacts = self.contacts.value
+            app.request_render()
+
+        @self.force_scale.on_update
+        def _(_e) -> None:
+            app.view.overlays.force_scale = float(self.force_scale.value)
+            app.request_render()
+
+        @self.mode.on_update
+        def _(_e) -> None:
+            wb.set_teleop_mode(self.mode.value)
+            self.sync_sliders()
+
+        for k in range(5):
+            for c in range(3):
+                s = self.sliders[k][c]
+
+                def _cb(_e, k=k, c=c, s=s) -> None:
+                    if not self._syncing:
+                        wb.set_teleop_value(k, c, float(s.value))
+
+                s.on_update(_cb)
+
+        @self.zero_btn.on_click
+        def _(_e) -> None:
+            with wb.lock:
+                for k in range(5):
+                    for c in range(3):
+                        wb.set_teleop_value(k, c, 0.0)
+            self.sync_sliders()
+
+    def set_quiet(self, handle, value) -> None:
+        """Set a GUI value without running our own callback logic."""
+        self._syncing = True
+        try:
+            handle.value = value
+        finally:
+            self._syncing = False
+
+    def sync_sliders(self) -> None:
+        """Show the core's teleop values (after mode switch, reset, rewind, take-over)."""
+        wb = self.app.wb
+        with wb.lock:
+            mode = wb.teleop.mode
+            vals = wb.teleop.values.copy()
+        delta = mode == "delta"
+        self._syncing = True
+        try:
+            if self.mode.value != mode:
+                self.mode.value = mode
+            for k in range(5):
+                for c in range(3):
+                    s = self.sliders[k][c]
+                    lim = 1.0 if delta else (TWIST_LIMIT if c == 2 else KAPPA_LIMIT)
+                    s.min, s.max = -round(lim, 2), round(lim, 2)
+                    s.value = float(np.round(vals[k, c], 2))
+            self.playing.value = wb.playing
+        finally:
+            self._syncing = False
+
+    def update_status(self) -> None:
+        app, wb = self.app, self.app.wb
+        th = app.thread
+        fr = app.view.last_frame
+        tip = fr.tip if fr is not None else np.zeros(3)
+        lines = [f"**{wb.mode}**{' (hand)' if wb.hand_control else ''} · frame {wb.frame_index}"
+                 f" · t = {fr.time if fr else 0.0:.2f} s",
+                 f"real-time factor **{th.rtf:.2f}** · step {th.step_ms:.1f} ms · {th.fps:.0f} frames/s",
+                 f"tip ({tip[0]:+.3f}, {tip[1]:+.3f}, {tip[2]:+.3f}) m"]
+        if fr is not None and fr.scalars:
+            keys = [k for k in ("reward", "tip_error", "newton_iters", "contact_force") if k in fr.scalars]
+            lines.append(" · ".join(f"{k} {fr.scalars[k]:.3g}" for k in keys))
+        if th.error is not None:
+            lines.append(f"⚠ error: {th.error}")
+        self.status.content = "  \n".join(lines)

@@ -1,0 +1,151 @@
+"""GUI: policies (pick task + policy, play, take over / hand back), rewind, recording."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from workbench.app import WorkbenchApp
+
+NO_POLICY = ("zero", "random")
+
+
+class PolicyPanel:
+    def __init__(self, app: "WorkbenchApp"):
+        self.app = app
+        gui = app.server.gui
+        try:
+            from workbench.policy_session import task_names
+
+            tasks = task_names()
+        except Exception as exc:  # noqa: BLE001 - policies not importable: the panel says why
+            tasks, self._why = [], str(exc)
+        with gui.add_folder("Policy", expand_by_default=False):
+            self.task = gui.add_dropdown("Task", tasks or ["(unavailable)"],
+                                         initial_value=(tasks or ["(unavailable)"])[0])
+            self.policy = gui.add_dropdown("Policy file", self._policies(), initial_value=self._policies()[0])
+            self.load_btn = gui.add_button("Run policy")
+            self.take_btn = gui.add_button("Take over")
+            self.stop_btn = gui.add_button("Stop policy")
+            self.reward = gui.add_markdown("")
+        with gui.add_folder("Rewind", expand_by_default=False):
+            self.rewind = gui.add_slider("Rewind to frame", min=0, max=1, step=1, initial_value=0)
+            self.rewind_btn = gui.add_button("Rewind")
+        with gui.add_folder("Record", expand_by_default=False):
+            self.rec_btn = gui.add_button("Start recording")
+            self.rec_msg = gui.add_markdown("")
+        self._wire()
+
+    def _policies(self) -> list[str]:
+        try:
+            from workbench.policy_session import shipped_policies
+
+            task = self.task.value if hasattr(self, "task") else None
+            files = [p.name for p in shipped_policies(task if task and not task.startswith("(") else None)]
+        except Exception:  # noqa: BLE001
+            files = []
+        return files + list(NO_POLICY)
+
+    def start_task(self, task: str, policy: str | None = None) -> None:
+        """Start ``task`` with ``policy`` (file name in policies/pretrained, a path, or zero/random)."""
+        from workbench.policy_session import PRETRAINED, PolicySession, shipped_policies
+
+        if policy is None:
+            files = shipped_policies(task)
+            policy = str(files[0]) if files else "zero"
+        elif policy not in NO_POLICY and not Path(policy).is_file():
+            policy = str(PRETRAINED / policy)
+        session = PolicySession(task, policy)
+        self.app.wb.start_policy(session)
+        self.take_btn.label = "Take over"
+        self.app.controls.sync_sliders()
+        self.app.request_render()
+
+    def _wire(self) -> None:
+        app, wb = self.app, self.app.wb
+
+        @self.task.on_update
+        def _(_e) -> None:
+            opts = self._policies()
+            self.policy.options = opts
+            self.policy.value = opts[0]
+
+        @self.load_btn.on_click
+        def _(_e) -> None:
+            self.reward.content = f"loading {self.policy.value} on {self.task.value} …"
+            try:
+                self.start_task(self.task.value, self.policy.value)
+            except Exception as exc:  # noqa: BLE001 - show it in the page
+                self.reward.content = f"⚠ {exc}"
+                return
+            self.reward.content = f"running **{self.policy.value}** on **{self.task.value}**"
+
+        @self.take_btn.on_click
+        def _(_e) -> None:
+            if wb.policy is None:
+                return
+            if not wb.hand_control:
+                wb.take_over()
+                self.take_btn.label = "Hand back"
+            else:
+                wb.hand_back()
+                self.take_btn.label = "Take over"
+            app.controls.sync_sliders()
+
+        @self.stop_btn.on_click
+        def _(_e) -> None:
+            wb.stop_policy()
+            self.take_btn.label = "Take over"
+            app.controls.sync_sliders()
+            app.request_render()
+
+        @self.rewind_btn.on_click
+        def _(_e) -> None:
+            try:
+                wb.rewind(int(self.rewind.value))
+            except KeyError as exc:
+                self.reward.content = f"⚠ {exc}"
+                return
+            app.controls.sync_sliders()
+            app.request_render()
+
+        @self.rec_btn.on_click
+        def _(_e) -> None:
+            if wb.recorder is None:
+                from workbench.recorder import SessionRecorder
+
+                try:
+                    path = wb.start_recording(SessionRecorder.default_path(app.recordings_dir))
+                except Exception as exc:  # noqa: BLE001
+                    self.rec_msg.content = f"⚠ {exc}"
+                    return
+                self.rec_btn.label = "Stop recording"
+                self.rec_msg.content = f"recording to `{path.name}` …"
+            else:
+                self.rec_btn.label = "Start recording"
+                self.rec_msg.content = "writing …"
+                try:
+                    out = wb.stop_recording()
+                except Exception as exc:  # noqa: BLE001
+                    self.rec_msg.content = f"⚠ {exc}"
+                    return
+                self.rec_msg.content = f"saved `{out}`" if out else "nothing recorded"
+                app.replay.refresh_list()
+
+    def update_status(self) -> None:
+        """Rewind range + reward line (called a few times per second)."""
+        wb = self.app.wb
+        h = wb.history
+        lo, hi = h.first_index, max(h.last_index, h.first_index + 1)
+        if (self.rewind.min, self.rewind.max) != (lo, hi):
+            self.rewind.min, self.rewind.max = lo, hi
+            if wb.playing:
+                self.rewind.value = hi
+        if wb.policy is not None and wb.mode == "policy":
+            sc = wb.policy.scalars
+            terms = " · ".join(f"{k[2:]} {v:+.3f}" for k, v in sc.items() if k.startswith("r_"))
+            self.reward.content = (f"**{wb.policy.task}** · {wb.policy.name}{' · HAND' if wb.hand_control else ''}  \n"
+                                   f"step {int(sc.get('episode_step', 0))} · reward {sc.get('reward', 0.0):+.3f}"
+                                   f" · return {sc.get('return', 0.0):+.2f}  \n{terms}")
+        if wb.recorder is not None:
+            self.rec_msg.content = f"recording `{wb.recorder.path.name}` · {wb.recorder.frames} frames"

@@ -1,0 +1,162 @@
+"""GUI: open a recorded episode (.rrd), scrub its timeline, play at a chosen speed; plots
+(reward, tip error, contact force, Newton iterations) of the live session or the recording."""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from viser import uplot
+
+from workbench.replay import REPO_ROOT, ReplaySession, list_recordings
+
+if TYPE_CHECKING:
+    from workbench.app import WorkbenchApp
+
+PLOTS = (("reward", "reward", "reward"), ("tip_error", "tip error [m]", "tip_error"),
+         ("contact_force", "max contact force [N]", "contact/max_normal_force"),
+         ("newton_iters", "Newton iterations", "solver/newton_iters"))
+LIVE_WINDOW = 400  # frames shown in the live plots
+NONE = "(no recordings)"
+
+
+class ReplayPanel:
+    def __init__(self, app: "WorkbenchApp"):
+        self.app = app
+        gui = app.server.gui
+        with gui.add_folder("Recordings", expand_by_default=False):
+            files = self._files()
+            self.file = gui.add_dropdown("Recording", files, initial_value=files[0])
+            self.open_btn = gui.add_button("Open recording")
+            self.episode = gui.add_dropdown("Episode", ["0"], initial_value="0")
+            self.timeline = gui.add_slider("Timeline", min=0, max=1, step=1, initial_value=0)
+            self.play = gui.add_checkbox("Play recording", initial_value=False)
+            self.speed = gui.add_dropdown("Replay speed", ("0.25", "0.5", "1", "2", "4"), initial_value="1")
+            self.close_btn = gui.add_button("Close recording")
+            self.msg = gui.add_markdown("")
+        with gui.add_folder("Plots", expand_by_default=False):
+            self.plots = {}
+            for key, title, _rec in PLOTS:
+                self.plots[key] = gui.add_uplot(
+                    data=(np.zeros(2), np.zeros(2)),
+                    series=(uplot.Series(label="time [s]"), uplot.Series(label=key, stroke="#d2553c", width=2)),
+                    scales={"x": {"time": False}}, title=title, aspect=2.2)
+        self._scrubbing = False
+        self._wire()
+
+    def _files(self) -> list[str]:
+        files = [str(p.relative_to(REPO_ROOT)) if p.is_relative_to(REPO_ROOT) else str(p)
+                 for p in list_recordings(self.app.recordings_dir)]
+        return files or [NONE]
+
+    def refresh_list(self) -> None:
+        files = self._files()
+        self.file.options = files
+        if self.file.value not in files:
+            self.file.value = files[0]
+
+    def open(self, path) -> ReplaySession:
+        """Open a recording (also used by tests/screenshots)."""
+        p = REPO_ROOT / path if not str(path).startswith("/") else path
+        session = ReplaySession.open(p)
+        session.speed = float(self.speed.value)
+        self.app.wb.open_replay(session)
+        self.episode.options = [str(i) for i in range(len(session.episodes))]
+        self.episode.value = "0"
+        self._select()
+        return session
+
+    def _select(self) -> None:
+        s = self.app.wb.replay
+        if s is None:
+            return
+        with self.app.wb.lock:
+            s.select(int(self.episode.value))
+        self._scrubbing = True
+        try:
+            self.timeline.max = max(s.length - 1, 1)
+            self.timeline.value = 0
+        finally:
+            self._scrubbing = False
+        meta = s.ep.meta
+        self.msg.content = (f"`{s.path.name if s.path else ''}` · episode {s.episode_index} · {s.length} frames  \n"
+                            f"task {meta.get('task', '?')} · policy {meta.get('policy', '?')}")
+        self.app.view.sync_obstacles(s.obstacles, None)
+        self._plot_recording(s)
+        self.app.request_render()
+
+    def _wire(self) -> None:
+        app, wb = self.app, self.app.wb
+
+        @self.open_btn.on_click
+        def _(_e) -> None:
+            if self.file.value == NONE:
+                self.msg.content = "no .rrd files in recordings/"
+                return
+            self.msg.content = f"reading {self.file.value} …"
+            try:
+                self.open(self.file.value)
+            except Exception as exc:  # noqa: BLE001 - unreadable file: say so in the page
+                self.msg.content = f"⚠ {exc}"
+
+        @self.episode.on_update
+        def _(_e) -> None:
+            self._select()
+
+        @self.timeline.on_update
+        def _(_e) -> None:
+            if self._scrubbing or wb.replay is None:
+                return
+            with wb.lock:
+                wb.replay.seek(int(self.timeline.value))
+            app.request_render()
+
+        @self.play.on_update
+        def _(_e) -> None:
+            if wb.replay is not None:
+                if self.play.value and wb.replay.index >= wb.replay.length - 1:
+                    wb.replay.seek(0)
+                wb.replay.playing = bool(self.play.value)
+
+        @self.speed.on_update
+        def _(_e) -> None:
+            if wb.replay is not None:
+                wb.replay.speed = float(self.speed.value)
+
+        @self.close_btn.on_click
+        def _(_e) -> None:
+            wb.close_replay()
+            self.msg.content = ""
+            app.view.sync_obstacles(wb.obstacles, app._on_gizmo)
+            app.request_render()
+
+    # ------------------------------------------------------------------ plots
+    def _plot_recording(self, s: ReplaySession) -> None:
+        for key, _title, rec in PLOTS:
+            ser = s.series(rec)
+            if ser is None:
+                ser = (np.zeros(2), np.full(2, np.nan))
+            t, v = ser
+            self.plots[key].data = (np.asarray(t, np.float64), np.asarray(v, np.float64))
+
+    def update_status(self) -> None:
+        wb = self.app.wb
+        if wb.mode == "replay" and wb.replay is not None:
+            s = wb.replay
+            if s.playing and int(self.timeline.value) != s.index:
+                self._scrubbing = True
+                try:
+                    self.timeline.value = s.index
+                finally:
+                    self._scrubbing = False
+            if not s.playing and self.play.value:
+                self.play.value = False
+            return
+        with wb.lock:
+            items = wb.history._items[-LIVE_WINDOW:]
+            t = np.array([it.time for it in items], dtype=np.float64)
+            cols = {key: np.array([it.scalars.get(key, np.nan) for it in items], dtype=np.float64)
+                    for key, _t, _r in PLOTS}
+        if len(t) < 2:
+            return
+        for key, _title, _rec in PLOTS:
+            self.plots[key].data = (t, cols[key])

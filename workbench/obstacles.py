@@ -1,0 +1,227 @@
+"""Editable obstacles of the workbench and their translation to/from the ``sim`` scene spec.
+
+The workbench keeps a list of :class:`ObstacleEdit` (one per obstacle of the scene, same order)
+and writes poses through the simulator's obstacle-set pose API, so contact follows a drag
+immediately without rebuilding the model.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+import tempfile
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+ObstacleKind = Literal["sphere", "capsule", "box", "mesh", "plane"]
+KINDS: tuple[str, ...] = ("sphere", "capsule", "box", "mesh", "plane")
+PLANE_DRAW_SIZE = 2.4  # [m] side of the square drawn for a plane
+MESH_DIR = Path(__file__).resolve().parent.parent / "assets" / "meshes"
+MESH_SUFFIXES = (".stl", ".obj", ".ply", ".glb", ".gltf", ".off")
+
+
+@dataclasses.dataclass
+class ObstacleEdit:
+    """One obstacle as the workbench edits it.
+
+    Attributes:
+        kind: sphere | capsule | box | mesh.
+        position: (3,) centre [m]; wxyz: (4,) orientation (unit quaternion, scalar first).
+        radius: sphere/capsule radius [m]; length: capsule axis length (local z) [m].
+        half_extents: (3,) box half sizes [m]; mesh: mesh file path; scale: mesh scale [-].
+        name: label shown in the page; mesh_data: (vertices, faces) of a recorded mesh (display only).
+    """
+
+    kind: str
+    position: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+    wxyz: np.ndarray = dataclasses.field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+    radius: float = 0.08
+    length: float = 0.4
+    half_extents: np.ndarray = dataclasses.field(default_factory=lambda: np.full(3, 0.08))
+    mesh: str | None = None
+    scale: float = 1.0
+    name: str = ""
+    mesh_data: tuple | None = dataclasses.field(default=None, repr=False)  # (V, F) for display only
+    mesh_scale3: tuple | None = None  # per-axis mesh scale (from a scene file)
+    # where the obstacle sits in the built model (sim_pose is relative to it) and its original spec
+    base_position: np.ndarray | None = dataclasses.field(default=None, repr=False)
+    base_wxyz: np.ndarray | None = dataclasses.field(default=None, repr=False)
+    source: object = dataclasses.field(default=None, repr=False, compare=False)
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise ValueError(f"obstacle kind must be one of {KINDS}, got {self.kind!r}")
+        self.position = np.asarray(self.position, dtype=np.float64).reshape(3)
+        self.wxyz = np.asarray(self.wxyz, dtype=np.float64).reshape(4)
+        self.half_extents = np.asarray(self.half_extents, dtype=np.float64).reshape(3)
+        if self.kind == "mesh" and not self.mesh:
+            raise ValueError("a mesh obstacle needs a mesh file path")
+
+
+def mesh_catalogue() -> list[str]:
+    """Mesh files shipped in assets/meshes (names)."""
+    if not MESH_DIR.is_dir():
+        return []
+    return sorted(p.name for p in MESH_DIR.iterdir() if p.suffix.lower() in MESH_SUFFIXES)
+
+
+def default_edit(kind: str, *, position=(0.45, 0.0, 0.6)) -> ObstacleEdit:
+    """A reasonable new obstacle of ``kind`` placed beside the rod."""
+    return ObstacleEdit(kind=kind, position=np.asarray(position, dtype=np.float64), name=kind)
+
+
+# ---------------------------------------------------------------------- spec translation
+def edits_from_spec(spec) -> list[ObstacleEdit]:
+    """Fresh editable copies of the obstacles of ``spec`` (same order as the simulator's)."""
+    out = []
+    for o in getattr(spec, "obstacles", ()) or ():
+        out.append(dataclasses.replace(o) if isinstance(o, ObstacleEdit) else _edit_from_obstacle_spec(o))
+    return out
+
+
+def spec_with(spec, edits: list[ObstacleEdit]):
+    """A copy of ``spec`` whose obstacles are ``edits``."""
+    return dataclasses.replace(spec, obstacles=tuple(_obstacle_spec_from_edit(e) for e in edits))
+
+
+def apply_pose(live, index: int, edit: ObstacleEdit) -> None:
+    """Push one obstacle pose into the running simulator (no model rebuild): every env of the
+    live simulator gets it."""
+    oset = _obstacle_set(live)
+    if oset is None:
+        raise RuntimeError("this simulator has no obstacle set")
+    pos, wxyz = sim_pose(edit)
+    oset.set_pose(index, pos, wxyz)
+
+
+def dump(spec, path: Path) -> Path:
+    """Write ``spec`` as a TOML scene file atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    text = _dump_text(spec)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".toml.tmp")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(text)
+    os.replace(tmp, path)
+    return path
+
+
+# ---------------------------------------------------------------------- sim-specific parts
+def _rotm(wxyz) -> np.ndarray:
+    w, x, y, z = np.asarray(wxyz, dtype=np.float64) / np.linalg.norm(wxyz)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def _quat(R: np.ndarray) -> np.ndarray:
+    from workbench.frame import quat_from_matrix
+
+    return quat_from_matrix(R)
+
+
+def _z_to(d) -> np.ndarray:
+    from workbench.frame import quat_z_to
+
+    return quat_z_to(np.asarray(d, dtype=np.float64))
+
+
+def _edit_from_obstacle_spec(o) -> ObstacleEdit:
+    """sim ObstacleSpec -> ObstacleEdit (world pose of the obstacle's drawing frame)."""
+    kind = getattr(o, "type", type(o).__name__.replace("Spec", "").lower())
+    name = getattr(o, "name", "") or kind
+    if kind == "sphere":
+        e = ObstacleEdit(kind="sphere", position=o.center, radius=float(o.radius), name=name)
+    elif kind == "capsule":
+        a, b = np.asarray(o.start, float), np.asarray(o.end, float)
+        e = ObstacleEdit(kind="capsule", position=0.5 * (a + b), wxyz=_z_to(b - a), radius=float(o.radius),
+                         length=float(np.linalg.norm(b - a)), name=name)
+    elif kind == "box":
+        e = ObstacleEdit(kind="box", position=o.position, wxyz=o.orientation, half_extents=o.half_extents,
+                         name=name)
+    elif kind == "mesh":
+        sc = np.broadcast_to(np.asarray(o.scale, dtype=np.float64), (3,))
+        e = ObstacleEdit(kind="mesh", position=o.position, wxyz=o.orientation, mesh=o.path or o.file,
+                         scale=float(sc[0]), name=name, mesh_scale3=tuple(float(v) for v in sc))
+    elif kind == "plane":
+        e = ObstacleEdit(kind="plane", position=o.point, wxyz=_z_to(o.normal), name=name)
+    else:
+        raise ValueError(f"unknown obstacle type {kind!r}")
+    e.source = o
+    e.base_position, e.base_wxyz = e.position.copy(), e.wxyz.copy()
+    return e
+
+
+def _obstacle_spec_from_edit(e: ObstacleEdit):
+    """ObstacleEdit -> sim ObstacleSpec with the current pose baked in (world coordinates)."""
+    from sim import obstacles as so
+
+    R = _rotm(e.wxyz)
+    p = tuple(float(v) for v in e.position)
+    q = tuple(float(v) for v in (e.wxyz / np.linalg.norm(e.wxyz)))
+    name = e.name or ""
+    if e.kind == "sphere":
+        return so.SphereSpec(center=p, radius=float(e.radius), name=name)
+    if e.kind == "capsule":
+        ax = R[:, 2] * 0.5 * e.length
+        return so.CapsuleSpec(start=tuple(e.position - ax), end=tuple(e.position + ax), radius=float(e.radius),
+                              name=name)
+    if e.kind == "box":
+        return so.BoxSpec(position=p, half_extents=tuple(float(v) for v in e.half_extents), orientation=q,
+                          name=name)
+    if e.kind == "plane":
+        return so.PlaneSpec(point=p, normal=tuple(float(v) for v in R[:, 2]), name=name)
+    src = getattr(e, "source", None)
+    path = str(Path(e.mesh).resolve())
+    scale = e.mesh_scale3 or (e.scale,) * 3
+    return so.MeshSpec(file=getattr(src, "file", path) if src is not None and src.path == path else path,
+                       path=path, scale=tuple(float(v) for v in scale), position=p, orientation=q, name=name)
+
+
+def sim_pose(e: ObstacleEdit) -> tuple[np.ndarray, np.ndarray]:
+    """(position (3,), wxyz (4,)) for ``ObstacleSet.set_pose``: the rigid motion taking the obstacle
+    from its spec placement to the edited one. Capsule/sphere/plane specs are in their local frame
+    (initial pose identity); box/mesh poses are the obstacle's own pose."""
+    if e.kind in ("box", "mesh"):
+        return e.position.copy(), e.wxyz / np.linalg.norm(e.wxyz)
+    R_e = _rotm(e.wxyz)
+    if e.base_position is None:  # not from the built model: it was created at its current pose
+        return np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0])
+    R_0 = _rotm(e.base_wxyz)
+    m0 = e.base_position
+    R = R_e @ R_0.T
+    return e.position - R @ m0, _quat(R)
+
+
+def _obstacle_set(live):
+    """The live simulator's own (per-env) obstacle set: ``Simulator.obstacles``."""
+    oset = getattr(live.sim, "obstacles", None)
+    return oset if oset is not None else getattr(live.model, "obstacles", None)
+
+
+def _dump_text(spec) -> str:
+    from sim.scene import scene_to_toml
+
+    return scene_to_toml(spec)
+
+
+def mesh_for_edit(e: ObstacleEdit) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (V, 3) [m] in the obstacle's local frame, faces (F, 3)) for drawing."""
+    import trimesh
+
+    if e.kind == "sphere":
+        m = trimesh.creation.icosphere(subdivisions=3, radius=e.radius)
+    elif e.kind == "capsule":
+        m = trimesh.creation.capsule(height=e.length, radius=e.radius, count=[24, 12])
+    elif e.kind == "box":
+        m = trimesh.creation.box(extents=2.0 * e.half_extents)
+    elif e.kind == "plane":
+        m = trimesh.creation.box(extents=(PLANE_DRAW_SIZE, PLANE_DRAW_SIZE, 0.004))
+        m.apply_translation((0.0, 0.0, -0.002))
+    elif e.mesh_data is not None:
+        return np.asarray(e.mesh_data[0], np.float32), np.asarray(e.mesh_data[1], np.uint32)
+    else:
+        m = trimesh.load(e.mesh, force="mesh")
+        m.apply_scale(e.mesh_scale3 or e.scale)
+    return np.asarray(m.vertices, dtype=np.float32), np.asarray(m.faces, dtype=np.uint32)

@@ -1,0 +1,237 @@
+"""A task episode driven by a policy (or by hand) one *sim* step at a time, so the page shows
+every sim step; the task's own converter, post-step hook, observation and reward are used.
+
+The session owns a batched task core with B = 1 (``policies.tasks``); the workbench draws and
+steps that core's simulator/state/control (``LiveSim.adopt``). Per control step:
+
+* policy: ``action = policy.predict(obs)`` → ``converter.convert`` → increment ramped over the
+  sim steps (``converter.apply``), exactly as ``BatchedTask.step`` does;
+* by hand: the teleop's absolute (κ1, κ2, twist) per control point become the converter's K/T and
+  the simulator holds ``converter.natural_values()``; the episode, target and reward go on.
+After the last sim step of a control step: task post-step hook, observation, reward + terms,
+termination/truncation (tasks.md §3.3); the next control step of a finished episode resets it.
+"""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+PRETRAINED = REPO_ROOT / "policies" / "pretrained"
+_SKIP = {"sim", "model", "state", "ctrl"}  # owned by LiveSim snapshots
+
+
+def task_names() -> list[str]:
+    from policies.tasks import TASKS
+
+    return list(TASKS)
+
+
+def shipped_policies(task: str | None = None) -> list[Path]:
+    """Policy zips in policies/pretrained (those made for ``task`` when given)."""
+    if not PRETRAINED.is_dir():
+        return []
+    out = []
+    for p in sorted(PRETRAINED.glob("*.zip")):
+        if task is None or policy_task(p) in (None, task, _task_id(task)):
+            out.append(p)
+    return out
+
+
+def policy_task(path: Path) -> str | None:
+    try:
+        from policies.sac import read_policy_meta
+
+        return read_policy_meta(path).get("task")
+    except Exception:  # noqa: BLE001 - unreadable: listed, fails on load with a clear message
+        return None
+
+
+def _task_id(task: str) -> str:
+    from policies.tasks import resolve_task
+
+    return resolve_task(task)
+
+
+class PolicySession:
+    """One task (B = 1) plus a policy.
+
+    Args:
+        task: short task name or gymnasium id.
+        policy: path of a policy zip, or "zero" (no action) / "random".
+        seed: episode seed; deterministic: use the policy's mean action.
+    """
+
+    def __init__(self, task: str, policy: str | Path = "zero", *, seed: int = 0, deterministic: bool = True):
+        from policies.tasks import TASK_SPECS, TASKS, resolve_task
+
+        self.task_id = resolve_task(task)
+        self.task = next((k for k, v in TASKS.items() if v == self.task_id), self.task_id)
+        _env_cls, core_cls, cfg_fn = TASK_SPECS[self.task_id].load()
+        self.core = core_cls(cfg_fn(), envs=1, seed=seed)
+        self.deterministic = deterministic
+        self.name = Path(policy).stem if str(policy) not in ("zero", "random") else str(policy)
+        self._rng = np.random.default_rng(seed)
+        if str(policy) in ("zero", "random"):
+            self.policy = str(policy)
+        else:
+            from policies.evaluate import PolicyLoadError
+            from policies.sac import load_policy
+
+            self.policy, _meta = load_policy(policy)
+            shape = tuple(self.policy.observation_space.shape), tuple(self.policy.action_space.shape)
+            if shape != ((self.core.obs_dim,), (self.core.action_dim,)):
+                raise PolicyLoadError(f"{policy} does not fit task {self.task!r}: policy obs/action {shape}, "
+                                      f"task ({self.core.obs_dim},)/({self.core.action_dim},)")
+        self.substeps = int(self.core.config.substeps)
+        self.obstacles_version = 0  # bumped when the task re-places its obstacles (new episode, rewind)
+        self._start_episode()
+
+    # ------------------------------------------------------------------ episode
+    def _start_episode(self) -> None:
+        self.obs = self.core.reset()
+        self.obstacles_version += 1
+        self.sub = 0
+        self.inc = None
+        self.done = False
+        self.episode_return = 0.0
+        self.scalars: dict[str, float] = {}
+
+    def reset(self, live) -> None:
+        """New episode (called by ``Workbench.reset``)."""
+        self._start_episode()
+
+    def scene_spec(self):
+        """None: the session's simulator is adopted directly (see ``Workbench.start_policy``)."""
+        return None
+
+    # ------------------------------------------------------------------ stepping
+    def _action(self) -> np.ndarray:
+        if isinstance(self.policy, str):
+            if self.policy == "random":
+                return self._rng.uniform(-1, 1, (1, self.core.action_dim)).astype(np.float32)
+            return np.zeros((1, self.core.action_dim), np.float32)
+        a, _ = self.policy.predict(self.obs, deterministic=self.deterministic)
+        return np.asarray(a, np.float32).reshape(1, -1)
+
+    def before_sim_step(self, live, *, hand=None) -> None:
+        core = self.core
+        if self.sub == 0:
+            if self.done:
+                self._start_episode()
+            if hand is None:
+                self.inc = core.converter.convert(self._action())
+            else:
+                self.inc = None
+        if hand is not None:
+            self.set_accumulated(hand.values[:, :2], hand.values[:, 2])
+            kappa, tau = core.converter.natural_values()
+            rest = getattr(live, "rest_ctrl", None)
+            core.ctrl.kappa_bar[...] = kappa + (0.0 if rest is None else rest.kappa_bar)
+            core.ctrl.tau_bar[...] = tau + (0.0 if rest is None else rest.tau_bar)
+        elif self.inc is not None:
+            core.converter.apply(core.ctrl, self.inc, self.sub)
+
+    def after_sim_step(self, live) -> dict:
+        from policies.tasks.rewards import FAILURE_REWARD
+
+        core = self.core
+        self.sub += 1
+        if self.sub < self.substeps:
+            return dict(self.scalars)
+        self.sub = 0
+        core._post_step()
+        fields = core._fields()
+        self.obs = core._concat(fields)
+        reward, terms, extra = core._reward(fields)
+        r = float(np.asarray(reward)[0])
+        truncated = bool(core.step_count[0] == core.config.timeout_steps)
+        core.step_count += 1
+        failed = bool(np.asarray(core.state.failed)[0])
+        if failed or not (r >= FAILURE_REWARD):
+            r, self.done = FAILURE_REWARD, True
+        self.done = self.done or truncated
+        self.episode_return += r
+        sc = {"reward": r, "return": self.episode_return, "episode_step": float(core.step_count[0])}
+        for k, v in terms.items():
+            sc[f"r_{k}"] = float(np.asarray(v)[0])
+        d = extra.get("tip_distance")
+        if d is not None:
+            sc["tip_error"] = float(np.asarray(d)[0])
+        self.scalars = sc
+        return dict(sc)
+
+    # ------------------------------------------------------------------ hand control
+    def accumulated(self) -> tuple[np.ndarray, np.ndarray]:
+        """(K (5, 2), T (5,)) the converter's accumulated curvature/twist per control point."""
+        conv = self.core.converter
+        K = np.zeros((conv.cfg.n_points, 2))
+        K[:, : conv.cfg.n_components] = conv.K[0]
+        return K, np.asarray(conv.T[0], dtype=np.float64).copy()
+
+    def set_accumulated(self, K: np.ndarray, T: np.ndarray) -> None:
+        conv = self.core.converter
+        cfg = conv.cfg
+        conv.K[0] = np.clip(np.asarray(K)[:, : cfg.n_components], -cfg.kappa_limit, cfg.kappa_limit)
+        if cfg.has_twist:
+            conv.T[0] = np.clip(np.asarray(T), -cfg.twist_limit, cfg.twist_limit)
+
+    # ------------------------------------------------------------------ display
+    def targets(self) -> np.ndarray | None:
+        tgt = getattr(self.core, "target", None)
+        pos = getattr(tgt, "pos", None) if tgt is not None else None
+        if pos is None:
+            pos = getattr(self.core, "target_pos", None)
+        if pos is None:
+            return None
+        p = np.asarray(pos, dtype=np.float64).reshape(-1)
+        if p.size == 2:  # 2D tasks: (x, z)
+            p = np.array([p[0], 0.0, p[1]])
+        return p[:3].reshape(1, 3)
+
+    def target_wxyz(self) -> np.ndarray | None:
+        q = getattr(self.core, "target_quat", None)
+        if q is None:
+            return None
+        q = np.asarray(q, dtype=np.float64).reshape(-1)[:4]  # x y z w
+        return np.array([q[3], q[0], q[1], q[2]])
+
+    def display_obstacles(self) -> list | None:
+        """Obstacles the task placed for this episode (3D random fence), or None (scene obstacles)."""
+        fences = getattr(self.core, "fences", None)
+        if fences is None:
+            return None
+        from sim.obstacles import CapsuleSpec
+        from workbench.obstacles import edits_from_spec
+
+        r = float(self.core.config.fence.radius)
+        caps = tuple(CapsuleSpec(start=tuple(map(float, a)), end=tuple(map(float, b)), radius=r, name=f"fence {i}")
+                     for i, (a, b) in enumerate(np.asarray(fences[0], dtype=np.float64)))
+
+        class _Spec:
+            obstacles = caps
+
+        return edits_from_spec(_Spec)
+
+    # ------------------------------------------------------------------ snapshots
+    def snapshot(self) -> dict:
+        core = {k: v for k, v in vars(self.core).items() if k not in _SKIP}
+        own = {k: v for k, v in vars(self).items() if k not in ("core", "policy")}
+        return copy.deepcopy({"core": core, "own": own})
+
+    def restore(self, snap: dict) -> None:
+        snap = copy.deepcopy(snap)
+        for k, v in snap["core"].items():
+            setattr(self.core, k, v)
+        version = self.obstacles_version
+        for k, v in snap["own"].items():
+            setattr(self, k, v)
+        fences = getattr(self.core, "fences", None)
+        if fences is not None:  # put the snapshot's fence back into the simulator
+            from policies.tasks.scenes import set_env_capsules
+
+            set_env_capsules(self.core.sim, np.array([0]), np.asarray(fences[:1], dtype=np.float64),
+                             float(self.core.config.fence.radius))
+        self.obstacles_version = version + 1

@@ -1,0 +1,122 @@
+"""Record the live workbench session to recordings/*.rrd with the recordings engineer's
+``policies.recording.Recorder`` (the file appears atomically when recording stops).
+
+One rerun episode per continuous stretch: a rewind (time going backwards), a reset or an
+obstacle edit ends the current episode and starts the next one, so every episode's static
+scene is right.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from workbench.frame import Frame
+from workbench.obstacles import ObstacleEdit, mesh_for_edit
+
+SCALAR_NAMES = {"reward": "reward", "tip_error": "tip_error", "newton_iters": "solver/newton_iters",
+                "contact_force": "contact/max_normal_force", "max_penetration": "contact/max_penetration"}
+
+
+def _rot(wxyz) -> np.ndarray:
+    w, x, y, z = np.asarray(wxyz, dtype=np.float64) / np.linalg.norm(wxyz)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def static_scene(edits: list[ObstacleEdit], rod_radius: float, *, planar: bool = False):
+    """``StaticScene`` (world frame) of the workbench obstacles."""
+    from policies.recording.schema import StaticScene
+
+    caps, crad, sc, sr, bc, bh, bq, meshes = [], [], [], [], [], [], [], []
+    for e in edits:
+        R = _rot(e.wxyz)
+        if e.kind == "capsule":
+            ax = R[:, 2] * 0.5 * e.length
+            caps.append([e.position - ax, e.position + ax])
+            crad.append(e.radius)
+        elif e.kind == "sphere":
+            sc.append(e.position)
+            sr.append(e.radius)
+        elif e.kind == "box":
+            bc.append(e.position)
+            bh.append(e.half_extents)
+            bq.append([e.wxyz[1], e.wxyz[2], e.wxyz[3], e.wxyz[0]])
+        else:
+            v, f = mesh_for_edit(e)
+            meshes.append((np.asarray(v, np.float64) @ R.T + e.position, np.asarray(f, np.int64)))
+
+    def arr(a, shape):
+        return np.asarray(a, dtype=np.float64).reshape(shape) if a else None
+
+    return StaticScene(rod_radius=rod_radius, capsules=arr(caps, (-1, 2, 3)), capsule_radii=arr(crad, (-1,)),
+                       sphere_centers=arr(sc, (-1, 3)), sphere_radii=arr(sr, (-1,)),
+                       box_centers=arr(bc, (-1, 3)), box_half_sizes=arr(bh, (-1, 3)), box_quats=arr(bq, (-1, 4)),
+                       meshes=tuple(meshes), planar=planar)
+
+
+class SessionRecorder:
+    """Streams workbench frames into a ``Recorder``.
+
+    Args:
+        path: output .rrd (default recordings/workbench-<UTC time>.rrd).
+        meta: episode metadata (task, policy, scene, ...).
+        obstacles: callable returning the current obstacle list (for each episode's static scene).
+    """
+
+    def __init__(self, path: str | Path, *, meta: dict, obstacles, rod_radius: float):
+        from policies.recording import Recorder
+
+        self.path = Path(path)
+        self.rec = Recorder(self.path, on_error="keep")
+        self.meta = dict(meta)
+        self._obstacles = obstacles
+        self.rod_radius = rod_radius
+        self.frames = 0
+        self._t_last = -np.inf
+        self._step = 0
+        self._open = False
+
+    @staticmethod
+    def default_path(root: str | Path) -> Path:
+        return Path(root) / f"workbench-{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}.rrd"
+
+    def new_episode(self) -> None:
+        """End the current episode (if any); the next frame starts a new one."""
+        if self._open:
+            self.rec.end_episode()
+            self._open = False
+
+    def log(self, fr: Frame) -> None:
+        if self._open and fr.time < self._t_last:
+            self.new_episode()
+        if not self._open:
+            self.rec.begin_episode(self.meta, static_scene(self._obstacles(), self.rod_radius))
+            self._open = True
+            self._step = 0
+        kw = {}
+        if fr.m1 is not None and fr.m2 is not None:
+            kw.update(m1=fr.m1, m2=fr.m2)
+        if fr.contact_normals is not None and fr.contact_normal_force is not None and len(fr.contact_points):
+            kw.update(contact_points=fr.contact_points, contact_normals=fr.contact_normals,
+                      contact_normal_force=fr.contact_normal_force)
+        if len(fr.targets):
+            kw["target_pos"] = fr.targets[0]
+        scalars = {}
+        for k, v in fr.scalars.items():
+            name = SCALAR_NAMES.get(k) or (f"reward_terms/{k[2:]}" if k.startswith("r_") else None)
+            if name is not None and np.isfinite(v):
+                scalars[name] = float(v)
+        self.rec.log_step(control_step=self._step, sim_step=self._step, sim_time=fr.time, node_pos=fr.node_pos,
+                          scalars=scalars, **kw)
+        self._step += 1
+        self._t_last = fr.time
+        self.frames += 1
+
+    def close(self) -> Path | None:
+        """Finish and write the file (atomic); returns its path (None if nothing was recorded)."""
+        self.new_episode()
+        out = self.rec.close()
+        return out if self.frames else None

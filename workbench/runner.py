@@ -1,0 +1,112 @@
+"""The simulation thread: steps the workbench at real time and pushes frames to the view.
+
+Real time means one sim step of ``dt`` per ``dt / speed`` seconds of wall clock. When a step
+takes longer than that the loop falls behind and the real-time factor (shown in the page)
+drops below the requested speed. ``speed=float('inf')`` steps as fast as possible (benchmarks).
+"""
+from __future__ import annotations
+
+import threading
+import time
+from typing import Callable
+
+from workbench.core import Workbench
+
+
+class SimThread:
+    """Background loop ``advance → render`` with real-time pacing and rate statistics.
+
+    Args:
+        wb: the workbench core.
+        render: called with each new frame (``SceneView.render`` + GUI readouts).
+        speed: target real-time factor (1.0 = real time).
+    """
+
+    def __init__(self, wb: Workbench, render: Callable, *, speed: float = 1.0, max_fps: float = 60.0):
+        self.wb = wb
+        self.render = render
+        self.speed = speed
+        self.max_fps = max_fps  # scene updates per second at most (the newest frame wins)
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.frames = 0  # frames rendered since start
+        self.rtf = 0.0  # measured real-time factor (sim seconds per wall second)
+        self.fps = 0.0  # scene updates per second (rendered frames)
+        self.steps = 0  # sim steps since start
+        self.step_ms = 0.0  # last sim step wall time [ms]
+        self.error: BaseException | None = None
+        self._dirty = threading.Event()
+
+    def start(self) -> "SimThread":
+        self._thread = threading.Thread(target=self._loop, name="rodlab-sim", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self, timeout: float = 5.0) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+    def request_render(self) -> None:
+        """Ask for a redraw although nothing stepped (paused edits, rewind, overlay toggles)."""
+        self._dirty.set()
+
+    def _loop(self) -> None:
+        wb = self.wb
+        next_t = time.perf_counter()
+        win_t0, win_sim0, win_frames = time.perf_counter(), 0.0, 0
+        sim_elapsed = 0.0
+        last_render = 0.0
+        pending = False
+        while not self._stop.is_set():
+            try:
+                moved = wb.advance()
+                if moved:
+                    self.steps += 1
+                    self.step_ms = 1000.0 * wb.live.step_time if wb.mode != "replay" else 0.0
+                    sim_elapsed += self._frame_dt()
+                pending = pending or moved
+                now = time.perf_counter()
+                if self._dirty.is_set() or (pending and now - last_render >= 1.0 / self.max_fps):
+                    self._dirty.clear()
+                    pending = False
+                    last_render = now
+                    self.render(wb.frame())
+                    self.frames += 1
+                    win_frames += 1
+                    now = time.perf_counter()
+                if now - win_t0 >= 1.0:
+                    self.rtf = (sim_elapsed - win_sim0) / (now - win_t0)
+                    self.fps = win_frames / (now - win_t0)
+                    win_t0, win_sim0, win_frames = now, sim_elapsed, 0
+                if not moved:
+                    self._dirty.wait(0.005 if pending else 0.02)
+                    next_t = time.perf_counter()
+                    continue
+                pace = self._pace()
+                if pace <= 0.0:
+                    continue
+                next_t += pace
+                delay = next_t - time.perf_counter()
+                if delay > 0:
+                    self._stop.wait(delay)
+                elif delay < -0.25:  # far behind: do not try to catch up in a burst
+                    next_t = time.perf_counter()
+            except Exception as exc:  # noqa: BLE001 - keep the page alive, show the error
+                self.error = exc
+                wb.set_playing(False)
+                self._stop.wait(0.1)
+
+    def _frame_dt(self) -> float:
+        wb = self.wb
+        if wb.mode == "replay" and wb.replay is not None:
+            return wb.replay.frame_dt
+        return wb.live.dt
+
+    def _pace(self) -> float:
+        """Wall seconds per frame (0 = as fast as possible)."""
+        wb = self.wb
+        speed = wb.replay.speed if (wb.mode == "replay" and wb.replay is not None) else self.speed
+        if speed == float("inf") or speed <= 0:
+            return 0.0
+        return self._frame_dt() / speed

@@ -1,0 +1,211 @@
+"""The only place the workbench touches the ``sim`` API (single env, B = 1).
+
+``LiveSim`` owns spec, model, simulator, state and control, steps them, copies them for
+snapshots and turns them into a drawable :class:`workbench.frame.Frame`.
+"""
+from __future__ import annotations
+
+import copy
+import dataclasses
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sim import Simulator, build_model, load_scene
+from workbench.frame import Frame, edge_strain, integrated_curvature
+
+
+def copy_struct(obj):
+    """Deep copy of a State/Control-like struct of numpy arrays (dataclass or plain object)."""
+    return copy.deepcopy(obj)
+
+
+def assign_struct(dst, src) -> None:
+    """Copy every array field of ``src`` into ``dst`` in place (keeps the identity of ``dst``)."""
+    fields = ([f.name for f in dataclasses.fields(dst)] if dataclasses.is_dataclass(dst)
+              else list(vars(dst)))
+    for name in fields:
+        a, b = getattr(dst, name), getattr(src, name)
+        if isinstance(a, np.ndarray) and isinstance(b, np.ndarray) and a.shape == b.shape:
+            a[...] = b
+        else:
+            setattr(dst, name, copy.deepcopy(b))
+
+
+class LiveSim:
+    """One live rod (B = 1) built from a scene.
+
+    Args:
+        spec: a ``SceneSpec`` (``sim.load_scene``).
+        gravity: keep the scene's gravity (True) or switch it off (False).
+    """
+
+    def __init__(self, spec, *, gravity: bool = True):
+        self.base_spec = spec
+        self.gravity = gravity
+        self._build(keep_state=False)
+
+    @classmethod
+    def adopt(cls, owner) -> "LiveSim":
+        """Wrap an existing simulator (a task core's ``sim``, ``model``, ``state``, ``ctrl``, B = 1)."""
+        self = cls.__new__(cls)
+        self.owner = owner
+        self.base_spec = getattr(owner, "scene_spec", None) or getattr(owner.model, "spec", None)
+        self.gravity = True
+        self.model, self.sim = owner.model, owner.sim
+        self.state, self.ctrl = owner.state, owner.ctrl
+        self.rest_ctrl = owner.sim.make_control()
+        x0 = np.asarray(self.sim.reset().node_pos[0], dtype=np.float64)
+        self.rest_length = np.linalg.norm(np.diff(x0, axis=0), axis=1)
+        self.last_stats = None
+        self.step_time = 0.0
+        return self
+
+    # ---------------------------------------------------------------- building
+    def _spec_for_build(self):
+        spec = self.base_spec
+        if not self.gravity:
+            spec = _replace_gravity(spec, (0.0, 0.0, 0.0))
+        return spec
+
+    owner = None  # a task core whose simulator this wraps (policy mode), else None
+
+    def _build(self, *, keep_state: bool) -> None:
+        if self.owner is not None:
+            raise RuntimeError("this simulator belongs to a task; stop the policy to edit the scene")
+        old_state = getattr(self, "state", None) if keep_state else None
+        old_ctrl = getattr(self, "ctrl", None) if keep_state else None
+        self.model = build_model(self._spec_for_build())
+        self.sim = Simulator(self.model, envs=1)
+        self.state = self.sim.reset()
+        self.ctrl = self.sim.make_control()
+        self.rest_ctrl = copy_struct(self.ctrl)
+        x0 = np.asarray(self.state.node_pos[0], dtype=np.float64)
+        self.rest_length = np.linalg.norm(np.diff(x0, axis=0), axis=1)
+        if old_state is not None:
+            assign_struct(self.state, old_state)
+            assign_struct(self.ctrl, old_ctrl)
+        self.last_stats = None
+        self.step_time = 0.0
+
+    def set_gravity(self, on: bool) -> None:
+        """Switch gravity on/off; rebuilds the model, keeps the current state and control."""
+        if on != self.gravity:
+            self.gravity = on
+            self._build(keep_state=True)
+
+    def set_spec(self, spec, *, keep_state: bool = True) -> None:
+        """Replace the scene (e.g. after adding or deleting an obstacle) and rebuild."""
+        self.base_spec = spec
+        self._build(keep_state=keep_state)
+
+    # ---------------------------------------------------------------- stepping
+    @property
+    def dt(self) -> float:
+        return float(self.model.dt)
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.state.node_pos.shape[1])
+
+    @property
+    def rod_radius(self) -> float:
+        for name in ("rod_radius", "radius"):
+            if hasattr(self.model, name):
+                return float(getattr(self.model, name))
+        return 0.05
+
+    def reset(self) -> None:
+        if self.owner is not None:  # the task resets its own simulator
+            self.last_stats = None
+            return
+        new = self.sim.reset()
+        assign_struct(self.state, new)
+        assign_struct(self.ctrl, self.sim.make_control())
+        self.last_stats = None
+
+    def step(self):
+        t0 = time.perf_counter()
+        self.last_stats = self.sim.step(self.state, self.ctrl)
+        self.step_time = time.perf_counter() - t0
+        return self.last_stats
+
+    def step_scalars(self) -> dict[str, float]:
+        """Solver/contact values of the last step: newton_iters, contact_force (largest normal contact
+        force [N]), max_penetration [m] (empty before the first step)."""
+        st = self.last_stats
+        if st is None:
+            return {}
+        out = {"newton_iters": float(np.asarray(st.newton_iters)[0])}
+        if hasattr(st, "max_penetration"):
+            out["max_penetration"] = float(np.asarray(st.max_penetration)[0])
+        k = int(np.asarray(st.contact_count)[0]) if hasattr(st, "contact_count") else 0
+        out["contact_force"] = float(np.abs(np.asarray(st.contact_normal_force)[0, :k]).max()) if k else 0.0
+        return out
+
+    @property
+    def tip(self) -> np.ndarray:
+        return np.asarray(self.state.node_pos[0, -1], dtype=np.float64).copy()
+
+    # ---------------------------------------------------------------- snapshots
+    def snapshot(self) -> tuple:
+        return copy_struct(self.state), copy_struct(self.ctrl)
+
+    def restore(self, snap: tuple) -> None:
+        assign_struct(self.state, snap[0])
+        assign_struct(self.ctrl, snap[1])
+
+    # ---------------------------------------------------------------- drawing
+    def frame(self, *, targets: np.ndarray | None = None, scalars: dict | None = None) -> Frame:
+        x = np.asarray(self.state.node_pos[0], dtype=np.float64)
+        m1 = m2 = None
+        try:
+            mf = self.sim.material_frames(self.state)
+            m1, m2 = np.asarray(mf[0][0]), np.asarray(mf[1][0])
+        except Exception:  # noqa: BLE001 - frames are an optional overlay
+            pass
+        cp, cf, cn, cfn = contacts_from_stats(self.last_stats)
+        sc = {**self.step_scalars(), **(scalars or {})}
+        return Frame(node_pos=x.copy(), rod_radius=self.rod_radius, m1=m1, m2=m2,
+                     node_curvature=integrated_curvature(x), edge_strain=edge_strain(x, self.rest_length),
+                     contact_points=cp, contact_forces=cf, contact_normals=cn, contact_normal_force=cfn,
+                     targets=np.zeros((0, 3)) if targets is None else np.asarray(targets).reshape(-1, 3),
+                     time=float(np.asarray(self.state.time)[0]), scalars=sc)
+
+
+def contacts_from_stats(st, env: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Active contacts of ``env``: rod points (K, 3) [m], total force on the rod (K, 3) [N]
+    (normal + friction), unit normals (K, 3), normal force magnitudes (K,) [N]."""
+    z3, z1 = np.zeros((0, 3)), np.zeros(0)
+    if st is None or not hasattr(st, "contact_count"):
+        return z3, z3, z3, z1
+    k = int(np.asarray(st.contact_count)[env])
+    if k == 0:
+        return z3, z3, z3, z1
+    p = np.asarray(st.contact_rod_point, dtype=np.float64)[env, :k]
+    n = np.asarray(st.contact_normal, dtype=np.float64)[env, :k]
+    fn = np.asarray(st.contact_normal_force, dtype=np.float64)[env, :k]
+    f = n * fn[:, None]
+    if hasattr(st, "contact_friction_force"):
+        f = f + np.asarray(st.contact_friction_force, dtype=np.float64)[env, :k]
+    return p.copy(), f, n.copy(), fn.copy()
+
+
+def _replace_gravity(spec, g):
+    if hasattr(spec, "sim") and hasattr(spec.sim, "gravity"):
+        return dataclasses.replace(spec, sim=dataclasses.replace(spec.sim, gravity=tuple(g)))
+    try:
+        return dataclasses.replace(spec, gravity=tuple(g))
+    except (TypeError, ValueError):
+        return spec
+
+
+def builtin_spec():
+    """Spec of the paper arm (assets/scenes/arm.toml)."""
+    return load_scene(Path(__file__).resolve().parent.parent / "assets" / "scenes" / "arm.toml")
+
+
+def load(path: str | Path):
+    """``sim.load_scene`` (clear ``SceneError`` on bad files)."""
+    return load_scene(path)

@@ -1,0 +1,168 @@
+"""The 3D scene of the workbench (viser): rod tube, material frames, contacts, targets,
+obstacles with transform gizmos, ground grid. Batched primitives; one ``server.atomic()`` per frame.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable, Literal
+
+import numpy as np
+import trimesh
+import viser
+
+from workbench.frame import Frame, colormap, quat_from_matrix, quat_z_to
+from workbench.obstacles import ObstacleEdit, mesh_for_edit
+
+ColorBy = Literal["curvature", "strain", "none"]
+ROD_COLOR = np.array([230, 120, 40], dtype=np.uint8)
+GIZMO_SCALE = 0.25  # [m] size of the obstacle transform gizmos
+
+
+@dataclasses.dataclass
+class Overlays:
+    """Display toggles (GUI-controlled)."""
+
+    color_by: ColorBy = "curvature"
+    curvature_max: float = 0.3  # integrated curvature mapped to full red [-]
+    strain_max: float = 2e-3
+    frames: bool = False
+    contacts: bool = True
+    force_scale: float = 0.005  # arrow length per newton [m/N]
+
+
+class SceneView:
+    """Owns every scene node of the workbench page."""
+
+    def __init__(self, server: viser.ViserServer, n_nodes: int, *, env_map: bool = True):
+        self.server = server
+        self.overlays = Overlays()
+        sc = server.scene
+        sc.set_up_direction("+z")
+        if not env_map:
+            sc.configure_environment_map(hdri=None)
+        server.initial_camera.position = (1.45, -1.45, 1.05)
+        server.initial_camera.look_at = (0.1, 0.0, 0.45)
+        sc.add_grid("/ground", width=4.0, height=4.0, cell_size=0.1, section_size=0.5, plane="xy")
+        sc.add_light_directional("/sun", intensity=1.5, wxyz=(0.88, 0.28, 0.28, 0.25))
+        sc.add_light_hemisphere("/sky", sky_color=(255, 255, 255), ground_color=(120, 120, 120), intensity=1.2)
+        self.n_nodes = n_nodes
+        n_e = n_nodes - 1
+        cyl = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=20)
+        sph = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+        ident = np.tile([1.0, 0.0, 0.0, 0.0], (n_e, 1))
+        self.rod_edges = sc.add_batched_meshes_simple(
+            "/rod/edges", cyl.vertices, cyl.faces, batched_wxyzs=ident,
+            batched_positions=np.zeros((n_e, 3)), batched_scales=np.ones((n_e, 3)) * 1e-3,
+            batched_colors=np.tile(ROD_COLOR, (n_e, 1)), lod="off")
+        self.rod_nodes = sc.add_batched_meshes_simple(
+            "/rod/nodes", sph.vertices, sph.faces, batched_wxyzs=np.tile([1.0, 0, 0, 0], (n_nodes, 1)),
+            batched_positions=np.zeros((n_nodes, 3)), batched_scales=np.ones(n_nodes) * 1e-3,
+            batched_colors=np.tile(ROD_COLOR, (n_nodes, 1)), lod="off")
+        self.frames = sc.add_batched_axes(
+            "/rod/frames", batched_wxyzs=ident, batched_positions=np.zeros((n_e, 3)),
+            axes_length=0.12, axes_radius=0.006, visible=False)
+        self.contact_arrows = sc.add_arrows(
+            "/contacts/forces", points=np.zeros((1, 2, 3)), colors=(240, 30, 200),
+            shaft_radius=0.008, head_radius=0.02, head_length=0.03, visible=False)
+        self.contact_points = sc.add_point_cloud(
+            "/contacts/points", points=np.zeros((1, 3)), colors=(240, 30, 200), point_size=0.03,
+            point_shape="circle", visible=False)
+        self.target = sc.add_icosphere("/target", radius=0.03, color=(40, 200, 60), visible=False)
+        self.target_frame = sc.add_frame("/target/frame", axes_length=0.1, axes_radius=0.006,
+                                         visible=False)
+        self.obstacle_nodes: list[tuple] = []
+        self.last_frame: Frame | None = None
+
+    # ------------------------------------------------------------------ per frame
+    def render(self, fr: Frame) -> None:
+        """Push one frame (all node updates in one atomic message batch)."""
+        x = fr.node_pos
+        e = np.diff(x, axis=0)
+        length = np.linalg.norm(e, axis=1)
+        t = e / np.maximum(length, 1e-12)[:, None]
+        r = fr.rod_radius
+        ov = self.overlays
+        if ov.color_by == "curvature" and fr.node_curvature is not None:
+            node_c = colormap(fr.node_curvature, ov.curvature_max)
+            edge_c = colormap(0.5 * (fr.node_curvature[:-1] + fr.node_curvature[1:]), ov.curvature_max)
+        elif ov.color_by == "strain" and fr.edge_strain is not None:
+            edge_c = colormap(np.abs(fr.edge_strain), ov.strain_max)
+            s = np.abs(fr.edge_strain)
+            node_c = colormap(np.concatenate([[s[0]], 0.5 * (s[:-1] + s[1:]), [s[-1]]]), ov.strain_max)
+        else:
+            edge_c = np.tile(ROD_COLOR, (len(e), 1))
+            node_c = np.tile(ROD_COLOR, (len(x), 1))
+        with self.server.atomic():
+            self.rod_edges.batched_positions = 0.5 * (x[:-1] + x[1:])
+            self.rod_edges.batched_wxyzs = quat_z_to(t)
+            self.rod_edges.batched_scales = np.stack([np.full_like(length, r), np.full_like(length, r),
+                                                      length], 1)
+            self.rod_edges.batched_colors = edge_c
+            self.rod_nodes.batched_positions = x
+            self.rod_nodes.batched_scales = np.full(len(x), r)
+            self.rod_nodes.batched_colors = node_c
+            if ov.frames and fr.m1 is not None and fr.m2 is not None:
+                R = np.stack([fr.m1, fr.m2, t], axis=-1)
+                self.frames.batched_positions = 0.5 * (x[:-1] + x[1:])
+                self.frames.batched_wxyzs = quat_from_matrix(R)
+                self.frames.visible = True
+            elif self.frames.visible:
+                self.frames.visible = False
+            k = len(fr.contact_points)
+            if ov.contacts and k > 0:
+                p = fr.contact_points
+                self.contact_arrows.points = np.stack([p, p + ov.force_scale * fr.contact_forces], 1)
+                self.contact_points.points = p
+                self.contact_arrows.visible = True
+                self.contact_points.visible = True
+            elif self.contact_arrows.visible:
+                self.contact_arrows.visible = False
+                self.contact_points.visible = False
+            if len(fr.targets):
+                self.target.position = fr.targets[0]
+                if not self.target.visible:
+                    self.target.visible = True
+                show_f = fr.target_wxyz is not None
+                if show_f:
+                    self.target_frame.wxyz = fr.target_wxyz
+                if self.target_frame.visible != show_f:
+                    self.target_frame.visible = show_f
+            elif self.target.visible:
+                self.target.visible = False
+        self.last_frame = fr
+
+    # ------------------------------------------------------------------ obstacles
+    def sync_obstacles(self, edits: list[ObstacleEdit],
+                       on_move: Callable[[int, np.ndarray, np.ndarray], None] | None) -> None:
+        """Recreate the obstacle nodes: one transform gizmo + mesh per obstacle (``on_move`` called
+        on browser drags), or fixed display-only meshes when ``on_move`` is None (replay)."""
+        for parent, mesh in self.obstacle_nodes:
+            mesh.remove()
+            parent.remove()
+        self.obstacle_nodes = []
+        sc = self.server.scene
+        for i, ed in enumerate(edits):
+            name = f"/obstacles/{i}"
+            if on_move is not None:
+                parent = sc.add_transform_controls(name, scale=GIZMO_SCALE, position=tuple(ed.position),
+                                                   wxyz=tuple(ed.wxyz), depth_test=False)
+            else:
+                parent = sc.add_frame(name, show_axes=False, position=tuple(ed.position), wxyz=tuple(ed.wxyz))
+            try:
+                verts, faces = mesh_for_edit(ed)
+            except Exception:  # noqa: BLE001 - unreadable mesh: draw a marker instead
+                m = trimesh.creation.icosphere(subdivisions=1, radius=0.05)
+                verts, faces = m.vertices, m.faces
+            if ed.kind == "plane":
+                mesh = sc.add_mesh_simple(f"{name}/mesh", verts, faces, color=(150, 165, 190), opacity=0.25)
+            else:
+                mesh = sc.add_mesh_simple(f"{name}/mesh", verts, faces, color=(110, 130, 170), opacity=0.85)
+            if on_move is not None:
+                def _cb(event, i=i, gizmo=parent) -> None:
+                    on_move(i, np.asarray(gizmo.position), np.asarray(gizmo.wxyz))
+
+                parent.on_update(_cb)
+            self.obstacle_nodes.append((parent, mesh))
+
+    def gizmo(self, index: int):
+        return self.obstacle_nodes[index][0]
