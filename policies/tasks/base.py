@@ -141,10 +141,10 @@ class BatchedTask:
             raise ValueError(f"reset mask has shape {m.shape}, expected ({self.envs},)")
         idx = np.nonzero(m)[0]
         if idx.size:
-            self._reset_task(idx)           # may change obstacles: before the sim reset
             self.sim.reset_envs(self.state, self.ctrl, m)
             self.converter.reset(m)
             self.step_count[m] = 0
+            self._reset_task(idx)           # after the sim reset, so re-placed obstacles are not undone
         return self.observe()
 
     def step(self, action) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:

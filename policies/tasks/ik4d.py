@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -54,8 +55,12 @@ class IK4DCore(BatchedTask):
 
     def tip_quaternion(self) -> np.ndarray:
         """(B, 4) xyzw quaternion of the tip frame, rotation matrix columns (m1, m2, t) of the last edge."""
-        m1, m2, t = self.sim.material_frames(self.state)
-        R = np.stack([np.asarray(m1)[:, -1], np.asarray(m2)[:, -1], np.asarray(t)[:, -1]], axis=-1)
+        st = self.state
+        # the simulator's own frame convention, evaluated on the last edge only (cheap for large B)
+        last = SimpleNamespace(edge_tangent=st.edge_tangent[:, -1:], edge_ref_d1=st.edge_ref_d1[:, -1:],
+                               edge_theta=st.edge_theta[:, -1:])
+        m1, m2, t = self.sim.material_frames(last)
+        R = np.stack([m1[:, 0], m2[:, 0], t[:, 0]], axis=-1)
         return matrix_to_quat_xyzw(R)
 
     def _fields(self) -> dict[str, np.ndarray]:

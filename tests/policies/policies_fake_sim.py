@@ -54,15 +54,20 @@ class FakeSim:
             dof[..., 0], dof[..., 1] = x[..., 0], x[..., 2]
         else:
             dof[..., :3] = x
-        return FakeState(dof=dof, dof_vel=np.zeros_like(dof), theta=th, tangent=t, failed=np.zeros(B, bool),
-                         time=np.zeros(B))
+        return FakeState(dof=dof, dof_vel=np.zeros_like(dof), edge_theta=th, edge_tangent=t,
+                         edge_ref_d1=self._ref_d1(t), failed=np.zeros(B, bool), time=np.zeros(B))
+
+    @staticmethod
+    def _ref_d1(t):
+        d1 = np.cross(t, np.array([0.0, 1.0, 0.0]))      # for t = +z: (-1, 0, 0)
+        return d1 / np.linalg.norm(d1, axis=-1, keepdims=True)
 
     def make_control(self):
         return SimpleNamespace(kappa_bar=np.zeros((self.envs, self.N, 2)), tau_bar=np.zeros((self.envs, self.N)))
 
     def reset_envs(self, state, ctrl, mask):
         fresh = self.reset()
-        for k in ("dof", "dof_vel", "theta", "tangent", "failed", "time"):
+        for k in ("dof", "dof_vel", "edge_theta", "edge_tangent", "edge_ref_d1", "failed", "time"):
             getattr(state, k)[mask] = getattr(fresh, k)[mask]
         ctrl.kappa_bar[mask] = 0
         ctrl.tau_bar[mask] = 0
@@ -82,19 +87,18 @@ class FakeSim:
         ok = live & ~newly
         state.dof_vel[ok] = (new[ok] - q[ok]) / self.dt
         state.dof[ok] = new[ok]
-        state.theta[ok] = th[ok]
-        state.tangent[ok] = t[ok]
+        state.edge_theta[ok] = th[ok]
+        state.edge_tangent[ok] = t[ok]
+        state.edge_ref_d1[ok] = self._ref_d1(t[ok])
         state.time[ok] += self.dt
         state.failed |= newly
         return SimpleNamespace(failed=newly.copy(), newton_iters=np.full(B, 2), converged=np.ones(B, bool),
                                substeps=np.ones(B, np.int64))
 
     def material_frames(self, state):
-        t = state.tangent
-        d1 = np.cross(t, np.array([0.0, 1.0, 0.0]))      # for t = +z: (-1, 0, 0)
-        d1 /= np.linalg.norm(d1, axis=-1, keepdims=True)
+        t, d1 = state.edge_tangent, state.edge_ref_d1
         d2 = np.cross(t, d1)
-        c, s = np.cos(state.theta)[..., None], np.sin(state.theta)[..., None]
+        c, s = np.cos(state.edge_theta)[..., None], np.sin(state.edge_theta)[..., None]
         return c * d1 + s * d2, -s * d1 + c * d2, t
 
 

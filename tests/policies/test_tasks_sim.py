@@ -130,3 +130,20 @@ def test_sb3_checks_real():
     for _ in range(2):
         obs, rew, done, infos = env.step(np.ones((2, 5), np.float32))
     assert done.all() and all(i["TimeLimit.truncated"] for i in infos)
+
+
+def test_fences_reach_the_simulator_and_start_contact_free():
+    venv = make_vec_env("random_obstacles_3d", 3, seed=2, timeout_steps=0)
+    obs, _ = venv.reset()
+    for _ in range(2):                                   # every step ends an episode -> autoreset re-samples
+        fences = obs[:, 10:58].reshape(3, 8, 2, 3)
+        ob = venv.core.sim.obstacles
+        np.testing.assert_allclose(ob.p0, fences[:, :, 0], atol=1e-6)
+        np.testing.assert_allclose(ob.p1, fences[:, :, 1], atol=1e-6)
+        assert np.allclose(ob.radius, 0.03)
+        core = venv.core
+        core.converter.apply(core.ctrl, core.converter.convert(np.zeros((3, 10))), 0)
+        stats = core.sim.step(core.state, core.ctrl)          # zero action from rest: no contact
+        assert np.all(stats.contact_count == 0) and not stats.failed.any()
+        obs, *_ = venv.step(np.zeros((3, 10), np.float32))
+    assert not np.array_equal(obs[:, 10:58], fences.reshape(3, -1))
