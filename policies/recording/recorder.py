@@ -502,7 +502,13 @@ class Recorder:
         curv = [rrb.Spatial2DView(origin=f"{S.CURVATURE}/{k}", name=f"{k} (blue commanded, orange actual)")
                 for k in S.CURVATURE_KINDS if has(f"{S.CURVATURE}/{k}")]
         right = plots + ([rrb.Tabs(*tabs)] if tabs else []) + ([rrb.Tabs(*curv)] if curv else [])
-        bp = rrb.Blueprint(rrb.Horizontal(rrb.Spatial3DView(origin="world", name="rod"), rrb.Vertical(*right),
+        # camera framing the 1 m arm and the task workspace; planar tasks are seen along +y (x-z plane)
+        if ep.scene.planar:
+            eye = rrb.EyeControls3D(position=(0.3, -2.8, 0.45), look_target=(0.3, 0.0, 0.45), eye_up=(0, 0, 1))
+        else:
+            eye = rrb.EyeControls3D(position=(2.0, -2.4, 1.6), look_target=(0.1, 0.0, 0.45), eye_up=(0, 0, 1))
+        view = rrb.Spatial3DView(origin="world", name="rod", eye_controls=eye)
+        bp = rrb.Blueprint(rrb.Horizontal(view, rrb.Vertical(*right),
                                           column_shares=[3, 2]), collapse_panels=False)
         rec.send_blueprint(bp, make_active=True, make_default=True)
 

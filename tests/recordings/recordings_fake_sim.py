@@ -120,12 +120,12 @@ class FakeSim:
             contact_friction_force=np.zeros((B, cap, 3)), contact_gap=np.zeros((B, cap)))
 
     def material_frames(self, state):
-        t = state.tangent
-        d1 = np.cross(t, np.array([0.0, 1.0, 0.0]))      # for t = +z: (-1, 0, 0)
-        d1 /= np.linalg.norm(d1, axis=-1, keepdims=True)
+        """Same formula as sim.Simulator: d2 = t x d1, (m1, m2) = d1, d2 rotated by theta."""
+        t, d1 = state.edge_tangent, state.edge_ref_d1
         d2 = np.cross(t, d1)
-        c, s = np.cos(state.theta)[..., None], np.sin(state.theta)[..., None]
-        return c * d1 + s * d2, -s * d1 + c * d2, t
+        th = state.edge_theta[..., None]
+        c, s = np.cos(th), np.sin(th)
+        return c * d1 + s * d2, -s * d1 + c * d2, t.copy()
 
 
 def fake_make_simulator(config, *, envs, task=None):

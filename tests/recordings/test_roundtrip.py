@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from policies.recording import Recorder, RecordingError, StaticScene, read_recording
 from policies.recording.reader import list_episodes
@@ -243,3 +245,32 @@ def test_reader_errors_name_the_file(tmp_path):
     bad.write_bytes(b"not an rrd file at all")
     with pytest.raises(RecordingError, match="junk.rrd"):
         read_recording(bad)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(n=st.integers(2, 30), counts=st.lists(st.integers(0, 5), min_size=1, max_size=12), seed=st.integers(0, 99))
+def test_round_trip_any_size(tmp_path_factory, n, counts, seed):
+    """Any node count and any per-frame contact counts (including none at all) read back exactly."""
+    rng = np.random.default_rng(seed)
+    out = tmp_path_factory.mktemp("h") / "h.rrd"
+    frames = []
+    with Recorder(out, blueprint=False) as rec:
+        rec.begin_episode({"task": "t"})
+        for k, c in enumerate(counts):
+            d = dict(node_pos=rng.normal(size=(n, 3)), m1=rng.normal(size=(n - 1, 3)),
+                     contact_points=rng.normal(size=(c, 3)), contact_normals=rng.normal(size=(c, 3)),
+                     contact_normal_force=rng.random(c), scalars={"reward": float(rng.normal())})
+            rec.log_step(control_step=k, sim_time=0.05 * k, **d)
+            frames.append(d)
+        rec.end_episode()
+    (ep,) = read_recording(out)
+    assert ep.positions.shape == (len(counts), n, 3)
+    assert ep.contact_points.shape == (len(counts), max(counts), 3)
+    np.testing.assert_array_equal(ep.contact_count, counts)
+    for k, d in enumerate(frames):
+        c = counts[k]
+        np.testing.assert_allclose(ep.positions[k], d["node_pos"], **F32)
+        np.testing.assert_allclose(ep.m1[k], d["m1"], **F32)
+        np.testing.assert_allclose(ep.contact_points[k, :c], d["contact_points"], **F32)
+        np.testing.assert_array_equal(ep.contact_normal_force[k, :c], d["contact_normal_force"])
+        assert ep.scalars["reward"][k] == d["scalars"]["reward"]
