@@ -43,7 +43,7 @@ def shared(browser, tmp_path_factory):
     from workbench.browser import open_page
 
     app = make_app(recordings_dir=tmp_path_factory.mktemp("recordings"))
-    page = open_page(browser, app, width=1280, height=800)
+    page = open_page(browser, app, width=960, height=640)
     yield app, page
     page.close()
     app.stop()

@@ -25,6 +25,10 @@ def test_add_obstacle_and_drag_gizmo_into_rod(wb_page, shots_dir):
     wait_for(lambda: len(wb.obstacles) == 1 and len(app.view.obstacle_nodes) == 1, what="obstacle + gizmo")
     gizmo = app.view.gizmo(0)
     x0 = float(gizmo.position[0])
+    # look at the obstacle from close by, left of the GUI panel, so the gizmo arrow is large and free
+    cam = newest_client(app).camera
+    cam.position, cam.look_at = (0.55, -1.0, 0.85), (0.55, 0.0, 0.6)
+    wait_for(lambda: np.allclose(cam.position, (0.55, -1.0, 0.85), atol=1e-3), what="camera moved")
     mid0 = wb.live.state.node_pos[0, 12].copy()
     # drag the gizmo's x arrow towards the rod, to x ~ 0.1 (the sphere then overlaps the rod by ~3 cm)
     drag_gizmo_x(page, newest_client(app), np.array([x0, 0.0, 0.6]), dist=-(x0 - 0.1))
@@ -73,8 +77,8 @@ def test_open_recording_and_scrub(wb_page, shots_dir):
     wb = app.wb
     rec = Workbench.builtin()  # a short recorded session of a bending rod
     rec.start_recording(app.recordings_dir / "session.rrd")
-    for k in range(40):
-        rec.set_teleop_value(2, 0, 0.05 * k)
+    for k in range(20):
+        rec.set_teleop_value(2, 0, 0.1 * k)
         rec.step()
     rec.stop_recording()
     app.replay.refresh_list()
@@ -94,3 +98,19 @@ def test_open_recording_and_scrub(wb_page, shots_dir):
     wait_for(lambda: image_diff_fraction(first, canvas_png(page)) > 0.002, timeout=30, what="the view to change")
     expand_folder(page, "Plots", ".uplot")
     (shots_dir / "workbench_replay.png").write_bytes(page.screenshot(timeout=60000))
+
+
+def test_upload_mesh_in_the_page(wb_page):
+    from workbench.obstacles import MESH_DIR
+
+    app, page = wb_page
+    wb = app.wb
+    expand_folder(page, "Obstacles", "Add obstacle")
+    with page.expect_file_chooser() as chooser:
+        page.get_by_role("button", name="Upload mesh").click()
+    chooser.value.set_files(str(MESH_DIR / "torus.stl"))
+    wait_for(lambda: len(wb.obstacles) == 1, timeout=60, what="uploaded mesh to become an obstacle")
+    e = wb.obstacles[0]
+    assert e.kind == "mesh" and e.mesh.endswith("torus.stl")
+    n = wb.frame_index
+    wait_for(lambda: wb.frame_index > n + 3, what="sim to keep running with the mesh")
