@@ -42,8 +42,8 @@ from .geometry_distance import (
     vsub,
 )
 
-__all__ = ["contact_broadphase", "contact_accumulate", "contact_report", "imc_energy", "friction_block",
-           "PLANE", "SPHERE", "CAPSULE", "BOX", "MESH"]
+__all__ = ["contact_broadphase", "contact_accumulate", "contact_report", "contact_min_gap", "imc_energy",
+           "friction_block", "PLANE", "SPHERE", "CAPSULE", "BOX", "MESH"]
 
 PLANE = 0
 SPHERE = 1
@@ -503,6 +503,35 @@ def contact_accumulate(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, frict
                          False, cd[20][e, :0], cd[12][e, :0], cd[12][e, :0], cd[19][e, :0, :, :3],
                          cd[19][e, :0, :, :3], cd[19][e, :0, :, :3], cd[18][e:e, :0], cd[19][e, :0, :, :3],
                          cd[18][e:e, :0], cd[18][e, :0])
+
+
+@njit(cache=True)
+def contact_min_gap(e, cd, x, rod_radius):
+    """Smallest negative gap [m] over env ``e``'s current candidates at node positions ``x`` (N, >=3) [m];
+    0.0 when no candidate penetrates (so the max penetration is ``-contact_min_gap``).
+
+    No derivatives and no ownership filter (dropping non-minimal pairs cannot change the minimum), so
+    ``-contact_min_gap`` equals :func:`contact_report`'s max penetration for the same positions and candidates.
+    """
+    (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
+     scm, sci) = cd
+    ws = scf[e, 0:64]
+    g6 = scf[e, 64:70]
+    nhat = scf[e, 70:73]
+    H6 = scm[e, 0]
+    stack = sci[e]
+    r = rod_radius
+    best = 0.0
+    for c in range(ccount[e]):
+        j = cand[e, c, 0]
+        o = cand[e, c, 1]
+        if kind[o] == PLANE:
+            gap = _plane_gap(cd, e, o, x, j) - r
+        else:
+            gap, s, q = _eval_edge(cd, e, o, _row3(x, j), _row3(x, j + 1), r, r, g6, H6, nhat, ws, stack, False)
+        if gap < best:
+            best = gap
+    return best
 
 
 @njit(cache=True)

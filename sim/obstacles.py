@@ -10,7 +10,8 @@ Scene keys (SI units; every obstacle may carry ``name = "..."``)::
     [[obstacle]] type = "mesh"     file (relative to the scene file; STL/OBJ/PLY/GLB...), scale (number or
                                    3 numbers, default 1), position [m], orientation (wxyz)
     [contact] stiffness [N/m] (1e6), delta [m] (5e-3), friction mu [-] (0),
-              friction_velocity_tol [m/s] (1e-2), margin [m] (5e-2, broad-phase inflation), enabled (true)
+              friction_velocity_tol [m/s] (1e-2), margin [m] (5e-2, broad-phase inflation), enabled (true),
+              max_penetration [m] (4 * delta; a (sub)step ending deeper is retried with more sub-steps)
 
 Poses: every obstacle has a per-env pose (position, quaternion wxyz). For capsule/sphere/plane the spec's
 coordinates are the obstacle's local frame (initial pose = identity); box and mesh start at their spec
@@ -109,7 +110,8 @@ class MeshSpec(ObstacleSpec):
 @dataclass(frozen=True)
 class ContactSpec:
     """IMC contact parameters: stiffness k [N/m], delta [m], friction mu [-], friction_velocity_tol [m/s],
-    margin [m] (broad-phase distance), enabled."""
+    margin [m] (broad-phase distance), enabled, max_penetration [m] (penetration guard: a (sub)step ending
+    deeper is retried with more sub-steps; None = 4 * delta, see :attr:`penetration_limit`)."""
 
     stiffness: float = 1e6
     delta: float = 5e-3
@@ -117,6 +119,12 @@ class ContactSpec:
     friction_velocity_tol: float = 1e-2
     margin: float = 5e-2
     enabled: bool = True
+    max_penetration: float | None = None
+
+    @property
+    def penetration_limit(self) -> float:
+        """Effective penetration-guard threshold [m]: ``max_penetration`` or 4 * delta."""
+        return 4.0 * self.delta if self.max_penetration is None else float(self.max_penetration)
 
 
 _KEYS = {
@@ -200,8 +208,8 @@ def parse_contact(table: Mapping[str, Any] | None, scene_path: str | None) -> Co
     if table is None:
         return ContactSpec()
     p = "contact."
-    check_unknown(table, {"stiffness", "delta", "friction", "friction_velocity_tol", "margin", "enabled"}, p,
-                  scene_path)
+    check_unknown(table, {"stiffness", "delta", "friction", "friction_velocity_tol", "margin", "enabled",
+                          "max_penetration"}, p, scene_path)
     d = ContactSpec()
     return ContactSpec(
         stiffness=take_float(table, "stiffness", p, scene_path, d.stiffness, positive=True),
@@ -211,6 +219,8 @@ def parse_contact(table: Mapping[str, Any] | None, scene_path: str | None) -> Co
                                          positive=True),
         margin=take_float(table, "margin", p, scene_path, d.margin, nonnegative=True),
         enabled=take_bool(table, "enabled", p, scene_path, d.enabled),
+        max_penetration=(take_float(table, "max_penetration", p, scene_path, positive=True)
+                         if "max_penetration" in table else None),
     )
 
 
@@ -242,6 +252,8 @@ def dump_contact(contact: ContactSpec) -> list[str]:
     lines = ["[contact]"]
     for k in ("stiffness", "delta", "friction", "friction_velocity_tol", "margin", "enabled"):
         lines.append(f"{k} = {format_value(getattr(contact, k))}")
+    if contact.max_penetration is not None:  # omitted = 4 * delta (follows delta)
+        lines.append(f"max_penetration = {format_value(float(contact.max_penetration))}")
     return lines
 
 

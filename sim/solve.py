@@ -9,7 +9,10 @@ test max|Δx|/h < dtol on free position DOFs, accept at max_iter if allowed. The
 (u = (x − x0)/h) or implicit midpoint (BE solve over h/2, x_new = 2x_½ − x0, u_new = 2u_½ − u0), and the
 end-of-step frame update. Failure (non-finite, residual growth > 1e6, bad pivot, |strain| > 0.9, or
 unconverged when accept_unconverged is false) -> retry with 2, 4, 8, 16 sub-steps, else the env is restored
-and flagged failed.
+and flagged failed. Penetration guard (obstacle scenes only): a finite level whose deepest end-of-sub-step
+penetration exceeds max(P_MAXPEN, p0 + P_MAXPEN/4) (p0 = penetration at the step start) is also retried with
+more sub-steps; it never fails an env: the finest level is accepted however deep, and if that level diverges,
+the least-penetrating finite coarser result is used.
 """
 from __future__ import annotations
 
@@ -19,7 +22,7 @@ import numpy as np
 from numba import njit, prange
 
 from .banded import band_lu_solve
-from .contact_kernels import contact_accumulate, contact_broadphase, contact_report
+from .contact_kernels import contact_accumulate, contact_broadphase, contact_min_gap, contact_report
 from .energies.bend_twist import bend_twist_element, material_curvatures
 from .energies.planar import planar_bend_element
 from .energies.stretch import stretch_element, stretch_element_2d
@@ -30,8 +33,8 @@ __all__ = ["step_kernel_3d", "step_kernel_2d", "PRM_SIZE", "F_COLS", "I_COLS"]
 # indices into the float64 parameter vector ``prm``
 P_EA, P_EI1, P_EI2, P_GJ, P_DT, P_DAMP, P_TOL, P_DTOL, P_MAXIT, P_ACCEPT, P_INTEG, P_LS = range(12)
 P_RADIUS, P_CK, P_CDELTA, P_CMU, P_CNU, P_CFRIC, P_CMARGIN, P_NOBS, P_SIGN2D, P_PLANEY = range(12, 22)
-P_LEVELS, P_STRAIN = 22, 23
-PRM_SIZE = 24
+P_LEVELS, P_STRAIN, P_MAXPEN = 22, 23, 24
+PRM_SIZE = 25
 # columns of the float / int per-env outputs
 F_RES, F_RES0, F_ES, F_EB, F_ET, F_EC, F_EK, F_EG, F_PEN = range(9)
 F_COLS = 9
@@ -144,10 +147,12 @@ def _assemble_3d(e, x, x0, u, h, d1o, to, bo, kb, tb, rest_len, vor_len, mass, f
 
 
 @njit(**_OPT)
-def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w):
+def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, want_pen0):
     """One implicit (sub)step of size h; on success x0, u, d1o, to, bo hold the new values.
 
-    Returns (status, iterations, converged, ‖f‖ last, ‖f0‖); status 0 = ok."""
+    Returns (status, iterations, converged, ‖f‖ last, ‖f0‖, max penetration [m] at the end of the sub-step,
+    max penetration [m] at its start (only if want_pen0)) (penetrations 0 without obstacles or contact
+    candidates); status 0 = ok."""
     (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch) = w
     n = x0.shape[0]
     N = n // 4
@@ -157,12 +162,15 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
     dtol = prm[P_DTOL]
     for k in range(n):
         x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
+    pen0 = 0.0
     if prm[P_NOBS] > 0:
         for k in range(N):
             for a in range(3):
                 pos0[k, a] = x0[4 * k + a]
                 pos[k, a] = x0[4 * k + a] + hs * u[4 * k + a]  # predicted end of step (contact: swept list)
         contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        if want_pen0 and cd[13][e] > 0:
+            pen0 = -contact_min_gap(e, cd, pos0, prm[P_RADIUS])
     r0 = 0.0
     r = 0.0
     conv = False
@@ -172,18 +180,18 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
                                      prm, cd, pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk,
                                      cg, ch, True)
         if not np.isfinite(r):
-            return 1, it, False, r, r0
+            return 1, it, False, r, r0, 0.0, pen0
         if it == 0:
             r0 = r
         elif r > 1e6 * r0:
-            return 2, it, False, r, r0
+            return 2, it, False, r, r0, 0.0, pen0
         if r <= tol * r0 and (it > 0 or r == 0.0):
             conv = True
             break
         for k in range(n):
             dx[k] = f[k]
         if band_lu_solve(ab, n, 10, dx) != 0:
-            return 3, it, False, r, r0
+            return 3, it, False, r, r0, 0.0, pen0
         if prm[P_LS] > 0:
             alpha = 1.0
             for trial in range(5):
@@ -206,12 +214,12 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
             if (k & 3) != 3 and not fixed[k]:
                 dmax = max(dmax, abs(dx[k]))
         if not np.isfinite(dmax):
-            return 1, it, False, r, r0
+            return 1, it, False, r, r0, 0.0, pen0
         if dmax / hs < dtol:
             conv = True
             break
     if not conv and prm[P_ACCEPT] == 0:
-        return 4, it, False, r, r0
+        return 4, it, False, r, r0, 0.0, pen0
     # velocity / position update (u_new into dx)
     if prm[P_INTEG] == 0:
         for k in range(n):
@@ -230,22 +238,25 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
     for j in range(N - 1):
         s = elen[j] / rest_len[j] - 1.0
         if not abs(s) <= prm[P_STRAIN]:
-            return 5, it, conv, r, r0
+            return 5, it, conv, r, r0, 0.0, pen0
     for k in range(n):
         if not (np.isfinite(x[k]) and np.isfinite(dx[k])):
-            return 1, it, conv, r, r0
+            return 1, it, conv, r, r0, 0.0, pen0
     for j in range(N - 1):
         for a in range(3):
             d1o[j, a] = d1[j, a]
             to[j, a] = t[j, a]
     for i in range(N):
         if not np.isfinite(beta[i]):
-            return 1, it, conv, r, r0
+            return 1, it, conv, r, r0, 0.0, pen0
         bo[i] = beta[i]
     for k in range(n):
         x0[k] = x[k]
         u[k] = dx[k]
-    return 0, it, conv, r, r0
+    pen = 0.0
+    if prm[P_NOBS] > 0 and cd[13][e] > 0:  # pos holds the end-of-sub-step node positions
+        pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
+    return 0, it, conv, r, r0, pen, pen0
 
 
 @njit(**_OPT)
@@ -313,7 +324,17 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
     r = 0.0
     r0 = 0.0
     ns = 1
-    for level in range(int(prm[P_LEVELS])):
+    levels = int(prm[P_LEVELS])
+    # penetration-guard fallback: the least-penetrating finite level result (copied only when the guard fires)
+    fb_pen = np.inf
+    fb_x = np.empty(0)
+    fb_u = np.empty(0)
+    fb_d1 = np.empty((0, 3))
+    fb_t = np.empty((0, 3))
+    fb_b = np.empty(0)
+    fb_ns, fb_it, fb_conv, fb_r, fb_r0 = 1, 0, False, 0.0, 0.0
+    lim = prm[P_MAXPEN]  # guard limit [m]: raised to (start penetration + limit/4) for a step starting deeper
+    for level in range(levels):
         ns = 1 << level
         h = prm[P_DT] / ns
         x0[:] = xs
@@ -324,18 +345,41 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
         ok = True
         iters = 0
         conv_all = True
+        pen = 0.0
         for s in range(ns):
-            st, it, conv, r, r0s = _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed,
-                                               grav, prm, cd, w)
+            st, it, conv, r, r0s, pen_s, pen0 = _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len,
+                                                            mass, fixed, grav, prm, cd, w, level == 0 and s == 0)
             if s == 0:
                 r0 = r0s
+                if level == 0:
+                    lim = max(prm[P_MAXPEN], pen0 + 0.25 * prm[P_MAXPEN])
             iters += it
             conv_all = conv_all and conv
             if st != 0:
                 ok = False
                 break
+            pen = max(pen, pen_s)
+        if ok and pen > lim and level < levels - 1:
+            if pen < fb_pen:
+                fb_pen = pen
+                fb_x = x0.copy()
+                fb_u = u.copy()
+                fb_d1 = d1o.copy()
+                fb_t = to.copy()
+                fb_b = bo.copy()
+                fb_ns, fb_it, fb_conv, fb_r, fb_r0 = ns, iters, conv_all, r, r0
+            ok = False
+            continue
         if ok:
             break
+    if not ok and fb_pen < np.inf:
+        ok = True
+        x0[:] = fb_x
+        u[:] = fb_u
+        d1o[:, :] = fb_d1
+        to[:, :] = fb_t
+        bo[:] = fb_b
+        ns, iters, conv_all, r, r0 = fb_ns, fb_it, fb_conv, fb_r, fb_r0
     if ok:
         xs[:] = x0
         us[:] = u
@@ -491,7 +535,7 @@ def _assemble_2d(e, x, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, 
 
 
 @njit(**_OPT)
-def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w):
+def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, want_pen0):
     """2-D analogue of _substep_3d (frames are updated by the caller)."""
     (x, f, dx, xt, ab, pos, pos0, g4, H4, g6, H6, cg, ch) = w
     n = x0.shape[0]
@@ -502,6 +546,7 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
     dtol = prm[P_DTOL]
     for k in range(n):
         x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
+    pen0 = 0.0
     if prm[P_NOBS] > 0:
         py = prm[P_PLANEY]
         for k in range(N):
@@ -512,6 +557,8 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
             pos[k, 1] = py
             pos[k, 2] = x0[2 * k + 1] + hs * u[2 * k + 1]
         contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        if want_pen0 and cd[13][e] > 0:
+            pen0 = -contact_min_gap(e, cd, pos0, prm[P_RADIUS])
     r0 = 0.0
     r = 0.0
     conv = False
@@ -520,18 +567,18 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
         r, _, _, _, _ = _assemble_2d(e, x, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, pos, pos0,
                                      f, ab, g4, H4, g6, H6, cg, ch, True)
         if not np.isfinite(r):
-            return 1, it, False, r, r0
+            return 1, it, False, r, r0, 0.0, pen0
         if it == 0:
             r0 = r
         elif r > 1e6 * r0:
-            return 2, it, False, r, r0
+            return 2, it, False, r, r0, 0.0, pen0
         if r <= tol * r0 and (it > 0 or r == 0.0):
             conv = True
             break
         for k in range(n):
             dx[k] = f[k]
         if band_lu_solve(ab, n, 5, dx) != 0:
-            return 3, it, False, r, r0
+            return 3, it, False, r, r0, 0.0, pen0
         if prm[P_LS] > 0:
             alpha = 1.0
             for trial in range(5):
@@ -553,12 +600,12 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
             if not fixed[k]:
                 dmax = max(dmax, abs(dx[k]))
         if not np.isfinite(dmax):
-            return 1, it, False, r, r0
+            return 1, it, False, r, r0, 0.0, pen0
         if dmax / hs < dtol:
             conv = True
             break
     if not conv and prm[P_ACCEPT] == 0:
-        return 4, it, False, r, r0
+        return 4, it, False, r, r0, 0.0, pen0
     if prm[P_INTEG] == 0:
         for k in range(n):
             dx[k] = (x[k] - x0[k]) / h
@@ -574,14 +621,22 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
         ez = x[2 * j + 3] - x[2 * j + 1]
         s = math.sqrt(ex * ex + ez * ez) / rest_len[j] - 1.0
         if not abs(s) <= prm[P_STRAIN]:
-            return 5, it, conv, r, r0
+            return 5, it, conv, r, r0, 0.0, pen0
     for k in range(n):
         if not (np.isfinite(x[k]) and np.isfinite(dx[k])):
-            return 1, it, conv, r, r0
+            return 1, it, conv, r, r0, 0.0, pen0
     for k in range(n):
         x0[k] = x[k]
         u[k] = dx[k]
-    return 0, it, conv, r, r0
+    pen = 0.0
+    if prm[P_NOBS] > 0 and cd[13][e] > 0:
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos[k, 0] = x[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = x[2 * k + 1]
+        pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
+    return 0, it, conv, r, r0, pen, pen0
 
 
 @njit(**_OPT)
@@ -637,7 +692,13 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
     r = 0.0
     r0 = 0.0
     ns = 1
-    for level in range(int(prm[P_LEVELS])):
+    levels = int(prm[P_LEVELS])
+    fb_pen = np.inf  # penetration-guard fallback (see _env_step_3d)
+    fb_x = np.empty(0)
+    fb_u = np.empty(0)
+    fb_ns, fb_it, fb_conv, fb_r, fb_r0 = 1, 0, False, 0.0, 0.0
+    lim = prm[P_MAXPEN]  # guard limit [m]: raised to (start penetration + limit/4) for a step starting deeper
+    for level in range(levels):
         ns = 1 << level
         h = prm[P_DT] / ns
         x0[:] = xs
@@ -645,17 +706,35 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
         ok = True
         iters = 0
         conv_all = True
+        pen = 0.0
         for s in range(ns):
-            st, it, conv, r, r0s = _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
+            st, it, conv, r, r0s, pen_s, pen0 = _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav,
+                                                            prm, cd, w, level == 0 and s == 0)
             if s == 0:
                 r0 = r0s
+                if level == 0:
+                    lim = max(prm[P_MAXPEN], pen0 + 0.25 * prm[P_MAXPEN])
             iters += it
             conv_all = conv_all and conv
             if st != 0:
                 ok = False
                 break
+            pen = max(pen, pen_s)
+        if ok and pen > lim and level < levels - 1:
+            if pen < fb_pen:
+                fb_pen = pen
+                fb_x = x0.copy()
+                fb_u = u.copy()
+                fb_ns, fb_it, fb_conv, fb_r, fb_r0 = ns, iters, conv_all, r, r0
+            ok = False
+            continue
         if ok:
             break
+    if not ok and fb_pen < np.inf:
+        ok = True
+        x0[:] = fb_x
+        u[:] = fb_u
+        ns, iters, conv_all, r, r0 = fb_ns, fb_it, fb_conv, fb_r, fb_r0
     (x, f, dx, xt, ab, pos, pos0, g4, H4, g6, H6, cg, ch) = w
     if ok:
         xs[:] = x0

@@ -41,6 +41,8 @@ class Simulator:
         prm[_solve.P_NOBS] = float(m.obstacles.count if getattr(c, "enabled", True) else 0)
         prm[_solve.P_SIGN2D], prm[_solve.P_PLANEY] = m.planar_sign, m.plane_y
         prm[_solve.P_LEVELS], prm[_solve.P_STRAIN] = 5.0, 0.9
+        mp = getattr(c, "max_penetration", None)  # penetration guard [m]; None = 4 * delta
+        prm[_solve.P_MAXPEN] = 4.0 * c.delta if mp is None else float(mp)
         self._prm = prm
         self._arr = tuple(np.array(a) for a in (m.rest_edge_length, m.voronoi_length, m.dof_mass, m.dof_fixed,
                                                 m.dof_gravity))
