@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from . import analysis as an
-from .common import base_parser, have_elastica, load, machine_info, pyplot, save_figure, write_json
+from .common import base_parser, have_elastica, load, machine_info, pyplot, write_json
 from .references import heavy_elastica, trajectory_error
 from .rodlab_runs import CONVERGED, PAPER, Solver
 from .scenes import ArmCommand, DynamicCantilever, StaticCantilever
@@ -35,7 +35,7 @@ def grids(quick: bool) -> dict:
         return {"dts": [1e-3, 1e-2, 5e-2], "nodes": [11, 21], "solvers": ["conv", "paper"],
                 "small_dt_solvers": ["conv"], "el_nodes": [11, 21], "el_factors": [1.0], "max_work": 3e5,
                 "ref_nodes": 41, "ref_dt": 1e-3, "el_ref_nodes": 21}
-    return {"dts": [1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 5e-2, 1e-1], "nodes": [11, 21, 41],
+    return {"dts": [1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 5e-2, 1e-1], "nodes": [11, 21, 41, 81],
             "solvers": ["conv", "paper", "mid"], "small_dt_solvers": ["conv", "mid"],
             "el_nodes": [11, 21, 41, 81], "el_factors": [2.0, 1.0, 0.5], "max_work": 7e5,
             "ref_nodes": 81, "ref_dt": 2e-4, "el_ref_nodes": 81}
@@ -259,7 +259,23 @@ def main(argv: list[str] | None = None) -> int:
                    help="JSON of raw PyElastica outputs to reuse/extend (default: OUT/accuracy_peer_raw[_quick].json;"
                         " delete it to re-measure PyElastica)")
     p.add_argument("--peer-only", action="store_true", help="only fill the PyElastica cache (no rodlab runs)")
+    p.add_argument("--replot", action="store_true", help="only redraw the figures (and analysis) from OUT/accuracy.json")
     args = p.parse_args(argv)
+    if args.replot:
+        import json
+
+        from . import accuracy_extra as ax
+        f = Path(args.out) / ("accuracy_quick.json" if args.quick else "accuracy.json")
+        result = json.loads(f.read_text())
+        plt = pyplot()
+        for name, res in result["scenes"].items():
+            if "points" in res:
+                res["analysis"] = analyse(res)
+                res["figures"] = []
+                ax.plot_scene(plt, res, args.out)
+                ax.print_summary(name, res)
+        write_json(f.parent, f.name, result)
+        return 0
     global PEER_ONLY
     PEER_ONLY = bool(args.peer_only)
     scenes = [s.strip() for s in args.scenes.split(",") if s.strip()]
@@ -293,6 +309,16 @@ def main(argv: list[str] | None = None) -> int:
         except (OSError, ValueError) as exc:
             _say(f"ignoring unreadable peer cache {cache_path}: {exc}")
     result["peer_cache"] = str(cache_path)
+    out_json = Path(args.out) / ("accuracy_quick.json" if args.quick else "accuracy.json")
+    if out_json.exists() and not PEER_ONLY:  # keep the scenes this run does not redo
+        try:
+            old = json.loads(out_json.read_text()).get("scenes", {})
+            for k, v in old.items():
+                if k not in scenes:
+                    v["from_previous_run"] = True
+                    result["scenes"][k] = v
+        except (OSError, ValueError):
+            pass
     plt = pyplot()
     from . import accuracy_extra as ax
     for name in scenes:

@@ -16,13 +16,14 @@ def _ok(p: dict) -> bool:
             and math.isfinite(p["error"]) and math.isfinite(p["cost"]) and p["error"] > 0)
 
 
-def pareto_front(points: Sequence[dict]) -> list[dict]:
-    """Points not dominated in (cost, error), sorted by increasing cost (decreasing error)."""
+def pareto_front(points: Sequence[dict], *, rel: float = 5e-3) -> list[dict]:
+    """Points not dominated in (cost, error), sorted by increasing cost (decreasing error); a point must
+    improve the error by more than ``rel`` (relative) to enter the front."""
     pts = sorted((p for p in points if _ok(p)), key=lambda p: (p["cost"], p["error"]))
     front: list[dict] = []
     best = math.inf
     for p in pts:
-        if p["error"] < best:
+        if p["error"] < best * (1.0 - rel):
             front.append(p)
             best = p["error"]
     return front
@@ -97,7 +98,7 @@ def plot_pareto(plt, title: str, series: dict[str, list[dict]], *, note: str = "
 
 
 def plot_convergence(plt, title: str, curves: dict[str, tuple[list[float], list[float]]], *, xlabel: str,
-                     slopes: Sequence[int] = (1, 2), note: str = ""):
+                     slopes: Sequence[int] = (1, 2), note: str = "", ylabel: str = "error"):
     """log-log error against step (dt or element length) with reference slopes."""
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
     for label, (h, e) in curves.items():
@@ -115,7 +116,7 @@ def plot_convergence(plt, title: str, curves: dict[str, tuple[list[float], list[
             hh = np.array([h0, h1])
             ax.loglog(hh, e_mid * (hh / hm) ** s, "k--" if s == 1 else "k:", lw=0.8, label=f"slope {s}")
     ax.set_xlabel(xlabel)
-    ax.set_ylabel("error")
+    ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)

@@ -132,7 +132,15 @@ def main(argv: list[str] | None = None) -> int:
     p = base_parser("rodlab bench throughput", __doc__.split("\n")[0])
     p.add_argument("--parts", default=",".join(PARTS), help=f"comma-separated subset of {','.join(PARTS)}")
     p.add_argument("--envs", type=int, default=500, help="envs of the per-task step (default 500)")
+    p.add_argument("--replot", action="store_true", help="only redraw the figures from OUT/throughput.json")
     args = p.parse_args(argv)
+    if args.replot:
+        import json
+        name = "throughput_quick.json" if args.quick else "throughput.json"
+        res = json.loads((Path(args.out) / name).read_text())
+        for f in plot(res, args.out, quick=args.quick):
+            _say(f"figure: {f}")
+        return 0
     parts = [s.strip() for s in args.parts.split(",") if s.strip()]
     for s in parts:
         if s not in PARTS:
