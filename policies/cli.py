@@ -88,7 +88,11 @@ def eval_main(argv: list[str]) -> int:
     p.add_argument("--envs", type=int, default=None, help="parallel envs (default min(episodes, 100))")
     p.add_argument("--stochastic", action="store_true", help="sample actions instead of the mean")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--record", default=None, metavar="FILE.rrd",
+                   help="also record the evaluated episodes to this rerun file (written atomically)")
     a = p.parse_args(argv)
+    import contextlib
+
     import torch
 
     torch.set_num_threads(1)
@@ -97,8 +101,15 @@ def eval_main(argv: list[str]) -> int:
     from policies.train import TrainError
 
     try:
-        res = evaluate(a.policy, a.task, episodes=a.episodes, seed=a.seed, num_envs=a.envs,
-                       deterministic=not a.stochastic, eval_seeds=a.seeds)
+        if a.record:
+            from policies.recording.probe import record_hook
+
+            hook_cm = record_hook(a.record, episodes=a.episodes, meta={"policy": a.policy, "seed": a.seed})
+        else:
+            hook_cm = contextlib.nullcontext(None)
+        with hook_cm as hook:
+            res = evaluate(a.policy, a.task, episodes=a.episodes, seed=a.seed, num_envs=a.envs,
+                           deterministic=not a.stochastic, eval_seeds=a.seeds, env_hook=hook)
     except (PolicyLoadError, TrainError, ValueError) as exc:
         print(f"rodlab eval: {exc}", file=sys.stderr)
         return 2
