@@ -56,7 +56,7 @@ def _bend(x, d1, t, the, thf, beta, kb1, kb2, tb, EI1=2.0, EI2=3.0, GJ=1.5, lv=0
     d2 = np.cross(t, d1)
     g = np.zeros(11)
     H = np.zeros((11, 11))
-    wk = np.zeros((3, 11))
+    wk = np.zeros((17, 11))  # scratch size documented in bend_twist_element
     eb, et = bend_twist_element(tuple(x[0]), tuple(x[1]), tuple(x[2]), tuple(d1[0]), tuple(d2[0]), tuple(d1[1]),
                                 tuple(d2[1]), the, thf, beta, kb1, kb2, tb, EI1, EI2, GJ, lv, g, H, wk, hess)
     return eb, et, g, H
