@@ -15,7 +15,10 @@ import time
 
 def _threads_env() -> None:
     # one thread per process: the machine is shared and training runs two processes at most
-    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    # (only before numba is loaded: changing NUMBA_NUM_THREADS after its thread pool started makes numba
+    # raise on its next configuration reload, e.g. when this runs inside a test process)
+    names = ["OMP_NUM_THREADS", "MKL_NUM_THREADS"] + ([] if "numba" in sys.modules else ["NUMBA_NUM_THREADS"])
+    for var in names:
         os.environ.setdefault(var, "1")
 
 
@@ -282,7 +285,12 @@ def bench_env_main(argv: list[str]) -> int:
     if a.envs < 1 or a.steps < 1 or a.warmup < 0:
         p.error("--envs and --steps must be positive, --warmup >= 0")
     if a.threads is not None:
-        os.environ["NUMBA_NUM_THREADS"] = str(a.threads)
+        if "numba" in sys.modules:  # thread pool may already run: change the active count, not the config
+            import numba
+
+            numba.set_num_threads(max(1, min(a.threads, numba.config.NUMBA_NUM_THREADS)))
+        else:
+            os.environ["NUMBA_NUM_THREADS"] = str(a.threads)
     from policies.tasks import resolve_task
 
     try:

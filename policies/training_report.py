@@ -36,13 +36,16 @@ def read_metrics(run_dir: str | Path) -> dict[str, list[float]]:
 
 
 def plot_training_curves(run_dirs: list[str | Path], out_png: str | Path, *, title: str | None = None) -> Path:
-    """Two panels: avg discounted return vs env steps and vs wall-clock [h]; one line per run."""
+    """2x2 panels: episode avg discounted return (top) and windowed mean per-step reward (bottom, every log
+    interval, so also between the few episode ends of long episodes) against env steps and wall-clock [h]."""
+    import math
+
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7), sharex="col")
     for rd in run_dirs:
         m = read_metrics(rd)
         if not m:
@@ -51,25 +54,31 @@ def plot_training_curves(run_dirs: list[str | Path], out_png: str | Path, *, tit
         if (Path(rd) / "config.json").is_file():
             cfg = json.loads((Path(rd) / "config.json").read_text()).get("args", {})
         label = f"{Path(rd).name} ({cfg.get('num_envs', '?')} envs)"
-        axes[0].plot(m["env_steps"], m["avg_disc_return_mean"], label=label)
-        axes[1].plot([w / 3600 for w in m["wall_s"]], m["avg_disc_return_mean"], label=label)
+        hours = [w / 3600 for w in m["wall_s"]]
+        ep = [i for i, v in enumerate(m["avg_disc_return_mean"]) if not math.isnan(v)]
+        for col, xs in ((0, m["env_steps"]), (1, hours)):
+            axes[0, col].plot([xs[i] for i in ep], [m["avg_disc_return_mean"][i] for i in ep], "o-", label=label)
+            if "step_reward_mean" in m:
+                axes[1, col].plot(xs, m["step_reward_mean"], lw=1, label=label)
         task = cfg.get("task")
         if task in PAPER_TABLE_II:
-            for ax in axes:
+            for ax in axes[0]:
                 ax.axhline(PAPER_TABLE_II[task][0], color="gray", ls="--", lw=1)
-            axes[0].text(0, PAPER_TABLE_II[task][0], " paper plateau (Table II)", color="gray", va="bottom", fontsize=8)
-    axes[0].set_xlabel("env steps (summed over envs)")
-    axes[1].set_xlabel("wall-clock [h] (2-core shared CPU)")
-    axes[0].set_ylabel("average discounted return (training, stochastic)")
-    for ax in axes:
+            axes[0, 0].text(0, PAPER_TABLE_II[task][0], " paper plateau (Table II, DisMech)", color="gray",
+                            va="top", fontsize=8)
+    axes[1, 0].set_xlabel("env steps (summed over envs)")
+    axes[1, 1].set_xlabel("wall-clock [h] (2-core CPU shared with other jobs)")
+    axes[0, 0].set_ylabel("avg discounted return\n(training episodes, stochastic)")
+    axes[1, 0].set_ylabel("mean reward per step\n(training, per log interval)")
+    for ax in axes.flat:
         ax.grid(alpha=0.3)
-    axes[1].legend(fontsize=8, loc="lower right")
+    axes[0, 1].legend(fontsize=8, loc="lower right")
     fig.suptitle(title or "SAC training")
     fig.tight_layout()
     out = Path(out_png)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=110)
+    fig.savefig(tmp, dpi=100)
     plt.close(fig)
     tmp.replace(out)
     return out

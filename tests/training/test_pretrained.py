@@ -19,7 +19,33 @@ NAMES = ["follow_target", "follow_target_2d", "ik4d", "tight_obstacles_2d", "ran
 MIN_MARGIN = 2.0  # average discounted return units
 
 
+# follow_target episodes are 501 control steps of the 3D rod: ~35 s on the loaded 2-core machine -> slow
+BEATS_RANDOM = [pytest.param(n, marks=pytest.mark.slow) if n == "follow_target" else n for n in NAMES]
+
+
 @pytest.mark.parametrize("name", NAMES)
+def test_shipped_policy_loads_and_fits_its_task(name):
+    import numpy as np
+
+    from policies.evaluate import check_compatible
+    from policies.sac import load_policy
+    from policies.train import make_sb3_env
+
+    path = PRETRAINED / f"{name}.zip"
+    if not path.is_file():
+        pytest.skip(f"{path.name} not shipped (policies/pretrained/ has no trained policy for {name})")
+    pol, meta = load_policy(path)
+    assert meta["task"] == name
+    env = make_sb3_env(name, 2, 0)
+    try:
+        check_compatible(pol, env, name)
+        act, _ = pol.predict(env.reset(), deterministic=True)
+        assert act.shape == (2, *env.action_space.shape) and np.all(np.abs(act) <= 1.0)
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("name", BEATS_RANDOM)
 def test_shipped_policy_beats_random(name):
     path = PRETRAINED / f"{name}.zip"
     if not path.is_file():
