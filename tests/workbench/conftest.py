@@ -6,6 +6,7 @@ puts the workbench back into a clean teleop state before each test.
 """
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -68,6 +69,10 @@ def wb_page(shared):
 
 
 @pytest.fixture(scope="session")
-def shots_dir() -> Path:
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    return SHOTS
+def shots_dir(tmp_path_factory) -> Path:
+    """Where browser tests save their screenshots: a temporary folder, or docs/screenshots/ (the README's
+    pictures) when RODLAB_UPDATE_SCREENSHOTS=1, so a plain test run never modifies tracked files."""
+    if os.environ.get("RODLAB_UPDATE_SCREENSHOTS") == "1":
+        SHOTS.mkdir(parents=True, exist_ok=True)
+        return SHOTS
+    return tmp_path_factory.mktemp("screenshots")
