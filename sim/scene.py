@@ -176,8 +176,11 @@ def load_scene(path: str | os.PathLike) -> SceneSpec:
     return parse_scene(doc, p)
 
 
-def scene_to_toml(spec: SceneSpec) -> str:
-    """The TOML text of a SceneSpec (all keys written explicitly)."""
+def scene_to_toml(spec: SceneSpec, *, base_dir: str | os.PathLike | None = None) -> str:
+    """The TOML text of a SceneSpec (all keys written explicitly).
+
+    ``base_dir``: the folder the text will be saved in; mesh ``file`` paths are then written relative to it,
+    so the saved scene finds its meshes wherever it is written (without it, as they were loaded)."""
     lines = ["[sim]"]
     for k in ("dt", "gravity", "damping", "newton_tol", "newton_max_iter", "accept_unconverged", "mode",
               "integrator", "line_search", "newton_dtol"):
@@ -186,7 +189,7 @@ def scene_to_toml(spec: SceneSpec) -> str:
     for k in ("nodes", "length", "radius", "density", "youngs_modulus", "poisson_ratio", "start", "direction",
               "clamp"):
         lines.append(f"{k} = {format_value(getattr(spec.rod, k))}")
-    extra = _obs.dump_obstacles(spec.obstacles)
+    extra = _obs.dump_obstacles(spec.obstacles, base_dir=base_dir)
     if extra:
         lines += [""] + list(extra)
     lines += [""] + list(_obs.dump_contact(spec.contact))
@@ -194,9 +197,9 @@ def scene_to_toml(spec: SceneSpec) -> str:
 
 
 def dump_scene(spec: SceneSpec, path: str | os.PathLike) -> None:
-    """Write ``spec`` as TOML to ``path`` atomically (tmp file + os.replace)."""
-    text = scene_to_toml(spec)
+    """Write ``spec`` as TOML to ``path`` atomically (tmp file + os.replace); mesh paths relative to it."""
     p = Path(path)
+    text = scene_to_toml(spec, base_dir=p.resolve().parent)
     fd, tmp = tempfile.mkstemp(prefix=p.name + ".", suffix=".tmp", dir=str(p.parent or "."))
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:

@@ -7,8 +7,6 @@ immediately without rebuilding the model.
 from __future__ import annotations
 
 import dataclasses
-import os
-import tempfile
 from pathlib import Path
 from typing import Literal
 
@@ -96,14 +94,12 @@ def apply_pose(live, index: int, edit: ObstacleEdit) -> None:
 
 
 def dump(spec, path: Path) -> Path:
-    """Write ``spec`` as a TOML scene file atomically."""
+    """Write ``spec`` as a TOML scene file atomically (mesh files referenced relative to ``path``)."""
+    from sim.scene import dump_scene
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    text = _dump_text(spec)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".toml.tmp")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
+    dump_scene(spec, path)
     return path
 
 
@@ -198,12 +194,6 @@ def _obstacle_set(live):
     """The live simulator's own (per-env) obstacle set: ``Simulator.obstacles``."""
     oset = getattr(live.sim, "obstacles", None)
     return oset if oset is not None else getattr(live.model, "obstacles", None)
-
-
-def _dump_text(spec) -> str:
-    from sim.scene import scene_to_toml
-
-    return scene_to_toml(spec)
 
 
 def mesh_for_edit(e: ObstacleEdit) -> tuple[np.ndarray, np.ndarray]:

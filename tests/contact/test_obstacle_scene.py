@@ -32,13 +32,13 @@ SCENES = ["default", "mesh_course", "tight_obstacles_2d"]
 def test_shipped_scenes_round_trip(name, tmp_path):
     spec = load_scene(ROOT / "assets" / "scenes" / f"{name}.toml")
     assert len(spec.obstacles) >= 4
-    out = ROOT / "assets" / "scenes" / f".roundtrip_{name}_{tmp_path.name}.toml"  # same dir: mesh paths stay valid
-    try:
-        dump_scene(spec, out)
-        again = load_scene(out)
-    finally:
-        out.unlink(missing_ok=True)
+    out = tmp_path / "elsewhere" / f"{name}.toml"   # another folder: mesh paths are rewritten relative to it
+    out.parent.mkdir()
+    dump_scene(spec, out)
+    again = load_scene(out)
     assert again.obstacles == spec.obstacles and again.contact == spec.contact
+    for a, b in zip(again.obstacles, spec.obstacles):
+        assert getattr(a, "path", None) == getattr(b, "path", None)   # the same mesh file on disk
 
 
 def test_dump_relative_to_other_dir(tmp_path):

@@ -76,3 +76,13 @@ def test_mesh_from_assets_is_added(wb):
     v, f = obst.mesh_for_edit(wb.obstacles[i])
     assert v.shape[1] == 3 and len(f) > 0
     run(wb, 2)
+
+
+def test_saved_mesh_scene_reloads_from_another_folder(wb, tmp_path):
+    """A scene saved outside assets/ still finds its mesh (file written relative to the saved scene)."""
+    meshes = obst.mesh_catalogue()
+    wb.add_obstacle(obst.ObstacleEdit(kind="mesh", mesh=str(obst.MESH_DIR / meshes[0]), position=(0.5, 0.0, 0.5)))
+    path = wb.save_scene(tmp_path / "deep" / "mine.toml")
+    other = Workbench.from_path(path)
+    assert [e.kind for e in other.obstacles][-1] == "mesh"
+    np.testing.assert_allclose(other.obstacles[-1].position, (0.5, 0.0, 0.5))
