@@ -24,6 +24,7 @@ BENCH: dict[str, tuple[str, str]] = {
     "stress": ("benchmarks.stress:main", "numerical stress test"),
     "throughput": ("benchmarks.throughput:main", "throughput and scaling, with PyElastica"),
     "train": ("policies.cli:bench_train_main", "time one training iteration (env step + updates)"),
+    "order": ("benchmarks.time_order:main", "observed time order of the integrators (fitted first mode)"),
 }
 
 
