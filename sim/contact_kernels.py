@@ -491,6 +491,124 @@ def contact_broadphase(e, cd, x_start, x_guess, margin):
 
 
 @njit(cache=True)
+def contact_refresh(e, cd, x_start, x_end, margin):
+    """Re-run the broad phase of env ``e`` over the motion ``x_start`` -> ``x_end`` (the solved end of a step)
+    and merge it with the current list. Returns True if that added pairs (the caller then solves again).
+
+    The list built from the predicted motion x0 + h·u misses obstacles that a control change moves the rod
+    onto within the step; this catches them (and the guard then sees their penetration). The merged list
+    keeps the broad phase's order (obstacle-major, increasing edge/node index), truncated at capacity.
+    """
+    cand = cd[12]
+    ccount = cd[13]
+    cap = cand.shape[1]
+    n1 = ccount[e]
+    old = np.empty((n1, 2), np.int64)
+    for c in range(n1):
+        old[c, 0] = cand[e, c, 0]
+        old[c, 1] = cand[e, c, 1]
+    n2 = contact_broadphase(e, cd, x_start, x_end, margin)
+    new = np.empty((n2, 2), np.int64)
+    for c in range(n2):
+        new[c, 0] = cand[e, c, 0]
+        new[c, 1] = cand[e, c, 1]
+    # merge two (obstacle, index)-sorted lists without duplicates
+    i = 0
+    k = 0
+    cnt = 0
+    added = False
+    while (i < n1 or k < n2) and cnt < cap:
+        if k >= n2:
+            take_old = True
+        elif i >= n1:
+            take_old = False
+        else:
+            take_old = (old[i, 1] < new[k, 1]) or (old[i, 1] == new[k, 1] and old[i, 0] <= new[k, 0])
+        if take_old:
+            cand[e, cnt, 0] = old[i, 0]
+            cand[e, cnt, 1] = old[i, 1]
+            if k < n2 and old[i, 0] == new[k, 0] and old[i, 1] == new[k, 1]:
+                k += 1
+            i += 1
+        else:
+            cand[e, cnt, 0] = new[k, 0]
+            cand[e, cnt, 1] = new[k, 1]
+            added = True
+            k += 1
+        cnt += 1
+    ccount[e] = cnt
+    return added
+
+
+@njit(cache=True)
+def _pair_gap(cd, e, c, x, dxp, t, r, reach, g6, H6, nhat, ws, stack):
+    """Gap [m] of candidate c of env e at node positions x + t·dxp ((N, 3) arrays)."""
+    cand = cd[12]
+    j = cand[e, c, 0]
+    o = cand[e, c, 1]
+    a = (x[j, 0] + t * dxp[j, 0], x[j, 1] + t * dxp[j, 1], x[j, 2] + t * dxp[j, 2])
+    if cd[0][o] == PLANE:
+        p0 = cd[1]
+        p1 = cd[2]
+        return (p1[e, o, 0] * (a[0] - p0[e, o, 0]) + p1[e, o, 1] * (a[1] - p0[e, o, 1])
+                + p1[e, o, 2] * (a[2] - p0[e, o, 2])) - r
+    b = (x[j + 1, 0] + t * dxp[j + 1, 0], x[j + 1, 1] + t * dxp[j + 1, 1], x[j + 1, 2] + t * dxp[j + 1, 2])
+    gap, s, q = _eval_edge(cd, e, o, a, b, r, reach, g6, H6, nhat, ws, stack, False)
+    return gap
+
+
+@njit(cache=True)
+def contact_step_limit(e, cd, x, dxp, rod_radius, delta):
+    """Largest fraction t ∈ (0, 1] of the Newton update ``dxp`` ((N, 3) node displacements from positions
+    ``x``) that lets no candidate pair of env ``e`` go deeper than max-penetration allowance: a pair with
+    gap g0 at t = 0 may reach min(g0, 0) − δ, not below. So one update can neither jump a rod edge across an
+    obstacle (tunnelling: both end states outside, the path through it) nor push a penetrating pair more
+    than δ deeper; the IMC force acts again at the next iteration. Conservative advancement: the gap of an
+    edge against a fixed obstacle is 1-Lipschitz in the larger end-node displacement D, so steps of
+    (g(t) − floor)/D never pass the first time the floor is reached.
+    """
+    (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
+     scm, sci) = cd
+    ws = scf[e, 0:64]
+    g6 = scf[e, 64:70]
+    nhat = scf[e, 70:73]
+    H6 = scm[e, 0]
+    stack = sci[e]
+    r = rod_radius
+    tmax = 1.0
+    for c in range(ccount[e]):
+        j = cand[e, c, 0]
+        D = math.sqrt(dxp[j, 0] ** 2 + dxp[j, 1] ** 2 + dxp[j, 2] ** 2)
+        if kind[cand[e, c, 1]] != PLANE:
+            D = max(D, math.sqrt(dxp[j + 1, 0] ** 2 + dxp[j + 1, 1] ** 2 + dxp[j + 1, 2] ** 2))
+        if D <= 0.0:
+            continue
+        reach = r + D * tmax + 2.0 * delta   # gaps beyond reach - r cannot reach the floor (returned as inf)
+        g = _pair_gap(cd, e, c, x, dxp, 0.0, r, reach, g6, H6, nhat, ws, stack)
+        floor = min(g, 0.0) - delta
+        if g - D * tmax >= floor:   # cannot reach the floor within the allowed fraction
+            continue
+        o = cand[e, c, 1]
+        if kind[o] == PLANE:        # the gap is linear along the update: exact fraction
+            rate = p1[e, o, 0] * dxp[j, 0] + p1[e, o, 1] * dxp[j, 1] + p1[e, o, 2] * dxp[j, 2]
+            if rate < 0.0:
+                tmax = min(tmax, (g - floor) / -rate)
+            continue
+        t = 0.0
+        for _ in range(256):        # tangential sliding advances by about delta / D per pass
+            step = (g - floor) / D
+            if step < 1e-3 * delta / D:   # at the floor (to 0.1 % of delta)
+                break
+            t += step
+            if t >= tmax:
+                break
+            g = _pair_gap(cd, e, c, x, dxp, t, r, reach, g6, H6, nhat, ws, stack)
+        if t < tmax:
+            tmax = t
+    return max(tmax, 1e-3)
+
+
+@njit(cache=True)
 def contact_accumulate(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, friction_on, grad, hess):
     """Add the contact (+ friction) residual into ``grad`` (N, 3) [N] and Jacobian blocks into ``hess``
     (N-1, 6, 6) [N/m] for env ``e``'s candidates at positions ``x``; return the contact energy [J].

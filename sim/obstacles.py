@@ -111,7 +111,9 @@ class MeshSpec(ObstacleSpec):
 class ContactSpec:
     """IMC contact parameters: stiffness k [N/m], delta [m], friction mu [-], friction_velocity_tol [m/s],
     margin [m] (broad-phase distance), enabled, max_penetration [m] (penetration guard: a (sub)step ending
-    deeper is retried with more sub-steps; None = 4 * delta, see :attr:`penetration_limit`)."""
+    deeper is retried with more sub-steps; None = 4 * delta, see :attr:`penetration_limit`), step_limit
+    (continuous check of every Newton update against the contact candidates: no update may carry a rod edge
+    through an obstacle or push a penetrating pair more than delta deeper; on by default)."""
 
     stiffness: float = 1e6
     delta: float = 5e-3
@@ -120,6 +122,7 @@ class ContactSpec:
     margin: float = 5e-2
     enabled: bool = True
     max_penetration: float | None = None
+    step_limit: bool = True
 
     @property
     def penetration_limit(self) -> float:
@@ -209,7 +212,7 @@ def parse_contact(table: Mapping[str, Any] | None, scene_path: str | None) -> Co
         return ContactSpec()
     p = "contact."
     check_unknown(table, {"stiffness", "delta", "friction", "friction_velocity_tol", "margin", "enabled",
-                          "max_penetration"}, p, scene_path)
+                          "max_penetration", "step_limit"}, p, scene_path)
     d = ContactSpec()
     return ContactSpec(
         stiffness=take_float(table, "stiffness", p, scene_path, d.stiffness, positive=True),
@@ -219,6 +222,7 @@ def parse_contact(table: Mapping[str, Any] | None, scene_path: str | None) -> Co
                                          positive=True),
         margin=take_float(table, "margin", p, scene_path, d.margin, nonnegative=True),
         enabled=take_bool(table, "enabled", p, scene_path, d.enabled),
+        step_limit=take_bool(table, "step_limit", p, scene_path, d.step_limit),
         max_penetration=(take_float(table, "max_penetration", p, scene_path, positive=True)
                          if "max_penetration" in table else None),
     )
@@ -250,7 +254,7 @@ def dump_obstacles(obstacles: Sequence[ObstacleSpec], *, base_dir: str | os.Path
 def dump_contact(contact: ContactSpec) -> list[str]:
     """TOML lines for the ``[contact]`` table."""
     lines = ["[contact]"]
-    for k in ("stiffness", "delta", "friction", "friction_velocity_tol", "margin", "enabled"):
+    for k in ("stiffness", "delta", "friction", "friction_velocity_tol", "margin", "enabled", "step_limit"):
         lines.append(f"{k} = {format_value(getattr(contact, k))}")
     if contact.max_penetration is not None:  # omitted = 4 * delta (follows delta)
         lines.append(f"max_penetration = {format_value(float(contact.max_penetration))}")

@@ -22,7 +22,14 @@ import numpy as np
 from numba import njit, prange
 
 from .banded import band_lu_solve
-from .contact_kernels import contact_accumulate, contact_broadphase, contact_min_gap, contact_report
+from .contact_kernels import (
+    contact_accumulate,
+    contact_broadphase,
+    contact_min_gap,
+    contact_refresh,
+    contact_report,
+    contact_step_limit,
+)
 from .energies.bend_twist import bend_twist_element, material_curvatures
 from .energies.planar import planar_bend_element
 from .energies.stretch import stretch_element, stretch_element_2d
@@ -33,8 +40,8 @@ __all__ = ["step_kernel_3d", "step_kernel_2d", "PRM_SIZE", "F_COLS", "I_COLS"]
 # indices into the float64 parameter vector ``prm``
 P_EA, P_EI1, P_EI2, P_GJ, P_DT, P_DAMP, P_TOL, P_DTOL, P_MAXIT, P_ACCEPT, P_INTEG, P_LS = range(12)
 P_RADIUS, P_CK, P_CDELTA, P_CMU, P_CNU, P_CFRIC, P_CMARGIN, P_NOBS, P_SIGN2D, P_PLANEY = range(12, 22)
-P_LEVELS, P_STRAIN, P_MAXPEN = 22, 23, 24
-PRM_SIZE = 25
+P_LEVELS, P_STRAIN, P_MAXPEN, P_CCD = 22, 23, 24, 25
+PRM_SIZE = 26
 # columns of the float / int per-env outputs
 F_RES, F_RES0, F_ES, F_EB, F_ET, F_EC, F_EK, F_EG, F_PEN = range(9)
 F_COLS = 9
@@ -147,30 +154,18 @@ def _assemble_3d(e, x, x0, u, h, d1o, to, bo, kb, tb, rest_len, vor_len, mass, f
 
 
 @njit(**_OPT)
-def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, want_pen0):
-    """One implicit (sub)step of size h; on success x0, u, d1o, to, bo hold the new values.
+def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w):
+    """Newton iterations of one (sub)step of size hs from the guess x = x0 + 0.01·u·hs (into w's x).
 
-    Returns (status, iterations, converged, ‖f‖ last, ‖f0‖, max penetration [m] at the end of the sub-step,
-    max penetration [m] at its start (only if want_pen0)) (penetrations 0 without obstacles or contact
-    candidates); status 0 = ok."""
+    Returns (status, iterations, converged, ‖f‖ last, ‖f0‖); status 0 = ok (converged or unconverged at
+    the iteration cap), 1 non-finite, 2 residual growth, 3 bad pivot."""
     (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch) = w
     n = x0.shape[0]
-    N = n // 4
-    hs = h if prm[P_INTEG] == 0 else 0.5 * h
     maxit = int(prm[P_MAXIT])
     tol = prm[P_TOL]
     dtol = prm[P_DTOL]
     for k in range(n):
         x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
-    pen0 = 0.0
-    if prm[P_NOBS] > 0:
-        for k in range(N):
-            for a in range(3):
-                pos0[k, a] = x0[4 * k + a]
-                pos[k, a] = x0[4 * k + a] + hs * u[4 * k + a]  # predicted end of step (contact: swept list)
-        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
-        if want_pen0 and cd[13][e] > 0:
-            pen0 = -contact_min_gap(e, cd, pos0, prm[P_RADIUS])
     r0 = 0.0
     r = 0.0
     conv = False
@@ -180,18 +175,27 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
                                      prm, cd, pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk,
                                      cg, ch, True)
         if not np.isfinite(r):
-            return 1, it, False, r, r0, 0.0, pen0
+            return 1, it, False, r, r0
         if it == 0:
             r0 = r
         elif r > 1e6 * r0:
-            return 2, it, False, r, r0, 0.0, pen0
+            return 2, it, False, r, r0
         if r <= tol * r0 and (it > 0 or r == 0.0):
             conv = True
             break
         for k in range(n):
             dx[k] = f[k]
         if band_lu_solve(ab, n, 10, dx) != 0:
-            return 3, it, False, r, r0, 0.0, pen0
+            return 3, it, False, r, r0
+        if prm[P_CCD] > 0 and prm[P_NOBS] > 0 and cd[13][e] > 0:  # no update may tunnel (pos = nodes at x)
+            N = n // 4
+            for k in range(N):
+                for a in range(3):
+                    cg[k, a] = -dx[4 * k + a]
+            tcap = contact_step_limit(e, cd, pos, cg, prm[P_RADIUS], prm[P_CDELTA])
+            if tcap < 1.0:
+                for k in range(n):
+                    dx[k] *= tcap
         if prm[P_LS] > 0:
             alpha = 1.0
             for trial in range(5):
@@ -214,10 +218,48 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
             if (k & 3) != 3 and not fixed[k]:
                 dmax = max(dmax, abs(dx[k]))
         if not np.isfinite(dmax):
-            return 1, it, False, r, r0, 0.0, pen0
+            return 1, it, False, r, r0
         if dmax / hs < dtol:
             conv = True
             break
+    return 0, it, conv, r, r0
+
+
+@njit(**_OPT)
+def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, want_pen0):
+    """One implicit (sub)step of size h; on success x0, u, d1o, to, bo hold the new values.
+
+    Returns (status, iterations, converged, ‖f‖ last, ‖f0‖, max penetration [m] at the end of the sub-step,
+    max penetration [m] at its start (only if want_pen0)) (penetrations 0 without obstacles or contact
+    candidates); status 0 = ok."""
+    (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch) = w
+    n = x0.shape[0]
+    N = n // 4
+    hs = h if prm[P_INTEG] == 0 else 0.5 * h
+    pen0 = 0.0
+    if prm[P_NOBS] > 0:
+        for k in range(N):
+            for a in range(3):
+                pos0[k, a] = x0[4 * k + a]
+                pos[k, a] = x0[4 * k + a] + hs * u[4 * k + a]  # predicted end of step (contact: swept list)
+        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        if want_pen0 and cd[13][e] > 0:
+            pen0 = -contact_min_gap(e, cd, pos0, prm[P_RADIUS])
+    st, it, conv, r, r0 = _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
+    if st != 0:
+        return st, it, False, r, r0, 0.0, pen0
+    if prm[P_NOBS] > 0:
+        # the solve can carry the rod onto pairs that the predicted-motion list missed (a control change moves
+        # it far from x0 + h u): refresh the list over the motion actually taken; if it gained pairs, solve again
+        for k in range(N):
+            for a in range(3):
+                pos[k, a] = x[4 * k + a]
+        if contact_refresh(e, cd, pos0, pos, prm[P_CMARGIN]):
+            st, it2, conv, r, r0 = _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed,
+                                             grav, prm, cd, w)
+            it += it2
+            if st != 0:
+                return st, it, False, r, r0, 0.0, pen0
     if not conv and prm[P_ACCEPT] == 0:
         return 4, it, False, r, r0, 0.0, pen0
     # velocity / position update (u_new into dx)
@@ -254,8 +296,10 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
         x0[k] = x[k]
         u[k] = dx[k]
     pen = 0.0
-    if prm[P_NOBS] > 0 and cd[13][e] > 0:  # pos holds the end-of-sub-step node positions
-        pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
+    if prm[P_NOBS] > 0:  # pos: end-of-sub-step, pos0: start positions; list over the whole sub-step motion
+        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        if cd[13][e] > 0:
+            pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
     return 0, it, conv, r, r0, pen, pen0
 
 
@@ -394,6 +438,9 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
         for k in range(N):
             for a in range(3):
                 pos[k, a] = xs[4 * k + a]
+        # candidates of the state actually kept (a guard fallback or a restored state is not the configuration
+        # the last sub-step's list was built for): energy and report see every pair near it
+        contact_broadphase(e, cd, pos, pos, prm[P_CMARGIN])
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
         ec = contact_accumulate(e, cd, pos, pos, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
@@ -535,30 +582,15 @@ def _assemble_2d(e, x, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, 
 
 
 @njit(**_OPT)
-def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, want_pen0):
-    """2-D analogue of _substep_3d (frames are updated by the caller)."""
+def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w):
+    """2-D analogue of _newton_3d."""
     (x, f, dx, xt, ab, pos, pos0, g4, H4, g6, H6, cg, ch) = w
     n = x0.shape[0]
-    N = n // 2
-    hs = h if prm[P_INTEG] == 0 else 0.5 * h
     maxit = int(prm[P_MAXIT])
     tol = prm[P_TOL]
     dtol = prm[P_DTOL]
     for k in range(n):
         x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
-    pen0 = 0.0
-    if prm[P_NOBS] > 0:
-        py = prm[P_PLANEY]
-        for k in range(N):
-            pos0[k, 0] = x0[2 * k]
-            pos0[k, 1] = py
-            pos0[k, 2] = x0[2 * k + 1]
-            pos[k, 0] = x0[2 * k] + hs * u[2 * k]  # predicted end of step (contact: swept list)
-            pos[k, 1] = py
-            pos[k, 2] = x0[2 * k + 1] + hs * u[2 * k + 1]
-        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
-        if want_pen0 and cd[13][e] > 0:
-            pen0 = -contact_min_gap(e, cd, pos0, prm[P_RADIUS])
     r0 = 0.0
     r = 0.0
     conv = False
@@ -567,18 +599,28 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
         r, _, _, _, _ = _assemble_2d(e, x, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, pos, pos0,
                                      f, ab, g4, H4, g6, H6, cg, ch, True)
         if not np.isfinite(r):
-            return 1, it, False, r, r0, 0.0, pen0
+            return 1, it, False, r, r0
         if it == 0:
             r0 = r
         elif r > 1e6 * r0:
-            return 2, it, False, r, r0, 0.0, pen0
+            return 2, it, False, r, r0
         if r <= tol * r0 and (it > 0 or r == 0.0):
             conv = True
             break
         for k in range(n):
             dx[k] = f[k]
         if band_lu_solve(ab, n, 5, dx) != 0:
-            return 3, it, False, r, r0, 0.0, pen0
+            return 3, it, False, r, r0
+        if prm[P_CCD] > 0 and prm[P_NOBS] > 0 and cd[13][e] > 0:  # no update may tunnel (see _newton_3d)
+            N = n // 2
+            for k in range(N):
+                cg[k, 0] = -dx[2 * k]
+                cg[k, 1] = 0.0
+                cg[k, 2] = -dx[2 * k + 1]
+            tcap = contact_step_limit(e, cd, pos, cg, prm[P_RADIUS], prm[P_CDELTA])
+            if tcap < 1.0:
+                for k in range(n):
+                    dx[k] *= tcap
         if prm[P_LS] > 0:
             alpha = 1.0
             for trial in range(5):
@@ -600,10 +642,47 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
             if not fixed[k]:
                 dmax = max(dmax, abs(dx[k]))
         if not np.isfinite(dmax):
-            return 1, it, False, r, r0, 0.0, pen0
+            return 1, it, False, r, r0
         if dmax / hs < dtol:
             conv = True
             break
+    return 0, it, conv, r, r0
+
+
+@njit(**_OPT)
+def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, want_pen0):
+    """2-D analogue of _substep_3d (frames are updated by the caller)."""
+    (x, f, dx, xt, ab, pos, pos0, g4, H4, g6, H6, cg, ch) = w
+    n = x0.shape[0]
+    N = n // 2
+    hs = h if prm[P_INTEG] == 0 else 0.5 * h
+    pen0 = 0.0
+    if prm[P_NOBS] > 0:
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos0[k, 0] = x0[2 * k]
+            pos0[k, 1] = py
+            pos0[k, 2] = x0[2 * k + 1]
+            pos[k, 0] = x0[2 * k] + hs * u[2 * k]  # predicted end of step (contact: swept list)
+            pos[k, 1] = py
+            pos[k, 2] = x0[2 * k + 1] + hs * u[2 * k + 1]
+        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        if want_pen0 and cd[13][e] > 0:
+            pen0 = -contact_min_gap(e, cd, pos0, prm[P_RADIUS])
+    st, it, conv, r, r0 = _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
+    if st != 0:
+        return st, it, False, r, r0, 0.0, pen0
+    if prm[P_NOBS] > 0:  # refresh the candidates over the motion actually taken (see _substep_3d)
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos[k, 0] = x[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = x[2 * k + 1]
+        if contact_refresh(e, cd, pos0, pos, prm[P_CMARGIN]):
+            st, it2, conv, r, r0 = _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
+            it += it2
+            if st != 0:
+                return st, it, False, r, r0, 0.0, pen0
     if not conv and prm[P_ACCEPT] == 0:
         return 4, it, False, r, r0, 0.0, pen0
     if prm[P_INTEG] == 0:
@@ -629,13 +708,15 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
         x0[k] = x[k]
         u[k] = dx[k]
     pen = 0.0
-    if prm[P_NOBS] > 0 and cd[13][e] > 0:
+    if prm[P_NOBS] > 0:  # end-of-sub-step penetration over a list covering the whole sub-step motion
         py = prm[P_PLANEY]
         for k in range(N):
             pos[k, 0] = x[2 * k]
             pos[k, 1] = py
             pos[k, 2] = x[2 * k + 1]
-        pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
+        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        if cd[13][e] > 0:
+            pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
     return 0, it, conv, r, r0, pen, pen0
 
 
@@ -753,6 +834,7 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
             pos[k, 0] = xs[2 * k]
             pos[k, 1] = py
             pos[k, 2] = xs[2 * k + 1]
+        contact_broadphase(e, cd, pos, pos, prm[P_CMARGIN])  # pairs near the state kept (see _env_step_3d)
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
         ec = contact_accumulate(e, cd, pos, pos, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],

@@ -43,6 +43,7 @@ class Simulator:
         prm[_solve.P_LEVELS], prm[_solve.P_STRAIN] = 5.0, 0.9
         mp = getattr(c, "max_penetration", None)  # penetration guard [m]; None = 4 * delta
         prm[_solve.P_MAXPEN] = 4.0 * c.delta if mp is None else float(mp)
+        prm[_solve.P_CCD] = 1.0 if getattr(c, "step_limit", True) else 0.0
         self._prm = prm
         self._arr = tuple(np.array(a) for a in (m.rest_edge_length, m.voronoi_length, m.dof_mass, m.dof_fixed,
                                                 m.dof_gravity))

@@ -107,10 +107,12 @@ def test_sphere_primitive_vs_fine_icosphere():
     xb, hb = _trajectory(mesh)
     assert sum(s.contact_count[0] > 0 for s in ha) > 10
     # faceting of the 5120-triangle icosphere: radial error ~R * 1.2e-3 = 0.15 mm, facet normals tilted by up
-    # to ~1.5 deg; so the in-plane (x, z) shape agrees to 1 mm, and the facets' sideways (y) push to 5 mm
+    # to ~1.5 deg; so the in-plane (x, z) shape agrees to 1 mm. Sideways (y): the top of a sphere is a laterally
+    # unstable rest point for a rod pressed onto it (the surface falls away on both sides), so round-off seeds
+    # a slip of a few mm in the primitive case (the mesh's flat facet holds the rod at y = 0): bound 1 cm.
     d = np.abs(xa - xb)
     assert d[:, [0, 2]].max() < 1e-3
-    assert d.max() < 5e-3
+    assert d.max() < 1e-2
 
 
 FRIC_ROD = dict(nodes=26, length=1.0, radius=0.025, density=509.2985, youngs_modulus=1e5, poisson_ratio=0.5,

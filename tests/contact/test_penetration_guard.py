@@ -42,8 +42,8 @@ def swing_into_capsule(mode: str, contact: dict) -> list:
 
 @pytest.mark.parametrize("mode", ["2d", "3d"])
 def test_guard_limits_penetration_of_a_fast_swing(mode):
-    off = swing_into_capsule(mode, {"max_penetration": 1e9})
-    on = swing_into_capsule(mode, {})
+    off = swing_into_capsule(mode, {"max_penetration": 1e9, "step_limit": False})
+    on = swing_into_capsule(mode, {"step_limit": False})   # the guard alone (the step limit is tested apart)
     pen_off = max(float(s.max_penetration[0]) for s in off)
     pen_on = max(float(s.max_penetration[0]) for s in on)
     limit = 4 * DELTA
@@ -59,7 +59,7 @@ def test_guard_limits_penetration_of_a_fast_swing(mode):
 
 def test_guard_never_fails_an_env():
     """A limit that no sub-step count can meet: every level is too deep, the 16-sub-step result is accepted."""
-    hist = swing_into_capsule("2d", {"max_penetration": 1e-9})
+    hist = swing_into_capsule("2d", {"max_penetration": 1e-9, "step_limit": False})
     assert not any(bool(s.failed[0]) for s in hist)
     assert max(int(s.substeps[0]) for s in hist) == 16
     assert max(float(s.max_penetration[0]) for s in hist) > 1e-9  # the limit was indeed not met
