@@ -1,0 +1,460 @@
+"""Planar (x–z) rod, 2N unknowns: assembly, Newton, sub-step retry and the batched step kernel (see
+:mod:`sim.solve`)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .banded import band_lu_solve
+from .contact_kernels import (
+    contact_accumulate,
+    contact_broadphase,
+    contact_min_gap,
+    contact_refresh,
+    contact_report,
+    contact_step_limit,
+)
+from .energies.planar import planar_bend_element
+from .energies.stretch import stretch_element_2d
+from .frames import update_frames
+from .solve_params import (  # noqa: F401
+    _OPT,
+    F_COLS,
+    F_EB,
+    F_EC,
+    F_EG,
+    F_EK,
+    F_ES,
+    F_ET,
+    F_RES,
+    F_RES0,
+    I_COLS,
+    I_CONV,
+    I_FAIL,
+    I_ITERS,
+    I_SUB,
+    P_ACCEPT,
+    P_CCD,
+    P_CDELTA,
+    P_CFRIC,
+    P_CK,
+    P_CMARGIN,
+    P_CMU,
+    P_CNU,
+    P_DAMP,
+    P_DT,
+    P_DTOL,
+    P_EA,
+    P_EI1,
+    P_INTEG,
+    P_LEVELS,
+    P_LS,
+    P_MAXIT,
+    P_MAXPEN,
+    P_NOBS,
+    P_PLANEY,
+    P_RADIUS,
+    P_SIGN2D,
+    P_STRAIN,
+    P_TOL,
+)
+
+__all__ = ["step_kernel_2d"]
+
+# ----------------------------------------------------------------------------------------------- 2-D
+@njit(**_OPT)
+def _assemble_2d(e, x, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, pos, pos0, f, ab,
+                 g4, H4, g6, H6, cg, ch, with_jac):
+    """2-D residual and banded Jacobian (half-bandwidth 5). Returns (‖f‖, Es, Eb, 0, Ec)."""
+    n = x.shape[0]
+    N = n // 2
+    kl = 5
+    EA = prm[P_EA]
+    EI = prm[P_EI1]
+    sgn = prm[P_SIGN2D]
+    damp = prm[P_DAMP]
+    ih = 1.0 / h
+    ih2 = ih * ih
+    if with_jac:
+        ab[:, :] = 0.0
+        for k in range(n, n + kl):
+            ab[k, kl] = 1.0
+    for k in range(n):
+        m = mass[k]
+        dxk = x[k] - x0[k]
+        f[k] = m * ih2 * (dxk - h * u[k]) - grav[k] + damp * m * dxk * ih
+        if with_jac:
+            ab[k, kl] = m * ih2 + damp * m * ih
+    es = 0.0
+    for j in range(N - 1):
+        o = 2 * j
+        ej, _ = stretch_element_2d((x[o], x[o + 1]), (x[o + 2], x[o + 3]), rest_len[j], EA, g4, H4, with_jac)
+        es += ej
+        for a in range(4):
+            f[o + a] += g4[a]
+        if with_jac:
+            for a in range(4):
+                for b in range(4):
+                    ab[o + a, kl + b - a] += H4[a, b]
+    eb = 0.0
+    for i in range(1, N - 1):
+        o = 2 * (i - 1)
+        ebi, _ = planar_bend_element((x[o], x[o + 1]), (x[o + 2], x[o + 3]), (x[o + 4], x[o + 5]),
+                                     sgn * kb[i, 0], EI, vor_len[i], g6, H6, with_jac)
+        eb += ebi
+        for a in range(6):
+            f[o + a] += g6[a]
+        if with_jac:
+            for a in range(6):
+                for b in range(6):
+                    ab[o + a, kl + b - a] += H6[a, b]
+    ec = 0.0
+    if prm[P_NOBS] > 0:
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos[k, 0] = x[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = x[2 * k + 1]
+            pos0[k, 0] = x0[2 * k]
+            pos0[k, 1] = py
+            pos0[k, 2] = x0[2 * k + 1]
+        cg[:, :] = 0.0
+        ch[:, :, :] = 0.0
+        ec = contact_accumulate(e, cd, pos, pos0, h, prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
+                                prm[P_CNU], prm[P_CFRIC] > 0, cg, ch)
+        for k in range(N):
+            f[2 * k] += cg[k, 0]
+            f[2 * k + 1] += cg[k, 2]
+        if with_jac:
+            for j in range(N - 1):
+                for a in range(4):
+                    la = (a // 2) * 3 + (0 if a % 2 == 0 else 2)
+                    r = 2 * j + a
+                    for b in range(4):
+                        lb = (b // 2) * 3 + (0 if b % 2 == 0 else 2)
+                        c = 2 * j + b
+                        ab[r, kl + c - r] += ch[j, la, lb]
+    r2 = 0.0
+    for k in range(n):
+        if fixed[k]:
+            f[k] = 0.0
+            if with_jac:
+                for c in range(max(0, k - kl), min(n, k + kl + 1)):
+                    ab[k, kl + c - k] = 0.0
+                    ab[c, kl + k - c] = 0.0
+                ab[k, kl] = 1.0
+        else:
+            r2 += f[k] * f[k]
+    return math.sqrt(r2), es, eb, 0.0, ec
+
+
+@njit(**_OPT)
+def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w):
+    """2-D analogue of _newton_3d."""
+    (x, f, dx, xt, ab, pos, pos0, g4, H4, g6, H6, cg, ch) = w
+    n = x0.shape[0]
+    maxit = int(prm[P_MAXIT])
+    tol = prm[P_TOL]
+    dtol = prm[P_DTOL]
+    for k in range(n):
+        x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
+    r0 = 0.0
+    r = 0.0
+    conv = False
+    it = 0
+    while it < maxit:
+        r, _, _, _, _ = _assemble_2d(e, x, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, pos, pos0,
+                                     f, ab, g4, H4, g6, H6, cg, ch, True)
+        if not np.isfinite(r):
+            return 1, it, False, r, r0
+        if it == 0:
+            r0 = r
+        elif r > 1e6 * r0:
+            return 2, it, False, r, r0
+        if r <= tol * r0 and (it > 0 or r == 0.0):
+            conv = True
+            break
+        for k in range(n):
+            dx[k] = f[k]
+        if band_lu_solve(ab, n, 5, dx) != 0:
+            return 3, it, False, r, r0
+        if prm[P_CCD] > 0 and prm[P_NOBS] > 0 and cd[13][e] > 0:  # no update may tunnel (see _newton_3d)
+            N = n // 2
+            for k in range(N):
+                cg[k, 0] = -dx[2 * k]
+                cg[k, 1] = 0.0
+                cg[k, 2] = -dx[2 * k + 1]
+            tcap = contact_step_limit(e, cd, pos, cg, prm[P_RADIUS], prm[P_CDELTA])
+            if tcap < 1.0:
+                for k in range(n):
+                    dx[k] *= tcap
+        if prm[P_LS] > 0:
+            alpha = 1.0
+            for trial in range(5):
+                for k in range(n):
+                    xt[k] = x[k] - alpha * dx[k]
+                rt, _, _, _, _ = _assemble_2d(e, xt, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd,
+                                              pos, pos0, f, ab, g4, H4, g6, H6, cg, ch, False)
+                if (np.isfinite(rt) and rt <= r) or trial == 4:
+                    break
+                alpha *= 0.5
+            for k in range(n):
+                x[k] = xt[k]
+        else:
+            for k in range(n):
+                x[k] -= dx[k]
+        it += 1
+        dmax = 0.0
+        for k in range(n):
+            if not fixed[k]:
+                dmax = max(dmax, abs(dx[k]))
+        if not np.isfinite(dmax):
+            return 1, it, False, r, r0
+        if dmax / hs < dtol:
+            conv = True
+            break
+    return 0, it, conv, r, r0
+
+
+@njit(**_OPT)
+def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, want_pen0):
+    """2-D analogue of _substep_3d (frames are updated by the caller)."""
+    (x, f, dx, xt, ab, pos, pos0, g4, H4, g6, H6, cg, ch) = w
+    n = x0.shape[0]
+    N = n // 2
+    hs = h if prm[P_INTEG] == 0 else 0.5 * h
+    pen0 = 0.0
+    if prm[P_NOBS] > 0:
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos0[k, 0] = x0[2 * k]
+            pos0[k, 1] = py
+            pos0[k, 2] = x0[2 * k + 1]
+            pos[k, 0] = x0[2 * k] + hs * u[2 * k]  # predicted end of step (contact: swept list)
+            pos[k, 1] = py
+            pos[k, 2] = x0[2 * k + 1] + hs * u[2 * k + 1]
+        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        if want_pen0 and cd[13][e] > 0:
+            pen0 = -contact_min_gap(e, cd, pos0, prm[P_RADIUS])
+    st, it, conv, r, r0 = _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
+    if st != 0:
+        return st, it, False, r, r0, 0.0, pen0
+    if prm[P_NOBS] > 0:  # refresh the candidates over the motion actually taken (see _substep_3d)
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos[k, 0] = x[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = x[2 * k + 1]
+        if contact_refresh(e, cd, pos0, pos, prm[P_CMARGIN]):
+            st, it2, conv, r, r0 = _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
+            it += it2
+            if st != 0:
+                return st, it, False, r, r0, 0.0, pen0
+    if not conv and prm[P_ACCEPT] == 0:
+        return 4, it, False, r, r0, 0.0, pen0
+    if prm[P_INTEG] == 0:
+        for k in range(n):
+            dx[k] = (x[k] - x0[k]) / h
+    else:
+        for k in range(n):
+            uh = (x[k] - x0[k]) / hs
+            x[k] = 2.0 * x[k] - x0[k]
+            dx[k] = 2.0 * uh - u[k]
+            if fixed[k]:
+                dx[k] = 0.0
+    for j in range(N - 1):
+        ex = x[2 * j + 2] - x[2 * j]
+        ez = x[2 * j + 3] - x[2 * j + 1]
+        s = math.sqrt(ex * ex + ez * ez) / rest_len[j] - 1.0
+        if not abs(s) <= prm[P_STRAIN]:
+            return 5, it, conv, r, r0, 0.0, pen0
+    for k in range(n):
+        if not (np.isfinite(x[k]) and np.isfinite(dx[k])):
+            return 1, it, conv, r, r0, 0.0, pen0
+    for k in range(n):
+        x0[k] = x[k]
+        u[k] = dx[k]
+    pen = 0.0
+    if prm[P_NOBS] > 0:  # end-of-sub-step penetration over a list covering the whole sub-step motion
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos[k, 0] = x[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = x[2 * k + 1]
+        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        if cd[13][e] > 0:
+            pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
+    return 0, it, conv, r, r0, pen, pen0
+
+
+@njit(**_OPT)
+def _alloc_2d(N):
+    n = 2 * N
+    return (np.empty(n), np.empty(n), np.zeros(n + 5), np.empty(n), np.empty((n + 5, 11)), np.empty((N, 3)),
+            np.empty((N, 3)), np.empty(4), np.empty((4, 4)), np.empty(6), np.empty((6, 6)),
+            np.zeros((N, 3)), np.zeros((N - 1, 6, 6)))
+
+
+@njit(**_OPT)
+def _frames_from_2d(xs, py, d1s, ts, bs, pos, t, d1, d2, elen, beta):
+    """Update the 3-D frame arrays of a planar state (time-parallel transport from the stored ones)."""
+    N = xs.shape[0] // 2
+    for k in range(N):
+        pos[k, 0] = xs[2 * k]
+        pos[k, 1] = py
+        pos[k, 2] = xs[2 * k + 1]
+    update_frames(pos, d1s, ts, bs, t, d1, d2, elen, beta)
+    d1s[:, :] = d1
+    ts[:, :] = t
+    bs[:] = beta
+
+
+@njit(**_OPT)
+def _energies_2d(xs, kb, rest_len, vor_len, prm, g4, H4, g6, H6):
+    """(E_stretch, E_bend) [J] of a planar state."""
+    N = xs.shape[0] // 2
+    es = 0.0
+    for j in range(N - 1):
+        o = 2 * j
+        ej, _ = stretch_element_2d((xs[o], xs[o + 1]), (xs[o + 2], xs[o + 3]), rest_len[j], prm[P_EA], g4, H4, False)
+        es += ej
+    eb = 0.0
+    for i in range(1, N - 1):
+        o = 2 * (i - 1)
+        ebi, _ = planar_bend_element((xs[o], xs[o + 1]), (xs[o + 2], xs[o + 3]), (xs[o + 4], xs[o + 5]),
+                                     prm[P_SIGN2D] * kb[i, 0], prm[P_EI1], vor_len[i], g6, H6, False)
+        eb += ebi
+    return es, eb
+
+
+@njit(**_OPT)
+def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, crep, fo, io):
+    n = xs.shape[0]
+    N = n // 2
+    w = _alloc_2d(N)
+    x0 = np.empty(n)
+    u = np.empty(n)
+    ok = False
+    iters = 0
+    conv_all = True
+    r = 0.0
+    r0 = 0.0
+    ns = 1
+    levels = int(prm[P_LEVELS])
+    fb_pen = np.inf  # penetration-guard fallback (see _env_step_3d)
+    fb_x = np.empty(0)
+    fb_u = np.empty(0)
+    fb_ns, fb_it, fb_conv, fb_r, fb_r0 = 1, 0, False, 0.0, 0.0
+    lim = prm[P_MAXPEN]  # guard limit [m]: raised to (start penetration + limit/4) for a step starting deeper
+    for level in range(levels):
+        ns = 1 << level
+        h = prm[P_DT] / ns
+        x0[:] = xs
+        u[:] = us
+        ok = True
+        iters = 0
+        conv_all = True
+        pen = 0.0
+        for s in range(ns):
+            st, it, conv, r, r0s, pen_s, pen0 = _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav,
+                                                            prm, cd, w, level == 0 and s == 0)
+            if s == 0:
+                r0 = r0s
+                if level == 0:
+                    lim = max(prm[P_MAXPEN], pen0 + 0.25 * prm[P_MAXPEN])
+            iters += it
+            conv_all = conv_all and conv
+            if st != 0:
+                ok = False
+                break
+            pen = max(pen, pen_s)
+        if ok and pen > lim and level < levels - 1:
+            if pen < fb_pen:
+                fb_pen = pen
+                fb_x = x0.copy()
+                fb_u = u.copy()
+                fb_ns, fb_it, fb_conv, fb_r, fb_r0 = ns, iters, conv_all, r, r0
+            ok = False
+            continue
+        if ok:
+            break
+    if not ok and fb_pen < np.inf:
+        ok = True
+        x0[:] = fb_x
+        u[:] = fb_u
+        ns, iters, conv_all, r, r0 = fb_ns, fb_it, fb_conv, fb_r, fb_r0
+    (x, f, dx, xt, ab, pos, pos0, g4, H4, g6, H6, cg, ch) = w
+    if ok:
+        xs[:] = x0
+        us[:] = u
+        t = np.empty((N - 1, 3))
+        d1 = np.empty((N - 1, 3))
+        d2 = np.empty((N - 1, 3))
+        elen = np.empty(N - 1)
+        beta = np.empty(N)
+        _frames_from_2d(xs, prm[P_PLANEY], d1s, ts, bs, pos, t, d1, d2, elen, beta)
+    es, eb = _energies_2d(xs, kb, rest_len, vor_len, prm, g4, H4, g6, H6)
+    ec = 0.0
+    if prm[P_NOBS] > 0:
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos[k, 0] = xs[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = xs[2 * k + 1]
+        contact_broadphase(e, cd, pos, pos, prm[P_CMARGIN])  # pairs near the state kept (see _env_step_3d)
+        cg[:, :] = 0.0
+        ch[:, :, :] = 0.0
+        ec = contact_accumulate(e, cd, pos, pos, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
+                                prm[P_CNU], prm[P_CFRIC] > 0, cg, ch)
+    ek = 0.0
+    eg = 0.0
+    for k in range(n):
+        ek += 0.5 * mass[k] * us[k] * us[k] * (0.0 if fixed[k] else 1.0)
+        eg -= grav[k] * xs[k]
+    fo[F_RES] = r if np.isfinite(r) else np.inf
+    fo[F_RES0] = r0 if np.isfinite(r0) else np.inf
+    fo[F_ES] = es
+    fo[F_EB] = eb
+    fo[F_ET] = 0.0
+    fo[F_EC] = ec
+    fo[F_EK] = ek
+    fo[F_EG] = eg
+    io[I_ITERS] = iters
+    io[I_CONV] = 1 if (ok and conv_all) else 0
+    io[I_SUB] = ns
+    io[I_FAIL] = 0 if ok else 1
+    if prm[P_NOBS] > 0:
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos[k, 0] = xs[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = xs[2 * k + 1]
+            pos0[k, 0] = xs[2 * k] - prm[P_DT] * us[2 * k]  # step start (friction velocity)
+            pos0[k, 1] = py
+            pos0[k, 2] = xs[2 * k + 1] - prm[P_DT] * us[2 * k + 1]
+        contact_report(e, cd, pos, pos0, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU], prm[P_CNU],
+                       prm[P_CFRIC] > 0, crep[0], crep[1], crep[2], crep[3], crep[4], crep[5], crep[6], crep[7],
+                       crep[8], crep[9])
+    return ok
+
+
+@njit(parallel=True, **_OPT)
+def step_kernel_2d(dof, vel, d1s, ts, bs, times, failed, kappa_bar, rest_len, vor_len, mass, fixed, grav, prm,
+                   cd, crep, fo, io):
+    """2-D analogue of step_kernel_3d; dof/vel (B, 2N) views of State.dof ([x, z] per node)."""
+    B = dof.shape[0]
+    for e in prange(B):
+        for c in range(F_COLS):
+            fo[e, c] = 0.0
+        for c in range(I_COLS):
+            io[e, c] = 0
+        if failed[e]:
+            continue
+        ok = _env_step_2d(e, dof[e], vel[e], d1s[e], ts[e], bs[e], kappa_bar[e], rest_len, vor_len, mass, fixed,
+                          grav, prm, cd, crep, fo[e], io[e])
+        if ok:
+            times[e] += prm[P_DT]
+        else:
+            failed[e] = True

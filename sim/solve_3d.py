@@ -1,0 +1,505 @@
+"""3-D rod: assembly, Newton, sub-step retry and the batched step kernel (see :mod:`sim.solve`)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .banded import band_lu_solve
+from .contact_kernels import (
+    contact_accumulate,
+    contact_broadphase,
+    contact_min_gap,
+    contact_refresh,
+    contact_report,
+    contact_step_limit,
+)
+from .energies.bend_twist import bend_twist_element, material_curvatures
+from .energies.stretch import stretch_element
+from .frames import update_frames
+from .solve_params import (  # noqa: F401
+    _OPT,
+    F_COLS,
+    F_EB,
+    F_EC,
+    F_EG,
+    F_EK,
+    F_ES,
+    F_ET,
+    F_RES,
+    F_RES0,
+    I_COLS,
+    I_CONV,
+    I_FAIL,
+    I_ITERS,
+    I_SUB,
+    P_ACCEPT,
+    P_CCD,
+    P_CDELTA,
+    P_CFRIC,
+    P_CK,
+    P_CMARGIN,
+    P_CMU,
+    P_CNU,
+    P_DAMP,
+    P_DT,
+    P_DTOL,
+    P_EA,
+    P_EI1,
+    P_EI2,
+    P_GJ,
+    P_INTEG,
+    P_LEVELS,
+    P_LS,
+    P_MAXIT,
+    P_MAXPEN,
+    P_NOBS,
+    P_RADIUS,
+    P_STRAIN,
+    P_TOL,
+)
+
+__all__ = ["step_kernel_3d"]
+
+# ----------------------------------------------------------------------------------------------- 3-D
+@njit(**_OPT)
+def _assemble_3d(e, x, x0, u, h, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd,
+                 pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk, cg, ch, with_jac):
+    """Residual f (n,) and, if with_jac, banded Jacobian ab (n, 21) at x. Returns (‖f‖, Es, Eb, Et, Ec)."""
+    n = x.shape[0]
+    N = n // 4
+    kl = 10
+    EA = prm[P_EA]
+    EI1 = prm[P_EI1]
+    EI2 = prm[P_EI2]
+    GJ = prm[P_GJ]
+    damp = prm[P_DAMP]
+    ih = 1.0 / h
+    ih2 = ih * ih
+    for k in range(N):
+        for a in range(3):
+            pos[k, a] = x[4 * k + a]
+    update_frames(pos, d1o, to, bo, t, d1, d2, elen, beta)
+    if with_jac:
+        ab[:, :] = 0.0
+        for k in range(n, n + kl):
+            ab[k, kl] = 1.0
+    for k in range(n):
+        m = mass[k]
+        dxk = x[k] - x0[k]
+        fk = m * ih2 * (dxk - h * u[k]) - grav[k]
+        jk = m * ih2
+        if (k & 3) != 3:
+            fk += damp * m * dxk * ih
+            jk += damp * m * ih
+        f[k] = fk
+        if with_jac:
+            ab[k, kl] = jk
+    es = 0.0
+    for j in range(N - 1):
+        o0 = 4 * j
+        o1 = 4 * j + 4
+        ej, _ = stretch_element((x[o0], x[o0 + 1], x[o0 + 2]), (x[o1], x[o1 + 1], x[o1 + 2]), rest_len[j], EA,
+                                g6, H6, with_jac)
+        es += ej
+        for a in range(3):
+            f[o0 + a] += g6[a]
+            f[o1 + a] += g6[3 + a]
+        if with_jac:
+            for a in range(6):
+                r = o0 + a if a < 3 else o1 + a - 3
+                for b in range(6):
+                    c = o0 + b if b < 3 else o1 + b - 3
+                    ab[r, kl + c - r] += H6[a, b]
+    eb = 0.0
+    et = 0.0
+    for i in range(1, N - 1):
+        o = 4 * (i - 1)
+        ebi, eti = bend_twist_element(
+            (x[o], x[o + 1], x[o + 2]), (x[o + 4], x[o + 5], x[o + 6]), (x[o + 8], x[o + 9], x[o + 10]),
+            (d1[i - 1, 0], d1[i - 1, 1], d1[i - 1, 2]), (d2[i - 1, 0], d2[i - 1, 1], d2[i - 1, 2]),
+            (d1[i, 0], d1[i, 1], d1[i, 2]), (d2[i, 0], d2[i, 1], d2[i, 2]),
+            x[o + 3], x[o + 7], beta[i], kb[i, 0], kb[i, 1], tb[i], EI1, EI2, GJ, vor_len[i],
+            g11, H11, wk, with_jac)
+        eb += ebi
+        et += eti
+        for a in range(11):
+            f[o + a] += g11[a]
+        if with_jac:
+            for a in range(11):
+                r = o + a
+                for b in range(11):
+                    ab[r, kl + b - a] += H11[a, b]
+    ec = 0.0
+    if prm[P_NOBS] > 0:
+        for k in range(N):
+            for a in range(3):
+                pos0[k, a] = x0[4 * k + a]
+        cg[:, :] = 0.0
+        ch[:, :, :] = 0.0
+        ec = contact_accumulate(e, cd, pos, pos0, h, prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
+                                prm[P_CNU], prm[P_CFRIC] > 0, cg, ch)
+        for k in range(N):
+            for a in range(3):
+                f[4 * k + a] += cg[k, a]
+        if with_jac:
+            for j in range(N - 1):
+                for a in range(6):
+                    r = 4 * j + a if a < 3 else 4 * j + 1 + a
+                    for b in range(6):
+                        c = 4 * j + b if b < 3 else 4 * j + 1 + b
+                        ab[r, kl + c - r] += ch[j, a, b]
+    r2 = 0.0
+    for k in range(n):
+        if fixed[k]:
+            f[k] = 0.0
+            if with_jac:
+                for c in range(max(0, k - kl), min(n, k + kl + 1)):
+                    ab[k, kl + c - k] = 0.0
+                    ab[c, kl + k - c] = 0.0
+                ab[k, kl] = 1.0
+        else:
+            r2 += f[k] * f[k]
+    return math.sqrt(r2), es, eb, et, ec
+
+
+@njit(**_OPT)
+def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w):
+    """Newton iterations of one (sub)step of size hs from the guess x = x0 + 0.01·u·hs (into w's x).
+
+    Returns (status, iterations, converged, ‖f‖ last, ‖f0‖); status 0 = ok (converged or unconverged at
+    the iteration cap), 1 non-finite, 2 residual growth, 3 bad pivot."""
+    (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch) = w
+    n = x0.shape[0]
+    maxit = int(prm[P_MAXIT])
+    tol = prm[P_TOL]
+    dtol = prm[P_DTOL]
+    for k in range(n):
+        x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
+    r0 = 0.0
+    r = 0.0
+    conv = False
+    it = 0
+    while it < maxit:
+        r, _, _, _, _ = _assemble_3d(e, x, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav,
+                                     prm, cd, pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk,
+                                     cg, ch, True)
+        if not np.isfinite(r):
+            return 1, it, False, r, r0
+        if it == 0:
+            r0 = r
+        elif r > 1e6 * r0:
+            return 2, it, False, r, r0
+        if r <= tol * r0 and (it > 0 or r == 0.0):
+            conv = True
+            break
+        for k in range(n):
+            dx[k] = f[k]
+        if band_lu_solve(ab, n, 10, dx) != 0:
+            return 3, it, False, r, r0
+        if prm[P_CCD] > 0 and prm[P_NOBS] > 0 and cd[13][e] > 0:  # no update may tunnel (pos = nodes at x)
+            N = n // 4
+            for k in range(N):
+                for a in range(3):
+                    cg[k, a] = -dx[4 * k + a]
+            tcap = contact_step_limit(e, cd, pos, cg, prm[P_RADIUS], prm[P_CDELTA])
+            if tcap < 1.0:
+                for k in range(n):
+                    dx[k] *= tcap
+        if prm[P_LS] > 0:
+            alpha = 1.0
+            for trial in range(5):
+                for k in range(n):
+                    xt[k] = x[k] - alpha * dx[k]
+                rt, _, _, _, _ = _assemble_3d(e, xt, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass,
+                                              fixed, grav, prm, cd, pos, pos0, t, d1, d2, elen, beta, f, ab,
+                                              g6, H6, g11, H11, wk, cg, ch, False)
+                if (np.isfinite(rt) and rt <= r) or trial == 4:
+                    break
+                alpha *= 0.5
+            for k in range(n):
+                x[k] = xt[k]
+        else:
+            for k in range(n):
+                x[k] -= dx[k]
+        it += 1
+        dmax = 0.0
+        for k in range(n):
+            if (k & 3) != 3 and not fixed[k]:
+                dmax = max(dmax, abs(dx[k]))
+        if not np.isfinite(dmax):
+            return 1, it, False, r, r0
+        if dmax / hs < dtol:
+            conv = True
+            break
+    return 0, it, conv, r, r0
+
+
+@njit(**_OPT)
+def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, want_pen0):
+    """One implicit (sub)step of size h; on success x0, u, d1o, to, bo hold the new values.
+
+    Returns (status, iterations, converged, ‖f‖ last, ‖f0‖, max penetration [m] at the end of the sub-step,
+    max penetration [m] at its start (only if want_pen0)) (penetrations 0 without obstacles or contact
+    candidates); status 0 = ok."""
+    (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch) = w
+    n = x0.shape[0]
+    N = n // 4
+    hs = h if prm[P_INTEG] == 0 else 0.5 * h
+    pen0 = 0.0
+    if prm[P_NOBS] > 0:
+        for k in range(N):
+            for a in range(3):
+                pos0[k, a] = x0[4 * k + a]
+                pos[k, a] = x0[4 * k + a] + hs * u[4 * k + a]  # predicted end of step (contact: swept list)
+        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        if want_pen0 and cd[13][e] > 0:
+            pen0 = -contact_min_gap(e, cd, pos0, prm[P_RADIUS])
+    st, it, conv, r, r0 = _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
+    if st != 0:
+        return st, it, False, r, r0, 0.0, pen0
+    if prm[P_NOBS] > 0:
+        # the solve can carry the rod onto pairs that the predicted-motion list missed (a control change moves
+        # it far from x0 + h u): refresh the list over the motion actually taken; if it gained pairs, solve again
+        for k in range(N):
+            for a in range(3):
+                pos[k, a] = x[4 * k + a]
+        if contact_refresh(e, cd, pos0, pos, prm[P_CMARGIN]):
+            st, it2, conv, r, r0 = _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed,
+                                             grav, prm, cd, w)
+            it += it2
+            if st != 0:
+                return st, it, False, r, r0, 0.0, pen0
+    if not conv and prm[P_ACCEPT] == 0:
+        return 4, it, False, r, r0, 0.0, pen0
+    # velocity / position update (u_new into dx)
+    if prm[P_INTEG] == 0:
+        for k in range(n):
+            dx[k] = (x[k] - x0[k]) / h
+    else:
+        for k in range(n):
+            uh = (x[k] - x0[k]) / hs
+            x[k] = 2.0 * x[k] - x0[k]
+            dx[k] = 2.0 * uh - u[k]
+            if fixed[k]:
+                dx[k] = 0.0
+    for k in range(N):
+        for a in range(3):
+            pos[k, a] = x[4 * k + a]
+    update_frames(pos, d1o, to, bo, t, d1, d2, elen, beta)
+    for j in range(N - 1):
+        s = elen[j] / rest_len[j] - 1.0
+        if not abs(s) <= prm[P_STRAIN]:
+            return 5, it, conv, r, r0, 0.0, pen0
+    for k in range(n):
+        if not (np.isfinite(x[k]) and np.isfinite(dx[k])):
+            return 1, it, conv, r, r0, 0.0, pen0
+    for j in range(N - 1):
+        for a in range(3):
+            d1o[j, a] = d1[j, a]
+            to[j, a] = t[j, a]
+    for i in range(N):
+        if not np.isfinite(beta[i]):
+            return 1, it, conv, r, r0, 0.0, pen0
+        bo[i] = beta[i]
+    for k in range(n):
+        x0[k] = x[k]
+        u[k] = dx[k]
+    pen = 0.0
+    if prm[P_NOBS] > 0:  # pos: end-of-sub-step, pos0: start positions; list over the whole sub-step motion
+        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        if cd[13][e] > 0:
+            pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
+    return 0, it, conv, r, r0, pen, pen0
+
+
+@njit(**_OPT)
+def _alloc_3d(N):
+    n = 4 * N
+    return (np.empty(n), np.empty(n), np.zeros(n + 10), np.empty(n), np.empty((n + 10, 21)), np.empty((N, 3)),
+            np.empty((N, 3)), np.empty((N - 1, 3)), np.empty((N - 1, 3)), np.empty((N - 1, 3)), np.empty(N - 1),
+            np.empty(N), np.empty(6), np.empty((6, 6)), np.empty(11), np.empty((11, 11)), np.empty((17, 11)),
+            np.zeros((N, 3)), np.zeros((N - 1, 6, 6)))
+
+
+@njit(**_OPT)
+def _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm):
+    """(E_stretch, E_bend, E_twist) [J] of a state whose stored frames (d1s, ts, bs) are at xs."""
+    N = xs.shape[0] // 4
+    EA = prm[P_EA]
+    es = 0.0
+    for j in range(N - 1):
+        o = 4 * j
+        ex = xs[o + 4] - xs[o]
+        ey = xs[o + 5] - xs[o + 1]
+        ez = xs[o + 6] - xs[o + 2]
+        eps = math.sqrt(ex * ex + ey * ey + ez * ez) / rest_len[j] - 1.0
+        es += 0.5 * EA * rest_len[j] * eps * eps
+    eb = 0.0
+    et = 0.0
+    m1 = np.empty((2, 3))
+    m2 = np.empty((2, 3))
+    for i in range(1, N - 1):
+        o = 4 * (i - 1)
+        for s in range(2):
+            j = i - 1 + s
+            th = xs[4 * j + 3]
+            c = math.cos(th)
+            sn = math.sin(th)
+            t0, t1, t2 = ts[j, 0], ts[j, 1], ts[j, 2]
+            a0, a1, a2 = d1s[j, 0], d1s[j, 1], d1s[j, 2]
+            b0, b1, b2 = t1 * a2 - t2 * a1, t2 * a0 - t0 * a2, t0 * a1 - t1 * a0
+            m1[s, 0], m1[s, 1], m1[s, 2] = c * a0 + sn * b0, c * a1 + sn * b1, c * a2 + sn * b2
+            m2[s, 0], m2[s, 1], m2[s, 2] = -sn * a0 + c * b0, -sn * a1 + c * b1, -sn * a2 + c * b2
+        k1, k2 = material_curvatures((xs[o], xs[o + 1], xs[o + 2]), (xs[o + 4], xs[o + 5], xs[o + 6]),
+                                     (xs[o + 8], xs[o + 9], xs[o + 10]), (m1[0, 0], m1[0, 1], m1[0, 2]),
+                                     (m2[0, 0], m2[0, 1], m2[0, 2]), (m1[1, 0], m1[1, 1], m1[1, 2]),
+                                     (m2[1, 0], m2[1, 1], m2[1, 2]))
+        lv = vor_len[i]
+        eb += 0.5 / lv * (prm[P_EI1] * (k1 - kb[i, 0]) ** 2 + prm[P_EI2] * (k2 - kb[i, 1]) ** 2)
+        tw = xs[o + 7] - xs[o + 3] + bs[i] - tb[i]
+        et += 0.5 * prm[P_GJ] / lv * tw * tw
+    return es, eb, et
+
+
+@njit(**_OPT)
+def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, crep, fo, io):
+    n = xs.shape[0]
+    N = n // 4
+    w = _alloc_3d(N)
+    x0 = np.empty(n)
+    u = np.empty(n)
+    d1o = np.empty((N - 1, 3))
+    to = np.empty((N - 1, 3))
+    bo = np.empty(N)
+    ok = False
+    iters = 0
+    conv_all = True
+    r = 0.0
+    r0 = 0.0
+    ns = 1
+    levels = int(prm[P_LEVELS])
+    # penetration-guard fallback: the least-penetrating finite level result (copied only when the guard fires)
+    fb_pen = np.inf
+    fb_x = np.empty(0)
+    fb_u = np.empty(0)
+    fb_d1 = np.empty((0, 3))
+    fb_t = np.empty((0, 3))
+    fb_b = np.empty(0)
+    fb_ns, fb_it, fb_conv, fb_r, fb_r0 = 1, 0, False, 0.0, 0.0
+    lim = prm[P_MAXPEN]  # guard limit [m]: raised to (start penetration + limit/4) for a step starting deeper
+    for level in range(levels):
+        ns = 1 << level
+        h = prm[P_DT] / ns
+        x0[:] = xs
+        u[:] = us
+        d1o[:, :] = d1s
+        to[:, :] = ts
+        bo[:] = bs
+        ok = True
+        iters = 0
+        conv_all = True
+        pen = 0.0
+        for s in range(ns):
+            st, it, conv, r, r0s, pen_s, pen0 = _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len,
+                                                            mass, fixed, grav, prm, cd, w, level == 0 and s == 0)
+            if s == 0:
+                r0 = r0s
+                if level == 0:
+                    lim = max(prm[P_MAXPEN], pen0 + 0.25 * prm[P_MAXPEN])
+            iters += it
+            conv_all = conv_all and conv
+            if st != 0:
+                ok = False
+                break
+            pen = max(pen, pen_s)
+        if ok and pen > lim and level < levels - 1:
+            if pen < fb_pen:
+                fb_pen = pen
+                fb_x = x0.copy()
+                fb_u = u.copy()
+                fb_d1 = d1o.copy()
+                fb_t = to.copy()
+                fb_b = bo.copy()
+                fb_ns, fb_it, fb_conv, fb_r, fb_r0 = ns, iters, conv_all, r, r0
+            ok = False
+            continue
+        if ok:
+            break
+    if not ok and fb_pen < np.inf:
+        ok = True
+        x0[:] = fb_x
+        u[:] = fb_u
+        d1o[:, :] = fb_d1
+        to[:, :] = fb_t
+        bo[:] = fb_b
+        ns, iters, conv_all, r, r0 = fb_ns, fb_it, fb_conv, fb_r, fb_r0
+    if ok:
+        xs[:] = x0
+        us[:] = u
+        d1s[:, :] = d1o
+        ts[:, :] = to
+        bs[:] = bo
+    # energies at the (new or restored) state; its stored frames are the frames at xs
+    (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch) = w
+    es, eb, et = _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm)
+    ec = 0.0
+    if prm[P_NOBS] > 0:
+        for k in range(N):
+            for a in range(3):
+                pos[k, a] = xs[4 * k + a]
+        # candidates of the state actually kept (a guard fallback or a restored state is not the configuration
+        # the last sub-step's list was built for): energy and report see every pair near it
+        contact_broadphase(e, cd, pos, pos, prm[P_CMARGIN])
+        cg[:, :] = 0.0
+        ch[:, :, :] = 0.0
+        ec = contact_accumulate(e, cd, pos, pos, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
+                                prm[P_CNU], prm[P_CFRIC] > 0, cg, ch)
+    ek = 0.0
+    eg = 0.0
+    for k in range(n):
+        ek += 0.5 * mass[k] * us[k] * us[k] * (0.0 if fixed[k] else 1.0)
+        eg -= grav[k] * xs[k]
+    fo[F_RES] = r if np.isfinite(r) else np.inf
+    fo[F_RES0] = r0 if np.isfinite(r0) else np.inf
+    fo[F_ES] = es
+    fo[F_EB] = eb
+    fo[F_ET] = et
+    fo[F_EC] = ec
+    fo[F_EK] = ek
+    fo[F_EG] = eg
+    io[I_ITERS] = iters
+    io[I_CONV] = 1 if (ok and conv_all) else 0
+    io[I_SUB] = ns
+    io[I_FAIL] = 0 if ok else 1
+    if prm[P_NOBS] > 0:
+        for k in range(N):
+            for a in range(3):
+                pos[k, a] = xs[4 * k + a]
+                pos0[k, a] = xs[4 * k + a] - prm[P_DT] * us[4 * k + a]  # step start (friction velocity)
+        contact_report(e, cd, pos, pos0, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU], prm[P_CNU],
+                       prm[P_CFRIC] > 0, crep[0], crep[1], crep[2], crep[3], crep[4], crep[5], crep[6], crep[7],
+                       crep[8], crep[9])
+    return ok
+
+
+@njit(parallel=True, **_OPT)
+def step_kernel_3d(dof, vel, d1s, ts, bs, times, failed, kappa_bar, tau_bar, rest_len, vor_len, mass, fixed,
+                   grav, prm, cd, crep, fo, io):
+    """Advance all non-failed envs by prm[P_DT]. dof/vel (B, 4N) views of State.dof; outputs fo (B, F_COLS),
+    io (B, I_COLS) and the contact report arrays crep."""
+    B = dof.shape[0]
+    for e in prange(B):
+        for c in range(F_COLS):
+            fo[e, c] = 0.0
+        for c in range(I_COLS):
+            io[e, c] = 0
+        if failed[e]:
+            continue
+        ok = _env_step_3d(e, dof[e], vel[e], d1s[e], ts[e], bs[e], kappa_bar[e], tau_bar[e], rest_len, vor_len,
+                          mass, fixed, grav, prm, cd, crep, fo[e], io[e])
+        if ok:
+            times[e] += prm[P_DT]
+        else:
+            failed[e] = True
