@@ -18,49 +18,7 @@ from __future__ import annotations
 
 from .solve_2d import step_kernel_2d
 from .solve_3d import step_kernel_3d
-from .solve_params import (  # noqa: F401  (re-exported: the Simulator and tools index prm and the outputs)
-    F_COLS,
-    F_EB,
-    F_EC,
-    F_EG,
-    F_EK,
-    F_ES,
-    F_ET,
-    F_PEN,
-    F_RES,
-    F_RES0,
-    I_COLS,
-    I_CONV,
-    I_FAIL,
-    I_ITERS,
-    I_SUB,
-    P_ACCEPT,
-    P_CCD,
-    P_CDELTA,
-    P_CFRIC,
-    P_CK,
-    P_CMARGIN,
-    P_CMU,
-    P_CNU,
-    P_DAMP,
-    P_DT,
-    P_DTOL,
-    P_EA,
-    P_EI1,
-    P_EI2,
-    P_GJ,
-    P_INTEG,
-    P_LEVELS,
-    P_LS,
-    P_MAXIT,
-    P_MAXPEN,
-    P_NOBS,
-    P_PLANEY,
-    P_RADIUS,
-    P_SIGN2D,
-    P_STRAIN,
-    P_TOL,
-    PRM_SIZE,
-)
+from .solve_params import *  # noqa: F403  (re-exported: P_* prm indices, F_*/I_* output columns)
+from .solve_params import F_COLS, I_COLS, PRM_SIZE
 
 __all__ = ["step_kernel_3d", "step_kernel_2d", "PRM_SIZE", "F_COLS", "I_COLS"]

@@ -1,4 +1,5 @@
 """3-D rod: assembly, Newton, sub-step retry and the batched step kernel (see :mod:`sim.solve`)."""
+# ruff: noqa: F405
 from __future__ import annotations
 
 import math
@@ -18,47 +19,8 @@ from .contact_kernels import (
 from .energies.bend_twist import bend_twist_element, material_curvatures
 from .energies.stretch import stretch_element
 from .frames import update_frames
-from .solve_params import (  # noqa: F401
-    _OPT,
-    F_COLS,
-    F_EB,
-    F_EC,
-    F_EG,
-    F_EK,
-    F_ES,
-    F_ET,
-    F_RES,
-    F_RES0,
-    I_COLS,
-    I_CONV,
-    I_FAIL,
-    I_ITERS,
-    I_SUB,
-    P_ACCEPT,
-    P_CCD,
-    P_CDELTA,
-    P_CFRIC,
-    P_CK,
-    P_CMARGIN,
-    P_CMU,
-    P_CNU,
-    P_DAMP,
-    P_DT,
-    P_DTOL,
-    P_EA,
-    P_EI1,
-    P_EI2,
-    P_GJ,
-    P_INTEG,
-    P_LEVELS,
-    P_LS,
-    P_MAXIT,
-    P_MAXPEN,
-    P_NOBS,
-    P_RADIUS,
-    P_STRAIN,
-    P_TOL,
-)
+from .solve_params import *  # noqa: F403  (P_* prm indices, F_*/I_* output columns, _OPT)
+from .solve_params import _OPT
 
 __all__ = ["step_kernel_3d"]
 
