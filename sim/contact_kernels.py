@@ -285,6 +285,13 @@ def _row3(x, k):
     return (x[k, 0], x[k, 1], x[k, 2])
 
 
+@njit(cache=True, inline="always")
+def _scratch(cd, e):
+    """Env ``e``'s distance scratch: (ws (64,), g6 (6,), nhat (3,), H6 (6, 6), BVH stack)."""
+    scf = cd[18]
+    return scf[e, 0:64], scf[e, 64:70], scf[e, 70:73], cd[19][e, 0], cd[20][e]
+
+
 @njit(cache=True)
 def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemble, grad, hess, report,
                   out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
@@ -431,11 +438,7 @@ def contact_broadphase(e, cd, x_start, x_guess, margin):
     N = x_start.shape[0]
     M = kind.shape[0]
     cap = cand.shape[1]
-    ws = scf[e, 0:64]
-    g6 = scf[e, 64:70]
-    nhat = scf[e, 70:73]
-    H6 = scm[e, 0]
-    stack = sci[e]
+    ws, g6, nhat, H6, stack = _scratch(cd, e)
     infl = r + margin
     # rod AABB over both configurations
     lo0 = min(x_start[:, 0].min(), x_guess[:, 0].min())
@@ -567,13 +570,8 @@ def contact_step_limit(e, cd, x, dxp, rod_radius, delta):
     edge against a fixed obstacle is 1-Lipschitz in the larger end-node displacement D, so steps of
     (g(t) − floor)/D never pass the first time the floor is reached.
     """
-    (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
-     scm, sci) = cd
-    ws = scf[e, 0:64]
-    g6 = scf[e, 64:70]
-    nhat = scf[e, 70:73]
-    H6 = scm[e, 0]
-    stack = sci[e]
+    kind, p1, cand, ccount = cd[0], cd[2], cd[12], cd[13]
+    ws, g6, nhat, H6, stack = _scratch(cd, e)
     r = rod_radius
     tmax = 1.0
     for c in range(ccount[e]):
@@ -631,13 +629,8 @@ def contact_min_gap(e, cd, x, rod_radius):
     No derivatives and no ownership filter (dropping non-minimal pairs cannot change the minimum), so
     ``-contact_min_gap`` equals :func:`contact_report`'s max penetration for the same positions and candidates.
     """
-    (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
-     scm, sci) = cd
-    ws = scf[e, 0:64]
-    g6 = scf[e, 64:70]
-    nhat = scf[e, 70:73]
-    H6 = scm[e, 0]
-    stack = sci[e]
+    kind, cand, ccount = cd[0], cd[12], cd[13]
+    ws, g6, nhat, H6, stack = _scratch(cd, e)
     r = rod_radius
     best = 0.0
     for c in range(ccount[e]):
