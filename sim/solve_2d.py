@@ -203,13 +203,18 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
     st, it, conv, r, r0 = _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
     if st != 0:
         return st, it, False, r, r0, 0.0, pen0
+    list_covers_step = False
     if prm[P_NOBS] > 0:  # refresh the candidates over the motion actually taken (see _substep_3d)
         py = prm[P_PLANEY]
         for k in range(N):
             pos[k, 0] = x[2 * k]
             pos[k, 1] = py
             pos[k, 2] = x[2 * k + 1]
+        # backward Euler ends where the solve ended: then the refreshed list already covers the whole
+        # sub-step motion and the end-of-sub-step broad phase below is not needed again
+        list_covers_step = prm[P_INTEG] == 0
         if contact_refresh(e, cd, pos0, pos, prm[P_CMARGIN]):
+            list_covers_step = False
             st, it2, conv, r, r0 = _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
             it += it2
             if st != 0:
@@ -245,7 +250,8 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
             pos[k, 0] = x[2 * k]
             pos[k, 1] = py
             pos[k, 2] = x[2 * k + 1]
-        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        if not list_covers_step:
+            contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
         if cd[13][e] > 0:
             pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
     return 0, it, conv, r, r0, pen, pen0

@@ -221,13 +221,18 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
     st, it, conv, r, r0 = _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
     if st != 0:
         return st, it, False, r, r0, 0.0, pen0
+    list_covers_step = False
     if prm[P_NOBS] > 0:
         # the solve can carry the rod onto pairs that the predicted-motion list missed (a control change moves
         # it far from x0 + h u): refresh the list over the motion actually taken; if it gained pairs, solve again
         for k in range(N):
             for a in range(3):
                 pos[k, a] = x[4 * k + a]
+        # backward Euler ends where the solve ended: then the refreshed list already covers the whole
+        # sub-step motion and the end-of-sub-step broad phase below is not needed again
+        list_covers_step = prm[P_INTEG] == 0
         if contact_refresh(e, cd, pos0, pos, prm[P_CMARGIN]):
+            list_covers_step = False
             st, it2, conv, r, r0 = _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed,
                                              grav, prm, cd, w)
             it += it2
@@ -270,7 +275,8 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
         u[k] = dx[k]
     pen = 0.0
     if prm[P_NOBS] > 0:  # pos: end-of-sub-step, pos0: start positions; list over the whole sub-step motion
-        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        if not list_covers_step:
+            contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
         if cd[13][e] > 0:
             pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
     return 0, it, conv, r, r0, pen, pen0
