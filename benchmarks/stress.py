@@ -7,8 +7,10 @@ Two parts (``--parts``):
   their episode ends; variants: dt 4x the paper's, targets 5x faster (Follow).
 * ``sim``   -- the arm driven directly (random / bang-bang natural-curvature commands, contact-task
   scale 0.25, saturating at |K| = 2) across E = 1e5 ... 1e9 Pa, 11 ... 201 nodes, thin (r = 5 mm) and
-  thick (r = 0.2 m) rods, dt up to 4x, and obstacles spawned intersecting the rod; each run ends with
-  a passive hold (command frozen) during which the total energy must not grow.
+  thick (r = 0.2 m) rods, dt up to 4x, and obstacles spawned intersecting the rod (also with Newton run to
+  convergence); each run ends with a passive hold (command frozen) during which the total energy must not
+  grow. (With the iteration cap, an accepted unconverged contact step can end inside the barrier and show a
+  one-step rise of the contact energy, released the next step; converged Newton shows none.)
 
 Reported per run: NaN count (state and observations; must be 0), failed steps (envs frozen after all
 sub-step retries), recovered steps (a retry with sub-steps succeeded), unconverged steps, max
@@ -145,7 +147,11 @@ def sim_cases(quick: bool) -> list[SimCase]:
                   SimCase("N 101", nodes=101), SimCase("dt 2x (0.1 s)", dt=0.1),
                   SimCase("thin r 5 mm, dt 4x", radius=0.005, dt=0.2),
                   SimCase("2d, E 1e5, dt 4x", youngs=1e5, dt=0.2, mode="2d"),
-                  SimCase("capsule through, dt 4x", obstacles=(through,), max_iter=5, dt=0.2)]
+                  SimCase("capsule through, dt 4x", obstacles=(through,), max_iter=5, dt=0.2),
+                  # same as the two intersecting cases above with Newton run to convergence: the energy rise seen
+                  # with the 5-iteration cap comes from accepted unconverged contact steps, not from the model
+                  SimCase("capsule through, converged Newton", obstacles=(through,), max_iter=50),
+                  SimCase("sphere inside, converged Newton", obstacles=(inside,), max_iter=50)]
     return cases
 
 
@@ -185,16 +191,25 @@ def run_sim_case(case: SimCase, *, envs: int, control_steps: int, actions: str, 
             ctrl.kappa_bar += dk
             tally.add(sim.step(state, ctrl), state)
     # passive hold: command frozen, backward Euler must not gain energy
-    energies = []
+    energies, converged = [], []
     for _ in range(hold_steps):
         st = sim.step(state, ctrl)
         tally.add(st, state)
         e = sum(np.asarray(getattr(st, f"energy_{n}")) for n in
                 ("stretch", "bend", "twist", "contact", "kinetic", "gravity"))
         energies.append(e)
+        converged.append(np.asarray(st.converged, bool).copy())
     wall = time.perf_counter() - t0
     E = np.asarray(energies)  # (hold, B)
     ok = ~np.asarray(state.failed, bool)
+    # per-step energy change split by whether that step's Newton solve converged (a rise may only come from
+    # accepted unconverged steps: backward Euler solved to convergence dissipates)
+    dE = E[1:] - E[:-1]
+    cv = np.asarray(converged)[1:] & ok[None, :]
+    ucv = ~np.asarray(converged)[1:] & ok[None, :]
+    step_rise = {"energy_step_rise_converged_max_J": float(np.max(dE[cv])) if cv.any() else None,
+                 "energy_step_rise_unconverged_max_J": float(np.max(dE[ucv])) if ucv.any() else None,
+                 "hold_steps_unconverged": int(ucv.sum()), "hold_steps": int(ok.sum()) * max(0, len(E) - 1)}
     growth = (E[1:] - E[0]).max(axis=0) if len(E) > 1 else np.zeros(envs)
     scale = np.maximum(np.abs(E).max(axis=0), 1e-12)
     g_ok = growth[ok] if ok.any() else np.zeros(1)
@@ -202,7 +217,7 @@ def run_sim_case(case: SimCase, *, envs: int, control_steps: int, actions: str, 
             "params": {k: v for k, v in vars(case).items() if k != "obstacles"},
             "obstacles": len(case.obstacles), "energy_growth_max_J": float(np.nanmax(g_ok)),
             "energy_growth_max_rel": float(np.nanmax(g_ok / scale[ok])) if ok.any() else 0.0,
-            "envs_failed_at_end": int((~ok).sum()), "wall_s": wall, "load": load(), **tally.summary()}
+            "envs_failed_at_end": int((~ok).sum()), **step_rise, "wall_s": wall, "load": load(), **tally.summary()}
 
 
 # ------------------------------------------------------------------------------------------------
@@ -216,6 +231,9 @@ def _line(r: dict) -> str:
          f"pen {1e3 * r['max_penetration_m']:6.2f} mm it {r['newton_iters_mean']:.2f}")
     if "energy_growth_max_J" in r:
         s += f" dE+ {r['energy_growth_max_J']:.2e} J ({r['energy_growth_max_rel']:.1e})"
+        rc, ru = r.get("energy_step_rise_converged_max_J"), r.get("energy_step_rise_unconverged_max_J")
+        s += f" step-rise conv {rc:.1e}" if rc is not None else " step-rise conv -"
+        s += f" unconv {ru:.1e} ({r.get('hold_steps_unconverged', 0)} st)" if ru is not None else ""
     return s + f"  {r['wall_s']:.1f} s"
 
 
@@ -226,6 +244,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--env-steps", type=int, default=None,
                    help="control env-steps per task and action kind (default 100000, quick 2000)")
     p.add_argument("--tasks", default=",".join(TASKS), help="comma-separated subset of the tasks")
+    p.add_argument("--sim-envs", type=int, default=None,
+                   help="envs per simulator case (default 256 = 1e5 sim env-steps per case and action kind; quick 8)")
     args = p.parse_args(argv)
     parts = [s.strip() for s in args.parts.split(",") if s.strip()]
     tasks = [s.strip() for s in args.tasks.split(",") if s.strip()]
@@ -266,7 +286,7 @@ def main(argv: list[str] | None = None) -> int:
         for case in sim_cases(args.quick):
             for actions in ("random", "bang-bang"):
                 try:
-                    r = run_sim_case(case, envs=8 if args.quick else 64,
+                    r = run_sim_case(case, envs=args.sim_envs or (8 if args.quick else 256),
                                      control_steps=20 if args.quick else 200, actions=actions)
                 except Exception as exc:
                     r = {"case": case.name, "actions": actions, "error": f"{type(exc).__name__}: {exc}"}
