@@ -1,6 +1,6 @@
 """Command-line entry points of ``policies`` (dispatched by rodlab_cli.py; each ``main(argv) -> int``).
 
-* ``rodlab train TASK [--envs 500] [--steps N] [--seed s] [--run-dir DIR] [--resume]`` -> train_main
+* ``rodlab train TASK [--envs 500] [--steps N] [--seed s] [--run-dir DIR] [--resume | --init-from P.zip]`` -> train_main
 * ``rodlab eval POLICY [--task T] [--episodes 100] [--seed s] [--json]``             -> eval_main
 * ``rodlab bench train --task T [--envs 500] [--iters n] [--json]``                  -> bench_train_main
 """
@@ -36,6 +36,14 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument("--run-dir", default="", help="run directory (default runs/<task>__s<seed>__<time>)")
     p.add_argument("--resume", action="store_true", help="continue the run in --run-dir from its checkpoint")
+    p.add_argument("--init-from", default="", metavar="POLICY.zip",
+                   help="warm start a fresh run: copy actor, critic and target-critic weights (and the entropy "
+                        "coefficient when the file holds one) from a policy file of the same task "
+                        "(runs/*/policy.zip, policies/pretrained/*.zip or a checkpoint/model.zip); the replay "
+                        "buffer starts EMPTY, optimizers and step counters start fresh. Not with --resume")
+    p.add_argument("--init-ent-coef", type=float, default=d.init_ent_coef,
+                   help=f"initial entropy coefficient alpha (default {d.init_ent_coef}; with --init-from it is "
+                        "used only when the policy file holds no entropy coefficient)")
     p.add_argument("--updates", type=int, default=d.updates_per_iter, help="gradient updates per iteration")
     p.add_argument("--batch-size", type=int, default=d.batch_size)
     p.add_argument("--buffer-size", type=int, default=d.buffer_size)
@@ -49,6 +57,10 @@ def train_main(argv: list[str]) -> int:
     a = p.parse_args(argv)
     if a.resume and not a.run_dir:
         p.error("--resume needs --run-dir")
+    if a.resume and a.init_from:
+        p.error("--init-from starts a fresh run from a policy's weights; it cannot be combined with --resume")
+    if a.init_ent_coef <= 0:
+        p.error("--init-ent-coef must be positive")
     if not a.resume and not a.task:
         p.error("TASK is required")
     if a.steps < 1 or (a.envs is not None and a.envs < 1):
@@ -57,7 +69,8 @@ def train_main(argv: list[str]) -> int:
                 updates_per_iter=a.updates, batch_size=a.batch_size, buffer_size=a.buffer_size,
                 learning_starts=a.learning_starts, checkpoint_minutes=a.checkpoint_minutes,
                 save_replay_buffer=not a.no_replay_checkpoint, torch_threads=a.threads,
-                log_interval_s=a.log_interval, time_limit_minutes=a.time_limit)
+                log_interval_s=a.log_interval, time_limit_minutes=a.time_limit, init_from=a.init_from,
+                init_ent_coef=a.init_ent_coef)
     if a.resume:
         cfg = os.path.join(a.run_dir, "config.json")
         try:

@@ -12,6 +12,16 @@ A run directory holds::
 Checkpoints are written atomically every ``checkpoint_minutes`` and when SIGINT/SIGTERM arrives;
 ``--resume`` reloads model, optimizers, entropy coefficient and replay buffer, and continues the step
 count and wall-clock. Not restored: RNG states and the in-flight episodes (all envs are reset).
+
+Warm start (``--init-from POLICY.zip``, ``Args.init_from``; fresh runs only, not with ``--resume``): the
+network weights (actor, critics, target critics) are copied from a policy file written by ``save_policy``
+(``runs/*/policy.zip``, ``policies/pretrained/*.zip``) or from a full SB3 checkpoint (``checkpoint/model.zip``),
+after checking that it was trained on the same task with the same observation/action shapes and network
+layout (``TrainError`` otherwise). The entropy coefficient is taken from the file when it holds one
+(SB3 checkpoints; policy files written by this module since ``init_from`` exists store it in
+``meta["extra"]["log_ent_coef"]``), else it starts at ``init_ent_coef``. Everything else starts fresh:
+the replay buffer is EMPTY (it is refilled from the warm-started policy, after ``learning_starts`` random
+transitions), the optimizers' moments, the step/update counters and the wall-clock start at zero.
 """
 from __future__ import annotations
 
@@ -61,6 +71,7 @@ class Args:
     entropy_in_target: bool = False         # reference: use_entropy_reward = False
     target_entropy_scale: float = 0.1       # target entropy = sum ln(scale * (high - low)) = -1.609 * dim
     init_ent_coef: float = 1.0
+    init_from: str = ""                     # warm start: policy .zip to copy the weights from (fresh runs only)
     # runtime
     torch_threads: int = 1
     checkpoint_minutes: float = 5.0
@@ -179,6 +190,82 @@ def git_commit() -> str:
         return sha + ("+dirty" if dirty.stdout.strip() else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
+
+
+def warm_start(model, path: str | os.PathLike, task: str) -> dict:
+    """Copy the network weights of the policy file ``path`` into ``model`` (a fresh ``RodSAC``) in place.
+
+    Loads actor, critics and target critics (a policy-only zip stores no target critics: they start equal
+    to the critics, as after ``load_policy``) and the entropy coefficient when the file holds one. The
+    replay buffer, optimizer moments and counters are not touched (the buffer stays empty). Raises
+    ``TrainError`` for a missing/unreadable file, another task, or mismatching shapes/network layout.
+    Returns a JSON-able description of the source (for config.json).
+    """
+    import torch as th
+
+    from policies.sac import POLICY_FORMAT, RodSAC, load_policy, read_policy_meta
+
+    p = Path(path)
+    if not p.is_file():
+        raise TrainError(f"--init-from: policy file not found: {p}")
+    try:
+        meta = read_policy_meta(p)
+    except PolicyLoadError as exc:
+        raise TrainError(f"--init-from: {exc}") from None
+    src_task = meta.get("task")
+    if not src_task:
+        raise TrainError(f"--init-from: {p} does not say which task it was trained on "
+                         "(no task in meta.json / sidecar config.json)")
+    try:
+        src_task = resolve_task(src_task)
+    except TrainError:
+        pass
+    if src_task != task:
+        raise TrainError(f"--init-from: {p} was trained on task {src_task!r}, not {task!r}")
+    log_ent = None
+    try:
+        if meta.get("format") == "sb3":
+            src = RodSAC.load(p, device=model.device)
+            pol = src.policy
+            if getattr(src, "log_ent_coef", None) is not None and isinstance(src.log_ent_coef, th.Tensor):
+                log_ent = float(src.log_ent_coef.detach().reshape(-1)[0])
+        elif meta.get("format") == POLICY_FORMAT:
+            pol, meta = load_policy(p, device=model.device)
+            v = (meta.get("extra") or {}).get("log_ent_coef")
+            log_ent = float(v) if v is not None else None
+        else:
+            raise TrainError(f"--init-from: {p}: unknown policy format {meta.get('format')!r}")
+    except PolicyLoadError as exc:
+        raise TrainError(f"--init-from: {exc}") from None
+    except (KeyError, ValueError, RuntimeError, OSError, EOFError) as exc:
+        raise TrainError(f"--init-from: cannot load {p} ({type(exc).__name__}: {exc})") from None
+    for what, have, want in (("observation", pol.observation_space, model.observation_space),
+                             ("action", pol.action_space, model.action_space)):
+        if tuple(have.shape) != tuple(want.shape):
+            raise TrainError(f"--init-from: {p} has {what} shape {tuple(have.shape)}, task {task!r} has "
+                             f"{tuple(want.shape)}")
+    if not (np.allclose(pol.action_space.low, model.action_space.low)
+            and np.allclose(pol.action_space.high, model.action_space.high)):
+        raise TrainError(f"--init-from: {p} has other action bounds than task {task!r}")
+    sd, own = pol.state_dict(), model.policy.state_dict()
+    bad = sorted(k for k in set(own) | set(sd) if k not in sd or k not in own or sd[k].shape != own[k].shape)
+    if bad:
+        raise TrainError(f"--init-from: the network in {p} (net_arch {meta.get('net_arch')}, n_critics "
+                         f"{meta.get('n_critics')}) does not match this run's; differing parameters: {bad[:4]}")
+    model.policy.load_state_dict(sd)  # in place: the optimizers keep pointing at the same tensors
+    if log_ent is not None and isinstance(getattr(model, "log_ent_coef", None), th.Tensor):
+        with th.no_grad():
+            model.log_ent_coef.fill_(log_ent)
+    return {"path": str(p), "task": src_task, "format": meta.get("format"),
+            "log_ent_coef": log_ent, "ent_coef_from_file": log_ent is not None,
+            "source_training": (meta.get("extra") or {}).get("training")}
+
+
+def _log_ent_coef(model) -> float | None:
+    import torch as th
+
+    v = getattr(model, "log_ent_coef", None)
+    return float(v.detach().reshape(-1)[0]) if isinstance(v, th.Tensor) else None
 
 
 # ------------------------------------------------------------------------------------ checkpoints
@@ -390,6 +477,9 @@ def train(args: Args, *, resume: bool = False) -> Path:
 
     th.set_num_threads(max(1, args.torch_threads))
     run_dir = Path(args.run_dir) if args.run_dir else Path("runs") / f"{args.task}__s{args.seed}__{time.strftime('%Y%m%d-%H%M%S')}"
+    if resume and args.init_from:
+        raise TrainError("--init-from starts a fresh run from a policy's weights; it cannot be combined with "
+                         "--resume (which continues the run's own checkpoint)")
     if resume:
         cfg_path = run_dir / "config.json"
         if not cfg_path.is_file():
@@ -406,6 +496,8 @@ def train(args: Args, *, resume: bool = False) -> Path:
         args.run_dir = str(run_dir)
         if (run_dir / "checkpoint" / "state.json").exists():
             raise TrainError(f"{run_dir} already holds a checkpoint; pass --resume or choose another --run-dir")
+        if args.init_from and not Path(args.init_from).is_file():  # fail before creating the run directory
+            raise TrainError(f"--init-from: policy file not found: {args.init_from}")
     run_dir.mkdir(parents=True, exist_ok=True)
 
     env = _timed(make_sb3_env(args.task, args.num_envs, args.seed))
@@ -414,6 +506,16 @@ def train(args: Args, *, resume: bool = False) -> Path:
         wall_offset = float(state.get("wall_s", 0.0))
     else:
         model, wall_offset = build_model(args, env), 0.0
+    init_info = None
+    if args.init_from and not resume:
+        try:
+            init_info = warm_start(model, args.init_from, args.task)
+        except TrainError:
+            env.close()
+            raise
+        print(f"warm start from {args.init_from} (actor + critics"
+              f"{' + entropy coefficient' if init_info['ent_coef_from_file'] else ''}; empty replay buffer)",
+              file=sys.stderr, flush=True)
     if not resume or not (run_dir / "config.json").exists():
         import gymnasium
         import stable_baselines3
@@ -422,6 +524,8 @@ def train(args: Args, *, resume: bool = False) -> Path:
                             "gymnasium": gymnasium.__version__, "numpy": np.__version__},
                "obs_shape": list(env.observation_space.shape), "action_shape": list(env.action_space.shape),
                "target_entropy": float(model.target_entropy), "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+        if init_info is not None:
+            cfg["init_from"] = init_info
         _atomic_write_bytes(run_dir / "config.json", json.dumps(cfg, indent=1).encode())
     model.set_logger(configure(str(run_dir / "tb"), ["tensorboard"]))
 
@@ -449,7 +553,8 @@ def train(args: Args, *, resume: bool = False) -> Path:
                    "stopped_by_time_limit": bool(stop_flag.get("time_limit")),
                    "last_train_return": float(monitor.last["ret"]) if hasattr(monitor, "last") else None,
                    "last_train_avg_disc_return": float(monitor.last["dret"]) if hasattr(monitor, "last") else None}
-        save_policy(model, run_dir / "policy.zip", task=args.task, extra={"training": summary})
+        save_policy(model, run_dir / "policy.zip", task=args.task,
+                    extra={"training": summary, "log_ent_coef": _log_ent_coef(model)})
         side = {"task": args.task, "config": args.to_json(), "git_commit": git_commit(), "training": summary}
         _atomic_write_bytes(run_dir / "policy.json", json.dumps(side, indent=1).encode())
         env.close()
@@ -457,4 +562,4 @@ def train(args: Args, *, resume: bool = False) -> Path:
 
 
 __all__ = ["Args", "TrainError", "PolicyLoadError", "train", "make_sb3_env", "resolve_task", "build_model",
-           "save_checkpoint", "load_checkpoint", "target_entropy"]
+           "save_checkpoint", "load_checkpoint", "target_entropy", "warm_start"]
