@@ -17,25 +17,15 @@ from pathlib import Path
 import numpy as np
 
 from .rodlab_runs import Solver, make_sim, scene_dict
-from .stress import _actions, _segments
+from .stress import curvature_commands
 
 
 def run(kind: str, *, envs: int, steps: int, seed: int = 0) -> dict:
     doc = scene_dict(nodes=21, length=1.0, radius=0.05, density=1000.0, youngs=1e7, poisson=0.5, dt=0.05,
                      gravity=(0.0, 0.0, -9.8), solver=Solver(tol=1e-3, max_iter=2), mode="3d", obstacles=None)
     sim, state, ctrl = make_sim(doc, envs=envs)
-    owner, w = _segments(21)
-    act = owner >= 0
-    K = np.zeros((envs, 5, 2))
-    rng = np.random.default_rng(seed)
-    hold: dict = {}
     ratios, fail_step, t = [], np.full(envs, -1), 0
-    for k in range(steps):
-        a = _actions(kind, rng, (envs, 5, 2), k, hold)
-        K_new = np.clip(K + 0.25 * a, -2.0, 2.0)
-        dk = np.zeros((envs, 21, 2))
-        dk[:, act, :] = w[act][None, :, None] * (K_new - K)[:, owner[act], :]
-        K = K_new
+    for dk in curvature_commands(kind, envs=envs, nodes=21, control_steps=steps, seed=seed):
         for _ in range(2):
             ctrl.kappa_bar += dk / 2
             alive = ~state.failed.copy()

@@ -166,6 +166,24 @@ def _segments(n_nodes: int, points: int = 5) -> tuple[np.ndarray, np.ndarray]:
     return owner, w
 
 
+def curvature_commands(actions: str, *, envs: int, nodes: int, control_steps: int, components: int = 2,
+                       seed: int = 0):
+    """Per control step, the natural-curvature increment (envs, nodes, 2) of the sim part's commands: 5 control
+    points moved by 0.25 x (random | bang-bang) per step, saturating at |K| = 2, spread over their nodes."""
+    owner, w = _segments(nodes)
+    act = owner >= 0
+    K = np.zeros((envs, 5, components))
+    rng = np.random.default_rng(seed)
+    hold: dict = {}
+    for k in range(control_steps):
+        a = _actions(actions, rng, (envs, 5, components), k, hold)
+        K_new = np.clip(K + 0.25 * a, -2.0, 2.0)
+        dk = np.zeros((envs, nodes, 2))
+        dk[:, act, :components] = w[act][None, :, None] * (K_new - K)[:, owner[act], :]
+        K = K_new
+        yield dk
+
+
 def run_sim_case(case: SimCase, *, envs: int, control_steps: int, actions: str, hold_steps: int = 20,
                  seed: int = 0) -> dict:
     doc = scene_dict(nodes=case.nodes, length=1.0, radius=case.radius, density=1000.0, youngs=case.youngs,
@@ -173,20 +191,11 @@ def run_sim_case(case: SimCase, *, envs: int, control_steps: int, actions: str, 
                      solver=Solver(tol=1e-3, max_iter=case.max_iter), mode=case.mode,  # type: ignore[arg-type]
                      obstacles=list(case.obstacles) or None)
     sim, state, ctrl = make_sim(doc, envs=envs)
-    owner, w = _segments(case.nodes)
-    act = owner >= 0
-    C = 1 if case.mode == "2d" else 2
-    K = np.zeros((envs, 5, C))
-    rng = np.random.default_rng(seed)
     tally = Tally()
-    hold: dict = {}
     t0 = time.perf_counter()
-    for k in range(control_steps):
-        a = _actions(actions, rng, (envs, 5, C), k, hold)
-        K_new = np.clip(K + 0.25 * a, -2.0, 2.0)
-        dk = np.zeros((envs, case.nodes, 2))
-        dk[:, act, :C] = w[act][None, :, None] * (K_new - K)[:, owner[act], :] / case.substeps
-        K = K_new
+    for dk in curvature_commands(actions, envs=envs, nodes=case.nodes, control_steps=control_steps,
+                                 components=1 if case.mode == "2d" else 2, seed=seed):
+        dk /= case.substeps
         for _ in range(case.substeps):
             ctrl.kappa_bar += dk
             tally.add(sim.step(state, ctrl), state)
