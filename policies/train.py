@@ -227,8 +227,7 @@ def warm_start(model, path: str | os.PathLike, task: str) -> dict:
         if meta.get("format") == "sb3":
             src = RodSAC.load(p, device=model.device)
             pol = src.policy
-            if getattr(src, "log_ent_coef", None) is not None and isinstance(src.log_ent_coef, th.Tensor):
-                log_ent = float(src.log_ent_coef.detach().reshape(-1)[0])
+            log_ent = _log_ent_coef(src)
         elif meta.get("format") == POLICY_FORMAT:
             pol, meta = load_policy(p, device=model.device)
             v = (meta.get("extra") or {}).get("log_ent_coef")
