@@ -14,6 +14,7 @@ __all__ = ["cross", "dot", "transport", "rotate_about", "signed_angle", "initial
            "update_frames", "reference_twist"]
 
 _OPT = dict(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"})
+_TWO_PI = 2.0 * math.pi
 
 
 @njit(inline="always", **_OPT)
@@ -121,12 +122,18 @@ def update_frames(x, d1_old, t_old, beta_old, t, d1, d2, elen, beta):
 
 @njit(**_OPT)
 def reference_twist(d1, t, i, beta_old_i):
-    """Reference twist β_i [rad] at interior node i, computed incrementally from β_old (§1.3)."""
+    """Reference twist β_i [rad] at interior node i, computed incrementally from β_old (§1.3).
+
+    §1.3 rotates the transported d1_{i−1} by β_old about t_i and adds the signed angle from it to d1_i. That
+    angle is the signed angle α from the transported d1_{i−1} to d1_i minus β_old, wrapped to [−π, π); this
+    computes it that way (the same value, without the rotation's cos/sin), so β keeps counting whole turns.
+    """
     ta = (t[i - 1, 0], t[i - 1, 1], t[i - 1, 2])
     tb = (t[i, 0], t[i, 1], t[i, 2])
     u = transport((d1[i - 1, 0], d1[i - 1, 1], d1[i - 1, 2]), ta, tb)
-    u = rotate_about(u, tb, beta_old_i)
-    return beta_old_i + signed_angle(u, (d1[i, 0], d1[i, 1], d1[i, 2]), tb)
+    dlt = signed_angle(u, (d1[i, 0], d1[i, 1], d1[i, 2]), tb) - beta_old_i
+    dlt -= _TWO_PI * math.floor((dlt + math.pi) / _TWO_PI)
+    return beta_old_i + dlt
 
 
 def initial_reference_frames(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

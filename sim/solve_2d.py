@@ -8,7 +8,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .banded import band_lu_solve
+from .banded import band_ldl_solve, band_lu_solve
 from .contact_kernels import (
     contact_accumulate,
     contact_broadphase,
@@ -28,8 +28,9 @@ __all__ = ["step_kernel_2d"]
 # ----------------------------------------------------------------------------------------------- 2-D
 @njit(**_OPT)
 def _assemble_2d(e, x, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, pos, pos0, f, ab,
-                 g4, H4, g6, H6, cg, ch, with_jac):
-    """2-D residual and banded Jacobian (half-bandwidth 5). Returns (‖f‖, Es, Eb, 0, Ec)."""
+                 g4, H4, g6, H6, cg, ch, with_jac, sym):
+    """2-D residual and banded Jacobian (half-bandwidth 5; with ``sym`` only its upper half, see _assemble_3d).
+    Returns (‖f‖, Es, Eb, 0, Ec)."""
     n = x.shape[0]
     N = n // 2
     kl = 5
@@ -58,7 +59,7 @@ def _assemble_2d(e, x, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, 
             f[o + a] += g4[a]
         if with_jac:
             for a in range(4):
-                for b in range(4):
+                for b in range(a if sym else 0, 4):
                     ab[o + a, kl + b - a] += H4[a, b]
     eb = 0.0
     for i in range(1, N - 1):
@@ -70,7 +71,7 @@ def _assemble_2d(e, x, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, 
             f[o + a] += g6[a]
         if with_jac:
             for a in range(6):
-                for b in range(6):
+                for b in range(a if sym else 0, 6):
                     ab[o + a, kl + b - a] += H6[a, b]
     ec = 0.0
     if prm[P_NOBS] > 0:
@@ -94,7 +95,7 @@ def _assemble_2d(e, x, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, 
                 for a in range(4):
                     la = (a // 2) * 3 + (0 if a % 2 == 0 else 2)
                     r = 2 * j + a
-                    for b in range(4):
+                    for b in range(a if sym else 0, 4):
                         lb = (b // 2) * 3 + (0 if b % 2 == 0 else 2)
                         c = 2 * j + b
                         ab[r, kl + c - r] += ch[j, la, lb]
@@ -120,6 +121,7 @@ def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
     maxit = int(prm[P_MAXIT])
     tol = prm[P_TOL]
     dtol = prm[P_DTOL]
+    sym = not (prm[P_NOBS] > 0 and prm[P_CFRIC] > 0)  # only friction makes the Jacobian non-symmetric
     for k in range(n):
         x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
     r0 = 0.0
@@ -128,7 +130,7 @@ def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
     it = 0
     while it < maxit:
         r, _, _, _, _ = _assemble_2d(e, x, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, pos, pos0,
-                                     f, ab, g4, H4, g6, H6, cg, ch, True)
+                                     f, ab, g4, H4, g6, H6, cg, ch, True, sym)
         if not np.isfinite(r):
             return 1, it, False, r, r0
         if it == 0:
@@ -140,7 +142,7 @@ def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
             break
         for k in range(n):
             dx[k] = f[k]
-        if band_lu_solve(ab, n, 5, dx) != 0:
+        if (band_ldl_solve(ab, n, 5, dx) if sym else band_lu_solve(ab, n, 5, dx)) != 0:
             return 3, it, False, r, r0
         if prm[P_CCD] > 0 and prm[P_NOBS] > 0 and cd[13][e] > 0:  # no update may tunnel (see _newton_3d)
             N = n // 2
@@ -158,7 +160,7 @@ def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
                 for k in range(n):
                     xt[k] = x[k] - alpha * dx[k]
                 rt, _, _, _, _ = _assemble_2d(e, xt, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd,
-                                              pos, pos0, f, ab, g4, H4, g6, H6, cg, ch, False)
+                                              pos, pos0, f, ab, g4, H4, g6, H6, cg, ch, False, sym)
                 if (np.isfinite(rt) and rt <= r) or trial == 4:
                     break
                 alpha *= 0.5

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .banded import band_lu_solve
+from .banded import band_ldl_solve, band_lu_solve
 from .contact_kernels import (
     contact_accumulate,
     contact_broadphase,
@@ -27,8 +27,10 @@ __all__ = ["step_kernel_3d"]
 # ----------------------------------------------------------------------------------------------- 3-D
 @njit(**_OPT)
 def _assemble_3d(e, x, x0, u, h, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd,
-                 pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk, cg, ch, with_jac):
-    """Residual f (n,) and, if with_jac, banded Jacobian ab (n, 21) at x. Returns (‖f‖, Es, Eb, Et, Ec)."""
+                 pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk, cg, ch, with_jac, sym):
+    """Residual f (n,) and, if with_jac, banded Jacobian ab (n, 21) at x; with ``sym`` (no friction: the
+    Jacobian is symmetric) only its upper half is assembled (for band_ldl_solve; the lower half is left
+    unspecified). Returns (‖f‖, Es, Eb, Et, Ec)."""
     n = x.shape[0]
     N = n // 4
     kl = 10
@@ -69,9 +71,9 @@ def _assemble_3d(e, x, x0, u, h, d1o, to, bo, kb, tb, rest_len, vor_len, mass, f
             f[o0 + a] += g6[a]
             f[o1 + a] += g6[3 + a]
         if with_jac:
-            for a in range(6):
+            for a in range(6):  # local -> global index is increasing: upper half <=> b >= a
                 r = o0 + a if a < 3 else o1 + a - 3
-                for b in range(6):
+                for b in range(a if sym else 0, 6):
                     c = o0 + b if b < 3 else o1 + b - 3
                     ab[r, kl + c - r] += H6[a, b]
     eb = 0.0
@@ -91,7 +93,7 @@ def _assemble_3d(e, x, x0, u, h, d1o, to, bo, kb, tb, rest_len, vor_len, mass, f
         if with_jac:
             for a in range(11):
                 r = o + a
-                for b in range(11):
+                for b in range(a if sym else 0, 11):
                     ab[r, kl + b - a] += H11[a, b]
     ec = 0.0
     if prm[P_NOBS] > 0:
@@ -109,7 +111,7 @@ def _assemble_3d(e, x, x0, u, h, d1o, to, bo, kb, tb, rest_len, vor_len, mass, f
             for j in range(N - 1):
                 for a in range(6):
                     r = 4 * j + a if a < 3 else 4 * j + 1 + a
-                    for b in range(6):
+                    for b in range(a if sym else 0, 6):
                         c = 4 * j + b if b < 3 else 4 * j + 1 + b
                         ab[r, kl + c - r] += ch[j, a, b]
     r2 = 0.0
@@ -137,6 +139,7 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
     maxit = int(prm[P_MAXIT])
     tol = prm[P_TOL]
     dtol = prm[P_DTOL]
+    sym = not (prm[P_NOBS] > 0 and prm[P_CFRIC] > 0)  # only friction makes the Jacobian non-symmetric
     for k in range(n):
         x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
     r0 = 0.0
@@ -146,7 +149,7 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
     while it < maxit:
         r, _, _, _, _ = _assemble_3d(e, x, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav,
                                      prm, cd, pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk,
-                                     cg, ch, True)
+                                     cg, ch, True, sym)
         if not np.isfinite(r):
             return 1, it, False, r, r0
         if it == 0:
@@ -158,7 +161,7 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
             break
         for k in range(n):
             dx[k] = f[k]
-        if band_lu_solve(ab, n, 10, dx) != 0:
+        if (band_ldl_solve(ab, n, 10, dx) if sym else band_lu_solve(ab, n, 10, dx)) != 0:
             return 3, it, False, r, r0
         if prm[P_CCD] > 0 and prm[P_NOBS] > 0 and cd[13][e] > 0:  # no update may tunnel (pos = nodes at x)
             N = n // 4
@@ -176,7 +179,7 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
                     xt[k] = x[k] - alpha * dx[k]
                 rt, _, _, _, _ = _assemble_3d(e, xt, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass,
                                               fixed, grav, prm, cd, pos, pos0, t, d1, d2, elen, beta, f, ab,
-                                              g6, H6, g11, H11, wk, cg, ch, False)
+                                              g6, H6, g11, H11, wk, cg, ch, False, sym)
                 if (np.isfinite(rt) and rt <= r) or trial == 4:
                     break
                 alpha *= 0.5

@@ -59,3 +59,50 @@ def test_banded_lu_reports_bad_pivots():
     A2[0, 0] = np.inf
     _, st = solve_dense_banded(A2, 5, np.ones(30))
     assert st != 0
+
+
+# ------------------------------------------------------------------ symmetric twin (LDLᵀ, upper half only)
+@pytest.mark.parametrize("n, kl", [(84, 10), (42, 5), (12, 10), (7, 5), (1, 10)])
+def test_banded_ldl_matches_dense_solve_and_lu(n, kl):
+    rng = np.random.default_rng(100 + n + kl)
+    for _ in range(5):
+        A = _random_banded(rng, n, kl, True)
+        b = rng.standard_normal(n)
+        x, st = solve_dense_banded(A, kl, b, symmetric=True)  # lower half is NaN there: never read
+        assert st == 0
+        ref = np.linalg.solve(A, b)
+        assert np.abs(x - ref).max() <= 1e-12 * max(1.0, np.abs(ref).max())
+        x_lu, _ = solve_dense_banded(A, kl, b)
+        assert np.abs(x - x_lu).max() <= 1e-12 * max(1.0, np.abs(ref).max())
+
+
+def test_banded_ldl_indefinite_and_constraint_rows():
+    """An indefinite symmetric matrix (negative pivots, as a Newton Jacobian with compressive bending can be)
+    is solved; identity rows/columns of fixed DOFs give exact zeros."""
+    rng = np.random.default_rng(5)
+    n, kl = 40, 10
+    A = _random_banded(rng, n, kl, True)
+    A[np.arange(0, n, 3), np.arange(0, n, 3)] *= -1.0
+    for k in (0, 1, 2, 39):
+        A[k, :] = 0
+        A[:, k] = 0
+        A[k, k] = 1
+    b = rng.standard_normal(n)
+    b[[0, 1, 2, 39]] = 0
+    x, st = solve_dense_banded(A, kl, b, symmetric=True)
+    assert st == 0 and np.all(x[[0, 1, 2, 39]] == 0)
+    assert np.allclose(A @ x, b, atol=1e-11)
+
+
+def test_banded_ldl_reports_bad_pivots():
+    rng = np.random.default_rng(2)
+    A = _random_banded(rng, 30, 5, True)
+    for bad in ("zero", "nan", "inf"):
+        Ab = A.copy()
+        if bad == "zero":
+            Ab[7, :] = 0.0
+            Ab[:, 7] = 0.0
+        else:
+            Ab[3, 3] = np.nan if bad == "nan" else np.inf
+        _, st = solve_dense_banded(Ab, 5, np.ones(30), symmetric=True)
+        assert st != 0, bad
