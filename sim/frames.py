@@ -55,14 +55,18 @@ def norm(a):
 
 @njit(**_OPT)
 def transport(u, ta, tb):
-    """Parallel transport P(u; ta -> tb) of a vector u ⟂ ta, then re-orthonormalised against tb (unit tb)."""
-    b = cross(ta, tb)
-    nb = norm(b)
-    if nb > 0.0:
-        bh = scale(1.0 / nb, b)
-        na = cross(ta, bh)
-        nbv = cross(tb, bh)
-        out = axpy(dot(u, ta), tb, axpy(dot(u, na), nbv, scale(dot(u, bh), bh)))
+    """Parallel transport P(u; ta -> tb) of a vector u ⟂ ta, then re-orthonormalised against tb (unit tb).
+
+    The rotation about ta × tb taking ta to tb, in Rodrigues form with the unnormalised axis k = ta × tb and
+    c = ta·tb: P u = c u + k × u + (k·u)/(1 + c) k (no square root; the same rotation as normalising the axis).
+    Parallel tangents give u; (anti)parallel ones (1 + c ≤ 1e-12) have no unique rotation and also keep u.
+    """
+    c = dot(ta, tb)
+    if 1.0 + c > 1e-12:
+        k = cross(ta, tb)
+        kxu = cross(k, u)
+        s = dot(k, u) / (1.0 + c)
+        out = (c * u[0] + kxu[0] + s * k[0], c * u[1] + kxu[1] + s * k[1], c * u[2] + kxu[2] + s * k[2])
     else:
         out = u
     out = axpy(-dot(out, tb), tb, out)
@@ -131,7 +135,9 @@ def reference_twist(d1, t, i, beta_old_i):
     ta = (t[i - 1, 0], t[i - 1, 1], t[i - 1, 2])
     tb = (t[i, 0], t[i, 1], t[i, 2])
     u = transport((d1[i - 1, 0], d1[i - 1, 1], d1[i - 1, 2]), ta, tb)
-    dlt = signed_angle(u, (d1[i, 0], d1[i, 1], d1[i, 2]), tb) - beta_old_i
+    # signed angle from u to d1_i about t_i: both are ⟂ t_i, so u × d1_i ∥ t_i and its t_i component is ±|u × d1_i|
+    d1i = (d1[i, 0], d1[i, 1], d1[i, 2])
+    dlt = math.atan2(dot(tb, cross(u, d1i)), dot(u, d1i)) - beta_old_i
     dlt -= _TWO_PI * math.floor((dlt + math.pi) / _TWO_PI)
     return beta_old_i + dlt
 

@@ -16,7 +16,7 @@ from .contact_kernels import (
     contact_report,
     contact_step_limit,
 )
-from .energies.bend_twist import bend_twist_element, material_curvatures
+from .energies.bend_twist import bend_twist_core, material_curvatures, material_directors
 from .energies.stretch import stretch_element
 from .frames import update_frames
 from .solve_params import *  # noqa: F403  (P_* prm indices, F_*/I_* output columns, _OPT)
@@ -27,7 +27,7 @@ __all__ = ["step_kernel_3d"]
 # ----------------------------------------------------------------------------------------------- 3-D
 @njit(**_OPT)
 def _assemble_3d(e, x, x0, u, h, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd,
-                 pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk, cg, ch, with_jac, sym):
+                 pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk, cg, ch, mf, with_jac, sym):
     """Residual f (n,) and, if with_jac, banded Jacobian ab (n, 21) at x; with ``sym`` (no friction: the
     Jacobian is symmetric) only its upper half is assembled (for band_ldl_solve; the lower half is left
     unspecified). Returns (‖f‖, Es, Eb, Et, Ec)."""
@@ -78,14 +78,19 @@ def _assemble_3d(e, x, x0, u, h, d1o, to, bo, kb, tb, rest_len, vor_len, mass, f
                     ab[r, kl + c - r] += H6[a, b]
     eb = 0.0
     et = 0.0
+    for j in range(N - 1):  # material directors once per edge (each enters two bend/twist elements)
+        m1, m2 = material_directors((d1[j, 0], d1[j, 1], d1[j, 2]), (d2[j, 0], d2[j, 1], d2[j, 2]), x[4 * j + 3])
+        for a in range(3):
+            mf[j, a] = m1[a]
+            mf[j, 3 + a] = m2[a]
     for i in range(1, N - 1):
         o = 4 * (i - 1)
-        ebi, eti = bend_twist_element(
+        ebi, eti = bend_twist_core(
             (x[o], x[o + 1], x[o + 2]), (x[o + 4], x[o + 5], x[o + 6]), (x[o + 8], x[o + 9], x[o + 10]),
-            (d1[i - 1, 0], d1[i - 1, 1], d1[i - 1, 2]), (d2[i - 1, 0], d2[i - 1, 1], d2[i - 1, 2]),
-            (d1[i, 0], d1[i, 1], d1[i, 2]), (d2[i, 0], d2[i, 1], d2[i, 2]),
-            x[o + 3], x[o + 7], beta[i], kb[i, 0], kb[i, 1], tb[i], EI1, EI2, GJ, vor_len[i],
-            g11, H11, wk, with_jac)
+            (mf[i - 1, 0], mf[i - 1, 1], mf[i - 1, 2]), (mf[i - 1, 3], mf[i - 1, 4], mf[i - 1, 5]),
+            (mf[i, 0], mf[i, 1], mf[i, 2]), (mf[i, 3], mf[i, 4], mf[i, 5]),
+            x[o + 7] - x[o + 3] + beta[i], kb[i, 0], kb[i, 1], tb[i], EI1, EI2, GJ, vor_len[i],
+            g11, H11, wk, with_jac, sym)
         eb += ebi
         et += eti
         for a in range(11):
@@ -134,7 +139,7 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
 
     Returns (status, iterations, converged, ‖f‖ last, ‖f0‖); status 0 = ok (converged or unconverged at
     the iteration cap), 1 non-finite, 2 residual growth, 3 bad pivot."""
-    (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch) = w
+    (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch, mf) = w
     n = x0.shape[0]
     maxit = int(prm[P_MAXIT])
     tol = prm[P_TOL]
@@ -149,7 +154,7 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
     while it < maxit:
         r, _, _, _, _ = _assemble_3d(e, x, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav,
                                      prm, cd, pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk,
-                                     cg, ch, True, sym)
+                                     cg, ch, mf, True, sym)
         if not np.isfinite(r):
             return 1, it, False, r, r0
         if it == 0:
@@ -179,7 +184,7 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
                     xt[k] = x[k] - alpha * dx[k]
                 rt, _, _, _, _ = _assemble_3d(e, xt, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass,
                                               fixed, grav, prm, cd, pos, pos0, t, d1, d2, elen, beta, f, ab,
-                                              g6, H6, g11, H11, wk, cg, ch, False, sym)
+                                              g6, H6, g11, H11, wk, cg, ch, mf, False, sym)
                 if (np.isfinite(rt) and rt <= r) or trial == 4:
                     break
                 alpha *= 0.5
@@ -208,7 +213,7 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
     Returns (status, iterations, converged, ‖f‖ last, ‖f0‖, max penetration [m] at the end of the sub-step,
     max penetration [m] at its start (only if want_pen0)) (penetrations 0 without obstacles or contact
     candidates); status 0 = ok."""
-    (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch) = w
+    (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch, mf) = w
     n = x0.shape[0]
     N = n // 4
     hs = h if prm[P_INTEG] == 0 else 0.5 * h
@@ -291,12 +296,13 @@ def _alloc_3d(N):
     return (np.empty(n), np.empty(n), np.zeros(n + 10), np.empty(n), np.empty((n + 10, 21)), np.empty((N, 3)),
             np.empty((N, 3)), np.empty((N - 1, 3)), np.empty((N - 1, 3)), np.empty((N - 1, 3)), np.empty(N - 1),
             np.empty(N), np.empty(6), np.empty((6, 6)), np.empty(11), np.empty((11, 11)), np.empty((17, 11)),
-            np.zeros((N, 3)), np.zeros((N - 1, 6, 6)))
+            np.zeros((N, 3)), np.zeros((N - 1, 6, 6)), np.empty((N - 1, 6)))
 
 
 @njit(**_OPT)
-def _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm):
-    """(E_stretch, E_bend, E_twist) [J] of a state whose stored frames (d1s, ts, bs) are at xs."""
+def _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm, mf):
+    """(E_stretch, E_bend, E_twist) [J] of a state whose stored frames (d1s, ts, bs) are at xs (mf: (N-1, 6)
+    scratch for the material directors)."""
     N = xs.shape[0] // 4
     EA = prm[P_EA]
     es = 0.0
@@ -307,26 +313,20 @@ def _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm):
         ez = xs[o + 6] - xs[o + 2]
         eps = math.sqrt(ex * ex + ey * ey + ez * ez) / rest_len[j] - 1.0
         es += 0.5 * EA * rest_len[j] * eps * eps
+        a0, a1, a2 = d1s[j, 0], d1s[j, 1], d1s[j, 2]
+        t0, t1, t2 = ts[j, 0], ts[j, 1], ts[j, 2]
+        m1, m2 = material_directors((a0, a1, a2), (t1 * a2 - t2 * a1, t2 * a0 - t0 * a2, t0 * a1 - t1 * a0), xs[o + 3])
+        for a in range(3):
+            mf[j, a] = m1[a]
+            mf[j, 3 + a] = m2[a]
     eb = 0.0
     et = 0.0
-    m1 = np.empty((2, 3))
-    m2 = np.empty((2, 3))
     for i in range(1, N - 1):
         o = 4 * (i - 1)
-        for s in range(2):
-            j = i - 1 + s
-            th = xs[4 * j + 3]
-            c = math.cos(th)
-            sn = math.sin(th)
-            t0, t1, t2 = ts[j, 0], ts[j, 1], ts[j, 2]
-            a0, a1, a2 = d1s[j, 0], d1s[j, 1], d1s[j, 2]
-            b0, b1, b2 = t1 * a2 - t2 * a1, t2 * a0 - t0 * a2, t0 * a1 - t1 * a0
-            m1[s, 0], m1[s, 1], m1[s, 2] = c * a0 + sn * b0, c * a1 + sn * b1, c * a2 + sn * b2
-            m2[s, 0], m2[s, 1], m2[s, 2] = -sn * a0 + c * b0, -sn * a1 + c * b1, -sn * a2 + c * b2
         k1, k2 = material_curvatures((xs[o], xs[o + 1], xs[o + 2]), (xs[o + 4], xs[o + 5], xs[o + 6]),
-                                     (xs[o + 8], xs[o + 9], xs[o + 10]), (m1[0, 0], m1[0, 1], m1[0, 2]),
-                                     (m2[0, 0], m2[0, 1], m2[0, 2]), (m1[1, 0], m1[1, 1], m1[1, 2]),
-                                     (m2[1, 0], m2[1, 1], m2[1, 2]))
+                                     (xs[o + 8], xs[o + 9], xs[o + 10]), (mf[i - 1, 0], mf[i - 1, 1], mf[i - 1, 2]),
+                                     (mf[i - 1, 3], mf[i - 1, 4], mf[i - 1, 5]), (mf[i, 0], mf[i, 1], mf[i, 2]),
+                                     (mf[i, 3], mf[i, 4], mf[i, 5]))
         lv = vor_len[i]
         eb += 0.5 / lv * (prm[P_EI1] * (k1 - kb[i, 0]) ** 2 + prm[P_EI2] * (k2 - kb[i, 1]) ** 2)
         tw = xs[o + 7] - xs[o + 3] + bs[i] - tb[i]
@@ -413,8 +413,8 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
         ts[:, :] = to
         bs[:] = bo
     # energies at the (new or restored) state; its stored frames are the frames at xs
-    (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch) = w
-    es, eb, et = _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm)
+    (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch, mf) = w
+    es, eb, et = _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm, mf)
     ec = 0.0
     if prm[P_NOBS] > 0:
         for k in range(N):

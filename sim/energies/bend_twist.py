@@ -13,7 +13,7 @@ from numba import njit
 
 from sim.frames import add, axpy, cross, dot, norm, scale, sub
 
-__all__ = ["bend_twist_element", "material_curvatures"]
+__all__ = ["bend_twist_core", "bend_twist_element", "material_curvatures", "material_directors"]
 
 _OPT = dict(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"})
 
@@ -48,28 +48,41 @@ def bend_twist_element(xm, xi, xp, d1e, d2e, d1f, d2f, the, thf, beta, kbar1, kb
 
     xm, xi, xp: node positions x_{i−1}, x_i, x_{i+1} (3-tuples, m); d1e, d2e, d1f, d2f: reference directors
     of edges i−1 (e) and i (f); the, thf: twist angles [rad]; beta: reference twist [rad].
-    Writes g (11,), and H (11, 11) if with_hess; wk is (17, 11) scratch. Returns (E_bend, E_twist) [J].
+    Writes g (11,), and the full symmetric H (11, 11) if with_hess; wk is (17, 11) scratch.
+    Returns (E_bend, E_twist) [J]. The solver calls :func:`bend_twist_core` with the material directors of
+    each edge computed once.
     """
+    m1e, m2e = material_directors(d1e, d2e, the)
+    m1f, m2f = material_directors(d1f, d2f, thf)
+    return bend_twist_core(xm, xi, xp, m1e, m2e, m1f, m2f, thf - the + beta, kbar1, kbar2, taubar, EI1, EI2, GJ,
+                           lv, g, H, wk, with_hess, False)
+
+
+@njit(inline="always", **_OPT)
+def material_directors(d1, d2, theta):
+    """(m1, m2) = (cos θ d1 + sin θ d2, −sin θ d1 + cos θ d2) of one edge (3-tuples)."""
+    c = math.cos(theta)
+    s = math.sin(theta)
+    return axpy(c, d1, scale(s, d2)), axpy(-s, d1, scale(c, d2))
+
+
+@njit(**_OPT)
+def bend_twist_core(xm, xi, xp, m1e, m2e, m1f, m2f, tau, kbar1, kbar2, taubar, EI1, EI2, GJ, lv, g, H, wk,
+                    with_hess, upper_only):
+    """:func:`bend_twist_element` from the material directors m1, m2 of edges e and f and the twist
+    τ = θ_f − θ_e + β. With ``upper_only`` only H's upper triangle (q ≥ p) is written (what the symmetric
+    banded assembly reads); the lower triangle is then left unspecified."""
     e = sub(xi, xm)
     f = sub(xp, xi)
     ne = norm(e)
     nf = norm(f)
     te = scale(1.0 / ne, e)
     tf = scale(1.0 / nf, f)
-    ce = math.cos(the)
-    se = math.sin(the)
-    cf = math.cos(thf)
-    sf = math.sin(thf)
-    m1e = axpy(ce, d1e, scale(se, d2e))
-    m2e = axpy(-se, d1e, scale(ce, d2e))
-    m1f = axpy(cf, d1f, scale(sf, d2f))
-    m2f = axpy(-sf, d1f, scale(cf, d2f))
     chi = 1.0 + dot(te, tf)
     ichi = 1.0 / chi
     kb = scale(2.0 * ichi, cross(te, tf))
     k1 = 0.5 * dot(kb, add(m2e, m2f))
     k2 = -0.5 * dot(kb, add(m1e, m1f))
-    tau = thf - the + beta
     tt = scale(ichi, add(te, tf))
     mt1 = scale(ichi, add(m1e, m1f))
     mt2 = scale(ichi, add(m2e, m2f))
@@ -215,19 +228,16 @@ def bend_twist_element(xm, xi, xp, d1e, d2e, d1f, d2f, the, thf, beta, kbar1, kb
         H[7, 7] = c1 * (-0.5 * kbm2f) + c2 * (0.5 * kbm1f)
         H[3, 7] = 0.0
         H[7, 3] = 0.0
-        # mirror the upper off-diagonal node blocks (0,4), (0,8), (4,8) to the lower ones
-        for a in range(3):
-            for b in range(3):
-                H[4 + b, a] = H[a, 4 + b]
-                H[8 + b, a] = H[a, 8 + b]
-                H[8 + b, 4 + a] = H[4 + a, 8 + b]
+        # every upper entry is set now (the off-diagonal node blocks (0,4), (0,8), (4,8) are upper); add the
+        # Gauss–Newton part on the upper triangle, then mirror unless the caller reads the upper half only
         for p in range(11):
             u1 = s1 * gk1[p]
             u2 = s2 * gk2[p]
             u3 = s3 * gt[p]
             for q in range(p, 11):
                 H[p, q] += u1 * gk1[q] + u2 * gk2[q] + u3 * gt[q]
-        for p in range(11):
-            for q in range(p + 1, 11):
-                H[q, p] = H[p, q]
+        if not upper_only:
+            for p in range(11):
+                for q in range(p + 1, 11):
+                    H[q, p] = H[p, q]
     return 0.5 * (s1 * dk1 * dk1 + s2 * dk2 * dk2), 0.5 * s3 * dtw * dtw

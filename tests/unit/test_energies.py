@@ -189,3 +189,27 @@ def test_planar_curvature_matches_3d_kappa1_for_upright_rod():
     k1, k2 = material_curvatures(tuple(x[0]), tuple(x[1]), tuple(x[2]), tuple(d1[0]), tuple(d2[0]), tuple(d1[1]),
                                  tuple(d2[1]))
     assert np.isclose(k1, k2d) and abs(k2) < 1e-14
+
+
+def test_bend_twist_core_upper_only_matches_full_upper_triangle():
+    """The solver's symmetric path asks the element for the upper triangle only: it must equal the full
+    Hessian's upper triangle (and the gradient and energies must not change)."""
+    from sim.energies.bend_twist import bend_twist_core, material_directors
+
+    rng = np.random.default_rng(7)
+    x = np.cumsum(rng.uniform(0.05, 0.1, (3, 3)), axis=0)
+    d1, t = initial_reference_frames(x)
+    d2 = np.cross(t, d1)
+    th = rng.standard_normal(2)
+    m1e, m2e = material_directors(tuple(d1[0]), tuple(d2[0]), th[0])
+    m1f, m2f = material_directors(tuple(d1[1]), tuple(d2[1]), th[1])
+    out = []
+    for upper in (False, True):
+        g, H, wk = np.zeros(11), np.full((11, 11), np.nan), np.zeros((17, 11))
+        E = bend_twist_core(tuple(x[0]), tuple(x[1]), tuple(x[2]), m1e, m2e, m1f, m2f, th[1] - th[0] + 0.1,
+                            0.1, -0.2, 0.3, 1.3, 0.7, 0.9, 0.1, g, H, wk, True, upper)
+        out.append((E, g, H))
+    (E0, g0, H0), (E1, g1, H1) = out
+    iu = np.triu_indices(11)
+    assert E0 == E1 and np.array_equal(g0, g1)
+    assert np.all(np.isfinite(H0)) and np.array_equal(H0[iu], H1[iu])

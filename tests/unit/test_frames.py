@@ -90,3 +90,15 @@ def test_reference_twist_is_incremental_beyond_pi():
         d1 = np.array([[1.0, 0.0, 0.0], [np.cos(ang), np.sin(ang), 0.0]])
         beta = reference_twist(d1, t, 1, beta)
     assert abs(beta - 4.0) < 1e-12
+
+
+def test_transport_antiparallel_and_near_antiparallel_stay_finite_unit():
+    """A tangent that flips (1 + ta·tb -> 0) has no unique transport; the result must still be a finite unit
+    vector ⟂ tb, never NaN."""
+    ta = np.array([0.0, 0.0, 1.0])
+    u = (1.0, 0.0, 0.0)
+    for eps in (0.0, 1e-14, 1e-9, 1e-6):
+        tb = _unit(np.array([eps, 0.3 * eps, -1.0]))
+        v = np.array(transport(u, tuple(ta), tuple(tb)))
+        assert np.all(np.isfinite(v)), eps
+        assert abs(v @ tb) < 1e-12 and abs(np.linalg.norm(v) - 1) < 1e-12, eps
