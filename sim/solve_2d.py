@@ -21,7 +21,7 @@ from .energies.planar import planar_bend_element
 from .energies.stretch import stretch_element_2d
 from .frames import update_frames
 from .solve_params import *  # noqa: F403  (P_* prm indices, F_*/I_* output columns, _OPT)
-from .solve_params import _OPT
+from .solve_params import _CHUNK, _OPT
 
 __all__ = ["step_kernel_2d"]
 
@@ -41,7 +41,10 @@ def _assemble_2d(e, x, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, 
     ih = 1.0 / h
     ih2 = ih * ih
     if with_jac:
-        ab[:, :] = 0.0
+        if sym:
+            ab[:, kl:] = 0.0  # the LDLᵀ path never reads the lower half
+        else:
+            ab[:, :] = 0.0
         for k in range(n, n + kl):
             ab[k, kl] = 1.0
     for k in range(n):
@@ -260,6 +263,14 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
 
 
 @njit(**_OPT)
+def _alloc_env_2d(N):
+    """Per-thread step workspace: (sub)step start state, guard fallback state, 3-D frame scratch."""
+    n = 2 * N
+    return (np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty((N - 1, 3)), np.empty((N - 1, 3)),
+            np.empty((N - 1, 3)), np.empty(N - 1), np.empty(N))
+
+
+@njit(**_OPT)
 def _alloc_2d(N):
     n = 2 * N
     return (np.empty(n), np.empty(n), np.zeros(n + 5), np.empty(n), np.empty((n + 5, 11)), np.empty((N, 3)),
@@ -300,12 +311,11 @@ def _energies_2d(xs, kb, rest_len, vor_len, prm, g4, H4, g6, H6):
 
 
 @njit(**_OPT)
-def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, crep, fo, io):
+def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, crep, fo, io, w, sw):
+    """One env's step; w (_alloc_2d) and sw (_alloc_env_2d): the calling thread's workspaces (see _env_step_3d)."""
     n = xs.shape[0]
     N = n // 2
-    w = _alloc_2d(N)
-    x0 = np.empty(n)
-    u = np.empty(n)
+    (x0, u, fb_x, fb_u, t, d1, d2, elen, beta) = sw
     ok = False
     iters = 0
     conv_all = True
@@ -314,8 +324,6 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
     ns = 1
     levels = int(prm[P_LEVELS])
     fb_pen = np.inf  # penetration-guard fallback (see _env_step_3d)
-    fb_x = np.empty(0)
-    fb_u = np.empty(0)
     fb_ns, fb_it, fb_conv, fb_r, fb_r0 = 1, 0, False, 0.0, 0.0
     lim = prm[P_MAXPEN]  # guard limit [m]: raised to (start penetration + limit/4) for a step starting deeper
     for level in range(levels):
@@ -343,8 +351,8 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
         if ok and pen > lim and level < levels - 1:
             if pen < fb_pen:
                 fb_pen = pen
-                fb_x = x0.copy()
-                fb_u = u.copy()
+                fb_x[:] = x0
+                fb_u[:] = u
                 fb_ns, fb_it, fb_conv, fb_r, fb_r0 = ns, iters, conv_all, r, r0
             ok = False
             continue
@@ -359,11 +367,6 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
     if ok:
         xs[:] = x0
         us[:] = u
-        t = np.empty((N - 1, 3))
-        d1 = np.empty((N - 1, 3))
-        d2 = np.empty((N - 1, 3))
-        elen = np.empty(N - 1)
-        beta = np.empty(N)
         _frames_from_2d(xs, prm[P_PLANEY], d1s, ts, bs, pos, t, d1, d2, elen, beta)
     es, eb = _energies_2d(xs, kb, rest_len, vor_len, prm, g4, H4, g6, H6)
     ec = 0.0
@@ -415,16 +418,21 @@ def step_kernel_2d(dof, vel, d1s, ts, bs, times, failed, kappa_bar, rest_len, vo
                    cd, crep, fo, io):
     """2-D analogue of step_kernel_3d; dof/vel (B, 2N) views of State.dof ([x, z] per node)."""
     B = dof.shape[0]
-    for e in prange(B):
-        for c in range(F_COLS):
-            fo[e, c] = 0.0
-        for c in range(I_COLS):
-            io[e, c] = 0
-        if failed[e]:
-            continue
-        ok = _env_step_2d(e, dof[e], vel[e], d1s[e], ts[e], bs[e], kappa_bar[e], rest_len, vor_len, mass, fixed,
-                          grav, prm, cd, crep, fo[e], io[e])
-        if ok:
-            times[e] += prm[P_DT]
-        else:
-            failed[e] = True
+    N = dof.shape[1] // 2
+    nch = (B + _CHUNK - 1) // _CHUNK
+    for chunk in prange(nch):  # workspaces once per chunk of envs (see step_kernel_3d)
+        w = _alloc_2d(N)
+        sw = _alloc_env_2d(N)
+        for e in range(chunk * _CHUNK, min(B, chunk * _CHUNK + _CHUNK)):
+            for c in range(F_COLS):
+                fo[e, c] = 0.0
+            for c in range(I_COLS):
+                io[e, c] = 0
+            if failed[e]:
+                continue
+            ok = _env_step_2d(e, dof[e], vel[e], d1s[e], ts[e], bs[e], kappa_bar[e], rest_len, vor_len, mass, fixed,
+                              grav, prm, cd, crep, fo[e], io[e], w, sw)
+            if ok:
+                times[e] += prm[P_DT]
+            else:
+                failed[e] = True

@@ -20,7 +20,7 @@ from .energies.bend_twist import bend_twist_core, material_curvatures, material_
 from .energies.stretch import stretch_element
 from .frames import update_frames
 from .solve_params import *  # noqa: F403  (P_* prm indices, F_*/I_* output columns, _OPT)
-from .solve_params import _OPT
+from .solve_params import _CHUNK, _OPT
 
 __all__ = ["step_kernel_3d"]
 
@@ -46,7 +46,10 @@ def _assemble_3d(e, x, x0, u, h, d1o, to, bo, kb, tb, rest_len, vor_len, mass, f
             pos[k, a] = x[4 * k + a]
     update_frames(pos, d1o, to, bo, t, d1, d2, elen, beta)
     if with_jac:
-        ab[:, :] = 0.0
+        if sym:
+            ab[:, kl:] = 0.0  # the LDLᵀ path never reads the lower half
+        else:
+            ab[:, :] = 0.0
         for k in range(n, n + kl):
             ab[k, kl] = 1.0
     for k in range(n):
@@ -291,6 +294,14 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
 
 
 @njit(**_OPT)
+def _alloc_env_3d(N):
+    """Per-thread step workspace: the (sub)step start state and the penetration-guard fallback state."""
+    n = 4 * N
+    return (np.empty(n), np.empty(n), np.empty((N - 1, 3)), np.empty((N - 1, 3)), np.empty(N),
+            np.empty(n), np.empty(n), np.empty((N - 1, 3)), np.empty((N - 1, 3)), np.empty(N))
+
+
+@njit(**_OPT)
 def _alloc_3d(N):
     n = 4 * N
     return (np.empty(n), np.empty(n), np.zeros(n + 10), np.empty(n), np.empty((n + 10, 21)), np.empty((N, 3)),
@@ -335,15 +346,13 @@ def _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm, mf):
 
 
 @njit(**_OPT)
-def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, crep, fo, io):
+def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, crep, fo, io, w,
+                 sw):
+    """One env's step; w (_alloc_3d) and sw (_alloc_env_3d) are the calling thread's workspaces, every entry
+    written before it is read, so a workspace carries nothing from one env to the next."""
     n = xs.shape[0]
     N = n // 4
-    w = _alloc_3d(N)
-    x0 = np.empty(n)
-    u = np.empty(n)
-    d1o = np.empty((N - 1, 3))
-    to = np.empty((N - 1, 3))
-    bo = np.empty(N)
+    (x0, u, d1o, to, bo, fb_x, fb_u, fb_d1, fb_t, fb_b) = sw
     ok = False
     iters = 0
     conv_all = True
@@ -353,11 +362,6 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
     levels = int(prm[P_LEVELS])
     # penetration-guard fallback: the least-penetrating finite level result (copied only when the guard fires)
     fb_pen = np.inf
-    fb_x = np.empty(0)
-    fb_u = np.empty(0)
-    fb_d1 = np.empty((0, 3))
-    fb_t = np.empty((0, 3))
-    fb_b = np.empty(0)
     fb_ns, fb_it, fb_conv, fb_r, fb_r0 = 1, 0, False, 0.0, 0.0
     lim = prm[P_MAXPEN]  # guard limit [m]: raised to (start penetration + limit/4) for a step starting deeper
     for level in range(levels):
@@ -388,11 +392,11 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
         if ok and pen > lim and level < levels - 1:
             if pen < fb_pen:
                 fb_pen = pen
-                fb_x = x0.copy()
-                fb_u = u.copy()
-                fb_d1 = d1o.copy()
-                fb_t = to.copy()
-                fb_b = bo.copy()
+                fb_x[:] = x0
+                fb_u[:] = u
+                fb_d1[:, :] = d1o
+                fb_t[:, :] = to
+                fb_b[:] = bo
                 fb_ns, fb_it, fb_conv, fb_r, fb_r0 = ns, iters, conv_all, r, r0
             ok = False
             continue
@@ -461,16 +465,21 @@ def step_kernel_3d(dof, vel, d1s, ts, bs, times, failed, kappa_bar, tau_bar, res
     """Advance all non-failed envs by prm[P_DT]. dof/vel (B, 4N) views of State.dof; outputs fo (B, F_COLS),
     io (B, I_COLS) and the contact report arrays crep."""
     B = dof.shape[0]
-    for e in prange(B):
-        for c in range(F_COLS):
-            fo[e, c] = 0.0
-        for c in range(I_COLS):
-            io[e, c] = 0
-        if failed[e]:
-            continue
-        ok = _env_step_3d(e, dof[e], vel[e], d1s[e], ts[e], bs[e], kappa_bar[e], tau_bar[e], rest_len, vor_len,
-                          mass, fixed, grav, prm, cd, crep, fo[e], io[e])
-        if ok:
-            times[e] += prm[P_DT]
-        else:
-            failed[e] = True
+    N = dof.shape[1] // 4
+    nch = (B + _CHUNK - 1) // _CHUNK
+    for chunk in prange(nch):  # workspaces are allocated once per chunk of envs, not per env-step
+        w = _alloc_3d(N)
+        sw = _alloc_env_3d(N)
+        for e in range(chunk * _CHUNK, min(B, chunk * _CHUNK + _CHUNK)):
+            for c in range(F_COLS):
+                fo[e, c] = 0.0
+            for c in range(I_COLS):
+                io[e, c] = 0
+            if failed[e]:
+                continue
+            ok = _env_step_3d(e, dof[e], vel[e], d1s[e], ts[e], bs[e], kappa_bar[e], tau_bar[e], rest_len, vor_len,
+                              mass, fixed, grav, prm, cd, crep, fo[e], io[e], w, sw)
+            if ok:
+                times[e] += prm[P_DT]
+            else:
+                failed[e] = True

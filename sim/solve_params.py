@@ -15,4 +15,7 @@ F_COLS = 9
 I_ITERS, I_CONV, I_SUB, I_FAIL = range(4)
 I_COLS = 4
 
+# envs per workspace allocation in the step kernels' parallel loop
+_CHUNK = 8
+
 _OPT = dict(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"})

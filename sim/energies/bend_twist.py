@@ -154,8 +154,9 @@ def bend_twist_core(xm, xi, xp, m1e, m2e, m1f, m2f, tau, kbar1, kbar2, taubar, E
             V[11, a] = d2v[a]
             V[12, a] = mt1[a]
             V[13, a] = mt2[a]
+        # Aee and Aff (the x_{i−1}/x_{i+1} curvature blocks) are symmetric in (a, b): b >= a, mirrored
         for a in range(3):
-            for b in range(3):
+            for b in range(a, 3):
                 tta, ttb = V[0, a], V[0, b]
                 tea, teb = V[1, a], V[1, b]
                 tfa, tfb = V[2, a], V[2, b]
@@ -164,33 +165,42 @@ def bend_twist_core(xm, xi, xp, m1e, m2e, m1f, m2f, tau, kbar1, kbar2, taubar, E
                 dab = 1.0 if a == b else 0.0
                 pe = dab - tea * teb
                 pf = dab - tfa * tfb
-                # κ1
                 k1ee = ((2.0 * k1 * ttab - (V[8, a] * ttb + tta * V[8, b])) - k1 * pe * ichi
                         + 0.25 * (kba * V[5, b] + V[5, a] * kbb)) * ie2
                 k1ff = ((2.0 * k1 * ttab + (V[9, a] * ttb + tta * V[9, b])) - k1 * pf * ichi
                         + 0.25 * (kba * V[7, b] + V[7, a] * kbb)) * if2
-                k1ef = (-k1 * (dab + tea * tfb) * ichi
-                        + 2.0 * k1 * ttab - V[8, a] * ttb + tta * V[9, b] - _skew_row(V, 13, a, b)) * ief
-                # κ2
                 k2ee = ((2.0 * k2 * ttab + (V[10, a] * ttb + tta * V[10, b])) - k2 * pe * ichi
                         - 0.25 * (kba * V[4, b] + V[4, a] * kbb)) * ie2
                 k2ff = ((2.0 * k2 * ttab - (V[11, a] * ttb + tta * V[11, b])) - k2 * pf * ichi
                         - 0.25 * (kba * V[6, b] + V[6, a] * kbb)) * if2
-                k2ef = (-k2 * (dab + tea * tfb) * ichi
-                        + 2.0 * k2 * ttab + V[10, a] * ttb - tta * V[11, b] + _skew_row(V, 12, a, b)) * ief
-                # τ
                 tee = -0.25 * (kba * (teb + ttb) + (tea + tta) * kbb) * ie2
                 tff = -0.25 * (kba * (tfb + ttb) + (tfa + tta) * kbb) * if2
-                tef = 0.5 * (2.0 * ichi * _skew_row(V, 1, a, b) - kba * ttb) * ief
                 Aee = c1 * k1ee + c2 * k2ee + c3 * tee
                 Aff = c1 * k1ff + c2 * k2ff + c3 * tff
-                Aef = c1 * k1ef + c2 * k2ef + c3 * tef
                 H[a, b] = Aee
+                H[b, a] = Aee
+                H[8 + a, 8 + b] = Aff
+                H[8 + b, 8 + a] = Aff
+        # Aef (x_{i−1}/x_{i+1} mixed block) is not symmetric: all nine
+        for a in range(3):
+            for b in range(3):
+                tta, ttb = V[0, a], V[0, b]
+                tea, tfb = V[1, a], V[2, b]
+                kba = V[3, a]
+                ttab = tta * ttb
+                dab = 1.0 if a == b else 0.0
+                k1ef = (-k1 * (dab + tea * tfb) * ichi
+                        + 2.0 * k1 * ttab - V[8, a] * ttb + tta * V[9, b] - _skew_row(V, 13, a, b)) * ief
+                k2ef = (-k2 * (dab + tea * tfb) * ichi
+                        + 2.0 * k2 * ttab + V[10, a] * ttb - tta * V[11, b] + _skew_row(V, 12, a, b)) * ief
+                tef = 0.5 * (2.0 * ichi * _skew_row(V, 1, a, b) - kba * ttb) * ief
+                Aef = c1 * k1ef + c2 * k2ef + c3 * tef
+                Aee = H[a, b]
+                Aff = H[8 + a, 8 + b]
                 H[a, 4 + b] = -Aee + Aef
                 H[a, 8 + b] = -Aef
                 H[4 + a, 8 + b] = Aef
                 H[4 + a, 4 + b] = Aee + Aff
-                H[8 + a, 8 + b] = Aff
         # H[i,i] needs −Aef − Afe, H[i,i+1] needs −Aff: second pass using the (a, b) blocks above
         for a in range(3):
             for b in range(3):
