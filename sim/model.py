@@ -41,6 +41,7 @@ class Model:
     newton_dtol: float               # [m/s]
     newton_max_iter: int
     accept_unconverged: bool
+    divergence_guard: float          # [-] residual growth factor that retries an accepted unconverged step; 0 off
     radius: float                    # [m]
     EA: float                        # [N]
     EI1: float                       # [N m^2]
@@ -147,7 +148,7 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
     return Model(
         spec=spec, mode=sim.mode, node_count=N, dt=sim.dt, gravity=_ro(g), damping=sim.damping,
         integrator=sim.integrator, line_search=sim.line_search, newton_tol=sim.newton_tol,
-        newton_dtol=sim.newton_dtol, newton_max_iter=sim.newton_max_iter,
+        newton_dtol=sim.newton_dtol, newton_max_iter=sim.newton_max_iter, divergence_guard=sim.divergence_guard,
         accept_unconverged=sim.accept_unconverged, radius=r, EA=EA, EI1=EI, EI2=EI, GJ=GJ,
         rest_node_pos=_ro(x), rest_edge_length=_ro(lbar), voronoi_length=_ro(vor), node_mass=_ro(mass),
         edge_twist_inertia=_ro(theta_inertia), rest_ref_d1=_ro(d1), rest_tangent=_ro(t),

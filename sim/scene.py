@@ -7,7 +7,9 @@ Keys (SI units)::
            newton_max_iter, accept_unconverged (bool), mode ("3d"|"2d", default "3d"),
            integrator ("backward_euler"|"midpoint", default "backward_euler"),
            line_search ("none"|"backtrack", default "none"), newton_dtol [m/s] (displacement
-           test, default 1e-2)
+           test, default 1e-2), divergence_guard [-] (default 10; 0 = off: an accepted unconverged
+           solve whose force residual grew more than this factor over its iterations is retried with
+           2, 4, 8, 16 sub-steps, the least-bad result kept; see docs/architecture.md)
     [rod]  nodes, length [m], radius [m], density [kg/m^3], youngs_modulus [Pa], poisson_ratio [-],
            start [m] (3-vector), direction (3-vector, normalised here), clamp ("first_edge"|"none",
            default "first_edge")
@@ -57,6 +59,7 @@ class SimSpec:
     integrator: Integrator = "backward_euler"
     line_search: LineSearch = "none"
     newton_dtol: float = 1e-2
+    divergence_guard: float = 10.0
 
 
 @dataclass(frozen=True)
@@ -86,7 +89,7 @@ class SceneSpec:
 
 
 _SIM_KEYS = {"dt", "gravity", "damping", "newton_tol", "newton_max_iter", "accept_unconverged", "mode",
-             "integrator", "line_search", "newton_dtol"}
+             "integrator", "line_search", "newton_dtol", "divergence_guard"}
 _ROD_KEYS = {"nodes", "length", "radius", "density", "youngs_modulus", "poisson_ratio", "start", "direction",
              "clamp"}
 
@@ -126,7 +129,11 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
         line_search=take_str(s, "line_search", "sim.", path, "none",
                              choices=("none", "backtrack")),  # type: ignore[arg-type]
         newton_dtol=take_float(s, "newton_dtol", "sim.", path, 1e-2, positive=True),
+        divergence_guard=take_float(s, "divergence_guard", "sim.", path, 10.0, nonnegative=True),
     )
+    if 0.0 < sim.divergence_guard <= 1.0:
+        raise SceneError(f"{where}: sim.divergence_guard: must be 0 (off) or > 1 (a residual growth factor), "
+                         f"got {sim.divergence_guard!r}")
     nodes = take_int(r, "nodes", "rod.", path)
     if nodes < 3:
         raise SceneError(f"{where}: rod.nodes: must be >= 3, got {nodes}")
@@ -183,7 +190,7 @@ def scene_to_toml(spec: SceneSpec, *, base_dir: str | os.PathLike | None = None)
     so the saved scene finds its meshes wherever it is written (without it, as they were loaded)."""
     lines = ["[sim]"]
     for k in ("dt", "gravity", "damping", "newton_tol", "newton_max_iter", "accept_unconverged", "mode",
-              "integrator", "line_search", "newton_dtol"):
+              "integrator", "line_search", "newton_dtol", "divergence_guard"):
         lines.append(f"{k} = {format_value(getattr(spec.sim, k))}")
     lines += ["", "[rod]"]
     for k in ("nodes", "length", "radius", "density", "youngs_modulus", "poisson_ratio", "start", "direction",

@@ -12,7 +12,9 @@ unconverged when accept_unconverged is false) -> retry with 2, 4, 8, 16 sub-step
 and flagged failed. Penetration guard (obstacle scenes only): a finite level whose deepest end-of-sub-step
 penetration exceeds max(P_MAXPEN, p0 + P_MAXPEN/4) (p0 = penetration at the step start) is also retried with
 more sub-steps; it never fails an env: the finest level is accepted however deep, and if that level diverges,
-the least-penetrating finite coarser result is used.
+the least-penetrating finite coarser result is used. Divergence guard (P_RGUARD > 0): an accepted unconverged
+(sub)step whose residual grew by more than P_RGUARD over its iterations is retried the same way; both guards
+share one fallback, scored by max(pen/limit, growth/P_RGUARD).
 """
 from __future__ import annotations
 

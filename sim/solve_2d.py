@@ -323,7 +323,8 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
     r0 = 0.0
     ns = 1
     levels = int(prm[P_LEVELS])
-    fb_pen = np.inf  # penetration-guard fallback (see _env_step_3d)
+    fb_pen = np.inf  # penetration / divergence guard fallback (see _env_step_3d): its score
+    rg = prm[P_RGUARD]
     fb_ns, fb_it, fb_conv, fb_r, fb_r0 = 1, 0, False, 0.0, 0.0
     lim = prm[P_MAXPEN]  # guard limit [m]: raised to (start penetration + limit/4) for a step starting deeper
     for level in range(levels):
@@ -335,6 +336,7 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
         iters = 0
         conv_all = True
         pen = 0.0
+        grow = 0.0
         for s in range(ns):
             st, it, conv, r, r0s, pen_s, pen0 = _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav,
                                                             prm, cd, w, level == 0 and s == 0)
@@ -348,9 +350,14 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
                 ok = False
                 break
             pen = max(pen, pen_s)
-        if ok and pen > lim and level < levels - 1:
-            if pen < fb_pen:
-                fb_pen = pen
+            if not conv and r0s > 0.0:
+                grow = max(grow, r / r0s)
+        score = pen / lim if pen > lim else 0.0
+        if rg > 0.0 and grow > rg:
+            score = max(score, grow / rg)
+        if ok and score > 0.0 and level < levels - 1:
+            if score < fb_pen:
+                fb_pen = score
                 fb_x[:] = x0
                 fb_u[:] = u
                 fb_ns, fb_it, fb_conv, fb_r, fb_r0 = ns, iters, conv_all, r, r0

@@ -360,8 +360,11 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
     r0 = 0.0
     ns = 1
     levels = int(prm[P_LEVELS])
-    # penetration-guard fallback: the least-penetrating finite level result (copied only when the guard fires)
+    # guards: penetration (end configuration deeper than lim) and divergence (an accepted unconverged solve whose
+    # residual grew by more than rg over its iterations); a level that trips one is retried with twice the
+    # sub-steps, keeping the least-bad finite level result (score = max(pen/lim, growth/rg) > 1) as fallback
     fb_pen = np.inf
+    rg = prm[P_RGUARD]
     fb_ns, fb_it, fb_conv, fb_r, fb_r0 = 1, 0, False, 0.0, 0.0
     lim = prm[P_MAXPEN]  # guard limit [m]: raised to (start penetration + limit/4) for a step starting deeper
     for level in range(levels):
@@ -376,6 +379,7 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
         iters = 0
         conv_all = True
         pen = 0.0
+        grow = 0.0
         for s in range(ns):
             st, it, conv, r, r0s, pen_s, pen0 = _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len,
                                                             mass, fixed, grav, prm, cd, w, level == 0 and s == 0)
@@ -389,9 +393,14 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
                 ok = False
                 break
             pen = max(pen, pen_s)
-        if ok and pen > lim and level < levels - 1:
-            if pen < fb_pen:
-                fb_pen = pen
+            if not conv and r0s > 0.0:
+                grow = max(grow, r / r0s)
+        score = pen / lim if pen > lim else 0.0
+        if rg > 0.0 and grow > rg:
+            score = max(score, grow / rg)
+        if ok and score > 0.0 and level < levels - 1:
+            if score < fb_pen:
+                fb_pen = score
                 fb_x[:] = x0
                 fb_u[:] = u
                 fb_d1[:, :] = d1o

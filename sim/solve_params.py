@@ -7,8 +7,8 @@ from __future__ import annotations
 # indices into the float64 parameter vector ``prm``
 P_EA, P_EI1, P_EI2, P_GJ, P_DT, P_DAMP, P_TOL, P_DTOL, P_MAXIT, P_ACCEPT, P_INTEG, P_LS = range(12)
 P_RADIUS, P_CK, P_CDELTA, P_CMU, P_CNU, P_CFRIC, P_CMARGIN, P_NOBS, P_SIGN2D, P_PLANEY = range(12, 22)
-P_LEVELS, P_STRAIN, P_MAXPEN, P_CCD = 22, 23, 24, 25
-PRM_SIZE = 26
+P_LEVELS, P_STRAIN, P_MAXPEN, P_CCD, P_RGUARD = 22, 23, 24, 25, 26
+PRM_SIZE = 27
 # columns of the float / int per-env outputs
 F_RES, F_RES0, F_ES, F_EB, F_ET, F_EC, F_EK, F_EG, F_PEN = range(9)
 F_COLS = 9

@@ -44,6 +44,7 @@ class Simulator:
         mp = getattr(c, "max_penetration", None)  # penetration guard [m]; None = 4 * delta
         prm[_solve.P_MAXPEN] = 4.0 * c.delta if mp is None else float(mp)
         prm[_solve.P_CCD] = 1.0 if getattr(c, "step_limit", True) else 0.0
+        prm[_solve.P_RGUARD] = m.divergence_guard
         self._prm = prm
         self._arr = tuple(np.array(a) for a in (m.rest_edge_length, m.voronoi_length, m.dof_mass, m.dof_fixed,
                                                 m.dof_gravity))

@@ -68,6 +68,9 @@ def test_shipped_arm_scene_and_derived_constants(scenes_dir):
     (("density = 1000.0", "density = 1000.0\ndensty = 3.0"), "rod.densty", "unknown key"),
     (("newton_tol = 1e-3", 'newton_tol = 1e-3\nmode = "4d"'), "sim.mode", "one of"),
     (("newton_tol = 1e-3", 'newton_tol = 1e-3\nmode = "2d"\n'), None, None),
+    (("newton_tol = 1e-3", "newton_tol = 1e-3\ndivergence_guard = 0.5"), "sim.divergence_guard", "> 1"),
+    (("newton_tol = 1e-3", "newton_tol = 1e-3\ndivergence_guard = -2.0"), "sim.divergence_guard", ">= 0"),
+    (("newton_tol = 1e-3", 'newton_tol = 1e-3\ndivergence_guard = "on"'), "sim.divergence_guard", "number"),
 ])
 def test_validation_errors_name_file_key_and_problem(tmp_path, edit, key, problem):
     p = _write(tmp_path, ARM.replace(*edit))
