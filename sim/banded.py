@@ -24,19 +24,27 @@ __all__ = ["band_ldl_solve", "band_lu_solve", "dense_to_band", "solve_dense_band
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"}, inline="always")
-def band_lu_solve(ab, n, kl, b):
-    """Factor the padded band ``ab`` in place and overwrite ``b`` with the solution of A x = b.
-
-    Returns 0 on success, else 1 + the index of the first bad pivot (b is then undefined).
-    """
+def _pivot_floor(ab, n, kl):
+    """1e-14·max|diag| (a pivot must exceed it in magnitude), or −1 if the diagonal is all zero or not finite."""
     dmax = 0.0
     for i in range(n):
         v = abs(ab[i, kl])
         if v > dmax:
             dmax = v
     if not (dmax > 0.0 and dmax < np.inf):
+        return -1.0
+    return 1e-14 * dmax
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"}, inline="always")
+def band_lu_solve(ab, n, kl, b):
+    """Factor the padded band ``ab`` in place and overwrite ``b`` with the solution of A x = b.
+
+    Returns 0 on success, else 1 + the index of the first bad pivot (b is then undefined).
+    """
+    tiny = _pivot_floor(ab, n, kl)
+    if tiny < 0.0:
         return 1
-    tiny = 1e-14 * dmax
     for k in range(n):
         p = ab[k, kl]
         if not (abs(p) > tiny and abs(p) < np.inf):
@@ -76,14 +84,9 @@ def band_ldl_solve(ab, n, kl, b):
     half (``ab[i, kl + j]``, j ≥ 0; the lower half is neither read nor written), and ``b`` overwritten with the
     solution. The caller must know A is symmetric. Returns 0 on success, else 1 + the first bad pivot's index.
     """
-    dmax = 0.0
-    for i in range(n):
-        v = abs(ab[i, kl])
-        if v > dmax:
-            dmax = v
-    if not (dmax > 0.0 and dmax < np.inf):
+    tiny = _pivot_floor(ab, n, kl)
+    if tiny < 0.0:
         return 1
-    tiny = 1e-14 * dmax
     for k in range(n):
         p = ab[k, kl]
         if not (abs(p) > tiny and abs(p) < np.inf):

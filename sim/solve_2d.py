@@ -20,6 +20,7 @@ from .contact_kernels import (
 from .energies.planar import planar_bend_element
 from .energies.stretch import stretch_element_2d
 from .frames import update_frames
+from .solve_3d import guard_score
 from .solve_params import *  # noqa: F403  (P_* prm indices, F_*/I_* output columns, _OPT)
 from .solve_params import _CHUNK, _OPT
 
@@ -352,9 +353,7 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
             pen = max(pen, pen_s)
             if not conv and r0s > 0.0:
                 grow = max(grow, r / r0s)
-        score = pen / lim if pen > lim else 0.0
-        if rg > 0.0 and grow > rg:
-            score = max(score, grow / rg)
+        score = guard_score(pen, lim, grow, rg)
         if ok and score > 0.0 and level < levels - 1:
             if score < fb_pen:
                 fb_pen = score

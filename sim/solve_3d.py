@@ -22,7 +22,17 @@ from .frames import update_frames
 from .solve_params import *  # noqa: F403  (P_* prm indices, F_*/I_* output columns, _OPT)
 from .solve_params import _CHUNK, _OPT
 
-__all__ = ["step_kernel_3d"]
+__all__ = ["step_kernel_3d", "guard_score"]
+
+
+@njit(inline="always", **_OPT)
+def guard_score(pen, lim, grow, rg):
+    """How badly a finite retry level trips the guards: max(pen/lim, grow/rg) over the tripped ones, else 0
+    (penetration pen beyond its limit lim [m]; residual growth grow beyond rg when rg > 0)."""
+    score = pen / lim if pen > lim else 0.0
+    if rg > 0.0 and grow > rg:
+        score = max(score, grow / rg)
+    return score
 
 # ----------------------------------------------------------------------------------------------- 3-D
 @njit(**_OPT)
@@ -395,9 +405,7 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
             pen = max(pen, pen_s)
             if not conv and r0s > 0.0:
                 grow = max(grow, r / r0s)
-        score = pen / lim if pen > lim else 0.0
-        if rg > 0.0 and grow > rg:
-            score = max(score, grow / rg)
+        score = guard_score(pen, lim, grow, rg)
         if ok and score > 0.0 and level < levels - 1:
             if score < fb_pen:
                 fb_pen = score
