@@ -1,9 +1,9 @@
-"""Banded LU without pivoting (numba), for the per-env Newton systems.
+"""Banded LU and LDLᵀ without pivoting (numba), for the per-env Newton systems.
 
 Storage ("padded band"): ``ab`` has shape (n + kl, 2kl + 1) with ``ab[i, kl + j - i] = A[i, j]`` for
 |i − j| ≤ kl; the kl padding rows at the bottom are identity rows (``ab[i, kl] = 1``, rest 0) and entries
 that would reference columns outside [0, n) are 0. ``b`` has length n + kl (padding entries 0). The padding
-makes every inner loop have the constant trip count kl, which lets LLVM unroll/vectorise them (≈4× faster).
+makes every inner loop have the constant trip count kl, which lets LLVM unroll them fully (≈4× faster).
 :func:`band_lu_solve` is general (non-symmetric allowed, e.g. friction Jacobians); :func:`band_ldl_solve` is
 its symmetric twin (LDLᵀ, reads and writes only the upper half of the band, about half the work). Neither
 pivots, and for a symmetric matrix both take the same pivots (elimination without pivoting keeps the trailing

@@ -20,9 +20,8 @@ from .contact_kernels import (
 from .energies.planar import planar_bend_element
 from .energies.stretch import stretch_element_2d
 from .frames import update_frames
-from .solve_3d import guard_score
 from .solve_params import *  # noqa: F403  (P_* prm indices, F_*/I_* output columns, _OPT)
-from .solve_params import _CHUNK, _OPT
+from .solve_params import _CHUNK, _OPT, guard_score, jacobian_symmetric
 
 __all__ = ["step_kernel_2d"]
 
@@ -125,7 +124,7 @@ def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
     maxit = int(prm[P_MAXIT])
     tol = prm[P_TOL]
     dtol = prm[P_DTOL]
-    sym = not (prm[P_NOBS] > 0 and prm[P_CFRIC] > 0)  # only friction makes the Jacobian non-symmetric
+    sym = jacobian_symmetric(prm)
     for k in range(n):
         x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
     r0 = 0.0

@@ -20,19 +20,9 @@ from .energies.bend_twist import bend_twist_core, material_curvatures, material_
 from .energies.stretch import stretch_element
 from .frames import update_frames
 from .solve_params import *  # noqa: F403  (P_* prm indices, F_*/I_* output columns, _OPT)
-from .solve_params import _CHUNK, _OPT
+from .solve_params import _CHUNK, _OPT, guard_score, jacobian_symmetric
 
-__all__ = ["step_kernel_3d", "guard_score"]
-
-
-@njit(inline="always", **_OPT)
-def guard_score(pen, lim, grow, rg):
-    """How badly a finite retry level trips the guards: max(pen/lim, grow/rg) over the tripped ones, else 0
-    (penetration pen beyond its limit lim [m]; residual growth grow beyond rg when rg > 0)."""
-    score = pen / lim if pen > lim else 0.0
-    if rg > 0.0 and grow > rg:
-        score = max(score, grow / rg)
-    return score
+__all__ = ["step_kernel_3d"]
 
 # ----------------------------------------------------------------------------------------------- 3-D
 @njit(**_OPT)
@@ -157,7 +147,7 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
     maxit = int(prm[P_MAXIT])
     tol = prm[P_TOL]
     dtol = prm[P_DTOL]
-    sym = not (prm[P_NOBS] > 0 and prm[P_CFRIC] > 0)  # only friction makes the Jacobian non-symmetric
+    sym = jacobian_symmetric(prm)
     for k in range(n):
         x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
     r0 = 0.0
