@@ -9,7 +9,7 @@ Prints ms per control step (10 sim steps, 5 Newton iterations, dt = 0.05 s) for
 * cost vs mesh size (icosphere meshes of 80 ... 81,920 triangles touching the arm; 100 envs, 3-D), with
   the BVH build time.
 
-The arms are driven like the RL contact tasks with uniform random actions (tasks.md §2.3: natural curvature
+The arms are driven like the RL contact tasks with uniform random actions (docs/tasks.md §2.3: natural curvature
 K += 0.25 a per control step on 5 control points, clipped to +-2, interpolated over the 10 sim steps). Figures are medians over the timed control steps; the first steps (compile, warm-up)
 are not timed. Numba uses all cores it is given (``NUMBA_NUM_THREADS``). Each case also reports the process CPU
 time per control step (all threads; on a quiet 2-core machine wall ~ CPU / 2) and the load average, and
@@ -40,7 +40,7 @@ def _with(spec, *, obstacles=None, max_iter=5):
 
 
 class RandomPolicy:
-    """tasks.md §2.3-2.4 contact-task control with uniform random actions: per control step
+    """docs/tasks.md §2.3-2.4 contact-task control with uniform random actions: per control step
     K = clip(K + 0.25 a, -2, 2) on 5 control points (per bending component), spread over node segments
     [1,4), [4,8), [8,12), [12,16), [16,20) (divided by the segment's node count) and interpolated over the
     control step's sim steps."""
@@ -109,7 +109,7 @@ def _seg_dist_to_arm(a, b):
 
 
 def random_capsules(rng, k, m=8, R=0.03, clearance=0.05 + 0.03 + 0.05):
-    """tasks.md 3-D obstacles: m capsules of length 1, centres in x[0.3,0.6], y[-0.6,0.6], z[-0.1,0.8],
+    """docs/tasks.md 3-D obstacles: m capsules of length 1, centres in x[0.3,0.6], y[-0.6,0.6], z[-0.1,0.8],
     random directions; re-drawn while one would touch the straight rest arm (clearance [m])."""
     c = np.zeros((k, m, 3))
     d = np.zeros((k, m, 3))

@@ -17,7 +17,7 @@ Two references (SI units throughout):
 * :class:`EulerBernoulliCantilever` -- first clamped-free bending mode of a linear Euler-Bernoulli
   beam: ``ω1 = (β1 L)² sqrt(EI / (ρ A L⁴))``, mode shape ``φ(x)`` and the tip response
   ``z(t) = (v_tip / ω1) sin(ω1 t)`` to the initial velocity ``v(x) = v_tip φ(x)/φ(L)``
-  (physics.md §8 A).
+  (docs/physics.md §8 A).
 """
 from __future__ import annotations
 

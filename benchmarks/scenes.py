@@ -6,9 +6,9 @@ in PyElastica (:mod:`benchmarks.peers.elastica_scenes`).  SI units.
 * ``static``  -- heavy cantilever: horizontal rod (+x), clamped at x = 0, sagging under its own
   weight (w L³/EI ≈ 4.9, tip drop ≈ 0.49 m), uniform viscous damping γ [1/s] on both simulators
   until static; error = |tip - tip_elastica| / L at the end.
-* ``dynamic`` -- Euler-Bernoulli cantilever (physics.md §8 A with E = 1e7): mode-shaped initial
+* ``dynamic`` -- Euler-Bernoulli cantilever (docs/physics.md §8 A with E = 1e7): mode-shaped initial
   velocity, no gravity, no damping; error = max_t |z_tip - z_EB(t)| / amplitude over two periods.
-* ``arm``     -- the paper arm (tasks.md §1.1) under gravity with a time-varying, spatially uniform
+* ``arm``     -- the paper arm (docs/tasks.md §1.1) under gravity with a time-varying, spatially uniform
   curvature command κ(t) = A r(t) (cos ωt, sin ωt) [1/m] (the tip circles); uniform damping
   γ on both simulators; error = max_t |tip - tip_ref(t)| / L against a converged rodlab run
   (tiny dt, many nodes, converged Newton).

@@ -1,7 +1,7 @@
 """Parts of ``rodlab bench throughput``: the per-task rodlab vs PyElastica step, and contact cost.
 
 PyElastica is measured per env with several rods (envs) in one simulator, at the paper's settings
-(tasks.md §1.6), and scaled to the batch: ``cost(B envs, one control step) = B × (seconds per rod per
+(docs/tasks.md §1.6), and scaled to the batch: ``cost(B envs, one control step) = B × (seconds per rod per
 sim step) × (sim steps per control step)``.  Two measurements: 1 rod per simulator (the paper's layout,
 one env per process) and ``K`` rods per simulator (cheaper per rod); the ratio uses the cheaper one.
 PyElastica runs on one core; rodlab uses all numba threads of this machine (recorded).  A
@@ -28,7 +28,7 @@ TASKS = {
     "random_obstacles_3d": (2500, "fence", False),
 }
 CREVICE = [(0.20, 0.12), (0.60, 0.12), (0.40, 0.00), (0.40, 0.37), (0.40, 0.57), (0.40, 0.77)]
-# 8 fence capsules (first 8 of the legacy fixed table of tasks.md §7.6, y-centred): start, end
+# 8 fence capsules (first 8 of the legacy fixed table of docs/tasks.md §7.6, y-centred): start, end
 FENCE = [((0.4425154, 0.49850288, 0.58865217), (0.45413066, -0.49850288, 0.66510208)),
          ((0.47060477, 0.49020672, 0.40550133), (0.53797149, -0.49020672, 0.59057215)),
          ((0.52103567, 0.47770318, 0.45720746), (0.63848153, -0.47770318, 0.18627359)),

@@ -29,7 +29,7 @@ def train_main(argv: list[str]) -> int:
 
     d = Args()
     p = argparse.ArgumentParser(prog="rodlab train", description="Train SAC on a rodlab task (headless). "
-                                "Defaults follow the paper (tasks.md §8.1).")
+                                "Defaults follow the paper (docs/tasks.md §8.1).")
     p.add_argument("task", nargs="?", default="", help="task short name (e.g. follow_target) or gymnasium id")
     p.add_argument("--envs", type=int, default=None, help=f"parallel envs (default {d.num_envs})")
     p.add_argument("--steps", type=int, default=d.total_steps, help="total env steps over all envs")

@@ -1,9 +1,9 @@
-"""Delta natural-curvature action converter (tasks.md §2), batched over environments.
+"""Delta natural-curvature action converter (docs/tasks.md §2), batched over environments.
 
 The policy (or the workbench teleop) sends per-control-point *increments* of natural curvature
 (and, for IK, natural twist) in ``[-1, 1]``. Once per control step :meth:`ActionConverter.convert`
 
-1. scales and accumulates them with clipping (float32, tasks.md §2.3):
+1. scales and accumulates them with clipping (float32, docs/tasks.md §2.3):
    ``K_new = clip(K_old + s_kappa * a_bend, -2, 2)``, ``T_new = clip(T_old + s_tau * a_twist, -pi/2, pi/2)``;
 2. takes the increments *after* clipping, ``dK = K_new - K_old`` (saturated components give 0);
 3. spreads each control point's increment over the nodes of its region ("Voronoi smoothing",
@@ -66,7 +66,7 @@ _SMOOTHINGS = ("intended", "reference", "none")
 class ControlConfig:
     """Parameters of the action converter.
 
-    kind: control type (tasks.md §2.2) - decides action dim, planar or not, twist or not.
+    kind: control type (docs/tasks.md §2.2) - decides action dim, planar or not, twist or not.
     kappa_scale: s_kappa, natural-curvature increment per unit action [dimensionless, integrated].
     twist_scale: s_tau, natural-twist increment per unit action [rad] (``bend_twist`` only).
     kappa_limit: |K| bound of the accumulated per-control-point curvature.
@@ -186,7 +186,7 @@ class ControlIncrement:
 
 
 class ActionConverter:
-    """Batched delta natural-curvature converter (tasks.md §2) for ``envs`` environments.
+    """Batched delta natural-curvature converter (docs/tasks.md §2) for ``envs`` environments.
 
     State: ``K`` (B, P, C) float32 accumulated curvature per control point (C = 1 in 2D, 2 in 3D),
     ``T`` (B, P) float32 accumulated twist [rad]. ``kappa_obs`` / ``twist_obs`` give them in the

@@ -29,7 +29,7 @@ import numpy as np
 
 from policies.sac import PolicyLoadError, load_policy
 
-# Slices into the flat observation (fields concatenated alphabetically, tasks.md §4.3-7.3):
+# Slices into the flat observation (fields concatenated alphabetically, docs/tasks.md §4.3-7.3):
 # tip = last state node; dims = 3 or 2 (x, z).
 OBS_LAYOUT: dict[str, dict[str, Any]] = {
     "follow_target": {"obs_dim": 76, "tip": slice(37, 40), "target": slice(70, 73)},

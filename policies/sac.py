@@ -1,4 +1,4 @@
-"""SAC as configured in the reference (tasks.md §8.1-8.2), as a small extension of stable-baselines3.
+"""SAC as configured in the reference (docs/tasks.md §8.1-8.2), as a small extension of stable-baselines3.
 
 What SB3's ``SAC`` lacks and how it is added here (nothing else is changed):
 

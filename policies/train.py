@@ -1,4 +1,4 @@
-"""Headless SAC training for rodlab tasks (tasks.md §8), one ``Args`` dataclass per run.
+"""Headless SAC training for rodlab tasks (docs/tasks.md §8), one ``Args`` dataclass per run.
 
 A run directory holds::
 
@@ -49,7 +49,7 @@ class TrainError(Exception):
 
 @dataclass
 class Args:
-    """Training configuration; defaults follow tasks.md §8.1/8.2 (the paper's setup)."""
+    """Training configuration; defaults follow docs/tasks.md §8.1/8.2 (the paper's setup)."""
 
     task: str = "follow_target"
     num_envs: int = 500                     # parallel envs (one batched step per iteration)

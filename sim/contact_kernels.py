@@ -1,4 +1,4 @@
-"""IMC contact and friction kernels (numba), called per env from ``sim.solve`` (physics.md §4).
+"""IMC contact and friction kernels (numba), called per env from ``sim.solve`` (docs/physics.md §4).
 
 Model: every rod edge is a capsule of the rod radius ``r``. For each (edge, obstacle) candidate the
 gap is ``g = Delta - r - R`` (``Delta`` the exact centre-line distance, ``R`` the obstacle radius for
@@ -6,7 +6,7 @@ spheres/capsules, 0 for boxes and meshes); planes act per node with ``g = n.(x_k
 ``E(g) = k softplus(-K1 g)^2 / K1^2`` (K1 = 15/delta, one stable formula); gradient ``E' grad Delta``,
 Hessian ``E'' grad Delta grad Delta^T + E' hess Delta`` over the edge's two nodes (6 DOFs).
 
-Ownership (physics.md §4.7 artefact 1): a pair whose closest rod point is the edge's end node is left
+Ownership (docs/physics.md §4.7 artefact 1): a pair whose closest rod point is the edge's end node is left
 to the next edge; a pair at the start node is skipped when the previous edge of the same obstacle is
 strictly closer. So each local minimum of the distance along the rod is counted once.
 
@@ -612,7 +612,7 @@ def contact_accumulate(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, frict
     (N-1, 6, 6) [N/m] for env ``e``'s candidates at positions ``x``; return the contact energy [J].
 
     Friction (if ``friction_on``) is skipped on the first call after ``contact_broadphase`` (Newton
-    iteration 0 of the (sub)step, physics.md §4.6)."""
+    iteration 0 of the (sub)step, docs/physics.md §4.6)."""
     fr_on = friction_on and cd[17][e] > 0
     cd[17][e] = 1
     return _contact_pass(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, fr_on, True, grad, hess,

@@ -1,4 +1,4 @@
-"""Frames of the discrete rod (physics.md §1.3): parallel transport, reference/material frames, reference twist.
+"""Frames of the discrete rod (docs/physics.md §1.3): parallel transport, reference/material frames, reference twist.
 
 Small vectors are passed as 3-tuples of floats (stack values inside numba). Array functions work on one
 environment: ``x`` node positions (N, 3) [m], per-edge arrays (N-1, 3), per-node arrays (N,).

@@ -8,7 +8,7 @@ obstacle point ``q`` and the obstacle's *free* directions at the solution (0, 1 
 obstacle point moves as ``q + w1 d1 + w2 d2`` inside the active feature: face -> 2, edge -> 1, vertex -> 0).
 
 :func:`dist_derivs` turns that classification into the distance ``Delta`` and its exact gradient (6,)
-and Hessian (6, 6) with respect to the two rod nodes ``(a, b)``, by the Schur complement of physics.md
+and Hessian (6, 6) with respect to the two rod nodes ``(a, b)``, by the Schur complement of docs/physics.md
 §4.2: with ``h(x, y) = |u|^2 / 2``, ``u = a + s (b - a) - q(w)`` and ``y`` the interior parameters
 (``s`` if 0 < s < 1, and the obstacle's free ``w``), ``hess h* = h_xx - h_xy h_yy^-1 h_yx``; then
 ``grad Delta = J^T n``, ``hess Delta = (hess h* - grad Delta grad Delta^T) / Delta``.
@@ -69,7 +69,7 @@ def closest_seg_point(a, b, c):
 
 @njit(cache=True)
 def closest_seg_seg(a, b, p, q):
-    """Segments (a, b) and (p, q), Lumelsky's rule (physics.md §4.2): return (s, u) in [0, 1]^2.
+    """Segments (a, b) and (p, q), Lumelsky's rule (docs/physics.md §4.2): return (s, u) in [0, 1]^2.
 
     Exactly parallel pairs (den = 0) get s = 0 first, i.e. they are classified point-edge.
     """

@@ -1,4 +1,4 @@
-"""Model: frozen parameters of one rod scene (physics.md §1.2, §1.5), built from a SceneSpec.
+"""Model: frozen parameters of one rod scene (docs/physics.md §1.2, §1.5), built from a SceneSpec.
 
 Arrays are read-only. Shapes: N nodes, N-1 edges; ``dof_*`` arrays are per DOF of one env, flattened
 node-major: 3-D ``4N`` ([x, y, z, θ] per node, θ of the last node a dummy), 2-D ``2N`` ([x, z]).
@@ -116,7 +116,7 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
             raise ValueError(f"locked_edges: edge index {j} out of range [0, {N - 2}]")
     if rod.clamp == "first_edge":
         locked.add(0)
-    # in-plane component for 2-D (physics.md §1.6): κb = -κ_2D ŷ, κ1 = -κ_2D (m2·ŷ), κ2 = κ_2D (m1·ŷ)
+    # in-plane component for 2-D (docs/physics.md §1.6): κb = -κ_2D ŷ, κ1 = -κ_2D (m2·ŷ), κ2 = κ_2D (m1·ŷ)
     d2_0 = np.cross(t[0], d1[0])
     if abs(d2_0[1]) > 0.5:
         pc, ps = 0, float(-np.sign(d2_0[1]))

@@ -2,7 +2,7 @@
 
 One call of :func:`step_kernel_3d` / :func:`step_kernel_2d` advances every non-failed env by one step ``dt``
 (``prange`` over envs; env e only reads and writes row e, so a batch gives the same bits as envs alone).
-Per (sub)step (physics.md §3.4): guess x = x0 + 0.01·u·h on free DOFs; Newton: frames by time-parallel
+Per (sub)step (docs/physics.md §3.4): guess x = x0 + 0.01·u·h on free DOFs; Newton: frames by time-parallel
 transport from the (sub)step-start frames, residual f and banded Jacobian J (constrained DOFs: identity rows
 and columns, zero RHS), force test ‖f‖ ≤ tol·‖f0‖, banded LU (pivots checked), x ← x − αΔx, displacement
 test max|Δx|/h < dtol on free position DOFs, accept at max_iter if allowed. Then backward Euler

@@ -9,7 +9,7 @@ steps that core's simulator/state/control (``LiveSim.adopt``). Per control step:
 * by hand: the teleop's absolute (κ1, κ2, twist) per control point become the converter's K/T and
   the simulator holds ``converter.natural_values()``; the episode, target and reward go on.
 After the last sim step of a control step: task post-step hook, observation, reward + terms,
-termination/truncation (tasks.md §3.3); the next control step of a finished episode resets it.
+termination/truncation (docs/tasks.md §3.3); the next control step of a finished episode resets it.
 """
 from __future__ import annotations
 

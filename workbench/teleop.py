@@ -1,9 +1,9 @@
 """Hand control of the rod: absolute natural curvature per control point, or delta actions
 through the same action converter as the tasks (``policies.control.ActionConverter``).
 
-Control points are nodes 2, 6, 10, 14, 18 (tasks.md §2.1); each carries (κ1, κ2, twist).
+Control points are nodes 2, 6, 10, 14, 18 (docs/tasks.md §2.1); each carries (κ1, κ2, twist).
 Absolute mode writes ``w_n · K_k`` into the natural curvature / twist of every node n owned by
-control point k (the converter's spatial weights, tasks.md §2.4, ``natural_values()``). Delta mode feeds the slider
+control point k (the converter's spatial weights, docs/tasks.md §2.4, ``natural_values()``). Delta mode feeds the slider
 values as an action in [-1, 1] to the converter once per control step and adds its per-sim-step
 increments, exactly as a task does.
 """

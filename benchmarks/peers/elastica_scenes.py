@@ -3,7 +3,7 @@
 PyElastica is an optional peer (``pip install rodlab[peers]``); importing this module without it
 raises an ``ImportError`` that says so.  Written against the installed PyElastica API (1.0: damping
 through ``AnalyticalLinearDamper``, clamps through ``OneEndFixedBC``, rigid ``Cylinder`` +
-``RodCylinderContact``).  The settings follow tasks.md §1.6 (the paper's Elastica variant):
+``RodCylinderContact``).  The settings follow docs/tasks.md §1.6 (the paper's Elastica variant):
 
 * position Verlet, ``dt`` = 2e-4 s for the arm;
 * base clamp ``OneEndFixedBC``: position of node 0 and the director of element 0 fixed
@@ -65,7 +65,7 @@ class RodSpec:
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.8)
     damping: tuple[str, float] | None = ("paper", 10.0)
     clamp: bool = True
-    swap_xy: bool = True  # the paper's frame mapping (tasks.md §1.6)
+    swap_xy: bool = True  # the paper's frame mapping (docs/tasks.md §1.6)
 
     def __post_init__(self):
         if self.n_nodes < 5:
@@ -191,7 +191,7 @@ class ElasticaRods:
             r.velocity_collection[...] = vr.T
 
     def tip_directors(self) -> np.ndarray:
-        """(R, 3, 3) world-frame DisMech-convention tip frame, rows (m1, m2, t) (tasks.md §1.6)."""
+        """(R, 3, 3) world-frame DisMech-convention tip frame, rows (m1, m2, t) (docs/tasks.md §1.6)."""
         out = []
         for r in self.rods:
             D = self._to_world(r.director_collection[:, :, -1])  # rows d1, d2, d3 in world coords

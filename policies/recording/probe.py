@@ -49,7 +49,7 @@ def integrated_curvature(pos: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> np.
     """Integrated curvature (κ1, κ2) per node, (..., N, 2) [-]; rows 0 and N-1 are 0.
 
     pos (..., N, 3) [m]; m1, m2 (..., N-1, 3) material directors. κb_i = 2 t_{i-1}×t_i / (1 + t_{i-1}·t_i),
-    κ1_i = ½ κb_i·(m2_{i-1} + m2_i), κ2_i = −½ κb_i·(m1_{i-1} + m1_i)  (tasks.md §1.5).
+    κ1_i = ½ κb_i·(m2_{i-1} + m2_i), κ2_i = −½ κb_i·(m1_{i-1} + m1_i)  (docs/tasks.md §1.5).
     """
     e = np.diff(pos, axis=-2)
     t = e / np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-300)

@@ -1,4 +1,4 @@
-"""The four RL tasks of the paper (tasks.md §4-7) and their gymnasium registration.
+"""The four RL tasks of the paper (docs/tasks.md §4-7) and their gymnasium registration.
 
 ``TASKS`` maps short names to gymnasium ids; ``TASK_SPECS`` maps ids to (core class, env class,
 default-config factory). :func:`register_tasks` registers every id with gymnasium (idempotent; run on

@@ -5,7 +5,7 @@ A :class:`BatchedTask` owns the simulator, its State/Control, an :class:`ActionC
 numpy over the B envs; only resets loop over the envs being reset (to draw from each env's own
 generator). The gymnasium single env (B = 1) and the batched VectorEnv are thin wrappers over it.
 
-Episode protocol (tasks.md §3): reset -> counter 0; each step converts the action, runs
+Episode protocol (docs/tasks.md §3): reset -> counter 0; each step converts the action, runs
 ``substeps`` sim steps (increment injected before each), runs the task's post-step hook, builds the
 observation and the reward. ``truncated`` when the counter (before increment) equals
 ``timeout_steps`` (so an episode has ``timeout_steps + 1`` steps). ``terminated`` with reward -10

@@ -1,4 +1,4 @@
-"""Follow Target (3D) and its 2D variant (tasks.md §4)."""
+"""Follow Target (3D) and its 2D variant (docs/tasks.md §4)."""
 from __future__ import annotations
 
 from dataclasses import dataclass

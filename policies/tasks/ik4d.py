@@ -1,4 +1,4 @@
-"""4D IK: reach a static position with the tip frame at a target yaw (tasks.md §5)."""
+"""4D IK: reach a static position with the tip frame at a target yaw (docs/tasks.md §5)."""
 from __future__ import annotations
 
 import math
@@ -100,7 +100,7 @@ class IK4DEnv(RodTaskEnv):
     twist increments (scale 0.05 rad, T in [-pi/2, pi/2]) of the control points (nodes 2, 6, 10, 14, 18).
 
     Reward: ``-d^2`` (``reward/distance``) ``- 0.5 o^2`` (``reward/orientation``) + bonus
-    (``reward/bonus``, tasks.md §5.5: up to 6 - 2o when d < 0.05 m and o < 0.05), with
+    (``reward/bonus``, docs/tasks.md §5.5: up to 6 - 2o when d < 0.05 m and o < 0.05), with
     d = tip distance [m] and o = 1 - (q_tip . q_target)^2.
 
     Termination: ``truncated`` after 101 control steps (0.1 s each); ``terminated`` with reward -10 on

@@ -1,4 +1,4 @@
-"""Fast random "fence" sampler of the 3D Random Obstacles task (tasks.md §7.2), per env.
+"""Fast random "fence" sampler of the 3D Random Obstacles task (docs/tasks.md §7.2), per env.
 
 Reference procedure (per obstacle i = 0..7): up to 100 trials of (centre uniform in the box,
 direction uniform on the sphere); a trial passes if both end-points lie in the box and the segment
@@ -37,7 +37,7 @@ __all__ = ["FenceSpec", "FenceSampler", "segment_distance"]
 
 @dataclass(frozen=True)
 class FenceSpec:
-    """Random fence parameters (tasks.md §7.2). Lengths in m."""
+    """Random fence parameters (docs/tasks.md §7.2). Lengths in m."""
 
     count: int = 8
     length: float = 1.0

@@ -1,4 +1,4 @@
-"""3D Random Obstacles: reach a fixed target behind a random fence of 8 capsules (tasks.md §7)."""
+"""3D Random Obstacles: reach a fixed target behind a random fence of 8 capsules (docs/tasks.md §7)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -1,4 +1,4 @@
-"""Reward functions of the four tasks (tasks.md §4.4, §5.5, §6.4, §7.4), vectorised over envs.
+"""Reward functions of the four tasks (docs/tasks.md §4.4, §5.5, §6.4, §7.4), vectorised over envs.
 
 All take arrays with a leading batch axis and return float64 arrays of shape (B,) plus a dict of
 named terms (each (B,)), which the envs put into ``info`` as ``reward/<term>``.
@@ -10,7 +10,7 @@ import numpy as np
 
 __all__ = ["reach_reward", "ik_reward", "orientation_distance", "FAILURE_REWARD"]
 
-#: reward of a failed control step (simulator failure or reward explosion), tasks.md §3.3
+#: reward of a failed control step (simulator failure or reward explosion), docs/tasks.md §3.3
 FAILURE_REWARD = -10.0
 
 
@@ -32,7 +32,7 @@ def orientation_distance(q_tip: np.ndarray, q_target: np.ndarray) -> np.ndarray:
 
 
 def ik_reward(d: np.ndarray, o: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """4D IK reward: ``r = -d^2 - 0.5 o^2 + bonus(d, o)`` (tasks.md §5.5 table).
+    """4D IK reward: ``r = -d^2 - 0.5 o^2 + bonus(d, o)`` (docs/tasks.md §5.5 table).
 
     d: (B,) distance [m]; o: (B,) orientation distance in [0, 1].
     Returns (r, {"distance": -d^2, "orientation": -0.5 o^2, "bonus": bonus}).

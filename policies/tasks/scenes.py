@@ -1,10 +1,10 @@
 """Scene / simulator construction for the tasks (the only module of policies/tasks that imports sim).
 
 The task's scene file (``config.scene``, relative to the repository root) is loaded when it exists;
-otherwise the paper's arm (tasks.md §1.1) is built in code. Obstacle tasks add their capsules
+otherwise the paper's arm (docs/tasks.md §1.1) is built in code. Obstacle tasks add their capsules
 (``task.scene_capsules()``) and the paper's contact settings when the scene has no obstacles. Either way the task config's solver
 settings win over the file's ``[sim]`` table: dt, newton_max_iter, newton_tol, mode, and
-``accept_unconverged = true`` (tasks.md §1.2: fixed Newton budget, unconverged iterates accepted).
+``accept_unconverged = true`` (docs/tasks.md §1.2: fixed Newton budget, unconverged iterates accepted).
 """
 from __future__ import annotations
 
@@ -54,7 +54,7 @@ def scene_for(config: Any, task: Any = None):
 
 def _with_capsules(spec, ends: np.ndarray, radius: float):
     """Add capsule obstacles (M, 2, 3) [m] of ``radius`` [m] and the paper's contact settings
-    (tasks.md §1.3: k = 1e6, delta = 5e-3 m, broad-phase margin 5e-2 m, no friction)."""
+    (docs/tasks.md §1.3: k = 1e6, delta = 5e-3 m, broad-phase margin 5e-2 m, no friction)."""
     from sim.obstacles import CapsuleSpec, ContactSpec
 
     caps = tuple(CapsuleSpec(start=tuple(float(v) for v in e[0]), end=tuple(float(v) for v in e[1]),

@@ -1,4 +1,4 @@
-"""Target motion / sampling and tip-frame quaternions, vectorised over envs (tasks.md §4.2, §5.2, §5.3).
+"""Target motion / sampling and tip-frame quaternions, vectorised over envs (docs/tasks.md §4.2, §5.2, §5.3).
 
 Randomness: every env owns a ``numpy.random.Generator``; all random numbers an env needs for an
 episode are drawn from *its* generator at reset (per env, in a fixed order), so a batch of B envs
@@ -17,7 +17,7 @@ TWO_PI = 2.0 * math.pi
 
 
 class FollowTargetMotion:
-    """Constant-speed target with random direction changes, reflected at the box faces (tasks.md §4.2).
+    """Constant-speed target with random direction changes, reflected at the box faces (docs/tasks.md §4.2).
 
     pos (B, D) [m], vel (B, D) [m/s], D = 3 (x, y, z) or 2 (x, z).
     Per control step (after the rod sub-steps): (1) negate the velocity component of every axis whose

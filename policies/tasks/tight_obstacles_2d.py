@@ -1,4 +1,4 @@
-"""2D Tight Obstacles: planar reach through a narrow crevice of fixed discs (tasks.md §6)."""
+"""2D Tight Obstacles: planar reach through a narrow crevice of fixed discs (docs/tasks.md §6)."""
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -1,1 +1,1 @@
-"""Element energies with analytic gradients and Hessians (numba), physics.md §2 and §1.6."""
+"""Element energies with analytic gradients and Hessians (numba), docs/physics.md §2 and §1.6."""

@@ -1,4 +1,4 @@
-"""Bending and twisting of one interior node of a 3-D rod (physics.md §2.2, §2.3).
+"""Bending and twisting of one interior node of a 3-D rod (docs/physics.md §2.2, §2.3).
 
 E_b = 1/(2 l_i) [EI1 (κ1 − κ̄1)² + EI2 (κ2 − κ̄2)²],  E_t = GJ/(2 l_i) (τ − τ̄)², τ = θ_f − θ_e + β.
 Full-Newton symmetric Hessians (∇κ∇κᵀ + (κ − κ̄)∇²κ), exact at the frame-transport base (§2.4).

@@ -1,4 +1,4 @@
-"""Planar (2-D) bending of one interior node (physics.md §1.6 [REC]), exact gradient and Hessian.
+"""Planar (2-D) bending of one interior node (docs/physics.md §1.6 [REC]), exact gradient and Hessian.
 
 κ = 2 tan(φ/2), φ = atan2(e_x f_z − e_z f_x, e·f) the counter-clockwise turning angle (x right, z up),
 e = x_i − x_{i−1}, f = x_{i+1} − x_i. E_b = EI/(2 l_i) (κ − κ̄)². Local DOF order:

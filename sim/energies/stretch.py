@@ -1,4 +1,4 @@
-"""Stretching energy of one edge (physics.md §2.1), exact gradient and Hessian, 3-D and 2-D.
+"""Stretching energy of one edge (docs/physics.md §2.1), exact gradient and Hessian, 3-D and 2-D.
 
 E_s = ½ EA l̄ ε², ε = |e|/l̄ − 1, e = x_b − x_a. Local DOF order: [x_a, x_b] (6 in 3-D, 4 in 2-D).
 Units: positions [m], EA [N], energy [J], gradient [N], Hessian [N/m].

@@ -15,7 +15,7 @@ def test_rest_tip_frame_is_the_dismech_initial_frame():
 
 
 def test_positive_kappa1_bends_toward_minus_x_and_kappa2_toward_minus_y():
-    # DisMech convention (tasks.md §1.5) through the paper's Elastica mapping (§1.6)
+    # DisMech convention (docs/tasks.md §1.5) through the paper's Elastica mapping (§1.6)
     rods = ElasticaRods(RodSpec(n_nodes=11, gravity=(0.0, 0.0, 0.0)), n_rods=2, dt=4e-4)
     k = np.zeros((2, 11, 2))
     k[0, 1:-1, 0] = 0.05

@@ -33,7 +33,7 @@ def test_bad_stiffness_is_a_clear_error():
 
 
 def test_euler_bernoulli_values_of_physics_spec():
-    b = EulerBernoulliCantilever(youngs=1e5)  # physics.md §8 A table
+    b = EulerBernoulliCantilever(youngs=1e5)  # docs/physics.md §8 A table
     assert b.omega1 == pytest.approx(0.49724, rel=1e-4)
     assert b.period == pytest.approx(12.636, rel=1e-4)
     assert b.amplitude == pytest.approx(0.010055, rel=1e-4)

@@ -7,7 +7,7 @@ configurations) with structural properties over random inputs:
 * internal forces are free of net force and net moment (translation / rotation invariance);
 * energies are invariant under rigid motions (positions and directors rotated together);
 * the Hessian is symmetric and its action matches the change of the gradient (directional FD);
-* the 3-D bend kernel and the reduced 2-D kernel agree on planar configurations (physics.md §1.6).
+* the 3-D bend kernel and the reduced 2-D kernel agree on planar configurations (docs/physics.md §1.6).
 """
 import math
 

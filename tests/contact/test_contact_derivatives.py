@@ -1,6 +1,6 @@
 """Finite-difference checks of the IMC contact energy, its gradient and Hessian, for every obstacle kind,
 across the softplus knee (g = -2delta ... +delta), in penetration, touching (g = 0) and head-on; and of the
-friction Jacobian (physics.md §4.1, §4.2, §4.6, §8D.6)."""
+friction Jacobian (docs/physics.md §4.1, §4.2, §4.6, §8D.6)."""
 from __future__ import annotations
 
 import math

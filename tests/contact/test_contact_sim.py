@@ -1,4 +1,4 @@
-"""Contact inside ``Simulator.step`` (physics.md §4, §8C, §8D.4-5): resting on a plane, bending against
+"""Contact inside ``Simulator.step`` (docs/physics.md §4, §8C, §8D.4-5): resting on a plane, bending against
 obstacles without penetration, primitive-vs-mesh equivalence, Coulomb friction (sliding closed form and
 incline), starting in penetration, and the StepStats contact rows."""
 from __future__ import annotations
@@ -124,7 +124,7 @@ FRIC_CONTACT = dict(stiffness=1e4, delta=5e-4, friction=0.4, friction_velocity_t
 
 @pytest.mark.parametrize("F", [2.0, 6.0, 9.0])
 def test_axial_sliding_friction_closed_form(F):
-    """physics.md §8C: unit-mass rod on the floor, uniform axial force F (as a tilted gravity component),
+    """docs/physics.md §8C: unit-mass rod on the floor, uniform axial force F (as a tilted gravity component),
     mu = 0.4: kinetic energy at T = 1 s is 1/2 (|F| - mu m g)^2 (0 below mu m g = 3.92 N)."""
     sim, st, ctrl = make(FRIC_ROD, [dict(type="plane", point=[0, 0, 0], normal=[0, 0, 1])], FRIC_CONTACT,
                          mode="2d", dt=5e-3, iters=15, tol=1e-6, gravity=(F, 0.0, -9.8), line_search="backtrack",

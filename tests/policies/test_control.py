@@ -1,4 +1,4 @@
-"""Action converter (tasks.md §2): worked values of §2.7, intended mapping, clipping, ramp, reset, errors."""
+"""Action converter (docs/tasks.md §2): worked values of §2.7, intended mapping, clipping, ramp, reset, errors."""
 from __future__ import annotations
 
 import subprocess

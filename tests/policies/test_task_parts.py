@@ -18,7 +18,7 @@ def test_reach_reward_bands_and_edges():
     np.testing.assert_allclose(terms["bonus"], bonus)
     np.testing.assert_allclose(terms["distance"], -d**2)
     np.testing.assert_allclose(r, -d**2 + bonus)
-    assert r[-1] == pytest.approx(-1.063, abs=1e-3)    # tasks.md §7.4 first reward ~ -1.06
+    assert r[-1] == pytest.approx(-1.063, abs=1e-3)    # docs/tasks.md §7.4 first reward ~ -1.06
 
 
 def test_ik_reward_table():
@@ -139,7 +139,7 @@ def test_fence_sampler_properties():
     assert rod.min() >= 0.05 + 0.03 + 0.1
     tgt = segment_distance(F[..., 0, :], F[..., 1, :], np.array([0.8, 0, 0.35]), np.array([0.8, 0, 0.35]))
     assert tgt.min() >= 0.2 - 1e-6
-    # distribution close to the reference's measured statistics (tasks.md §7.2)
+    # distribution close to the reference's measured statistics (docs/tasks.md §7.2)
     u = np.abs(F[:, :, 1] - F[:, :, 0]).reshape(-1, 3)
     assert u[:, 1].mean() == pytest.approx(0.88, abs=0.03)
     assert u[:, 2].mean() == pytest.approx(0.37, abs=0.04)
@@ -154,7 +154,7 @@ def test_fence_sampler_deterministic():
 
 
 def test_fence_sampler_restart_rate_matches_reference():
-    # tasks.md §7.2: the reference's restart loop succeeds ~1.5 % of the time (~65 restarts per fence)
+    # docs/tasks.md §7.2: the reference's restart loop succeeds ~1.5 % of the time (~65 restarts per fence)
     s = FenceSampler()
     rng = np.random.default_rng(2)
     r = []

@@ -1,4 +1,4 @@
-"""RodSAC extensions (tasks.md §8.1-8.2) and the evaluation metric, on a standard gymnasium env."""
+"""RodSAC extensions (docs/tasks.md §8.1-8.2) and the evaluation metric, on a standard gymnasium env."""
 from __future__ import annotations
 
 import math

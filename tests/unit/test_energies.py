@@ -1,4 +1,4 @@
-"""Finite-difference checks of every element energy's gradient and Hessian (physics.md §2, §2.4, §1.6).
+"""Finite-difference checks of every element energy's gradient and Hessian (docs/physics.md §2, §2.4, §1.6).
 
 Bend/twist are evaluated with frames time-parallel transported from a base configuration; at the base the
 analytic gradient and symmetric Hessian are exact (§2.4), so they are compared there. Stretch and planar

@@ -1,4 +1,4 @@
-"""Frames: parallel transport, re-orthonormalisation, time-parallel update, reference twist (physics.md §1.3)."""
+"""Frames: parallel transport, re-orthonormalisation, time-parallel update, reference twist (docs/physics.md §1.3)."""
 from __future__ import annotations
 
 import numpy as np

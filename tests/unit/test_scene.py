@@ -38,7 +38,7 @@ def test_shipped_arm_scene_and_derived_constants(scenes_dir):
     spec = load_scene(scenes_dir / "arm.toml")
     assert spec.rod.nodes == 21 and spec.sim.newton_max_iter == 2 and spec.sim.accept_unconverged
     m = build_model(spec)
-    # physics.md §8E derived constants
+    # docs/physics.md §8E derived constants
     assert math.isclose(m.EA, 7.854e4, rel_tol=1e-3)
     assert math.isclose(m.EI1, 49.09, rel_tol=1e-3) and m.EI1 == m.EI2
     assert math.isclose(m.GJ, 32.72, rel_tol=1e-3)

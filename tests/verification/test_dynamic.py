@@ -1,4 +1,4 @@
-"""Dynamics: cantilever vs Euler–Bernoulli (physics.md §8A), backward-Euler damping, energy decay, 2-D vs 3-D."""
+"""Dynamics: cantilever vs Euler–Bernoulli (docs/physics.md §8A), backward-Euler damping, energy decay, 2-D vs 3-D."""
 from __future__ import annotations
 
 import numpy as np
@@ -41,7 +41,7 @@ def test_cantilever_period_and_amplitude_midpoint(scenes_dir):
     """Midpoint rule, N = 51, Δt = 0.05, E = 1e5: ω1 = (βL)² √(EI/(ρAL⁴)), amplitude v_tip/ω1.
 
     Clamping nodes 0 and 1 shortens the beam by l̄ = L/50, so the period is expected up to ≈2·l̄/L = 4% short
-    (physics.md §8A reports −1.9% for this N); tolerances: period within [−4%, +1%], amplitude within 3%."""
+    (docs/physics.md §8A reports −1.9% for this N); tolerances: period within [−4%, +1%], amplitude within 3%."""
     spec = load_scene(scenes_dir / "cantilever_dynamic.toml")
     sim, t, z = _run_cantilever(spec, 19.0)
     m = sim.model
@@ -96,7 +96,7 @@ def test_energy_never_increases_without_forcing():
 
 
 def test_2d_matches_3d_on_planar_motion(scenes_dir):
-    """The reduced 2-D model (physics.md §1.6) reproduces the 3-D arm under an in-plane κ̄ command."""
+    """The reduced 2-D model (docs/physics.md §1.6) reproduces the 3-D arm under an in-plane κ̄ command."""
     sims, states, ctrls = [], [], []
     for name in ("arm.toml", "arm_2d.toml"):
         sim = Simulator(build_model(load_scene(scenes_dir / name)), envs=2)

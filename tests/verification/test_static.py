@@ -1,4 +1,4 @@
-"""Closed-form static checks (physics.md §8D): gravity cantilever (small and large deflection), natural
+"""Closed-form static checks (docs/physics.md §8D): gravity cantilever (small and large deflection), natural
 curvature arc (3-D and 2-D), pure twist."""
 from __future__ import annotations
 
@@ -66,7 +66,7 @@ def test_gravity_cantilever_large_deflection_vs_elastica():
 @pytest.mark.parametrize("mode", ["3d", "2d"])
 def test_natural_curvature_gives_polygonal_arc(mode):
     """Uniform κ̄ = 2 tan(φ/2) on a +z rod, no gravity: equilibrium turning angle φ at every node, l = l̄,
-    counter-clockwise (toward −x) for positive κ̄1 (physics.md §1.6)."""
+    counter-clockwise (toward −x) for positive κ̄1 (docs/physics.md §1.6)."""
     phi = 0.15
     spec = make_spec(nodes=21, direction=(0.0, 0.0, 1.0), E=1e6, radius=0.02, mode=mode, dt=1e4,
                      line_search="backtrack", max_iter=100, dtol=1e-14)
