@@ -15,6 +15,7 @@ import numpy as np
 from .frames import initial_reference_frames
 from .obstacles import ObstacleSet
 from .scene import SceneSpec
+from .validate import check_scene
 
 __all__ = ["Model", "build_model"]
 
@@ -81,6 +82,7 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
     values the State holds; set ``state.dof[:, j, 3]`` to impose a twist angle). Used e.g. by the pure-twist
     check; ``rod.clamp = "first_edge"`` locks edge 0 the same way.
     """
+    check_scene(spec)  # specs built in code get the scene file's checks (sim/validate.py)
     rod, sim = spec.rod, spec.sim
     N = rod.nodes
     d = np.asarray(rod.direction, dtype=np.float64)

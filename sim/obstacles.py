@@ -31,6 +31,7 @@ import numpy as np
 
 from .contact_mesh import MeshError, load_mesh_triangles
 from .tomlio import SceneError, check_unknown, format_value, take_bool, take_float, take_str, take_vec3
+from .validate import unit_vector
 
 __all__ = ["ObstacleSpec", "PlaneSpec", "SphereSpec", "CapsuleSpec", "BoxSpec", "MeshSpec", "ContactSpec",
            "ObstacleSet", "parse_obstacles", "parse_contact", "dump_obstacles", "dump_contact", "KIND_CODES"]
@@ -145,19 +146,13 @@ def _take_quat(t: Mapping[str, Any], key: str, p: str, path: str | None) -> Quat
     if (not isinstance(v, (list, tuple)) or len(v) != 4
             or not all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in v)):
         raise SceneError(f"{where}: expected a quaternion [w, x, y, z] of 4 numbers, got {v!r}")
-    q = np.asarray(v, dtype=np.float64)
-    n = float(np.linalg.norm(q))
-    if not np.all(np.isfinite(q)) or not n > 1e-12:
-        raise SceneError(f"{where}: quaternion must be finite and non-zero, got {v!r}")
-    q = q / n
-    return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+    q = unit_vector(v, where)  # scaled first: no overflow for huge components (sim/validate.py)
+    return (q[0], q[1], q[2], q[3])
 
 
 def _unit(v: Vec3, where: str) -> Vec3:
-    n = float(np.linalg.norm(v))
-    if not n > 1e-12:
-        raise SceneError(f"{where}: must be a non-zero vector, got {list(v)}")
-    return (v[0] / n, v[1] / n, v[2] / n)
+    u = unit_vector(v, where)
+    return (u[0], u[1], u[2])
 
 
 def _parse_one(t: Mapping[str, Any], i: int, scene_path: str | None) -> ObstacleSpec:

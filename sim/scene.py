@@ -17,7 +17,6 @@ Keys (SI units)::
 """
 from __future__ import annotations
 
-import math
 import os
 import tempfile
 import tomllib
@@ -36,6 +35,7 @@ from .tomlio import (
     take_str,
     take_vec3,
 )
+from .validate import check_scene, unit_vector
 
 __all__ = ["SceneError", "SimSpec", "RodSpec", "SceneSpec", "load_scene", "parse_scene", "dump_scene"]
 
@@ -140,11 +140,7 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
     nu = take_float(r, "poisson_ratio", "rod.", path)
     if not (-1.0 < nu <= 0.5):
         raise SceneError(f"{where}: rod.poisson_ratio: must be in (-1, 0.5], got {nu!r}")
-    d = take_vec3(r, "direction", "rod.", path)
-    dn = math.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2)
-    if not dn > 1e-12:
-        raise SceneError(f"{where}: rod.direction: must be a non-zero vector, got {list(d)}")
-    d = (d[0] / dn, d[1] / dn, d[2] / dn)
+    d = unit_vector(take_vec3(r, "direction", "rod.", path), f"{where}: rod.direction")  # no overflow
     rod = RodSpec(
         nodes=nodes,
         length=take_float(r, "length", "rod.", path, positive=True),
@@ -167,7 +163,9 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
         raise SceneError(f"{where}: obstacle: expected an array of tables [[obstacle]]")
     obstacles = _obs.parse_obstacles(obs_tables, path)
     contact = _obs.parse_contact(_table(doc, "contact", path, required=False), path)
-    return SceneSpec(sim=sim, rod=rod, obstacles=tuple(obstacles), contact=contact, path=path)
+    spec = SceneSpec(sim=sim, rod=rod, obstacles=tuple(obstacles), contact=contact, path=path)
+    check_scene(spec, where)  # every number finite and within the physical bounds (sim/validate.py)
+    return spec
 
 
 def load_scene(path: str | os.PathLike) -> SceneSpec:
@@ -178,8 +176,15 @@ def load_scene(path: str | os.PathLike) -> SceneSpec:
             doc = tomllib.load(fh)
     except FileNotFoundError:
         raise SceneError(f"{p}: file not found") from None
+    except IsADirectoryError:
+        raise SceneError(f"{p}: is a directory, not a scene file") from None
+    except UnicodeDecodeError as exc:
+        raise SceneError(f"{p}: not a UTF-8 text file (byte {exc.start}: {exc.reason}); scene files are "
+                         "UTF-8 TOML") from None
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{p}: invalid TOML: {exc}") from None
+    except OSError as exc:
+        raise SceneError(f"{p}: cannot read: {exc.strerror or exc}") from None
     return parse_scene(doc, p)
 
 

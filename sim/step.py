@@ -6,6 +6,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from . import solve as _solve
+from . import validate as _validate
 from .model import Model
 from .state import Control, State, StepStats
 
@@ -96,10 +97,9 @@ class Simulator:
                        tau_bar=np.broadcast_to(tb, (B,) + tb.shape).copy())
 
     def reset_envs(self, state: State, ctrl: Control | None, mask: np.ndarray) -> None:
-        """Reset the envs where ``mask`` (B,) is True to rest (state and, if given, control)."""
-        mask = np.asarray(mask, dtype=bool)
-        if mask.shape != (self.envs,):
-            raise ValueError(f"mask: expected shape ({self.envs},), got {mask.shape}")
+        """Reset the envs selected by ``mask`` to rest (state and, if given, control): a (B,) boolean mask, or
+        integer env indices (list/tuple/int array/int); see :func:`sim.validate.env_mask`."""
+        mask = _validate.env_mask(mask, self.envs)
         fresh = self.reset()
         for name in ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time", "failed"):
             getattr(state, name)[mask] = getattr(fresh, name)[mask]
@@ -127,23 +127,8 @@ class Simulator:
 
     # ------------------------------------------------------------------ stepping
     def _check(self, state: State, ctrl: Control) -> None:
-        B, N = self.envs, self.model.node_count
-        nd = 4 if self.model.mode == "3d" else 2
-        want = {"dof": (B, N, nd), "dof_vel": (B, N, nd), "edge_ref_d1": (B, N - 1, 3), "edge_tangent": (B, N - 1, 3),
-                "node_ref_twist": (B, N), "time": (B,), "failed": (B,)}
-        for name, shp in want.items():
-            a = getattr(state, name)
-            if not isinstance(a, np.ndarray) or a.shape != shp:
-                raise ValueError(f"state.{name}: expected shape {shp}, got {getattr(a, 'shape', type(a))}")
-            dt = np.bool_ if name == "failed" else np.float64
-            if a.dtype != dt or not a.flags.c_contiguous or not a.flags.writeable:
-                raise ValueError(f"state.{name}: expected a writable C-contiguous {np.dtype(dt).name} array")
-        for name, shp in (("kappa_bar", (B, N, 2)), ("tau_bar", (B, N))):
-            a = getattr(ctrl, name)
-            if not isinstance(a, np.ndarray) or a.shape != shp:
-                raise ValueError(f"ctrl.{name}: expected shape {shp}, got {getattr(a, 'shape', type(a))}")
-            if not np.isfinite(a).all():
-                raise ValueError(f"ctrl.{name}: contains NaN or inf")
+        _validate.check_step_inputs(self, state, ctrl)  # every field named (sim/validate.py)
+        _validate.quarantine_nonfinite(self, state)  # NaN/inf state: env failed, rest state
 
     def step(self, state: State, ctrl: Control) -> StepStats:
         """Advance every non-failed env of ``state`` by ``model.dt`` (in place) under ``ctrl``."""
@@ -162,7 +147,12 @@ class Simulator:
             _solve.step_kernel_2d(q, v, state.edge_ref_d1, state.edge_tangent, state.node_ref_twist, state.time,
                                   state.failed, kb, rl, vl, ms, fx, gr, self._prm, self._cd, self._crep,
                                   self._fo, self._io)
-        return self._stats()
+        return self._checked_stats(state)
+
+    def _checked_stats(self, state: State) -> StepStats:
+        stats = self._stats()
+        _validate.quarantine_nonfinite(self, state, stats)  # no NaN leaves a step (sim/validate.py)
+        return stats
 
     def _stats(self) -> StepStats:
         fo, io, cr = self._fo, self._io, self._crep

@@ -1,0 +1,302 @@
+"""One place that checks every scene number and every simulator API input (docs/conventions.md, "Input bounds").
+
+* :func:`check_scene` - every number of a :class:`~sim.scene.SceneSpec` is finite and inside the physical
+  bounds of :data:`BOUNDS`; derived quantities (node mass, stiffnesses) are finite and positive. Called by
+  ``parse_scene`` (errors name the file) and by ``build_model`` (specs built in code). Raises
+  :class:`~sim.tomlio.SceneError` naming the file, the key and the problem.
+* :func:`check_step_inputs` - ``Simulator.step`` arguments: type, shape, dtype of every field (named).
+* :func:`quarantine_nonfinite` - envs whose state holds NaN/inf are marked failed and their state is
+  replaced by the rest configuration (time kept), so no NaN is passed on.
+* :func:`env_mask` - ``reset_envs`` selection: boolean mask or integer indices (never guessed).
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .tomlio import SceneError
+
+__all__ = ["BOUNDS", "check_scene", "check_step_inputs", "quarantine_nonfinite", "env_mask", "unit_vector",
+           "bounds_table"]
+
+# key -> (lowest, highest, unit). Closed intervals; (0, x] written as lowest = 0 with "exclusive" below.
+BOUNDS: dict[str, tuple[float, float, str]] = {
+    "sim.dt": (1e-9, 1e5, "s"),
+    "sim.gravity": (-1e4, 1e4, "m/s^2"),
+    "sim.damping": (0.0, 1e9, "1/s"),
+    "sim.newton_tol": (1e-300, 1e6, "-"),
+    "sim.newton_max_iter": (1, 10_000, "-"),
+    "sim.newton_dtol": (1e-300, 1e6, "m/s"),
+    "sim.divergence_guard": (0.0, 1e12, "-"),
+    "rod.nodes": (3, 10_000, "-"),
+    "rod.length": (1e-6, 1e4, "m"),
+    "rod.radius": (1e-7, 1e2, "m"),
+    "rod.density": (1e-3, 1e6, "kg/m^3"),
+    "rod.youngs_modulus": (1.0, 1e13, "Pa"),
+    "rod.start": (-1e6, 1e6, "m"),
+    "obstacle.coordinates": (-1e6, 1e6, "m"),
+    "obstacle.radius": (1e-6, 1e4, "m"),
+    "obstacle.half_extents": (1e-6, 1e4, "m"),
+    "obstacle.scale": (1e-6, 1e6, "-"),
+    "contact.stiffness": (1e-6, 1e15, "N/m"),
+    "contact.delta": (1e-9, 1e3, "m"),
+    "contact.friction": (0.0, 1e3, "-"),
+    "contact.friction_velocity_tol": (1e-12, 1e6, "m/s"),
+    "contact.margin": (0.0, 1e6, "m"),
+    "contact.max_penetration": (1e-12, 1e6, "m"),
+}
+_UNIT_TOL = 1e-9  # a stored direction / normal / quaternion must be unit to this tolerance
+
+
+def bounds_table() -> str:
+    """The markdown table of :data:`BOUNDS` (docs/conventions.md quotes it)."""
+    rows = ["| key | lowest | highest | unit |", "|---|---|---|---|"]
+    rows += [f"| `{k}` | {lo:g} | {hi:g} | {u} |" for k, (lo, hi, u) in BOUNDS.items()]
+    return "\n".join(rows)
+
+
+def unit_vector(v: Any, where: str) -> tuple[float, ...]:
+    """``v`` / |v| without overflow or underflow (scaled by its largest component first); SceneError if zero
+    or not finite."""
+    a = np.asarray(v, dtype=np.float64)
+    if not np.all(np.isfinite(a)):
+        raise SceneError(f"{where}: must be finite, got {list(v)}")
+    big = float(np.max(np.abs(a))) if a.size else 0.0
+    if not big > 0.0:
+        raise SceneError(f"{where}: must be a non-zero vector, got {list(v)}")
+    a = a / big
+    a = a / float(np.sqrt(np.sum(a * a)))
+    return tuple(float(c) for c in a)
+
+
+class _Checker:
+    def __init__(self, where: str) -> None:
+        self.where = where
+
+    def fail(self, key: str, msg: str) -> None:
+        raise SceneError(f"{self.where}: {key}: {msg}")
+
+    def num(self, key: str, v: Any, bound: str | None = None, *, positive: bool = False) -> float:
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+            self.fail(key, f"expected a number, got {type(v).__name__} {v!r}")
+        x = float(v)
+        if not math.isfinite(x):
+            self.fail(key, f"must be finite, got {x!r}")
+        if positive and not x > 0:
+            self.fail(key, f"must be > 0, got {x!r}")
+        lo, hi, unit = BOUNDS[bound or key]
+        if not lo <= x <= hi:
+            self.fail(key, f"must be within [{lo:g}, {hi:g}] {unit} (docs/conventions.md, Input bounds), got {x!r}")
+        return x
+
+    def integer(self, key: str, v: Any) -> int:
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+            self.fail(key, f"expected an integer, got {type(v).__name__} {v!r}")
+        lo, hi, _ = BOUNDS[key]
+        if not lo <= int(v) <= hi:
+            self.fail(key, f"must be an integer within [{lo:g}, {hi:g}], got {v!r}")
+        return int(v)
+
+    def vec(self, key: str, v: Any, bound: str, n: int = 3) -> np.ndarray:
+        if not isinstance(v, (tuple, list, np.ndarray)) or len(v) != n:
+            self.fail(key, f"expected {n} numbers, got {v!r}")
+        for c in v:
+            self.num(key, c, bound)
+        return np.asarray(v, dtype=np.float64)
+
+    def unit(self, key: str, v: Any, n: int = 3) -> None:
+        if not isinstance(v, (tuple, list, np.ndarray)) or len(v) != n:
+            self.fail(key, f"expected {n} numbers, got {v!r}")
+        a = np.asarray(v, dtype=np.float64)
+        if not np.all(np.isfinite(a)) or abs(float(np.linalg.norm(a)) - 1.0) > _UNIT_TOL:
+            self.fail(key, f"must be a finite unit vector (normalised when loaded), got {list(v)}")
+
+    def choice(self, key: str, v: Any, choices: tuple) -> None:
+        if v not in choices:
+            self.fail(key, f"must be one of {list(choices)}, got {v!r}")
+
+
+def check_scene(spec: Any, where: str | None = None) -> None:
+    """Check every number of ``spec`` against :data:`BOUNDS` (and derived masses/stiffnesses); raise
+    SceneError naming ``where`` (default ``spec.path``), the key and the problem."""
+    c = _Checker(where or getattr(spec, "path", None) or "<scene>")
+    s, r = spec.sim, spec.rod
+    c.num("sim.dt", s.dt, positive=True)
+    c.vec("sim.gravity", s.gravity, "sim.gravity")
+    c.num("sim.damping", s.damping)
+    c.num("sim.newton_tol", s.newton_tol, positive=True)
+    c.integer("sim.newton_max_iter", s.newton_max_iter)
+    c.num("sim.newton_dtol", s.newton_dtol, positive=True)
+    g = c.num("sim.divergence_guard", s.divergence_guard)
+    if 0.0 < g <= 1.0:
+        c.fail("sim.divergence_guard", f"must be 0 (off) or > 1 (a residual growth factor), got {g!r}")
+    if not isinstance(s.accept_unconverged, (bool, np.bool_)):
+        c.fail("sim.accept_unconverged", f"expected true/false, got {s.accept_unconverged!r}")
+    c.choice("sim.mode", s.mode, ("3d", "2d"))
+    c.choice("sim.integrator", s.integrator, ("backward_euler", "midpoint"))
+    c.choice("sim.line_search", s.line_search, ("none", "backtrack"))
+    n = c.integer("rod.nodes", r.nodes)
+    length = c.num("rod.length", r.length, positive=True)
+    radius = c.num("rod.radius", r.radius, positive=True)
+    rho = c.num("rod.density", r.density, positive=True)
+    E = c.num("rod.youngs_modulus", r.youngs_modulus, positive=True)
+    nu = r.poisson_ratio
+    if isinstance(nu, bool) or not isinstance(nu, (int, float, np.floating)) or not -1.0 < float(nu) <= 0.5:
+        c.fail("rod.poisson_ratio", f"must be in (-1, 0.5], got {nu!r}")
+    c.vec("rod.start", r.start, "rod.start")
+    c.unit("rod.direction", r.direction)
+    c.choice("rod.clamp", r.clamp, ("first_edge", "none"))
+    # derived quantities (docs/physics.md §1.5): all must be positive normal floats
+    seg = length / (n - 1)
+    area = math.pi * radius * radius
+    derived = {"node mass [kg]": rho * area * seg / 2.0, "EA [N]": E * area,
+               "EI [N m^2]": E * math.pi * radius ** 4 / 4.0,
+               "twist inertia [kg m^2]": rho * math.pi * radius ** 4 / 2.0 * seg}
+    for name, val in derived.items():
+        if not (math.isfinite(val) and val > 1e-290):
+            c.fail("rod", f"derived {name} = {val!r} is not a positive finite number (check radius, length, "
+                          "density, youngs_modulus)")
+    for i, ob in enumerate(getattr(spec, "obstacles", ()) or ()):
+        _check_obstacle(c, i, ob)
+    _check_contact(c, spec.contact)
+
+
+def _check_obstacle(c: _Checker, i: int, ob: Any) -> None:
+    p = f"obstacle[{i}]."
+    typ = getattr(ob, "type", None)
+    if typ == "plane":
+        c.vec(p + "point", ob.point, "obstacle.coordinates")
+        c.unit(p + "normal", ob.normal)
+    elif typ == "sphere":
+        c.vec(p + "center", ob.center, "obstacle.coordinates")
+        c.num(p + "radius", ob.radius, "obstacle.radius", positive=True)
+    elif typ == "capsule":
+        c.vec(p + "start", ob.start, "obstacle.coordinates")
+        c.vec(p + "end", ob.end, "obstacle.coordinates")
+        c.num(p + "radius", ob.radius, "obstacle.radius", positive=True)
+    elif typ == "box":
+        c.vec(p + "position", ob.position, "obstacle.coordinates")
+        c.vec(p + "half_extents", ob.half_extents, "obstacle.half_extents")
+        c.unit(p + "orientation", ob.orientation, 4)
+    elif typ == "mesh":
+        c.vec(p + "position", ob.position, "obstacle.coordinates")
+        c.vec(p + "scale", ob.scale, "obstacle.scale")
+        c.unit(p + "orientation", ob.orientation, 4)
+    else:
+        c.fail(p + "type", f"unknown obstacle type {typ!r}")
+
+
+def _check_contact(c: _Checker, ct: Any) -> None:
+    c.num("contact.stiffness", ct.stiffness, positive=True)
+    c.num("contact.delta", ct.delta, positive=True)
+    c.num("contact.friction", ct.friction)
+    c.num("contact.friction_velocity_tol", ct.friction_velocity_tol, positive=True)
+    c.num("contact.margin", ct.margin)
+    if ct.max_penetration is not None:
+        c.num("contact.max_penetration", ct.max_penetration, positive=True)
+
+
+# ---------------------------------------------------------------------------------------------- API inputs
+_STATE_FIELDS = ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time", "failed")
+
+
+def _array(obj: Any, owner: str, name: str, shape: tuple, dtype: Any, *, writable: bool) -> np.ndarray:
+    """``obj.name`` checked: an ndarray of ``shape`` and ``dtype`` (state: exactly; ctrl, not writable: any
+    real integer/float dtype, converted to float64 by the step)."""
+    if not hasattr(obj, name):
+        raise ValueError(f"{owner}.{name}: missing (expected a {owner.capitalize()} object, got "
+                         f"{type(obj).__name__})")
+    a = getattr(obj, name)
+    if not isinstance(a, np.ndarray):
+        raise ValueError(f"{owner}.{name}: expected a numpy array of shape {shape}, got {type(a).__name__}")
+    if a.dtype != np.dtype(dtype) and (writable or a.dtype.kind not in "iuf"):
+        kind = {"O": "object", "U": "str", "S": "bytes", "c": "complex"}.get(a.dtype.kind, a.dtype.name)
+        raise ValueError(f"{owner}.{name}: expected dtype {np.dtype(dtype).name}, got {kind} "
+                         f"(no implicit cast; convert with np.asarray(..., dtype=np.{np.dtype(dtype).name}))")
+    if a.shape != shape:
+        raise ValueError(f"{owner}.{name}: expected shape {shape}, got {a.shape}")
+    if writable and (not a.flags.c_contiguous or not a.flags.writeable):
+        raise ValueError(f"{owner}.{name}: expected a writable C-contiguous {np.dtype(dtype).name} array")
+    return a
+
+
+def check_step_inputs(sim: Any, state: Any, ctrl: Any) -> None:
+    """Check ``Simulator.step(state, ctrl)`` arguments; ValueError naming the field and the problem."""
+    if state is None or not hasattr(state, "dof"):
+        raise ValueError(f"step: state: expected a sim.State (from Simulator.reset()), got {type(state).__name__}")
+    if ctrl is None or not hasattr(ctrl, "kappa_bar"):
+        raise ValueError(f"step: ctrl: expected a sim.Control (from Simulator.make_control()), got "
+                         f"{type(ctrl).__name__}")
+    B, N = sim.envs, sim.model.node_count
+    nd = 4 if sim.model.mode == "3d" else 2
+    want = {"dof": (B, N, nd), "dof_vel": (B, N, nd), "edge_ref_d1": (B, N - 1, 3), "edge_tangent": (B, N - 1, 3),
+            "node_ref_twist": (B, N), "time": (B,), "failed": (B,)}
+    for name, shp in want.items():
+        _array(state, "state", name, shp, np.bool_ if name == "failed" else np.float64, writable=True)
+    for name, shp in (("kappa_bar", (B, N, 2)), ("tau_bar", (B, N))):
+        a = _array(ctrl, "ctrl", name, shp, np.float64, writable=False)
+        if not np.isfinite(a).all():
+            raise ValueError(f"ctrl.{name}: contains NaN or inf")
+
+
+def quarantine_nonfinite(sim: Any, state: Any, stats: Any = None) -> np.ndarray:
+    """Envs whose state (dof, dof_vel, frames, twist, time) holds NaN/inf: mark them failed and replace their
+    state by the rest configuration (time kept when finite, else 0), so no NaN stays in the state. With
+    ``stats``, those envs' StepStats numbers are zeroed and ``stats.failed`` set. Returns the (B,) mask."""
+    arrays = [getattr(state, name) for name in _STATE_FIELDS[:-1]]
+    if stats is not None:
+        arrays += [a for a in vars(stats).values() if isinstance(a, np.ndarray) and a.dtype.kind == "f"]
+    bad = np.zeros(state.dof.shape[0], dtype=bool)
+    for a in arrays:
+        if a.size and not math.isfinite(float(a.sum())):  # fast path: one sum per array
+            bad |= ~np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1)
+    if not bad.any():
+        return bad
+    fresh = sim.reset()
+    t = state.time.copy()
+    for name in _STATE_FIELDS[:-1]:
+        getattr(state, name)[bad] = getattr(fresh, name)[bad]
+    state.time[bad] = np.where(np.isfinite(t[bad]), t[bad], 0.0)
+    state.failed[bad] = True
+    if stats is not None:
+        for name, a in vars(stats).items():
+            if isinstance(a, np.ndarray) and a.dtype.kind in "fiu":
+                a[bad] = 0
+        stats.failed[bad] = True
+        stats.converged[bad] = False
+    return bad
+
+
+def env_mask(sel: Any, envs: int) -> np.ndarray:
+    """(envs,) bool mask from ``sel``: a boolean array/list of length ``envs`` (a mask), or integer indices
+    (a list, tuple, integer array or a single int; negative counts from the end). Anything else (floats,
+    mixed bool/int lists, out-of-range indices) raises ValueError."""
+    if isinstance(sel, (bool, np.bool_)):
+        raise ValueError("reset_envs: expected a boolean mask of length envs or integer env indices, got a bool")
+    if isinstance(sel, (int, np.integer)):
+        sel = [int(sel)]
+    if isinstance(sel, (list, tuple)):
+        kinds = {type(x) for x in sel}
+        if kinds and all(issubclass(k, (bool, np.bool_)) for k in kinds):
+            arr = np.asarray(sel, dtype=bool)
+        elif all(issubclass(k, (int, np.integer)) and not issubclass(k, (bool, np.bool_)) for k in kinds):
+            arr = np.asarray(sel, dtype=np.int64).reshape(-1)
+        else:
+            raise ValueError(f"reset_envs: a list must hold only bools (a mask) or only integers (indices), got "
+                             f"{sorted(k.__name__ for k in kinds)}")
+    else:
+        arr = np.asarray(sel)
+    if arr.dtype == np.bool_:
+        if arr.shape != (envs,):
+            raise ValueError(f"reset_envs: boolean mask: expected shape ({envs},), got {arr.shape}")
+        return arr.copy()
+    if arr.dtype.kind not in "iu" or arr.ndim != 1:
+        raise ValueError(f"reset_envs: expected a boolean mask of shape ({envs},) or 1-D integer indices, got "
+                         f"dtype {arr.dtype} shape {arr.shape}")
+    if arr.size and (arr.min() < -envs or arr.max() >= envs):
+        raise ValueError(f"reset_envs: env index out of range [0, {envs - 1}]: {arr.tolist()}")
+    mask = np.zeros(envs, dtype=bool)
+    mask[arr] = True
+    return mask
