@@ -3,10 +3,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import statistics
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -16,17 +14,9 @@ __all__ = ["sim_main", "bench_sim_main"]
 
 
 def _atomic_savez(path: str, **arrays) -> None:
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=p.name + ".", suffix=".tmp.npz", dir=str(p.parent))
-    os.close(fd)
-    try:
-        np.savez_compressed(tmp, **arrays)
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    from .atomicio import savez
+
+    savez(path, compressed=True, **arrays)
 
 
 def sim_main(argv: list[str] | None = None) -> int:

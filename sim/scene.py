@@ -18,7 +18,6 @@ Keys (SI units)::
 from __future__ import annotations
 
 import os
-import tempfile
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -209,15 +208,8 @@ def scene_to_toml(spec: SceneSpec, *, base_dir: str | os.PathLike | None = None)
 
 
 def dump_scene(spec: SceneSpec, path: str | os.PathLike) -> None:
-    """Write ``spec`` as TOML to ``path`` atomically (tmp file + os.replace); mesh paths relative to it."""
+    """Write ``spec`` as TOML to ``path`` atomically (``sim.atomicio``: usual file mode); mesh paths relative to it."""
+    from .atomicio import write_text
+
     p = Path(path)
-    text = scene_to_toml(spec, base_dir=p.resolve().parent)
-    fd, tmp = tempfile.mkstemp(prefix=p.name + ".", suffix=".tmp", dir=str(p.parent or "."))
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    write_text(p, scene_to_toml(spec, base_dir=p.resolve().parent), mkdir=False)

@@ -102,15 +102,21 @@ def check_unknown(table: Mapping[str, Any], allowed: set[str], prefix: str, path
 
 
 def format_value(v: Any) -> str:
-    """Format a Python value as a TOML value (bool, int, float, str, flat list/tuple)."""
+    """Format a value as a TOML value (bool, int, float, str, flat list/tuple).
+
+    numpy scalars and 1-D arrays are written as the plain Python values they hold (``np.float64(0.35)``
+    becomes ``0.35``: numpy's own ``repr`` is not TOML)."""
+    tolist = getattr(v, "tolist", None)
+    if tolist is not None and not isinstance(v, (str, list, tuple)):  # numpy scalar or array
+        v = tolist()
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, int):
-        return str(v)
+        return str(int(v))
     if isinstance(v, float):
         if not math.isfinite(v):
             raise ValueError(f"cannot write non-finite float {v!r} to TOML")
-        r = repr(v)
+        r = float.__repr__(float(v))
         return r if any(ch in r for ch in ".eE") else r + ".0"
     if isinstance(v, str):
         out = ['"']

@@ -161,7 +161,8 @@ def _obstacle_spec_from_edit(e: ObstacleEdit):
         return so.SphereSpec(center=p, radius=float(e.radius), name=name)
     if e.kind == "capsule":
         ax = R[:, 2] * 0.5 * e.length
-        return so.CapsuleSpec(start=tuple(e.position - ax), end=tuple(e.position + ax), radius=float(e.radius),
+        return so.CapsuleSpec(start=tuple(float(v) for v in e.position - ax),
+                              end=tuple(float(v) for v in e.position + ax), radius=float(e.radius),
                               name=name)
     if e.kind == "box":
         return so.BoxSpec(position=p, half_extents=tuple(float(v) for v in e.half_extents), orientation=q,
