@@ -128,7 +128,7 @@ class Simulator:
     # ------------------------------------------------------------------ stepping
     def _check(self, state: State, ctrl: Control) -> None:
         _validate.check_step_inputs(self, state, ctrl)  # every field named (sim/validate.py)
-        _validate.quarantine_nonfinite(self, state)  # NaN/inf state: env failed, rest state
+        self._bad_in = _validate.quarantine_nonfinite(self, state)  # NaN/inf state: env failed, rest state
 
     def step(self, state: State, ctrl: Control) -> StepStats:
         """Advance every non-failed env of ``state`` by ``model.dt`` (in place) under ``ctrl``."""
@@ -151,7 +151,7 @@ class Simulator:
 
     def _checked_stats(self, state: State) -> StepStats:
         stats = self._stats()
-        _validate.quarantine_nonfinite(self, state, stats)  # no NaN leaves a step (sim/validate.py)
+        _validate.quarantine_nonfinite(self, state, stats, self._bad_in)  # no NaN leaves a step (sim/validate.py)
         return stats
 
     def _stats(self) -> StepStats:

@@ -241,17 +241,24 @@ def check_step_inputs(sim: Any, state: Any, ctrl: Any) -> None:
             raise ValueError(f"ctrl.{name}: contains NaN or inf")
 
 
-def quarantine_nonfinite(sim: Any, state: Any, stats: Any = None) -> np.ndarray:
+def quarantine_nonfinite(sim: Any, state: Any, stats: Any = None, also: np.ndarray | None = None) -> np.ndarray:
     """Envs whose state (dof, dof_vel, frames, twist, time) holds NaN/inf: mark them failed and replace their
     state by the rest configuration (time kept when finite, else 0), so no NaN stays in the state. With
-    ``stats``, those envs' StepStats numbers are zeroed and ``stats.failed`` set. Returns the (B,) mask."""
-    arrays = [getattr(state, name) for name in _STATE_FIELDS[:-1]]
-    if stats is not None:
-        arrays += [a for a in vars(stats).values() if isinstance(a, np.ndarray) and a.dtype.kind == "f"]
+    ``stats``, those envs' StepStats numbers are zeroed and ``stats.failed`` set; ``also``: more envs treated so
+    (the ones quarantined before the step). Returns the (B,) mask."""
+    # before a step: every state field; after it: positions, velocities and the statistics (the energies are
+    # evaluated on the final frames and twist, so a non-finite frame shows there); the next step re-checks all
+    arrays = [getattr(state, name) for name in (_STATE_FIELDS[:2] if stats is not None else _STATE_FIELDS[:-1])]
+    if stats is not None:  # contact rows: only the filled ones (up to the largest contact_count)
+        cmax = int(stats.contact_count.max()) if stats.contact_count.size else 0
+        arrays += [a[:, :cmax] if name.startswith("contact_") and a.ndim >= 2 else a
+                   for name, a in vars(stats).items() if isinstance(a, np.ndarray) and a.dtype.kind == "f"]
     bad = np.zeros(state.dof.shape[0], dtype=bool)
     for a in arrays:
         if a.size and not math.isfinite(float(a.sum())):  # fast path: one sum per array
             bad |= ~np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1)
+    if also is not None and stats is not None:
+        bad |= also
     if not bad.any():
         return bad
     fresh = sim.reset()
