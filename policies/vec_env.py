@@ -30,7 +30,7 @@ from .tasks import TASK_SPECS, resolve_task
 from .tasks.base import BatchedTask
 from .tasks.env import action_space, observation_space
 
-__all__ = ["BatchedVecEnv", "SB3VecEnvAdapter", "make_vec_env", "vector_entry_point"]
+__all__ = ["BatchedVecEnv", "SB3VecEnvAdapter", "make_vec_env", "vector_entry_point", "check_overrides"]
 
 
 class BatchedVecEnv(VectorEnv):
@@ -103,12 +103,49 @@ def make_vec_env(task: str, num_envs: int, *, seed: int | None = None, config: A
     """
     tid = resolve_task(task)
     _, core_cls, default = TASK_SPECS[tid].load()
+    if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+        raise ValueError(f"make_vec_env: num_envs must be a positive integer, got {num_envs!r}")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
+        raise ValueError(f"make_vec_env: seed must be an integer or None, got {type(seed).__name__} {seed!r}")
     cfg = default() if config is None else config
+    if not dataclasses.is_dataclass(cfg) or isinstance(cfg, type):
+        raise ValueError(f"make_vec_env: config must be a task config instance, got {type(cfg).__name__}")
     if overrides:
+        check_overrides(cfg, overrides)
         cfg = dataclasses.replace(cfg, **overrides)
     core = core_cls(cfg, envs=int(num_envs), seed=seed)
     venv = BatchedVecEnv(core, task_id=tid)
     return venv
+
+
+def check_overrides(cfg: Any, overrides: dict[str, Any]) -> None:
+    """Refuse config overrides that are unknown fields or of the wrong type (ValueError naming the field):
+    a float field takes a finite real number (not a str or bool), an int field an integer (2.5 is refused,
+    never truncated), a bool field a bool, a str field a str (or None where the default is None)."""
+    name = type(cfg).__name__
+    fields = {f.name for f in dataclasses.fields(cfg)}
+    for k, v in overrides.items():
+        if k not in fields:
+            raise ValueError(f"make_vec_env: {name} has no field {k!r} (fields: {sorted(fields)})")
+        cur = getattr(cfg, k)
+        got = f"{type(v).__name__} {v!r}"
+        if isinstance(cur, bool):
+            ok = isinstance(v, (bool, np.bool_))
+            want = "true/false"
+        elif isinstance(cur, int):
+            ok = isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+            want = "an integer"
+        elif isinstance(cur, float):
+            ok = (isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+                  and bool(np.isfinite(v)))
+            want = "a finite number"
+        elif isinstance(cur, str) or (cur is None and k == "scene"):
+            ok = isinstance(v, str) or (v is None and k == "scene")
+            want = "a string"
+        else:
+            continue  # arrays / nested settings: checked by the task itself
+        if not ok:
+            raise ValueError(f"make_vec_env: {name}.{k}: expected {want}, got {got}")
 
 
 def vector_entry_point(task_id: str, num_envs: int = 1, **kwargs: Any) -> BatchedVecEnv:

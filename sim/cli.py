@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import statistics
 import sys
 import time
@@ -19,68 +20,105 @@ def _atomic_savez(path: str, **arrays) -> None:
     savez(path, compressed=True, **arrays)
 
 
+_FRAME_BYTES_LIMIT = 4 * 2 ** 30  # --out keeps the frames in memory until the end: refuse more than 4 GiB up front
+_MAX_ENVS = 100_000
+
+
 def sim_main(argv: list[str] | None = None) -> int:
-    """rodlab sim SCENE.toml --duration T [--envs B] [--every K] [--out FILE.npz]"""
-    ap = argparse.ArgumentParser(prog="rodlab sim", description="Simulate a scene headless (rest controls).")
+    """rodlab sim SCENE.toml --duration T [--envs B] [--every K] [--out FILE.npz] [--progress/--no-progress]"""
+    from .progress import add_progress_flag, progress_bar, progress_wanted
+
+    ap = argparse.ArgumentParser(prog="rodlab sim", description="Simulate a scene headless (rest controls). "
+                                 "Prints a warning when the rod starts inside an obstacle.")
     ap.add_argument("scene", help="scene TOML file")
-    ap.add_argument("--duration", type=float, required=True, help="simulated time [s]")
-    ap.add_argument("--envs", type=int, default=1, help="number of environments (default 1)")
+    ap.add_argument("--duration", type=float, required=True, help="simulated time [s] (finite, > 0)")
+    ap.add_argument("--envs", type=int, default=1, help=f"number of environments (default 1, at most {_MAX_ENVS})")
     ap.add_argument("--every", type=int, default=1, help="record every K-th step (default 1)")
     ap.add_argument("--out", help="write time, node_pos, edge_theta, newton_iters, converged, max_penetration, "
-                                  "contact_count, contact_force (and per-contact rows) to this .npz")
+                                  "contact_count, contact_force (and per-contact rows) to this .npz; its folder is "
+                                  "checked for writing before the simulation starts")
+    add_progress_flag(ap)
     a = ap.parse_args(argv)
     from . import Simulator, build_model, load_scene
     from .scene import SceneError
-    if a.envs < 1 or a.every < 1 or not a.duration > 0:
-        print("rodlab sim: --envs and --every must be >= 1 and --duration > 0", file=sys.stderr)
+    from .scene_check import overlap_warning, rod_obstacle_overlaps
+    from .validate import check_output_path
+
+    def fail(msg: str) -> int:
+        print(f"rodlab sim: {msg}", file=sys.stderr)
         return 2
+
+    if not 1 <= a.envs <= _MAX_ENVS or a.every < 1:
+        return fail(f"--envs must be in [1, {_MAX_ENVS}] and --every >= 1")
+    if not (math.isfinite(a.duration) and a.duration > 0):
+        return fail(f"--duration must be a finite number > 0 [s], got {a.duration!r}")
     try:
+        if a.out:
+            check_output_path(a.out)
         spec = load_scene(a.scene)
-    except SceneError as exc:
-        print(f"rodlab sim: {exc}", file=sys.stderr)
-        return 2
+    except (SceneError, ValueError) as exc:
+        return fail(str(exc))
     t0 = time.perf_counter()
     model = build_model(spec)
+    n = max(1, int(round(a.duration / model.dt)))
+    kept = -(-n // a.every)
+    if a.out:
+        per_env = model.node_count * 3 * 8 + model.node_count * 8 + 64
+        if spec.obstacles:
+            per_env += 64 * 104  # contact rows (StepStats capacity)
+        need = kept * a.envs * per_env
+        if need > _FRAME_BYTES_LIMIT:
+            return fail(f"--out would keep {kept} frames x {a.envs} envs = {need / 2 ** 30:.1f} GiB in memory "
+                        f"(limit {_FRAME_BYTES_LIMIT / 2 ** 30:.0f} GiB); raise --every (e.g. --every "
+                        f"{a.every * math.ceil(need / _FRAME_BYTES_LIMIT)}) or shorten --duration")
     sim = Simulator(model, envs=a.envs)
+    warn = overlap_warning(rod_obstacle_overlaps(model), a.scene)
+    if warn:
+        print(warn, file=sys.stderr)
     state = sim.reset()
     ctrl = sim.make_control()
     sim.step(state.copy(), ctrl)  # compile / load kernels outside the timing
     t_ready = time.perf_counter() - t0
-    n = max(1, int(round(a.duration / model.dt)))
     frames: dict[str, list] = {"time": [], "node_pos": [], "edge_theta": [], "newton_iters": [], "converged": [],
                                "max_penetration": [], "contact_count": [], "contact_force": []}
     crow = ("contact_edge", "contact_obstacle", "contact_rod_point", "contact_normal", "contact_normal_force",
             "contact_friction_force", "contact_gap") if sim.obstacles.count else ()
     for name in crow:
         frames[name] = []
-    iters = []
+    it_sum, it_max = 0, 0
     t1 = time.perf_counter()
-    for k in range(1, n + 1):
-        st = sim.step(state, ctrl)
-        iters.append(st.newton_iters.copy())
-        if k % a.every == 0 or k == n:
-            frames["time"].append(k * model.dt)
-            frames["node_pos"].append(state.node_pos.copy())
-            frames["edge_theta"].append(np.array(state.edge_theta))
-            frames["newton_iters"].append(st.newton_iters.copy())
-            frames["converged"].append(st.converged.copy())
-            # contact (sim/contact_kernels.py): max penetration (B,) [m], count (B,), total force on the rod (B, 3)
-            # [N] = sum of normal_force * normal + friction over the reported rows; per-row arrays (B, C, ...)
-            frames["max_penetration"].append(st.max_penetration.copy())
-            frames["contact_count"].append(st.contact_count.copy())
-            frames["contact_force"].append((st.contact_normal_force[..., None] * st.contact_normal
-                                            + st.contact_friction_force).sum(axis=1))
-            for name in crow:
-                frames[name].append(getattr(st, name).copy())
+    with progress_bar(n, desc="rodlab sim", enabled=progress_wanted(a.progress)) as bar:
+        for k in range(1, n + 1):
+            st = sim.step(state, ctrl)
+            it_sum += int(st.newton_iters.sum())
+            it_max = max(it_max, int(st.newton_iters.max()))
+            bar.update(1)
+            if a.out and (k % a.every == 0 or k == n):
+                frames["time"].append(k * model.dt)
+                frames["node_pos"].append(state.node_pos.copy())
+                frames["edge_theta"].append(np.array(state.edge_theta))
+                frames["newton_iters"].append(st.newton_iters.copy())
+                frames["converged"].append(st.converged.copy())
+                # contact (sim/contact_kernels.py): max penetration (B,) [m], count (B,), total force on the rod
+                # (B, 3) [N] = sum of normal_force * normal + friction over the reported rows; per-row (B, C, ...)
+                frames["max_penetration"].append(st.max_penetration.copy())
+                frames["contact_count"].append(st.contact_count.copy())
+                frames["contact_force"].append((st.contact_normal_force[..., None] * st.contact_normal
+                                                + st.contact_friction_force).sum(axis=1))
+                for name in crow:
+                    frames[name].append(getattr(st, name).copy())
     wall = time.perf_counter() - t1
     if a.out:
-        _atomic_savez(a.out, **{k: np.asarray(v) for k, v in frames.items()})
+        try:
+            _atomic_savez(a.out, **{k: np.asarray(v) for k, v in frames.items()})
+        except OSError as exc:
+            return fail(f"{a.out}: cannot write: {exc.strerror or exc}")
         print(f"rodlab sim: wrote {len(frames['time'])} frames to {a.out}")
     tip = state.node_pos[:, -1]
-    it = np.asarray(iters)
     print(f"scene {a.scene}: {n} steps of {model.dt:g} s, {a.envs} env(s), mode {model.mode}")
     print(f"tip position env 0 [m]: {np.array2string(tip[0], precision=5)}")
-    print(f"newton iterations per step: mean {it.mean():.2f}, max {it.max()}; failed envs: {int(state.failed.sum())}")
+    print(f"newton iterations per step: mean {it_sum / (n * a.envs):.2f}, max {it_max}; "
+          f"failed envs: {int(state.failed.sum())}")
     print(f"time per step: {wall / n * 1e3:.3f} ms (kernels ready in {t_ready:.2f} s)")
     return 0
 

@@ -1,7 +1,8 @@
 """Scene / simulator construction for the tasks (the only module of policies/tasks that imports sim).
 
-The task's scene file (``config.scene``, relative to the repository root) is loaded when it exists;
-otherwise the paper's arm (docs/tasks.md §1.1) is built in code. Obstacle tasks add their capsules
+The task's scene file (``config.scene``, relative to the repository root) is loaded; a missing or invalid
+file is a ``SceneError`` (no fallback: the paper's arm (docs/tasks.md §1.1) has one source of truth, the shipped
+``assets/scenes/arm.toml``, also used when ``config.scene`` is None). Obstacle tasks add their capsules
 (``task.scene_capsules()``) and the paper's contact settings when the scene has no obstacles. Either way the task config's solver
 settings win over the file's ``[sim]`` table: dt, newton_max_iter, newton_tol, mode, and
 ``accept_unconverged = true`` (docs/tasks.md §1.2: fixed Newton budget, unconverged iterates accepted).
@@ -14,41 +15,29 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["REPO_ROOT", "scene_for", "make_simulator", "set_env_capsules"]
+__all__ = ["REPO_ROOT", "ARM_SCENE", "scene_for", "make_simulator", "set_env_capsules"]
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
-def _arm_scene_in_code(mode: str):
-    from sim.scene import RodSpec, SceneSpec, SimSpec
-
-    sim = SimSpec(dt=0.05, gravity=(0.0, 0.0, -9.8), newton_tol=1e-3, newton_max_iter=2, accept_unconverged=True,
-                  mode=mode)  # type: ignore[arg-type]
-    rod = RodSpec(nodes=21, length=1.0, radius=0.05, density=1000.0, youngs_modulus=1.0e7, poisson_ratio=0.5,
-                  start=(0.0, 0.0, 0.0), direction=(0.0, 0.0, 1.0), clamp="first_edge")
-    return SceneSpec(sim=sim, rod=rod)
+ARM_SCENE = "assets/scenes/arm.toml"  # the paper's arm (docs/tasks.md §1.1)
 
 
 def scene_for(config: Any, task: Any = None):
-    """SceneSpec for a task config (file if present, else in code), with the task's solver settings."""
+    """SceneSpec for a task config (``config.scene``, or the shipped arm when None), with the task's solver
+    settings. A missing or invalid file raises SceneError naming it."""
     from sim import load_scene
 
-    spec = None
-    if config.scene:
-        p = Path(config.scene)
-        p = p if p.is_absolute() else REPO_ROOT / p
-        if p.exists():
-            spec = load_scene(p)
-    if spec is None:
-        spec = _arm_scene_in_code(config.mode)
+    p = Path(config.scene or ARM_SCENE)
+    spec = load_scene(p if p.is_absolute() else REPO_ROOT / p)
     if task is not None and hasattr(task, "scene_capsules"):
         ends, radius = task.scene_capsules()
         if not spec.obstacles:
             spec = _with_capsules(spec, ends, radius)
         elif getattr(task, "fixed_obstacles", False):
             _check_same_capsules(spec, ends, radius)
-    sim = dataclasses.replace(spec.sim, dt=float(config.dt), newton_max_iter=int(config.newton_max_iter),
-                              newton_tol=float(config.newton_tol), accept_unconverged=True, mode=config.mode)
+    sim = dataclasses.replace(spec.sim, dt=config.dt, newton_max_iter=config.newton_max_iter,
+                              newton_tol=config.newton_tol, accept_unconverged=True, mode=config.mode)
     return dataclasses.replace(spec, sim=sim)
 
 
@@ -71,7 +60,7 @@ def _check_same_capsules(spec, ends: np.ndarray, radius: float) -> None:
                                          abs(g[2] - w[2]) < 1e-12 for g, w in zip(got, want))
     if not same:
         raise ValueError(f"{spec.path}: the scene file's capsule obstacles differ from the task config's; "
-                         "set scene=None to build the scene from the config")
+                         "set scene=None to use the arm scene with the config's capsules")
 
 
 def make_simulator(config: Any, *, envs: int, task: Any = None):

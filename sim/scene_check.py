@@ -1,0 +1,58 @@
+"""Load-time scene checks that are warnings, not errors: a rod that starts inside an obstacle.
+
+:func:`rod_obstacle_overlaps` returns the obstacles that the rod's rest (initial) configuration penetrates,
+measured with the simulator's own contact geometry (sim/contact_kernels.py: the gap between the rod's surface,
+radius ``rod.radius``, and the obstacle). Such a rod is pushed out violently in the first steps (the contact
+force of the penetration guard), so ``rodlab sim`` prints a warning and the workbench should show one.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Overlap", "rod_obstacle_overlaps", "overlap_warning"]
+
+
+@dataclass(frozen=True)
+class Overlap:
+    """Obstacle ``index`` (scene order), its ``name`` and ``type``, and how deep the rod starts inside [m]."""
+
+    index: int
+    name: str
+    type: str
+    depth: float
+
+
+def rod_obstacle_overlaps(model, *, tolerance: float = 0.0) -> list[Overlap]:
+    """Obstacles the rod's rest configuration of ``model`` (a :class:`sim.Model`) penetrates deeper than
+    ``tolerance`` [m], deepest first. Empty without obstacles."""
+    from .contact_kernels import contact_broadphase, contact_min_gap
+
+    M = model.obstacles.count
+    if M == 0:
+        return []
+    obs = model.obstacles.for_envs(M, n_nodes=model.node_count, rod_radius=model.radius)
+    for o in range(M):  # env o sees obstacle o only
+        for k in range(M):
+            obs.set_active(k, k == o, envs=[o])
+    cd = obs.kernel_data()
+    x = np.ascontiguousarray(model.rest_node_pos, dtype=np.float64)
+    out = []
+    for o in range(M):
+        contact_broadphase(o, cd, x, x, 0.0)
+        gap = float(contact_min_gap(o, cd, x, model.radius))
+        if gap < -tolerance:
+            spec = model.spec.obstacles[o]
+            out.append(Overlap(o, getattr(spec, "name", "") or "", getattr(spec, "type", "?"), -gap))
+    return sorted(out, key=lambda ov: -ov.depth)
+
+
+def overlap_warning(overlaps: list[Overlap], where: str = "<scene>") -> str:
+    """One human-readable warning line for the overlaps ('' when none)."""
+    if not overlaps:
+        return ""
+    parts = [f"obstacle[{ov.index}]{' ' + repr(ov.name) if ov.name else ''} ({ov.type}, {ov.depth * 1e3:.1f} mm deep)"
+             for ov in overlaps]
+    return (f"warning: {where}: the rod starts inside {', '.join(parts)}; it will be pushed out violently in the "
+            "first steps (move the rod or the obstacle)")
