@@ -106,6 +106,9 @@ def eval_main(argv: list[str]) -> int:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--record", default=None, metavar="FILE.rrd",
                    help="also record the evaluated episodes to this rerun file (written atomically)")
+    p.add_argument("--trust-pickle", action="store_true",
+                   help="also load a full stable-baselines3 checkpoint (checkpoint/model.zip): it is unpickled, "
+                        "which runs code stored in the file; only for files you made or trust")
     a = p.parse_args(argv)
     import contextlib
 
@@ -125,7 +128,8 @@ def eval_main(argv: list[str]) -> int:
             hook_cm = contextlib.nullcontext(None)
         with hook_cm as hook:
             res = evaluate(a.policy, a.task, episodes=a.episodes, seed=a.seed, num_envs=a.envs,
-                           deterministic=not a.stochastic, eval_seeds=a.seeds, env_hook=hook)
+                           deterministic=not a.stochastic, eval_seeds=a.seeds, env_hook=hook,
+                           trust_pickle=a.trust_pickle)
     except (PolicyLoadError, TrainError, ValueError) as exc:
         print(f"rodlab eval: {exc}", file=sys.stderr)
         return 2

@@ -15,7 +15,8 @@
 
 ``callback(step: EvalStep) -> bool | None`` is called after every batched step; returning True stops.
 ``policy_or_path`` may be a path (policy zip or SB3 checkpoint), an SB3 model or policy, or
-``"random"`` (uniform random actions; baseline).
+``"random"`` (uniform random actions; baseline). Loading a path never unpickles: a full SB3 checkpoint is
+refused unless ``trust_pickle=True`` (``rodlab eval --trust-pickle``; see ``policies.sac.load_policy``).
 """
 from __future__ import annotations
 
@@ -105,11 +106,11 @@ def task_metrics(task: str, obs: np.ndarray, layout: dict | None = None) -> dict
     return out
 
 
-def _resolve_policy(policy_or_path) -> tuple[Any, dict]:
+def _resolve_policy(policy_or_path, trust_pickle: bool = False) -> tuple[Any, dict]:
     if isinstance(policy_or_path, str) and policy_or_path == "random":
         return "random", {"task": None}
     if isinstance(policy_or_path, (str, os.PathLike)):
-        return load_policy(policy_or_path)
+        return load_policy(policy_or_path, trust_pickle=trust_pickle)
     pol = getattr(policy_or_path, "policy", policy_or_path)  # SB3 model -> its policy
     if not hasattr(pol, "predict"):
         raise PolicyLoadError(f"cannot evaluate object of type {type(policy_or_path).__name__}")
@@ -131,19 +132,20 @@ def check_compatible(meta_or_policy, env, task: str, source: str = "policy") -> 
 def evaluate(policy_or_path, task: str | None = None, *, episodes: int = 100, seed: int = 0,
              num_envs: int | None = None, deterministic: bool = True,
              callback: Callable[[EvalStep], bool | None] | None = None, gamma: float = 0.99,
-             eval_seeds: int = 1, env_hook: Callable[[Any], Any] | None = None) -> dict:
+             eval_seeds: int = 1, env_hook: Callable[[Any], Any] | None = None, trust_pickle: bool = False) -> dict:
     """Evaluate a policy for ``episodes`` episodes (per seed) -> metrics dict (see module docstring).
 
     Seeds used: ``seed, seed+1, ..., seed+eval_seeds-1``. ``num_envs`` defaults to min(episodes, 100).
     ``env_hook(env)`` is called once per seed right after the SB3 VecEnv is built, before its first
     ``reset()`` (e.g. ``TaskProbe(rec, ...).attach`` to record final sim frames before auto-resets).
-    Raises PolicyLoadError (bad/missing file, shape mismatch) or ValueError (no task known).
+    ``trust_pickle``: also load full SB3 checkpoints (unpickles the file: only for trusted files).
+    Raises PolicyLoadError (bad/missing/untrusted file, shape mismatch) or ValueError (no task known).
     """
     from policies.train import resolve_task
 
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
-    policy, meta = _resolve_policy(policy_or_path)
+    policy, meta = _resolve_policy(policy_or_path, trust_pickle)
     task = task or meta.get("task")
     if not task:
         raise ValueError("no task given and the policy file does not name one; pass task=... / --task")

@@ -18,13 +18,15 @@ What SB3's ``SAC`` lacks and how it is added here (nothing else is changed):
 Policy-only files (``save_policy`` / ``load_policy``) are a small zip holding ``meta.json`` (task id,
 spaces, network config, format version) and ``policy.pt`` (actor + critic weights as a plain
 ``state_dict``, loaded with ``torch.load(weights_only=True)``). No optimizer state, no replay buffer,
-no pickled classes. Errors while loading raise ``PolicyLoadError`` with a readable message.
+no pickled classes. Errors while loading raise ``PolicyLoadError`` with a readable message. Loading never
+unpickles: a full SB3 checkpoint (which holds cloudpickled objects) is refused unless ``trust_pickle=True``.
 """
 from __future__ import annotations
 
 import io
 import json
 import os
+import sys
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -230,7 +232,8 @@ def save_policy(model: SAC, path: str | os.PathLike, *, task: str | None, extra:
 
 
 def read_policy_meta(path: str | os.PathLike) -> dict:
-    """Return ``meta.json`` of a policy zip (raises PolicyLoadError if absent/corrupt)."""
+    """Return ``meta.json`` of a policy zip (raises PolicyLoadError if absent/corrupt). Reads JSON only:
+    nothing in the file is unpickled. A full SB3 checkpoint gives ``{"format": "sb3", "task": ...}``."""
     path = Path(path)
     if not path.is_file():
         raise PolicyLoadError(f"policy file not found: {path}")
@@ -238,11 +241,15 @@ def read_policy_meta(path: str | os.PathLike) -> dict:
         with zipfile.ZipFile(path) as zf:
             names = set(zf.namelist())
             if "meta.json" in names:
-                return json.loads(zf.read("meta.json"))
+                meta = json.loads(zf.read("meta.json"))
+                if not isinstance(meta, dict):
+                    raise PolicyLoadError(f"policy file {path}: meta.json must be a JSON object "
+                                          f"(found a JSON {type(meta).__name__})")
+                return meta
             if "data" in names:  # a full SB3 checkpoint (model.zip of a run directory)
                 return {"format": "sb3", "task": _sidecar_task(path)}
-    except (zipfile.BadZipFile, OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise PolicyLoadError(f"policy file {path} is not a readable policy zip ({exc})") from None
+    except (zipfile.BadZipFile, OSError, json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+        raise PolicyLoadError(f"policy file {path} is not a readable policy zip ({type(exc).__name__})") from None
     raise PolicyLoadError(f"policy file {path} holds neither meta.json (rodlab policy) nor data (SB3 model)")
 
 
@@ -260,16 +267,69 @@ def _sidecar_task(path: Path) -> str | None:
     return None
 
 
-def load_policy(path: str | os.PathLike, *, device: str = "cpu") -> tuple[SACPolicy, dict]:
+def _load_weights(zf: zipfile.ZipFile, name: str, path: Path, device: str) -> dict:
+    """``torch.load(weights_only=True)`` of one zip entry: tensors and plain containers only, never a
+    pickled object. Anything else is a PolicyLoadError (the file is not a rodlab weights file)."""
+    try:
+        sd = th.load(io.BytesIO(zf.read(name)), map_location=device, weights_only=True)
+    except KeyError:
+        raise PolicyLoadError(f"policy file {path} has no {name}") from None
+    except Exception:  # noqa: BLE001 - pickle.UnpicklingError (refused object), EOFError, RuntimeError, ...
+        raise PolicyLoadError(f"policy file {path}: {name} is not a plain tensor file (it holds pickled "
+                              "objects or is corrupt); rodlab loads weights only and never unpickles "
+                              "objects") from None
+    if not isinstance(sd, dict) or not all(isinstance(k, str) and isinstance(v, th.Tensor) for k, v in sd.items()):
+        raise PolicyLoadError(f"policy file {path}: {name} is not a dict of named tensors")
+    return sd
+
+
+def sb3_policy_weights(path: str | os.PathLike, template: SACPolicy) -> tuple[SACPolicy, float | None]:
+    """Weights of a full SB3 checkpoint copied into a copy of ``template`` -> (policy, log entropy coefficient).
+
+    Reads only ``policy.pth`` and ``pytorch_variables.pth`` with ``weights_only=True``; the pickled ``data``
+    entry (spaces, schedules) is never read, so the file's spaces are the template's. Raises PolicyLoadError
+    when a parameter is missing or has another shape."""
+    import copy
+
+    path = Path(path)
+    try:
+        with zipfile.ZipFile(path) as zf:
+            sd = _load_weights(zf, "policy.pth", path, "cpu")
+            extra = _load_weights(zf, "pytorch_variables.pth", path, "cpu") if "pytorch_variables.pth" in \
+                zf.namelist() else {}
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise PolicyLoadError(f"policy file {path} is not a readable policy zip ({type(exc).__name__})") from None
+    own = template.state_dict()
+    bad = sorted(k for k in set(own) | set(sd) if k not in sd or k not in own or sd[k].shape != own[k].shape)
+    if bad:
+        raise PolicyLoadError(f"the network in {path} does not match this run's; differing parameters: {bad[:4]}")
+    pol = copy.deepcopy(template)
+    pol.load_state_dict(sd)
+    v = extra.get("log_ent_coef")
+    return pol, (float(v.detach().reshape(-1)[0]) if v is not None else None)
+
+
+def load_policy(path: str | os.PathLike, *, device: str = "cpu", trust_pickle: bool = False
+                ) -> tuple[SACPolicy, dict]:
     """Load a policy file -> (SB3 ``SACPolicy`` in eval mode, meta dict).
 
-    Accepts the policy-only zip written by ``save_policy`` and full SB3 ``RodSAC`` checkpoints.
-    Raises ``PolicyLoadError`` on a missing or corrupt file.
+    The policy-only zip written by ``save_policy`` is read as JSON + ``torch.load(weights_only=True)``:
+    nothing is unpickled. A full SB3 checkpoint (``checkpoint/model.zip``) holds cloudpickled objects, so
+    loading it can run code from the file: it is refused unless ``trust_pickle=True`` (``rodlab eval
+    --trust-pickle``), which prints a warning. Raises ``PolicyLoadError`` on a missing, corrupt, untrusted
+    or incompatible file.
     """
     path = Path(path)
     meta = read_policy_meta(path)
     try:
         if meta.get("format") == "sb3":
+            if not trust_pickle:
+                raise PolicyLoadError(
+                    f"{path} is a full stable-baselines3 checkpoint: loading it unpickles objects stored in the "
+                    "file, which can run any code. rodlab loads its own policy format (runs/*/policy.zip) by "
+                    "default; pass --trust-pickle only for a file you made yourself or fully trust")
+            print(f"warning: {path}: unpickling a stable-baselines3 checkpoint (--trust-pickle); this runs code "
+                  "stored in the file", file=sys.stderr)
             model = RodSAC.load(path, device=device)
             pol = model.policy
             meta["obs_shape"] = list(pol.observation_space.shape)
@@ -280,11 +340,11 @@ def load_policy(path: str | os.PathLike, *, device: str = "cpu") -> tuple[SACPol
                                    dtype=np.float32)
             act_space = spaces.Box(np.asarray(meta["action_low"], np.float32),
                                    np.asarray(meta["action_high"], np.float32), dtype=np.float32)
-            pol = LayerNormSACPolicy(obs_space, act_space, lambda _: 1e-3, net_arch=list(meta["net_arch"]),
+            pol = LayerNormSACPolicy(obs_space, act_space, lambda _: 1e-3, net_arch=[int(n) for n in meta["net_arch"]],
                                      n_critics=int(meta["n_critics"]),
                                      head_init_gain=float(meta.get("head_init_gain", 0.3)))
             with zipfile.ZipFile(path) as zf:
-                sd = th.load(io.BytesIO(zf.read("policy.pt")), map_location=device, weights_only=True)
+                sd = _load_weights(zf, "policy.pt", path, device)
             missing, unexpected = pol.load_state_dict(sd, strict=False)
             missing = [k for k in missing if not k.startswith("critic_target.")]
             if missing or unexpected:
@@ -292,10 +352,12 @@ def load_policy(path: str | os.PathLike, *, device: str = "cpu") -> tuple[SACPol
                                       f"(missing {missing[:3]}, unexpected {unexpected[:3]})")
             pol.critic_target.load_state_dict(pol.critic.state_dict())
         else:
-            raise PolicyLoadError(f"policy file {path}: unknown format {meta.get('format')!r}")
+            raise PolicyLoadError(f"policy file {path}: unknown format {str(meta.get('format'))[:40]!r}")
     except PolicyLoadError:
         raise
-    except (KeyError, ValueError, RuntimeError, zipfile.BadZipFile, EOFError, OSError) as exc:
-        raise PolicyLoadError(f"policy file {path} is corrupt or incompatible ({type(exc).__name__}: {exc})") from None
+    except (KeyError, ValueError, TypeError, AttributeError, RuntimeError, zipfile.BadZipFile, EOFError,
+            OSError) as exc:
+        raise PolicyLoadError(f"policy file {path} is corrupt or incompatible ({type(exc).__name__}: "
+                              f"{str(exc)[:200]})") from None
     pol.set_training_mode(False)
     return pol.to(device), meta

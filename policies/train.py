@@ -203,7 +203,7 @@ def warm_start(model, path: str | os.PathLike, task: str) -> dict:
     """
     import torch as th
 
-    from policies.sac import POLICY_FORMAT, RodSAC, load_policy, read_policy_meta
+    from policies.sac import POLICY_FORMAT, load_policy, read_policy_meta, sb3_policy_weights
 
     p = Path(path)
     if not p.is_file():
@@ -225,9 +225,7 @@ def warm_start(model, path: str | os.PathLike, task: str) -> dict:
     log_ent = None
     try:
         if meta.get("format") == "sb3":
-            src = RodSAC.load(p, device=model.device)
-            pol = src.policy
-            log_ent = _log_ent_coef(src)
+            pol, log_ent = sb3_policy_weights(p, model.policy)  # weights only: the file is never unpickled
         elif meta.get("format") == POLICY_FORMAT:
             pol, meta = load_policy(p, device=model.device)
             v = (meta.get("extra") or {}).get("log_ent_coef")
