@@ -49,6 +49,15 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--buffer-size", type=int, default=d.buffer_size)
     p.add_argument("--learning-starts", type=int, default=d.learning_starts)
     p.add_argument("--checkpoint-minutes", type=float, default=d.checkpoint_minutes)
+    p.add_argument("--first-checkpoint-minutes", type=float, default=d.first_checkpoint_minutes,
+                   help="the first checkpoint comes after this many minutes, then every --checkpoint-minutes")
+    p.add_argument("--eval-minutes", type=float, default=d.eval_minutes,
+                   help="deterministic evaluation on fixed seeds every MIN minutes (eval.csv; 0 = off)")
+    p.add_argument("--eval-every-steps", type=int, default=d.eval_every_steps,
+                   help="also evaluate every N env steps (0 = off)")
+    p.add_argument("--eval-episodes", type=int, default=d.eval_episodes, help="episodes per evaluation")
+    p.add_argument("--eval-stochastic", action="store_true",
+                   help="also evaluate the stochastic policy on the same episodes")
     p.add_argument("--time-limit", type=float, default=0.0, metavar="MIN",
                    help="stop (checkpoint + policy) after MIN minutes of wall-clock in this session")
     p.add_argument("--no-replay-checkpoint", action="store_true", help="do not save the replay buffer")
@@ -70,7 +79,9 @@ def train_main(argv: list[str]) -> int:
                 learning_starts=a.learning_starts, checkpoint_minutes=a.checkpoint_minutes,
                 save_replay_buffer=not a.no_replay_checkpoint, torch_threads=a.threads,
                 log_interval_s=a.log_interval, time_limit_minutes=a.time_limit, init_from=a.init_from,
-                init_ent_coef=a.init_ent_coef)
+                init_ent_coef=a.init_ent_coef, first_checkpoint_minutes=a.first_checkpoint_minutes,
+                eval_minutes=a.eval_minutes, eval_every_steps=a.eval_every_steps, eval_episodes=a.eval_episodes,
+                eval_stochastic=a.eval_stochastic)
     if a.resume:
         cfg = os.path.join(a.run_dir, "config.json")
         try:

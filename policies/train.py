@@ -5,13 +5,17 @@ A run directory holds::
     config.json           Args + git commit + library versions + spaces (written once, kept on resume)
     metrics.csv           one row per log interval: env steps, wall-clock [s], returns, timings
     tb/                   TensorBoard event files (rollout/*, train/*, time/*)
+    eval.csv              one row per deterministic evaluation during training (policies/train_monitor.py)
     checkpoint/           model.zip (SB3, with optimizers), replay.npz (filled rows only), state.json
     policy.zip            policy only (actor + critics, no optimizer/buffer), loadable by `rodlab eval`
     policy.json           sidecar: task, config, final training figures
 
-Checkpoints are written atomically every ``checkpoint_minutes`` and when SIGINT/SIGTERM arrives;
+Checkpoints (policies/checkpoint.py) are written as one atomic unit, the first after
+``first_checkpoint_minutes`` (1 min), then every ``checkpoint_minutes``, and when SIGINT/SIGTERM or the time
+limit stops the run; every counted env step is in the saved replay buffer (none dropped at a stop).
 ``--resume`` reloads model, optimizers, entropy coefficient and replay buffer, and continues the step
-count and wall-clock. Not restored: RNG states and the in-flight episodes (all envs are reset).
+count and wall-clock. Not restored: RNG states and the in-flight episodes (all envs start new episodes,
+seeded from (seed, env steps so far)).
 
 Warm start (``--init-from POLICY.zip``, ``Args.init_from``; fresh runs only, not with ``--resume``): the
 network weights (actor, critics, target critics) are copied from a policy file written by ``save_policy``
@@ -25,11 +29,8 @@ transitions), the optimizers' moments, the step/update counters and the wall-clo
 """
 from __future__ import annotations
 
-import csv
 import dataclasses
-import io
 import json
-import math
 import os
 import signal
 import subprocess
@@ -40,7 +41,10 @@ from pathlib import Path
 
 import numpy as np
 
+from policies.checkpoint import find_checkpoint, read_state, resume_seed
+from policies.checkpoint import save_checkpoint as _save_checkpoint
 from policies.sac import PolicyLoadError, _atomic_write_bytes, save_policy
+from policies.train_monitor import monitor_callback
 
 
 class TrainError(Exception):
@@ -75,10 +79,18 @@ class Args:
     # runtime
     torch_threads: int = 1
     checkpoint_minutes: float = 5.0
+    first_checkpoint_minutes: float = 1.0   # the first checkpoint comes early, then every checkpoint_minutes
     time_limit_minutes: float = 0.0         # >0: stop (checkpoint + policy) after this wall time in this session
     save_replay_buffer: bool = True
     log_interval_s: float = 15.0
     device: str = "cpu"
+    # deterministic evaluation during training (policies/train_monitor.py); 0 disables a trigger
+    eval_minutes: float = 3.0               # wall-clock between evaluations
+    eval_every_steps: int = 0               # env steps between evaluations (tests, step-based curves)
+    eval_episodes: int = 50                 # per evaluation (fixed seeds: the same episodes every time)
+    eval_envs: int = 50                     # batched envs of the evaluation env
+    eval_seed: int = 1_000_003              # fixed, independent of the training seed
+    eval_stochastic: bool = False           # also evaluate the stochastic policy on the same episodes
 
     def to_json(self) -> dict:
         return dataclasses.asdict(self)
@@ -169,7 +181,7 @@ def build_model(args: Args, env):
 
     return RodSAC(
         LayerNormSACPolicy, env, learning_rate=args.learning_rate,
-        buffer_size=max(min(args.buffer_size, args.total_steps), args.num_envs * 2),
+        buffer_size=_buffer_size(args),
         learning_starts=args.learning_starts, batch_size=args.batch_size, tau=args.tau, gamma=args.gamma,
         train_freq=1, gradient_steps=args.updates_per_iter, ent_coef=f"auto_{args.init_ent_coef}",
         target_update_interval=args.target_update_interval,
@@ -267,203 +279,25 @@ def _log_ent_coef(model) -> float | None:
 
 # ------------------------------------------------------------------------------------ checkpoints
 def save_checkpoint(model, run_dir: Path, *, wall_s: float, save_buffer: bool) -> None:
-    """Atomically write checkpoint/model.zip, replay.npz (filled rows) and state.json (written last)."""
-    ck = run_dir / "checkpoint"
-    ck.mkdir(parents=True, exist_ok=True)
-    buf = io.BytesIO()
-    model.save(buf)
-    _atomic_write_bytes(ck / "model.zip", buf.getvalue())
-    if save_buffer:
-        rb = model.replay_buffer
-        n = rb.buffer_size if rb.full else rb.pos
-        tmp = ck / "replay.npz.tmp"
-        with open(tmp, "wb") as f:
-            np.savez(f, observations=rb.observations[:n], next_observations=rb.next_observations[:n],
-                     actions=rb.actions[:n], rewards=rb.rewards[:n], dones=rb.dones[:n], timeouts=rb.timeouts[:n],
-                     pos=np.int64(rb.pos), full=np.bool_(rb.full))
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, ck / "replay.npz")
-    state = {"num_timesteps": int(model.num_timesteps), "n_updates": int(model._n_updates), "wall_s": wall_s,
-             "replay_saved": bool(save_buffer), "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    _atomic_write_bytes(ck / "state.json", json.dumps(state, indent=1).encode())
+    """Write one checkpoint of ``model`` into RUN_DIR/checkpoint/ (see policies/checkpoint.py)."""
+    from policies.checkpoint import save_checkpoint as _save
+
+    _save(model, run_dir, wall_s=wall_s, save_buffer=save_buffer)
 
 
 def load_checkpoint(args: Args, run_dir: Path, env):
     """-> (model, state dict). Replay buffer restored when present; raises TrainError when unusable."""
-    from policies.sac import RodSAC
+    from policies.checkpoint import CheckpointError
+    from policies.checkpoint import load_checkpoint as _load
 
-    ck = run_dir / "checkpoint"
-    if not (ck / "state.json").is_file() or not (ck / "model.zip").is_file():
-        raise TrainError(f"--resume: no checkpoint in {ck} (expected model.zip and state.json)")
-    state = json.loads((ck / "state.json").read_text())
     try:
-        model = RodSAC.load(ck / "model.zip", env=env, device=args.device)
-    except Exception as exc:  # SB3 raises assorted errors on corrupt zips / space mismatch
-        raise TrainError(f"--resume: cannot load {ck / 'model.zip'}: {exc}") from None
-    model.num_timesteps = int(state["num_timesteps"])
-    want = max(min(args.buffer_size, args.total_steps), args.num_envs * 2)
-    if want > model.buffer_size:  # the run was extended (--steps larger): grow the buffer (capped at total steps)
-        from stable_baselines3.common.buffers import ReplayBuffer
-
-        model.buffer_size = want
-        model.replay_buffer = ReplayBuffer(want, model.observation_space, model.action_space, device=model.device,
-                                           n_envs=model.n_envs, handle_timeout_termination=True)
-    if (ck / "replay.npz").is_file():
-        rb = model.replay_buffer
-        with np.load(ck / "replay.npz") as z:
-            n = z["observations"].shape[0]
-            if n > rb.buffer_size or z["observations"].shape[1:] != rb.observations.shape[1:]:
-                raise TrainError(f"--resume: replay buffer shape {z['observations'].shape} does not fit "
-                                 f"{rb.observations.shape}")
-            for key in ("observations", "next_observations", "actions", "rewards", "dones", "timeouts"):
-                getattr(rb, key)[:n] = z[key]
-            rb.pos, rb.full = int(z["pos"]) % rb.buffer_size, bool(z["full"]) or n == rb.buffer_size
-    else:
-        print("resume: no replay buffer in checkpoint, starting with an empty one", file=sys.stderr)
-    return model, state
+        return _load(run_dir, env, device=args.device, buffer_size=_buffer_size(args))
+    except CheckpointError as exc:
+        raise TrainError(f"--resume: {exc}") from None
 
 
-# ------------------------------------------------------------------------------------ monitoring
-def _monitor_callback(args: Args, run_dir: Path, wall_offset: float, stop_flag: dict):
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    class RunMonitor(BaseCallback):
-        """Episode statistics (incl. alf's average discounted return), logs, progress and checkpoints."""
-
-        def _on_training_start(self) -> None:
-            n = self.training_env.num_envs
-            self.ret = np.zeros(n)
-            self.disc_sum = np.zeros(n)      # sum_l c_l r_l, c_l = (1 - gamma^l) / (1 - gamma)
-            self.disc_c = np.zeros(n)
-            self.length = np.zeros(n, dtype=np.int64)
-            self.terms: dict[str, np.ndarray] = {}
-            self.done_eps: list[tuple[float, float, int]] = []
-            self.done_terms: dict[str, list[float]] = {}
-            self.t_start = time.perf_counter()
-            self.steps_start = self.num_timesteps
-            self.last_log = self.last_ck = time.perf_counter()
-            self.env_t, self.upd_t, self.iters = [], [], 0
-            self.last_iter_t = time.perf_counter()
-            self.iter_t: list[float] = []
-            self.win_rew_sum, self.win_rew_n = 0.0, 0
-            self.last = {"ret": math.nan, "dret": math.nan}
-            self.tty = sys.stderr.isatty()
-            self.bar = None
-            if self.tty:
-                from tqdm import tqdm
-                self.bar = tqdm(total=args.total_steps, initial=self.num_timesteps, unit="step", unit_scale=True,
-                                dynamic_ncols=True, mininterval=1.0)
-            csv_path = run_dir / "metrics.csv"
-            new = not csv_path.exists()
-            self.csv_f = open(csv_path, "a", newline="")
-            self.csv = csv.writer(self.csv_f)
-            if new:
-                self.csv.writerow(["env_steps", "wall_s", "episodes", "return_mean", "avg_disc_return_mean",
-                                   "ep_len_mean", "env_step_ms", "update_ms", "iter_ms", "steps_per_s",
-                                   "step_reward_mean", "n_updates"])
-
-        def wall(self) -> float:
-            return wall_offset + time.perf_counter() - self.t_start
-
-        def _on_step(self) -> bool:
-            now = time.perf_counter()
-            self.iter_t.append(now - self.last_iter_t)
-            self.last_iter_t = now
-            self.iters += 1
-            env = self.training_env
-            self.env_t.append(getattr(env, "last_step_time", math.nan))
-            self.upd_t.append(self.model.last_update_time)
-            self.model.last_update_time = 0.0
-            rew = np.asarray(self.locals["rewards"], dtype=np.float64)
-            dones = np.asarray(self.locals["dones"], dtype=bool)
-            self.length += 1
-            self.disc_c = 1.0 + args.gamma * self.disc_c
-            self.ret += rew
-            self.win_rew_sum += float(rew.sum())
-            self.win_rew_n += rew.size
-            self.disc_sum += self.disc_c * rew
-            raw = getattr(env, "last_raw_info", None)  # batched info of rodlab envs: "reward/<term>" (B,)
-            if isinstance(raw, dict):
-                for k, v in raw.items():
-                    if k.startswith("reward/") and np.shape(v) == rew.shape:
-                        self.terms.setdefault(k, np.zeros(len(rew)))
-                        self.terms[k] += np.nan_to_num(np.asarray(v, dtype=np.float64))
-            for i in np.flatnonzero(dones):
-                self.done_eps.append((self.ret[i], self.disc_sum[i] / max(self.length[i], 1), int(self.length[i])))
-                for k, acc in self.terms.items():
-                    self.done_terms.setdefault(k, []).append(acc[i])
-                    acc[i] = 0.0
-                self.ret[i] = self.disc_sum[i] = self.disc_c[i] = 0.0
-                self.length[i] = 0
-            if self.bar is not None:
-                self.bar.update(len(rew))
-            if now - self.last_log >= args.log_interval_s:
-                self._log()
-            if now - self.last_ck >= args.checkpoint_minutes * 60.0:
-                save_checkpoint(self.model, run_dir, wall_s=self.wall(), save_buffer=args.save_replay_buffer)
-                self.last_ck = time.perf_counter()
-            if args.time_limit_minutes > 0 and now - self.t_start >= 60.0 * args.time_limit_minutes:
-                if not stop_flag.get("time_limit"):
-                    print(f"\ntime limit of {args.time_limit_minutes} min reached: stopping", file=sys.stderr, flush=True)
-                stop_flag["time_limit"] = True
-                return False
-            return not stop_flag["stop"]
-
-        def _log(self) -> None:
-            now = time.perf_counter()
-            sps = (self.num_timesteps - self.steps_start) / max(now - self.t_start, 1e-9)
-            lg = self.logger
-            env_ms = 1e3 * float(np.nanmean(self.env_t)) if self.env_t else math.nan
-            upd = [u for u in self.upd_t if u > 0]
-            upd_ms = 1e3 * float(np.mean(upd)) if upd else 0.0
-            iter_ms = 1e3 * float(np.mean(self.iter_t)) if self.iter_t else math.nan
-            n_eps = len(self.done_eps)
-            if n_eps:
-                arr = np.array(self.done_eps, dtype=np.float64)
-                self.last = {"ret": arr[:, 0].mean(), "dret": arr[:, 1].mean(), "len": arr[:, 2].mean()}
-                lg.record("rollout/ep_return_mean", self.last["ret"])
-                lg.record("rollout/avg_discounted_return", self.last["dret"])
-                lg.record("rollout/ep_len_mean", self.last["len"])
-                lg.record("rollout/episodes", n_eps)
-                for k, v in self.done_terms.items():
-                    lg.record(f"rollout/ep_{k}", float(np.mean(v)))
-            step_rew = self.win_rew_sum / max(self.win_rew_n, 1) if self.win_rew_n else math.nan
-            lg.record("rollout/step_reward_mean", step_rew)
-            lg.record("time/env_step_ms", env_ms)
-            lg.record("time/update_ms", upd_ms)
-            lg.record("time/iter_ms", iter_ms)
-            lg.record("time/steps_per_s", sps)
-            lg.record("time/wall_s", self.wall())
-            lg.dump(step=self.num_timesteps)
-            if n_eps or self.win_rew_n:
-                nan = math.nan
-                self.csv.writerow([self.num_timesteps, round(self.wall(), 2), n_eps,
-                                   self.last["ret"] if n_eps else nan, self.last["dret"] if n_eps else nan,
-                                   self.last["len"] if n_eps else nan, env_ms, upd_ms, iter_ms, sps, step_rew,
-                                   int(self.model._n_updates)])
-                self.csv_f.flush()
-            self.win_rew_sum, self.win_rew_n = 0.0, 0
-            msg = (f"ret {self.last['ret']:.2f} | avg-disc-ret {self.last['dret']:.2f} | r/step {step_rew:.3f} | "
-                   f"{sps:.0f} steps/s | "
-                   f"env {env_ms:.0f} ms + update {upd_ms:.0f} ms / iter")
-            if self.bar is not None:
-                self.bar.set_postfix_str(msg, refresh=False)
-            else:
-                print(f"[{time.strftime('%H:%M:%S')}] {self.num_timesteps}/{args.total_steps} steps | {msg}",
-                      file=sys.stderr, flush=True)
-            self.done_eps.clear()
-            self.done_terms.clear()
-            self.env_t, self.upd_t, self.iter_t = [], [], []
-            self.last_log = now
-
-        def _on_training_end(self) -> None:
-            self._log()
-            if self.bar is not None:
-                self.bar.close()
-            self.csv_f.close()
-
-    return RunMonitor()
+def _buffer_size(args: Args) -> int:
+    return max(min(args.buffer_size, args.total_steps), args.num_envs * 2)
 
 
 # ------------------------------------------------------------------------------------ main entry
@@ -491,16 +325,22 @@ def train(args: Args, *, resume: bool = False) -> Path:
     else:
         args.task = resolve_task(args.task)
         args.run_dir = str(run_dir)
-        if (run_dir / "checkpoint" / "state.json").exists():
+        if find_checkpoint(run_dir) is not None:
             raise TrainError(f"{run_dir} already holds a checkpoint; pass --resume or choose another --run-dir")
         if args.init_from and not Path(args.init_from).is_file():  # fail before creating the run directory
             raise TrainError(f"--init-from: policy file not found: {args.init_from}")
     run_dir.mkdir(parents=True, exist_ok=True)
 
-    env = _timed(make_sb3_env(args.task, args.num_envs, args.seed))
+    state = read_state(run_dir) if resume else None
+    if resume and state is None:
+        raise TrainError(f"--resume: no checkpoint in {run_dir / 'checkpoint'} (expected model.zip and state.json)")
+    # a resumed run starts fresh episodes from its own seed (not a replay of the first episodes)
+    env_seed = resume_seed(args.seed, int(state["num_timesteps"])) if state else args.seed
+    env = _timed(make_sb3_env(args.task, args.num_envs, env_seed))
     if resume:
         model, state = load_checkpoint(args, run_dir, env)
         wall_offset = float(state.get("wall_s", 0.0))
+        model.set_random_seed(env_seed)  # SB3's load re-seeds the env with the run's seed: use the derived one
     else:
         model, wall_offset = build_model(args, env), 0.0
     init_info = None
@@ -535,7 +375,8 @@ def train(args: Args, *, resume: bool = False) -> Path:
         print(f"\nsignal {signal.Signals(signum).name}: checkpointing and stopping ...", file=sys.stderr, flush=True)
 
     old = {s: signal.signal(s, _handler) for s in (signal.SIGINT, signal.SIGTERM)}
-    monitor = _monitor_callback(args, run_dir, wall_offset, stop_flag)
+    monitor = monitor_callback(args, run_dir, wall_offset, stop_flag,
+                               eval_s_offset=float((state or {}).get("eval_s_total", 0.0)))
     try:
         remaining = args.total_steps - model.num_timesteps
         if remaining > 0:
@@ -544,12 +385,15 @@ def train(args: Args, *, resume: bool = False) -> Path:
         for s, h in old.items():
             signal.signal(s, h)
         wall = monitor.wall() if hasattr(monitor, "t_start") else wall_offset
-        save_checkpoint(model, run_dir, wall_s=wall, save_buffer=args.save_replay_buffer)
+        eval_s = float(getattr(monitor, "eval_s_total", (state or {}).get("eval_s_total", 0.0)))
+        _save_checkpoint(model, run_dir, wall_s=wall, save_buffer=args.save_replay_buffer,
+                         extra={"eval_s_total": eval_s})
         summary = {"env_steps": int(model.num_timesteps), "gradient_updates": int(model._n_updates),
                    "wall_s": round(wall, 1), "stopped_early": stop_flag["stop"],
                    "stopped_by_time_limit": bool(stop_flag.get("time_limit")),
                    "last_train_return": float(monitor.last["ret"]) if hasattr(monitor, "last") else None,
-                   "last_train_avg_disc_return": float(monitor.last["dret"]) if hasattr(monitor, "last") else None}
+                   "last_train_avg_disc_return": float(monitor.last["dret"]) if hasattr(monitor, "last") else None,
+                   "last_eval": getattr(monitor, "last_eval_result", None), "eval_s_total": round(eval_s, 2)}
         save_policy(model, run_dir / "policy.zip", task=args.task,
                     extra={"training": summary, "log_ent_coef": _log_ent_coef(model)})
         side = {"task": args.task, "config": args.to_json(), "git_commit": git_commit(), "training": summary}
