@@ -74,6 +74,13 @@ def train_main(argv: list[str]) -> int:
         p.error("TASK is required")
     if a.steps < 1 or (a.envs is not None and a.envs < 1):
         p.error("--steps and --envs must be positive")
+    from sim.validate import check_output_path
+
+    try:  # before any work: a run directory that cannot be written loses nothing
+        check_output_path(a.run_dir or "runs", folder=True)
+    except ValueError as exc:
+        print(f"rodlab train: --run-dir: {exc}", file=sys.stderr)
+        return 2
     args = Args(task=a.task, num_envs=a.envs or d.num_envs, total_steps=a.steps, seed=a.seed, run_dir=a.run_dir,
                 updates_per_iter=a.updates, batch_size=a.batch_size, buffer_size=a.buffer_size,
                 learning_starts=a.learning_starts, checkpoint_minutes=a.checkpoint_minutes,
@@ -116,7 +123,12 @@ def eval_main(argv: list[str]) -> int:
     p.add_argument("--stochastic", action="store_true", help="sample actions instead of the mean")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--record", default=None, metavar="FILE.rrd",
-                   help="also record the evaluated episodes to this rerun file (written atomically)")
+                   help="also record the evaluated episodes to this rerun file (written atomically; its folder is "
+                        "checked for writing before the evaluation starts)")
+    from sim.progress import add_progress_flag, progress_bar, progress_wanted
+    from sim.validate import check_output_path
+
+    add_progress_flag(p)
     p.add_argument("--trust-pickle", action="store_true",
                    help="also load a full stable-baselines3 checkpoint (checkpoint/model.zip): it is unpickled, "
                         "which runs code stored in the file; only for files you made or trust")
@@ -130,8 +142,15 @@ def eval_main(argv: list[str]) -> int:
     from policies.sac import PolicyLoadError
     from policies.train import TrainError
 
+    total = max(1, a.episodes) * max(1, a.seeds)
+    bar = progress_bar(total, desc="rodlab eval", unit="episode", enabled=progress_wanted(a.progress, json_output=a.json))
+
+    def on_step(step) -> None:  # episodes finished so far (the bar's ETA), never past the total
+        bar.update(min(int(step.done.sum()), total - bar.n) if hasattr(bar, "n") else 0)
+
     try:
         if a.record:
+            check_output_path(a.record, suffix=".rrd")  # before the evaluation: nothing is lost
             from policies.recording.probe import record_hook
 
             hook_cm = record_hook(a.record, episodes=a.episodes, meta={"policy": a.policy, "seed": a.seed})
@@ -140,10 +159,12 @@ def eval_main(argv: list[str]) -> int:
         with hook_cm as hook:
             res = evaluate(a.policy, a.task, episodes=a.episodes, seed=a.seed, num_envs=a.envs,
                            deterministic=not a.stochastic, eval_seeds=a.seeds, env_hook=hook,
-                           trust_pickle=a.trust_pickle)
+                           trust_pickle=a.trust_pickle, callback=on_step)
     except (PolicyLoadError, TrainError, ValueError) as exc:
+        bar.close()
         print(f"rodlab eval: {exc}", file=sys.stderr)
         return 2
+    bar.close()
     if a.json:
         print(json.dumps(res))
         return 0

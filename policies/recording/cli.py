@@ -1,15 +1,22 @@
 """``rodlab record`` and ``rodlab inspect``.
 
 rodlab record --task T [--policy P | --random | --scripted] [--episodes n] [--envs k] [--seed s]
-              [--max-steps m] [--per-sim-step] [--ref-frames] --out recordings/NAME.rrd
+              [--max-steps m] [--per-sim-step] [--ref-frames] [--progress/--no-progress] --out recordings/NAME.rrd
+
+The output folder is checked for writing before any episode runs; SIGTERM or Ctrl-C discards the
+recording (no file, no hidden part folder); a progress bar with ETA goes to stderr on a terminal.
 rodlab inspect FILE.rrd [--json]
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
+import signal
 import sys
+import threading
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -53,9 +60,13 @@ class _Spaces:
 
 def record(task: str, out: str | Path, *, policy: str | None = None, mode: str = "random", episodes: int = 1,
            envs: int = 1, seed: int = 0, max_steps: int | None = None, per_sim_step: bool = False,
-           ref_frames: bool = False, force_scale: float | None = None) -> dict[str, Any]:
+           ref_frames: bool = False, force_scale: float | None = None, show_progress: bool = False) -> dict[str, Any]:
     """Run ``episodes`` episodes of ``task`` and record them to ``out``. mode: "policy" | "random" |
-    "scripted" (``policy`` = path for mode "policy"). Returns {"file", "episodes": [summaries]}."""
+    "scripted" (``policy`` = path for mode "policy"). ``out`` is checked for writing first. Returns
+    {"file", "episodes": [summaries]}. ``show_progress``: a progress bar with ETA on stderr."""
+    from sim.progress import progress_bar
+    from sim.validate import check_output_path
+
     import policies
     from policies.tasks import resolve_task
 
@@ -65,12 +76,21 @@ def record(task: str, out: str | Path, *, policy: str | None = None, mode: str =
     tid = resolve_task(task)
     if envs < 1 or episodes < 1:
         raise RecordingError("--episodes and --envs must be >= 1")
+    if max_steps is not None and max_steps < 1:
+        raise RecordingError(f"--max-steps must be >= 1 (control steps per episode), got {max_steps}")
+    check_output_path(out, suffix=".rrd")  # before any work: a folder that cannot be written loses nothing
     envs = min(envs, episodes)
     venv = policies.make_vec_env(tid, envs, seed=seed)
     ns = argparse.Namespace(policy=policy if mode == "policy" else None, scripted=mode == "scripted", seed=seed,
                             task=tid)
-    act, label = _policy_fn(ns, venv)
-    with Recorder(out, **({} if force_scale is None else {"force_scale": force_scale})) as rec:
+    try:
+        act, label = _policy_fn(ns, venv)
+    except BaseException:
+        venv.close()
+        raise
+    ep_len = int(max_steps) if max_steps is not None else int(venv.config.timeout_steps) + 1
+    with Recorder(out, **({} if force_scale is None else {"force_scale": force_scale})) as rec, \
+            progress_bar(episodes * ep_len, desc="rodlab record", enabled=show_progress) as bar:
         probe = TaskProbe(rec, episodes=episodes, max_steps=max_steps, per_sim_step=per_sim_step,
                           ref_frames=ref_frames, meta={"task": tid, "policy": label, "seed": seed})
         probe.attach(venv)
@@ -81,11 +101,14 @@ def record(task: str, out: str | Path, *, policy: str | None = None, mode: str =
                 a = np.asarray(act(obs, int(t.max())), np.float32)
                 obs, _r, term, trunc, _info = venv.step(a)
                 t += 1
-                t[np.asarray(term) | np.asarray(trunc)] = 0
+                ended = np.asarray(term) | np.asarray(trunc)
                 cut = probe.cut_envs()
                 if cut.any():
                     obs, _ = venv.reset(options={"reset_mask": cut})
-                    t[cut] = 0
+                ended |= cut
+                # the bar counts control steps of at most ep_len per episode (an early end counts in full)
+                bar.update(int(envs - ended.sum()) + int(np.maximum(ep_len - t[ended] + 1, 1).sum()))
+                t[ended] = 0
         finally:
             probe.detach()
             venv.close()
@@ -104,25 +127,33 @@ def record_main(argv: list[str]) -> int:
     p.add_argument("--episodes", type=int, default=1)
     p.add_argument("--envs", type=int, default=1, help="parallel envs (episodes are split over them)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--max-steps", type=int, default=None, help="cut each episode after this many control steps")
+    p.add_argument("--max-steps", type=int, default=None,
+                   help="cut each episode after this many control steps (>= 1)")
     p.add_argument("--per-sim-step", action="store_true", help="also record every simulator sub-step")
     p.add_argument("--ref-frames", action="store_true", help="also record the reference frames d1, d2")
     p.add_argument("--force-scale", type=float, default=None,
                    help="contact force arrow length per newton [m/N] (default 2e-4)")
     p.add_argument("--out", required=True, help="output file, e.g. recordings/NAME.rrd")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    from sim.progress import add_progress_flag, progress_wanted
+
+    add_progress_flag(p)
     a = p.parse_args(argv)
     mode = "policy" if a.policy else "scripted" if a.scripted else "random"
+    from policies.sac import PolicyLoadError
+
     try:
-        res = record(a.task, a.out, policy=a.policy, mode=mode, episodes=a.episodes, envs=a.envs, seed=a.seed,
-                     max_steps=a.max_steps, per_sim_step=a.per_sim_step, ref_frames=a.ref_frames,
-                     force_scale=a.force_scale)
-    except (RecordingError, ValueError, FileNotFoundError) as exc:
+        with _sigterm_as_interrupt():
+            res = record(a.task, a.out, policy=a.policy, mode=mode, episodes=a.episodes, envs=a.envs,
+                         seed=a.seed, max_steps=a.max_steps, per_sim_step=a.per_sim_step, ref_frames=a.ref_frames,
+                         force_scale=a.force_scale, show_progress=progress_wanted(a.progress, json_output=a.json))
+    except (RecordingError, PolicyLoadError, ValueError, FileNotFoundError) as exc:
         print(f"rodlab record: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("rodlab record: interrupted; nothing written", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        sig = "terminated" if str(exc) == "SIGTERM" else "interrupted"
+        print(f"rodlab record: {sig}; nothing written", file=sys.stderr)
+        return 143 if sig == "terminated" else 130
     if a.json:
         print(json.dumps(res))
         return 0
@@ -132,6 +163,24 @@ def record_main(argv: list[str]) -> int:
         print(f"  episode {s['episode']} env {s['env']}: {s['steps']} frames, return {s['return']:.3f}, "
               f"max contact force {s['max_contact_force']:.3g} N{'' if s['complete'] else ' (cut)'}")
     return 0
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM raises KeyboardInterrupt("SIGTERM") in the main thread while the block runs, so the recorder's
+    ``with`` block discards its hidden part folder (a default SIGTERM would leave it behind)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def _raise(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt("SIGTERM")
+
+    old = signal.signal(signal.SIGTERM, _raise)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
 
 
 def _fmt(x: float, spec: str = ".3f") -> str:

@@ -7,6 +7,7 @@ also works on files without an RRD footer. The layout is described in
 from __future__ import annotations
 
 import os
+import warnings
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
@@ -26,14 +27,28 @@ def _open(path: str | os.PathLike[str]):
     if not p.is_file():
         raise RecordingError(f"{p}: no such recording file")
     try:
-        return rr.chunk.RrdReader(str(p))
+        with warnings.catch_warnings():  # files without a footer are read by a whole-file scan (fine)
+            warnings.simplefilter("ignore")
+            return rr.chunk.RrdReader(str(p))
     except Exception as exc:  # rerun raises RuntimeError/ValueError with a long message
         raise RecordingError(f"{p}: not a readable .rrd file ({str(exc).splitlines()[0]})") from None
 
 
+def _damaged(path: str | os.PathLike[str], exc: BaseException) -> RecordingError:
+    first = (str(exc).splitlines() or [type(exc).__name__])[0]
+    return RecordingError(f"{path}: not a readable .rrd file (truncated or damaged? {first})")
+
+
+def _entries(reader: Any, path: str | os.PathLike[str]) -> list[Any]:
+    try:
+        return list(reader.recordings())
+    except Exception as exc:  # rerun decodes lazily: a truncated file fails here with a RuntimeError
+        raise _damaged(path, exc) from None
+
+
 def list_episodes(path: str | os.PathLike[str]) -> list[str]:
     """Recording ids in the file (one per episode), in file order."""
-    return [e.recording_id for e in _open(path).recordings()]
+    return [e.recording_id for e in _entries(_open(path), path)]
 
 
 class _Entity:
@@ -247,7 +262,7 @@ def _scene(ents: dict[str, _Entity], meta: dict[str, Any]) -> StaticScene:
 def read_recording(path: str | os.PathLike[str]) -> list[EpisodeData]:
     """All episodes of a rodlab .rrd file, sorted by episode index (then recording id)."""
     reader = _open(path)
-    entries = reader.recordings()
+    entries = _entries(reader, path)
     if not entries:
         raise RecordingError(f"{path}: contains no recordings")
     eps = []
@@ -256,6 +271,8 @@ def read_recording(path: str | os.PathLike[str]) -> list[EpisodeData]:
             eps.append(_read_store(reader, e))
         except RecordingError as exc:
             raise RecordingError(f"{path}: {exc}") from None
+        except Exception as exc:  # damaged content that still decodes (missing columns, bad arrays)
+            raise _damaged(path, exc) from None
     eps.sort(key=lambda ep: (int(ep.meta.get("episode", 0)), ep.recording_id))
     return eps
 

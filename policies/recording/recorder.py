@@ -182,12 +182,15 @@ class Recorder:
         self._ok_names: set[str] = set()
 
     def _remove_stale(self) -> None:
-        """Delete part folders / temp files for this output left by processes that no longer exist
-        (a killed recording)."""
+        """Delete part folders (of any recording in this folder) and temp files for this output left by
+        processes that no longer exist (a killed recording)."""
         prefixes = (f".{self.path.name}.parts-", f".{self.path.stem}.")
-        for x in self.path.parent.glob(f".{self.path.stem}.*"):
+        cands = set(self.path.parent.glob(f".{self.path.stem}.*")) | set(self.path.parent.glob(".*.rrd.parts-*"))
+        for x in sorted(cands):
             name = x.name
             rest = next((name[len(p):] for p in prefixes if name.startswith(p)), None)
+            if rest is None and ".rrd.parts-" in name and x.is_dir():
+                rest = name.rsplit(".rrd.parts-", 1)[1]
             if rest is None or (x.is_file() and not name.endswith(".tmp.rrd")):
                 continue
             try:
