@@ -1,16 +1,14 @@
 """`rodlab eval --record FILE` writes the evaluated episodes to a readable .rrd."""
 from pathlib import Path
 
-import pytest
-
 from policies.cli import eval_main
 from policies.recording import read_recording
 
 POLICY = Path(__file__).resolve().parents[2] / "policies" / "pretrained" / "ik4d.zip"
 
 
-@pytest.mark.skipif(not POLICY.exists(), reason="shipped ik4d policy missing")
 def test_eval_record_writes_episodes(tmp_path, capsys):
+    assert POLICY.is_file(), f"the shipped policy {POLICY} is missing"
     out = tmp_path / "eval.rrd"
     assert eval_main([str(POLICY), "--episodes", "1", "--envs", "1", "--json", "--record", str(out)]) == 0
     assert out.exists()

@@ -1,7 +1,6 @@
 """Warm start (``rodlab train TASK --init-from POLICY.zip``): weights copied before the first update, clear errors.
 
-Same tiny setup as test_train_eval.py (4 envs, 3x32 nets, a few hundred steps; follow_target when registered,
-else Pendulum-v1).
+Same tiny setup as test_train_eval.py (4 envs, 3x32 nets, a few hundred steps on follow_target).
 """
 from __future__ import annotations
 

@@ -32,8 +32,7 @@ def test_shipped_policy_loads_and_fits_its_task(name):
     from policies.train import make_sb3_env
 
     path = PRETRAINED / f"{name}.zip"
-    if not path.is_file():
-        pytest.skip(f"{path.name} not shipped (policies/pretrained/ has no trained policy for {name})")
+    assert path.is_file(), f"{path.name} not shipped: policies/pretrained/ must hold a trained policy for {name}"
     pol, meta = load_policy(path)
     assert meta["task"] == name
     env = make_sb3_env(name, 2, 0)
@@ -48,8 +47,7 @@ def test_shipped_policy_loads_and_fits_its_task(name):
 @pytest.mark.parametrize("name", BEATS_RANDOM)
 def test_shipped_policy_beats_random(name):
     path = PRETRAINED / f"{name}.zip"
-    if not path.is_file():
-        pytest.skip(f"{path.name} not shipped (policies/pretrained/ has no trained policy for {name})")
+    assert path.is_file(), f"{path.name} not shipped: policies/pretrained/ must hold a trained policy for {name}"
     meta = read_policy_meta(path)
     assert meta["task"] == name, f"{path.name} names task {meta['task']!r}"
     assert path.stat().st_size < 8 * 2**20, "shipped policy should be a few MB (policy only)"

@@ -55,8 +55,7 @@ def test_play_shipped_policy(wb_page, shots_dir):
     from workbench.policy_session import policy_task, shipped_policies
 
     files = shipped_policies()
-    if not files:
-        pytest.skip("no shipped policy in policies/pretrained/*.zip yet")
+    assert files, "no shipped policy in policies/pretrained/*.zip"
     from policies.tasks import TASKS
 
     app, page = wb_page
