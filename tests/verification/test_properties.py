@@ -1,6 +1,6 @@
 """Property tests (hypothesis) of the physics kernels on random configurations.
 
-Complements the finite-difference tests of the sim engineer (gradient/Hessian vs FD at chosen
+Complements the finite-difference tests in tests/unit/test_energies.py (gradient/Hessian vs FD at chosen
 configurations) with structural properties over random inputs:
 
 * energies are >= 0 and vanish at the natural state;
