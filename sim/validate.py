@@ -250,9 +250,7 @@ def quarantine_nonfinite(sim: Any, state: Any, stats: Any = None, also: np.ndarr
     state by the rest configuration (time kept when finite, else 0), so no NaN stays in the state. With
     ``stats``, those envs' StepStats numbers are zeroed and ``stats.failed`` set; ``also``: more envs treated so
     (the ones quarantined before the step). Returns the (B,) mask."""
-    # before a step: every state field; after it: positions, velocities and the statistics (the energies are
-    # evaluated on the final frames and twist, so a non-finite frame shows there); the next step re-checks all
-    arrays = [getattr(state, name) for name in (_STATE_FIELDS[:2] if stats is not None else _STATE_FIELDS[:-1])]
+    arrays = [getattr(state, name) for name in _STATE_FIELDS[:-1]]  # every state field, before and after
     if stats is not None:  # contact rows: only the filled ones (up to the largest contact_count)
         cmax = int(stats.contact_count.max()) if stats.contact_count.size else 0
         arrays += [a[:, :cmax] if name.startswith("contact_") and a.ndim >= 2 else a

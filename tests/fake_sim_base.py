@@ -10,23 +10,17 @@ from types import SimpleNamespace
 
 import numpy as np
 
-
-class FakeState(SimpleNamespace):
-    @property
-    def node_pos(self):
-        return _to3(self.dof)
-
-    @property
-    def node_vel(self):
-        return _to3(self.dof_vel)
+from sim.state import State
 
 
-def _to3(q):
-    if q.shape[-1] == 2:
-        p = np.zeros(q.shape[:-1] + (3,))
-        p[..., 0], p[..., 2] = q[..., 0], q[..., 1]
-        return p
-    return q[..., :3]
+def make_state(dof, theta, tangent) -> State:
+    """A real :class:`sim.state.State` for the fakes (so they cannot drift from the State API): twist angles
+    ``theta`` (B, N-1) go into the θ slots of a 3-D ``dof`` (B, N, 4); 2-D states have none."""
+    B, N = dof.shape[:2]
+    if dof.shape[-1] == 4:
+        dof[:, :-1, 3] = theta
+    return State(dof=dof, dof_vel=np.zeros_like(dof), edge_ref_d1=ref_d1(tangent), edge_tangent=tangent.copy(),
+                 node_ref_twist=np.zeros((B, N)), time=np.zeros(B), failed=np.zeros(B, bool))
 
 
 def ref_d1(t):
@@ -50,14 +44,16 @@ class FakeSimBase:
         x = np.concatenate([np.zeros(kb.shape[:-2] + (1, 3)), np.cumsum(0.05 * t, axis=-2)], axis=-2)
         return x, t, np.cumsum(tb, axis=-1)[..., :-1]
 
-    def _dof(self, x):
-        """(B, N, 2|4) DOFs of node positions x (B, N, 3) (twist angles 0)."""
+    def _dof(self, x, theta=None):
+        """(B, N, 2|4) DOFs of node positions x (B, N, 3) and twist angles theta (B, N-1) (default 0)."""
         nd = 2 if self.mode == "2d" else 4
         dof = np.zeros(x.shape[:-1] + (nd,))
         if nd == 2:
             dof[..., 0], dof[..., 1] = x[..., 0], x[..., 2]
         else:
             dof[..., :3] = x
+            if theta is not None:
+                dof[..., :-1, 3] = theta
         return dof
 
     def _rest(self):

@@ -88,3 +88,15 @@ def test_reset_envs_integer_list_means_indices_and_bool_arrays_stay_masks(sim):
     for bad in ([0, True], [0.0, 1.0], [3], [-4], np.zeros((3, 1), bool), np.array([True, False]), True, "0"):
         with pytest.raises(ValueError, match="reset_envs"):
             sim.reset_envs(state, ctrl, bad)
+
+
+def test_huge_finite_frames_in_2d_leave_no_nan_after_the_step():
+    """Found by the fuzz: edge_tangent = 1e300 (finite) in a 2-D env gave a NaN reference twist after the step;
+    every state field is checked after the step too."""
+    sim2 = Simulator(build_model(load_scene("assets/scenes/arm_2d.toml")), envs=2)
+    state, ctrl = sim2.reset(), sim2.make_control()
+    state.edge_tangent[0, 3, 0] = 1e300
+    sim2.step(state, ctrl)
+    for name in ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time"):
+        assert np.isfinite(getattr(state, name)).all(), name
+    assert state.failed.tolist() == [True, False]

@@ -9,7 +9,8 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
-from fake_sim_base import FakeSimBase, FakeState, fake_set_env_capsules, ref_d1
+
+from tests.fake_sim_base import FakeSimBase, fake_set_env_capsules, make_state, ref_d1
 
 __all__ = ["FakeSim", "fake_make_simulator", "fake_set_env_capsules"]
 
@@ -18,12 +19,11 @@ class FakeSim(FakeSimBase):
     def reset(self):
         x, t, th = self._rest()
         dof = self._dof(x)
-        return FakeState(dof=dof, dof_vel=np.zeros_like(dof), edge_theta=th, edge_tangent=t,
-                         edge_ref_d1=ref_d1(t), failed=np.zeros(self.envs, bool), time=np.zeros(self.envs))
+        return make_state(dof, th, t)
 
     def reset_envs(self, state, ctrl, mask):
-        self._reset_fields(state, ctrl, mask, ("dof", "dof_vel", "edge_theta", "edge_tangent", "edge_ref_d1",
-                                               "failed", "time"))
+        self._reset_fields(state, ctrl, mask, ("dof", "dof_vel", "edge_tangent", "edge_ref_d1", "failed",
+                                               "time", "node_ref_twist"))
 
     def step(self, state, ctrl):
         B = self.envs
@@ -31,11 +31,10 @@ class FakeSim(FakeSimBase):
         newly = live & (ctrl.kappa_bar[:, 5, 0] > 50)
         x, t, th = self._shape(ctrl.kappa_bar, ctrl.tau_bar)
         q = state.dof.copy()
-        new = q + 0.5 * (self._dof(x) - q)
+        new = q + 0.5 * (self._dof(x, th) - q)
         ok = live & ~newly
         state.dof_vel[ok] = (new[ok] - q[ok]) / self.dt
         state.dof[ok] = new[ok]
-        state.edge_theta[ok] = th[ok]
         state.edge_tangent[ok] = t[ok]
         state.edge_ref_d1[ok] = ref_d1(t[ok])
         state.time[ok] += self.dt

@@ -2,14 +2,10 @@
 kinematic fake simulator for the task-probe tests (no numba compile)."""
 from __future__ import annotations
 
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-
-sys.path.insert(0, os.path.dirname(__file__))
 
 
 @pytest.fixture(scope="session")
@@ -34,9 +30,8 @@ def verify(rerun_bin):
 @pytest.fixture
 def fake_task_sim(monkeypatch):
     """Swap the task cores' simulator for recordings_fake_sim.FakeSim (with contacts and full StepStats)."""
-    from recordings_fake_sim import fake_make_simulator, fake_set_env_capsules
-
     from policies.tasks import scenes
+    from tests.recordings.recordings_fake_sim import fake_make_simulator, fake_set_env_capsules
 
     monkeypatch.setattr(scenes, "make_simulator", fake_make_simulator)
     monkeypatch.setattr(scenes, "set_env_capsules", fake_set_env_capsules)

@@ -10,26 +10,12 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
-from fake_sim_base import FakeSimBase, fake_set_env_capsules, ref_d1
-from fake_sim_base import FakeState as _BaseState
+
+from tests.fake_sim_base import FakeSimBase, fake_set_env_capsules, make_state, ref_d1
 
 __all__ = ["FakeSim", "fake_make_simulator", "fake_set_env_capsules"]
 
 CAP = 4
-
-
-class FakeState(_BaseState):
-    @property
-    def edge_theta(self):
-        return self.theta
-
-    @property
-    def edge_tangent(self):
-        return self.tangent
-
-    @property
-    def edge_ref_d1(self):
-        return ref_d1(self.tangent)
 
 
 class FakeSim(FakeSimBase):
@@ -39,25 +25,23 @@ class FakeSim(FakeSimBase):
         self.calls = 0
 
     def reset(self):
-        B, N = self.envs, self.N
         x, t, th = self._rest()
         dof = self._dof(x)
-        return FakeState(dof=dof, dof_vel=np.zeros_like(dof), theta=th, tangent=t, failed=np.zeros(B, bool),
-                         time=np.zeros(B), node_ref_twist=np.zeros((B, N)))
+        return make_state(dof, th, t)
 
     def reset_envs(self, state, ctrl, mask):
-        self._reset_fields(state, ctrl, mask, ("dof", "dof_vel", "theta", "tangent", "failed", "time",
-                                               "node_ref_twist"))
+        self._reset_fields(state, ctrl, mask, ("dof", "dof_vel", "edge_tangent", "edge_ref_d1", "failed",
+                                               "time", "node_ref_twist"))
 
     def step(self, state, ctrl):
         B = self.envs
         self.calls += 1
         x, t, th = self._shape(ctrl.kappa_bar, ctrl.tau_bar)
-        q = self._dof(x)
+        q = self._dof(x, th)
         state.dof_vel[:] = (q - state.dof) / self.dt
         state.dof[:] = q
-        state.theta[:] = th
-        state.tangent[:] = t
+        state.edge_tangent[:] = t
+        state.edge_ref_d1[:] = ref_d1(t)
         state.time += self.dt
         has_obs = self.capsules is not None or self.obstacles > 0
         cap = CAP if has_obs else 0
