@@ -8,6 +8,8 @@ from __future__ import annotations
 import importlib
 import sys
 
+OWN_PACKAGES = ("sim", "policies", "workbench", "benchmarks")
+
 # command -> "module:function"; "bench" has its own table below.
 COMMANDS: dict[str, tuple[str, str]] = {
     "sim": ("sim.cli:sim_main", "simulate a scene headless and write an .npz"),
@@ -41,8 +43,16 @@ def _call(target: str, argv: list[str]) -> int:
     mod_name, fn_name = target.split(":")
     try:
         mod = importlib.import_module(mod_name)
-    except ModuleNotFoundError as exc:  # a command whose module is not built yet
-        print(f"rodlab: this command is not available ({exc})", file=sys.stderr)
+    except ModuleNotFoundError as exc:
+        missing = exc.name or ""
+        if missing == mod_name or mod_name.startswith(missing + "."):
+            print(f"rodlab: this command is not available (module {mod_name!r} not found)", file=sys.stderr)
+            return 2
+        if missing.split(".")[0] in OWN_PACKAGES:
+            raise  # a broken import inside rodlab itself: show the traceback
+        print(f"rodlab: the Python package {missing.split('.')[0]!r} is not installed but {mod_name!r} needs it; "
+              "install rodlab's dependencies (`make install`, or `pip install -e .[dev,peers]` in the venv)",
+              file=sys.stderr)
         return 2
     rc = getattr(mod, fn_name)(argv)
     return int(rc or 0)
