@@ -36,3 +36,30 @@ def test_every_entry_resolves_to_a_callable(target):
 def test_console_script_runs():
     r = subprocess.run([sys.executable, "-m", "rodlab_cli", "--help"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0 and "usage: rodlab" in r.stdout
+
+
+def _with_command(monkeypatch, target: str) -> None:
+    monkeypatch.setitem(rodlab_cli.COMMANDS, "probe", (target, "test entry"))
+
+
+def test_missing_subcommand_module_is_not_available(monkeypatch, capsys):
+    _with_command(monkeypatch, "rodlab_no_such_command_module:main")
+    assert rodlab_cli.main(["probe"]) == 2
+    assert "command is not available" in capsys.readouterr().err
+
+
+def test_missing_dependency_is_named_not_reported_as_missing_command(monkeypatch, tmp_path, capsys):
+    (tmp_path / "rodlab_probe_cmd.py").write_text("import rodlab_absent_dependency_xyz\n\ndef main(argv):\n    return 0\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    _with_command(monkeypatch, "rodlab_probe_cmd:main")
+    assert rodlab_cli.main(["probe"]) == 2
+    err = capsys.readouterr().err
+    assert "'rodlab_absent_dependency_xyz' is not installed" in err and "not available" not in err
+
+
+def test_broken_import_inside_rodlab_shows_the_error(monkeypatch, tmp_path):
+    (tmp_path / "rodlab_probe_cmd2.py").write_text("import sim.no_such_module\n\ndef main(argv):\n    return 0\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    _with_command(monkeypatch, "rodlab_probe_cmd2:main")
+    with pytest.raises(ModuleNotFoundError, match="sim.no_such_module"):
+        rodlab_cli.main(["probe"])
