@@ -12,11 +12,12 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-import viser
-
 from workbench.core import Workbench
+from workbench.files import Folders
 from workbench.frame import Frame
 from workbench.gui_controls import ControlsPanel
+from workbench.gui_guard import GuiGuard, finite_pose
+from workbench.handshake import Guard, start_viser
 from workbench.runner import SimThread
 from workbench.view_scene import SceneView
 
@@ -28,16 +29,27 @@ class WorkbenchApp:
 
     Args:
         wb: the core session.
-        host/port: where to serve (port 0 = any free port; read ``app.port``).
+        host/port: where to serve (port 0 = any free port; read ``app.port``). Every request is checked
+            (``workbench.handshake``: loopback Host, same Origin, a token on a non-loopback bind).
         env_map: viser's HDRI lighting (off in tests: SwiftShader stalls on it).
         speed: initial real-time factor (``float('inf')`` = as fast as possible).
+        recordings_dir / scenes_dir / max_upload_mb: the folders the page may use (``workbench.files``).
     """
 
     def __init__(self, wb: Workbench, *, host: str = "127.0.0.1", port: int = 8080,
-                 env_map: bool = True, speed: float = 1.0, recordings_dir: str | Path | None = None):
+                 env_map: bool = True, speed: float = 1.0, recordings_dir: str | Path | None = None,
+                 scenes_dir: str | Path | None = None, max_upload_mb: float = 50.0):
         self.wb = wb
-        self.recordings_dir = Path(recordings_dir) if recordings_dir else REPO_ROOT / "recordings"
-        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.files = Folders.create(scenes_dir=scenes_dir, recordings_dir=recordings_dir or REPO_ROOT / "recordings",
+                                    max_upload_mb=max_upload_mb)
+        self.recordings_dir = self.files.recordings
+        self.guard = Guard.for_host(host)
+        self.checks = GuiGuard()
+        try:
+            self.server = start_viser(host, port, self.guard)
+        except BaseException:
+            self.files.cleanup()
+            raise
         self.server.gui.configure_theme(control_width="large", show_share_button=False)
         self.view = SceneView(self.server, wb.live.n_nodes, env_map=env_map)
         self.thread = SimThread(wb, self._render, speed=speed)
@@ -64,7 +76,8 @@ class WorkbenchApp:
 
     @property
     def url(self) -> str:
-        return f"http://127.0.0.1:{self.port}/"
+        """The page's address (with the per-launch token when bound to a non-loopback address)."""
+        return self.guard.url(self.port)
 
     def start(self) -> "WorkbenchApp":
         self._render(self.wb.frame())
@@ -77,6 +90,7 @@ class WorkbenchApp:
         if rec is not None:
             rec.close()
         self.server.stop()
+        self.files.cleanup()
 
     def request_render(self) -> None:
         self.thread.request_render()
@@ -89,7 +103,10 @@ class WorkbenchApp:
         self.request_render()
 
     def _on_gizmo(self, index: int, position, wxyz) -> None:
-        self.wb.set_obstacle_pose(index, position, wxyz)
+        pose = finite_pose(position, wxyz)
+        if pose is None or not 0 <= index < len(self.wb.obstacles):  # not finite / far away: ignored
+            return
+        self.wb.set_obstacle_pose(index, *pose)
         self.request_render()
 
     def _render(self, fr: Frame) -> None:

@@ -1,4 +1,8 @@
-"""``rodlab workbench [SCENE.toml | --task T] [--host 127.0.0.1] [--port 8080]``."""
+"""``rodlab workbench [SCENE.toml | --task T] [--host 127.0.0.1] [--port 8080] [--scenes-dir scenes]
+[--max-upload-mb 50]``.
+
+The first line with ``http://`` printed at start-up is the page's full address (with ``?token=...`` when
+bound to a non-loopback address; a warning follows on stderr)."""
 from __future__ import annotations
 
 import argparse
@@ -22,9 +26,14 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="rodlab workbench", description="interactive web workbench (viser)")
     ap.add_argument("scene", nargs="?", help="scene TOML (default: assets/scenes/default.toml or arm.toml)")
     ap.add_argument("--task", help="start with this task's scene and its first shipped policy")
-    ap.add_argument("--host", default="127.0.0.1", help="bind address (default 127.0.0.1)")
+    ap.add_argument("--host", default="127.0.0.1",
+                    help="bind address (default 127.0.0.1: this machine only). Any other address needs the "
+                         "per-launch token printed in the URL; prefer an SSH tunnel (see README, Security)")
     ap.add_argument("--port", type=int, default=8080, help="port (busy -> next free one)")
     ap.add_argument("--speed", type=float, default=1.0, help="real-time factor (default 1)")
+    ap.add_argument("--scenes-dir", default=None,
+                    help="folder where the page saves and loads scenes (default: scenes/ in the working directory)")
+    ap.add_argument("--max-upload-mb", type=float, default=50.0, help="largest mesh upload accepted [MB] (default 50)")
     ap.add_argument("--no-env-map", action="store_true", help="no HDRI lighting (faster in software GL)")
     ap.add_argument("--seconds", type=float, default=None, help="quit after this many seconds (tests)")
     return ap
@@ -47,7 +56,15 @@ def workbench_main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # noqa: BLE001 - SceneError etc.: one clear line
         print(f"rodlab workbench: cannot load {scene}: {exc}", file=sys.stderr)
         return 2
-    app = WorkbenchApp(wb, host=args.host, port=args.port, env_map=not args.no_env_map, speed=args.speed)
+    from workbench.files import FileAccessError
+    from workbench.handshake import BindError
+
+    try:
+        app = WorkbenchApp(wb, host=args.host, port=args.port, env_map=not args.no_env_map, speed=args.speed,
+                           scenes_dir=args.scenes_dir, max_upload_mb=args.max_upload_mb)
+    except (BindError, FileAccessError) as exc:
+        print(f"rodlab workbench: {exc}", file=sys.stderr)
+        return 2
     if args.task:
         try:
             app.policy.start_task(args.task)
@@ -56,7 +73,11 @@ def workbench_main(argv: list[str] | None = None) -> int:
             app.stop()
             return 2
     app.start()
-    print(f"rodlab workbench: {scene or 'built-in rod'} at http://{args.host}:{app.port}/  (Ctrl-C to quit)")
+    print(f"rodlab workbench: open {app.url}  ({scene or 'built-in rod'}; Ctrl-C to quit)", flush=True)
+    if not app.guard.loopback:
+        print(f"rodlab workbench: WARNING: serving on {args.host}, reachable from other machines; anyone with the "
+              "token in the address above can drive this session (prefer --host 127.0.0.1 and an SSH tunnel)",
+              file=sys.stderr, flush=True)
     t_end = None if args.seconds is None else time.monotonic() + args.seconds
     try:
         while t_end is None or time.monotonic() < t_end:

@@ -284,10 +284,13 @@ class Workbench:
                 self.recorder.new_episode()
 
     def save_scene(self, path: str | Path) -> Path:
-        """Write the current scene (with edited obstacles) to TOML (``sim.scene`` dump)."""
+        """Write the current scene (with edited obstacles) to TOML (``sim.scene`` dump, atomic); that file is
+        the open scene from now on. The page confines ``path`` to its scenes folder (``workbench.files``)."""
         with self.lock:
             spec = obst.spec_with(self.live.base_spec, self.obstacles)
-            return obst.dump(spec, Path(path))
+            out = obst.dump(spec, Path(path))
+            self.scene_path = out
+            return out
 
     def load_scene(self, path: str | Path) -> None:
         """Load a scene file; the rod is reset."""

@@ -24,6 +24,7 @@ class ControlsPanel:
         gui = app.server.gui
         wb = app.wb
         self.status = gui.add_markdown("starting…")
+        self.msg = gui.add_markdown("")
         with gui.add_folder("Run"):
             self.playing = gui.add_checkbox("Playing", initial_value=wb.playing)
             self.step_btn = gui.add_button("Step")
@@ -50,10 +51,16 @@ class ControlsPanel:
                 self.sliders.append(row)
             self.zero_btn = gui.add_button("Zero sliders")
         self._syncing = False
+        for h in (self.speed, self.color_by, self.force_scale, self.mode, *(s for row in self.sliders for s in row)):
+            app.checks.track(h)
         self._wire()
+
+    def _say(self, text: str) -> None:
+        self.msg.content = text
 
     def _wire(self) -> None:
         app, wb = self.app, self.app.wb
+        ok = app.checks
 
         @self.playing.on_update
         def _(_e) -> None:
@@ -78,10 +85,13 @@ class ControlsPanel:
 
         @self.speed.on_update
         def _(_e) -> None:
-            app.thread.speed = float(self.speed.value)
+            if ok.number(self.speed, self._say):
+                app.thread.speed = float(self.speed.value)
 
         @self.color_by.on_update
         def _(_e) -> None:
+            if not ok.option(self.color_by, self._say):
+                return
             app.view.overlays.color_by = self.color_by.value
             app.request_render()
 
@@ -97,11 +107,15 @@ class ControlsPanel:
 
         @self.force_scale.on_update
         def _(_e) -> None:
+            if not ok.number(self.force_scale, self._say):
+                return
             app.view.overlays.force_scale = float(self.force_scale.value)
             app.request_render()
 
         @self.mode.on_update
         def _(_e) -> None:
+            if not ok.option(self.mode, self._say):
+                return
             wb.set_teleop_mode(self.mode.value)
             self.sync_sliders()
 
@@ -110,7 +124,7 @@ class ControlsPanel:
                 s = self.sliders[k][c]
 
                 def _cb(_e, k=k, c=c, s=s) -> None:
-                    if not self._syncing:
+                    if not self._syncing and ok.number(s, self._say):
                         wb.set_teleop_value(k, c, float(s.value))
 
                 s.on_update(_cb)
@@ -151,6 +165,10 @@ class ControlsPanel:
             self.playing.value = wb.playing
         finally:
             self._syncing = False
+        for row in self.sliders:
+            for s in row:
+                self.app.checks.accept(s)
+        self.app.checks.accept(self.mode)
 
     def update_status(self) -> None:
         app, wb = self.app, self.app.wb

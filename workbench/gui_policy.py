@@ -4,6 +4,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from workbench.files import page_error
+
 if TYPE_CHECKING:
     from workbench.app import WorkbenchApp
 
@@ -34,6 +36,8 @@ class PolicyPanel:
         with gui.add_folder("Record", expand_by_default=False):
             self.rec_btn = gui.add_button("Start recording")
             self.rec_msg = gui.add_markdown("")
+        for h in (self.task, self.policy, self.rewind):
+            app.checks.track(h)
         self._wire()
 
     def _policies(self) -> list[str]:
@@ -46,8 +50,19 @@ class PolicyPanel:
             files = []
         return files + list(NO_POLICY)
 
+    def start_listed(self) -> None:
+        """Start the task and policy chosen in the page: both must be listed options; the policy is a file
+        name in policies/pretrained (never a path from the page) or zero/random."""
+        task, policy = self.task.value, self.policy.value
+        if task not in tuple(self.task.options) or policy not in self._policies():
+            raise ValueError("choose a task and a policy from the lists")
+        from workbench.policy_session import PRETRAINED
+
+        self.start_task(task, policy if policy in NO_POLICY else str(PRETRAINED / Path(policy).name))
+
     def start_task(self, task: str, policy: str | None = None) -> None:
-        """Start ``task`` with ``policy`` (file name in policies/pretrained, a path, or zero/random)."""
+        """Start ``task`` with ``policy`` (file name in policies/pretrained, a path, or zero/random).
+        Trusted callers only (``--task``, tests): the page goes through :meth:`start_listed`."""
         from workbench.policy_session import PRETRAINED, PolicySession, shipped_policies
 
         if policy is None:
@@ -61,22 +76,34 @@ class PolicyPanel:
         self.app.controls.sync_sliders()
         self.app.request_render()
 
+    def _say(self, text: str) -> None:
+        self.reward.content = text
+
     def _wire(self) -> None:
-        app, wb = self.app, self.app.wb
+        app, wb, ok = self.app, self.app.wb, self.app.checks
 
         @self.task.on_update
         def _(_e) -> None:
+            if not ok.option(self.task, self._say):
+                return
             opts = self._policies()
             self.policy.options = opts
             self.policy.value = opts[0]
+            ok.accept(self.policy)
+
+        @self.policy.on_update
+        def _(_e) -> None:
+            ok.option(self.policy, self._say)
 
         @self.load_btn.on_click
         def _(_e) -> None:
+            if not (ok.option(self.task, self._say) and ok.option(self.policy, self._say)):
+                return
             self.reward.content = f"loading {self.policy.value} on {self.task.value} …"
             try:
-                self.start_task(self.task.value, self.policy.value)
+                self.start_listed()
             except Exception as exc:  # noqa: BLE001 - show it in the page
-                self.reward.content = f"⚠ {exc}"
+                self.reward.content = f"⚠ {page_error(exc)}"
                 return
             self.reward.content = f"running **{self.policy.value}** on **{self.task.value}**"
 
@@ -99,8 +126,14 @@ class PolicyPanel:
             app.controls.sync_sliders()
             app.request_render()
 
+        @self.rewind.on_update
+        def _(_e) -> None:
+            ok.number(self.rewind, self._say)
+
         @self.rewind_btn.on_click
         def _(_e) -> None:
+            if not ok.number(self.rewind, self._say):
+                return
             try:
                 wb.rewind(int(self.rewind.value))
             except KeyError as exc:
@@ -141,6 +174,7 @@ class PolicyPanel:
             self.rewind.min, self.rewind.max = lo, hi
             if wb.playing:
                 self.rewind.value = hi
+            self.app.checks.accept(self.rewind)
         if wb.policy is not None and wb.mode == "policy":
             sc = wb.policy.scalars
             terms = " · ".join(f"{k[2:]} {v:+.3f}" for k, v in sc.items() if k.startswith("r_"))

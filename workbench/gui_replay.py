@@ -2,12 +2,14 @@
 (reward, tip error, contact force, Newton iterations) of the live session or the recording."""
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 from viser import uplot
 
-from workbench.replay import REPO_ROOT, ReplaySession, list_recordings
+from workbench.files import FileAccessError, page_error
+from workbench.replay import ReplaySession, list_recordings
 
 if TYPE_CHECKING:
     from workbench.app import WorkbenchApp
@@ -41,11 +43,14 @@ class ReplayPanel:
                     series=(uplot.Series(label="time [s]"), uplot.Series(label=key, stroke="#d2553c", width=2)),
                     scales={"x": {"time": False}}, title=title, aspect=2.2)
         self._scrubbing = False
+        for h in (self.file, self.episode, self.timeline, self.speed):
+            app.checks.track(h)
         self._wire()
 
     def _files(self) -> list[str]:
-        files = [str(p.relative_to(REPO_ROOT)) if p.is_relative_to(REPO_ROOT) else str(p)
-                 for p in list_recordings(self.app.recordings_dir)]
+        """Recordings in the recordings folder, named relative to it."""
+        root = self.app.recordings_dir
+        files = [str(p.relative_to(root)) for p in list_recordings(root) if p.is_relative_to(root)]
         return files or [NONE]
 
     def refresh_list(self) -> None:
@@ -53,15 +58,38 @@ class ReplayPanel:
         self.file.options = files
         if self.file.value not in files:
             self.file.value = files[0]
+        self.app.checks.accept(self.file)
+
+    def _say(self, text: str) -> None:
+        self.msg.content = text
+
+    def open_listed(self) -> ReplaySession | None:
+        """Open the recording chosen in the page: a listed name, inside the recordings folder."""
+        if not self.app.checks.option(self.file, self._say):
+            return None
+        if self.file.value == NONE:
+            self._say("no .rrd files in the recordings folder")
+            return None
+        path = None
+        try:
+            path = self.app.files.recording(self.file.value)
+            self._say(f"reading {path.name} …")
+            return self.open(path)
+        except (FileAccessError, OSError, ValueError) as exc:  # RecordingError is a ValueError
+            self._say(f"⚠ {page_error(exc, path)}")
+            return None
 
     def open(self, path) -> ReplaySession:
-        """Open a recording (also used by tests/screenshots)."""
-        p = REPO_ROOT / path if not str(path).startswith("/") else path
+        """Open a recording (trusted callers: tests, screenshots; the page uses :meth:`open_listed`).
+        A relative path is taken relative to the recordings folder."""
+        p = Path(path)
+        p = p if p.is_absolute() else self.app.recordings_dir / p
         session = ReplaySession.open(p)
         session.speed = float(self.speed.value)
         self.app.wb.open_replay(session)
         self.episode.options = [str(i) for i in range(len(session.episodes))]
         self.episode.value = "0"
+        self.app.checks.accept(self.episode)
         self._select()
         return session
 
@@ -77,6 +105,7 @@ class ReplayPanel:
             self.timeline.value = 0
         finally:
             self._scrubbing = False
+        self.app.checks.accept(self.timeline)
         meta = s.ep.meta
         self.msg.content = (f"`{s.path.name if s.path else ''}` · episode {s.episode_index} · {s.length} frames  \n"
                             f"task {meta.get('task', '?')} · policy {meta.get('policy', '?')}")
@@ -85,26 +114,24 @@ class ReplayPanel:
         self.app.request_render()
 
     def _wire(self) -> None:
-        app, wb = self.app, self.app.wb
+        app, wb, ok = self.app, self.app.wb, self.app.checks
+
+        @self.file.on_update
+        def _(_e) -> None:
+            ok.option(self.file, self._say)
 
         @self.open_btn.on_click
         def _(_e) -> None:
-            if self.file.value == NONE:
-                self.msg.content = "no .rrd files in recordings/"
-                return
-            self.msg.content = f"reading {self.file.value} …"
-            try:
-                self.open(self.file.value)
-            except Exception as exc:  # noqa: BLE001 - unreadable file: say so in the page
-                self.msg.content = f"⚠ {exc}"
+            self.open_listed()
 
         @self.episode.on_update
         def _(_e) -> None:
-            self._select()
+            if ok.option(self.episode, self._say):
+                self._select()
 
         @self.timeline.on_update
         def _(_e) -> None:
-            if self._scrubbing or wb.replay is None:
+            if self._scrubbing or wb.replay is None or not ok.number(self.timeline, self._say):
                 return
             with wb.lock:
                 wb.replay.seek(int(self.timeline.value))
@@ -119,7 +146,7 @@ class ReplayPanel:
 
         @self.speed.on_update
         def _(_e) -> None:
-            if wb.replay is not None:
+            if ok.option(self.speed, self._say) and wb.replay is not None:
                 wb.replay.speed = float(self.speed.value)
 
         @self.close_btn.on_click
@@ -148,6 +175,7 @@ class ReplayPanel:
                     self.timeline.value = s.index
                 finally:
                     self._scrubbing = False
+                self.app.checks.accept(self.timeline)
             if not s.playing and self.play.value:
                 self.play.value = False
             return

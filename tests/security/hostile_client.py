@@ -1,0 +1,51 @@
+"""A WebSocket client that speaks viser's wire format directly, as a hostile page or script could: it sends
+any value for any GUI element, and any upload, without the page's own checks."""
+from __future__ import annotations
+
+import time
+import uuid
+
+import msgspec
+import viser
+from viser import _messages as vm
+from websockets.sync.client import connect
+
+
+class HostileClient:
+    def __init__(self, app, *, origin: str | None = None):
+        headers = {"Origin": origin} if origin else {}
+        self.app = app
+        n0 = len(app.server.get_clients())
+        self.ws = connect(f"ws://127.0.0.1:{app.port}/", subprotocols=[f"viser-v{viser.__version__}"],
+                          additional_headers=headers, max_size=None, open_timeout=20)
+        # viser registers a client (and runs GUI callbacks for it) after its first camera message
+        self.send(vm.ViewerCameraMessage(wxyz=(1.0, 0.0, 0.0, 0.0), position=(1.0, -1.0, 1.0), fov=1.0, near=0.01,
+                                         far=100.0, image_height=480, image_width=640, look_at=(0.0, 0.0, 0.5),
+                                         up_direction=(0.0, 0.0, 1.0)))
+        t_end = time.monotonic() + 20
+        while len(app.server.get_clients()) <= n0 and time.monotonic() < t_end:
+            time.sleep(0.02)
+        if len(app.server.get_clients()) <= n0:
+            raise TimeoutError("the server did not register the client")
+
+    def send(self, msg: vm.Message) -> None:
+        self.ws.send(msgspec.msgpack.encode(msg.as_serializable_dict()))
+
+    def set(self, handle, value) -> None:
+        """What the page sends when the user changes ``handle`` (or a forged value)."""
+        self.send(vm.GuiUpdateMessage(handle._impl.uuid, {"value": value}))
+
+    def click(self, button) -> None:
+        self.set(button, True)
+
+    def upload(self, button, name: str, content: bytes, *, declared: int | None = None,
+               part: int = 1 << 20) -> None:
+        parts = [content[i:i + part] for i in range(0, len(content), part)] or [b""]
+        tid = str(uuid.uuid4())
+        self.send(vm.FileTransferStartUpload(button._impl.uuid, tid, name, "application/octet-stream", len(parts),
+                                             len(content) if declared is None else declared))
+        for i, c in enumerate(parts):
+            self.send(vm.FileTransferPart(button._impl.uuid, tid, i, c))
+
+    def close(self) -> None:
+        self.ws.close()

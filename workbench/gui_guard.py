@@ -1,0 +1,123 @@
+"""Server-side checks of the values the page sends (the browser is not trusted).
+
+viser applies a client's update to a GUI handle (``handle.value``) before the handle's callbacks run, and
+checks neither a dropdown value against its options nor a slider value against its range. Every callback
+of the workbench therefore starts with one of these checks; a refused value is put back to the last good
+one (the page shows it again) and the panel says why.
+
+    guard = GuiGuard()
+    sel = guard.track(gui.add_dropdown(...))
+    @sel.on_update
+    def _(_e):
+        if not guard.option(sel, say):
+            return
+        ...
+"""
+from __future__ import annotations
+
+import math
+import threading
+from typing import Any, Callable
+
+import numpy as np
+
+Say = Callable[[str], None]
+
+
+class GuiGuard:
+    """Remembers the last accepted value of each tracked handle and puts it back on a refused update."""
+
+    def __init__(self):
+        self._last: dict[int, Any] = {}
+        self._lock = threading.Lock()
+
+    def track(self, handle):
+        with self._lock:
+            self._last[id(handle)] = handle.value
+        return handle
+
+    def accept(self, handle) -> None:
+        """The handle's current value is good (also call after setting options/values server-side)."""
+        with self._lock:
+            self._last[id(handle)] = handle.value
+
+    def _revert(self, handle, say: Say, why: str) -> bool:
+        with self._lock:
+            last = self._last.get(id(handle))
+        say(f"⚠ {why}")
+        if last is not None and handle.value != last:
+            handle.value = last  # runs the callbacks again, with the good value
+        return False
+
+    def option(self, handle, say: Say) -> bool:
+        """A dropdown value is one of its options."""
+        v = handle.value
+        if isinstance(v, str) and v in tuple(handle.options):
+            self.accept(handle)
+            return True
+        return self._revert(handle, say, f"{handle.label}: not one of the listed options")
+
+    def number(self, handle, say: Say, lo: float | None = None, hi: float | None = None) -> bool:
+        """A finite number within [lo, hi] (default: the slider's own min/max)."""
+        v = handle.value
+        lo = getattr(handle, "min", None) if lo is None else lo
+        hi = getattr(handle, "max", None) if hi is None else hi
+        ok = (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+              and (lo is None or v >= lo) and (hi is None or v <= hi))
+        if ok:
+            self.accept(handle)
+            return True
+        return self._revert(handle, say, f"{handle.label}: needs a finite number in [{lo}, {hi}]")
+
+
+def finite_pose(position, wxyz, *, limit: float = 100.0) -> tuple[np.ndarray, np.ndarray] | None:
+    """(position (3,), unit wxyz (4,)) from a gizmo update, or None when not finite / too far / zero quaternion."""
+    try:
+        p = np.asarray(position, dtype=np.float64).reshape(3)
+        q = np.asarray(wxyz, dtype=np.float64).reshape(4)
+    except (TypeError, ValueError):
+        return None
+    n = float(np.linalg.norm(q))
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(q)) and n > 1e-9 and np.max(np.abs(p)) <= limit):
+        return None
+    return p, q / n
+
+
+class _CappedUploads(dict):
+    """viser's table of uploads in flight (transfer id -> state). An upload whose declared or received size
+    passes the limit is dropped at once (its parts are then ignored), so its bytes are never collected."""
+
+    def __init__(self, limit: int, on_refused: Callable[[str, int], None]):
+        super().__init__()
+        self.limit, self.on_refused = limit, on_refused
+
+    def __setitem__(self, key, state) -> None:
+        if isinstance(state, dict) and int(state.get("total_bytes") or 0) > self.limit:
+            self.on_refused(str(state.get("filename", "")), int(state["total_bytes"]))
+            return
+        if isinstance(state, dict):
+            state = _CappedTransfer(self, key, state)
+        super().__setitem__(key, state)
+
+
+class _CappedTransfer(dict):
+    def __init__(self, table: _CappedUploads, key, state: dict):
+        super().__init__(state)
+        self._table, self._key = table, key
+
+    def __setitem__(self, name, value) -> None:
+        super().__setitem__(name, value)
+        if name == "transferred_bytes" and int(value) > self._table.limit:
+            self["parts"].clear()
+            self._table.pop(self._key, None)
+            self._table.on_refused(str(self.get("filename", "")), int(value))
+
+
+def cap_uploads(server, limit: int, on_refused: Callable[[str, int], None]) -> bool:
+    """Install the upload size limit in viser's upload bookkeeping (returns False if viser changed and only
+    the check of the finished upload remains)."""
+    gui = server.gui
+    if not isinstance(getattr(gui, "_current_file_upload_states", None), dict):
+        return False
+    gui._current_file_upload_states = _CappedUploads(limit, on_refused)
+    return True
