@@ -7,7 +7,7 @@ PIP := $(VENV)/bin/pip
 STAMP := $(VENV)/.rodlab-installed
 # torch is pinned in the same pip command as everything else (a local CPU build here; an
 # unpinned torch would pull gigabytes of CUDA wheels).
-PIP_SPECS := "torch==2.13.0" -e ".[dev,peers]"
+PIP_SPECS := "torch==2.13.0" -e ".[dev,peers,sweep]"
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 .PHONY: run test install system-deps warmup lint clean

@@ -15,6 +15,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sim": ("sim.cli:sim_main", "simulate a scene headless and write an .npz"),
     "train": ("policies.cli:train_main", "train a SAC policy on a task (headless)"),
     "eval": ("policies.cli:eval_main", "evaluate a policy file on a task"),
+    "sweep": ("policies.sweep:main", "seeds x tasks x settings sweep of training runs on Ray"),
+    "report": ("policies.report:main", "learning curves and time-to-plateau table of a sweep"),
     "record": ("policies.recording.cli:record_main", "record episodes to a rerun .rrd file"),
     "inspect": ("policies.recording.cli:inspect_main", "summarise a recorded .rrd file"),
     "workbench": ("workbench.cli:workbench_main", "open the interactive web workbench"),

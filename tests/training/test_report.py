@@ -1,0 +1,77 @@
+"""`rodlab report` on a fake sweep directory with known curves (time to plateau known in closed form)."""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from policies.report import ReportError, main, report
+from policies.train_monitor import EVAL_COLUMNS, METRICS_COLUMNS
+from policies.training_report import PAPER_TABLE_II
+
+
+def _fake_run(root: Path, task: str, seed: int, *, rate: float, scale: float, envs: int = 500) -> Path:
+    """Return R(t) = scale * t / 3600 [1/h] linear in wall-clock, env steps = rate * t."""
+    run = root / f"{task}__s{seed}"
+    run.mkdir(parents=True)
+    (run / "config.json").write_text(json.dumps({"args": {"task": task, "seed": seed, "num_envs": envs}}))
+    with open(run / "metrics.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(METRICS_COLUMNS)
+        for k in range(1, 61):
+            t = 60.0 * k
+            ret = scale * t / 3600.0
+            # the episode return is logged only in some windows (NaN in the others), as in real runs
+            w.writerow([int(rate * t), t, 500 if k % 2 == 0 else 0, 6 * ret, ret if k % 2 == 0 else "nan", 501,
+                        15.0, 100.0 + seed, 120.0 + seed, rate, 0.1, 4 * k])
+    with open(run / "eval.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(EVAL_COLUMNS)
+        for k in range(1, 21):
+            t = 180.0 * k
+            row = {c: 0.0 for c in EVAL_COLUMNS}
+            row.update(env_steps=int(rate * t), wall_s=t, eval_avg_disc_return_mean=0.5 * scale * t / 3600.0)
+            w.writerow([row[c] for c in EVAL_COLUMNS])
+    return run
+
+
+def test_report_on_fake_sweep(tmp_path):
+    root = tmp_path / "sweep"
+    mean, std = PAPER_TABLE_II["follow_target"]
+    level = mean - std
+    # three seeds with slopes 150, 200, 250 per hour: the seed mean is 200 t[h]; it crosses `level` at level/200 h
+    for seed, scale in enumerate((150.0, 200.0, 250.0)):
+        _fake_run(root, "follow_target", seed, rate=1000.0, scale=scale)
+    _fake_run(root, "ik4d", 0, rate=800.0, scale=10.0)  # never reaches the paper's plateau
+    res = report(root)
+    groups = {g["group"]: g for g in res["groups"]}
+    ft = groups["follow_target"]
+    assert ft["seeds"] == [0, 1, 2]
+    t_reach = level / 200.0
+    # the grid has 400 points over the hour: first grid point at or after the crossing
+    assert t_reach <= ft["train_hours_to_plateau"] <= t_reach + 1.0 / 399 + 1e-9
+    assert ft["train_env_steps_to_plateau"] == pytest.approx(1000.0 * 3600.0 * ft["train_hours_to_plateau"],
+                                                             rel=0.02)
+    # the evaluation curve rises at half the rate: twice the time
+    assert 2 * t_reach <= ft["eval_hours_to_plateau"] <= 2 * t_reach + 1.0 / 399 + 1e-9
+    assert ft["train_final_mean"] == pytest.approx(200.0 * 1.0, rel=1e-3)  # at 1 h
+    assert ft["train_final_std"] == pytest.approx(np.std([150.0, 200.0, 250.0]), rel=1e-3)
+    assert ft["iter_ms"] == pytest.approx(121.0) and ft["update_ms"] == pytest.approx(101.0)
+    assert ft["paper_return"] == mean and ft["paper_wallclock_h"] == 0.33 and ft["paper_iter_ms"] == 122.0
+    ik = groups["ik4d"]
+    assert ik["train_hours_to_plateau"] is None and ik["eval_hours_to_plateau"] is None
+    md = Path(res["markdown"]).read_text()
+    assert "| follow_target | 3 | 500 |" in md and "not reached" in md
+    png = Path(res["png"])
+    assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert json.loads(Path(res["json"]).read_text())["groups"][0]["group"] == "follow_target"
+
+
+def test_report_errors(tmp_path, capsys):
+    with pytest.raises(ReportError, match="no run directories"):
+        report(tmp_path)
+    assert main([str(tmp_path / "missing")]) == 2
+    assert "is not a directory" in capsys.readouterr().err

@@ -1,0 +1,113 @@
+"""`rodlab sweep` on a real local Ray: a 2-trial sweep end to end, and an interrupted sweep that continues.
+
+Tiny budget: follow_target, 4 envs, small networks, a few dozen env steps per trial.
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from policies.checkpoint import read_state
+from policies.sweep import SweepError, make_trials, parse_seeds, parse_sets
+
+REPO = Path(__file__).resolve().parents[2]
+TINY = ["--set", "net_arch=32:32", "--set", "batch_size=32", "--set", "learning_starts=16",
+        "--set", "updates_per_iter=1", "--set", "eval_minutes=0", "--set", "log_interval_s=0.5",
+        "--set", "first_checkpoint_minutes=0.003", "--set", "checkpoint_minutes=0.003"]
+
+
+def _sweep(out: Path, steps: int, *extra: str, **popen) -> subprocess.Popen:
+    env = dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1", RAY_USAGE_STATS_ENABLED="0")
+    cmd = [sys.executable, "-m", "rodlab_cli", "sweep", "follow_target", "--seeds", "0,1", "--envs", "4",
+           "--steps", str(steps), "--cpus-per-trial", "1", "--out", str(out), *TINY, *extra]
+    return subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            **popen)
+
+
+def _finish(proc: subprocess.Popen, timeout: float = 600) -> str:
+    out, _ = proc.communicate(timeout=timeout)
+    return out
+
+
+def test_parsing_and_grid(tmp_path):
+    sets = parse_sets(["learning_rate=1e-3,3e-4", "net_arch=64:64", "updates_per_iter=2,4", "eval_stochastic=true"])
+    assert sets == {"learning_rate": [1e-3, 3e-4], "net_arch": [[64, 64]], "updates_per_iter": [2, 4],
+                    "eval_stochastic": [True]}
+    assert parse_seeds("0,2-4") == [0, 2, 3, 4]
+    trials = make_trials(["follow_target", "ik4d"], [0, 1], sets, tmp_path, envs=8, steps=100,
+                         time_limit_minutes=0.0, cpus_per_trial=2)
+    assert len(trials) == 2 * 2 * 2 * 2
+    names = {t.name for t in trials}
+    assert "follow_target__learning_rate=0.001__updates_per_iter=2__s1" in names  # varying keys only
+    t = trials[0]
+    assert t.args["num_envs"] == 8 and t.args["total_steps"] == 100 and t.args["torch_threads"] == 2
+    for bad, msg in ((["no_such=1"], "unknown training setting"), (["seed=1,2"], "set by the sweep"),
+                     (["learning_rate=fast"], "cannot read"), (["batch_size"], "key=value")):
+        with pytest.raises(SweepError, match=msg):
+            parse_sets(bad)
+    with pytest.raises(SweepError, match="unknown task"):
+        make_trials(["nope"], [0], {}, tmp_path, envs=1, steps=1, time_limit_minutes=0, cpus_per_trial=1)
+
+
+def test_two_trial_local_sweep_end_to_end(tmp_path):
+    out = tmp_path / "sweep"
+    log = _finish(_sweep(out, 48))
+    assert "2/2 trials finished" in log, log
+    for seed in (0, 1):
+        run = out / f"follow_target__s{seed}"
+        st = read_state(run)
+        assert st["num_timesteps"] == 48, log
+        assert (run / "trial_done.json").is_file() and (run / "policy.zip").is_file()
+        cfg = json.loads((run / "config.json").read_text())["args"]
+        assert cfg["seed"] == seed and cfg["net_arch"] == [32, 32] and cfg["num_envs"] == 4
+    assert json.loads((out / "sweep.json").read_text())["trials"][1]["seed"] == 1
+    # re-running a finished sweep runs nothing
+    mtime = (out / "follow_target__s0" / "policy.zip").stat().st_mtime_ns
+    log2 = _finish(_sweep(out, 48))
+    assert "2 already finished, 0 to run" in log2 and "2/2 trials finished" in log2, log2
+    assert (out / "follow_target__s0" / "policy.zip").stat().st_mtime_ns == mtime
+
+
+@pytest.mark.slow  # about 1.5 min: two sweeps of 400 iterations
+def test_interrupted_sweep_continues_each_trial(tmp_path):
+    out = tmp_path / "sweep"
+    steps = 4 * 400
+    first = out / "follow_target__s0"
+    proc = _sweep(out, steps)
+    try:
+        deadline = time.monotonic() + 600
+        while time.monotonic() < deadline:  # interrupt once trial 0 has a checkpoint, well before its end
+            st = read_state(first)
+            if st is not None and st["num_timesteps"] >= 40:
+                break
+            assert proc.poll() is None, proc.stdout.read()
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGINT)
+        log = _finish(proc, 300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, log
+    st1 = read_state(first)
+    assert 40 <= st1["num_timesteps"] < steps, log
+    assert not (first / "trial_done.json").exists()
+    assert not (out / "follow_target__s1" / "trial_done.json").exists()
+    created = json.loads((first / "config.json").read_text())["created"]
+
+    log2 = _finish(_sweep(out, steps))
+    assert "1 of them resumed" in log2 and "2/2 trials finished" in log2, log2
+    st2 = read_state(first)
+    assert st2["num_timesteps"] == steps and st2["n_updates"] > st1["n_updates"]
+    assert st2["wall_s"] > st1["wall_s"]
+    assert json.loads((first / "config.json").read_text())["created"] == created  # same run, continued
+    rows = (first / "metrics.csv").read_text().splitlines()
+    steps_logged = [int(r.split(",")[0]) for r in rows[1:]]
+    assert min(steps_logged) < st1["num_timesteps"] < max(steps_logged) == steps
+    assert read_state(out / "follow_target__s1")["num_timesteps"] == steps
