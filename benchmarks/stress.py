@@ -86,8 +86,8 @@ def _actions(kind: str, rng, shape, k: int, hold: dict) -> np.ndarray:
 def run_task(task: str, *, envs: int, env_steps: int, actions: str, overrides: dict | None = None,
              seed: int = 0) -> dict:
     """Task core under random / bang-bang actions; StepStats of every sim step are tallied."""
-    from policies.tasks import TASK_SPECS, resolve_task
-    _, core_cls, cfg_fn = TASK_SPECS[resolve_task(task)].load()
+    from policies.tasks import TASK_SPECS, gym_task_id
+    _, core_cls, cfg_fn = TASK_SPECS[gym_task_id(task)].load()
     cfg = cfg_fn()
     if overrides:
         cfg = replace(cfg, **overrides)

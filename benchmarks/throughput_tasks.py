@@ -86,8 +86,8 @@ def elastica_rod_step_cost(*, rods: int, obstacles: str | None, planar: bool, st
 
 def rodlab_task_step(task: str, *, envs: int, steps: int, repeats: int) -> dict:
     """Median wall time [ms] of one control step of ``envs`` envs of a task core (random actions)."""
-    from policies.tasks import TASK_SPECS, resolve_task
-    _, core_cls, cfg_fn = TASK_SPECS[resolve_task(task)].load()
+    from policies.tasks import TASK_SPECS, gym_task_id
+    _, core_cls, cfg_fn = TASK_SPECS[gym_task_id(task)].load()
     t0 = time.perf_counter()
     core = core_cls(cfg_fn(), envs=envs, seed=0)
     core.reset()

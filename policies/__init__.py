@@ -15,7 +15,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from .tasks import TASK_SPECS, TASKS, register_tasks, resolve_task
+from .tasks import TASK_SPECS, TASKS, gym_task_id, register_tasks
 
 __all__ = [
     "ActionConverter",
@@ -24,7 +24,7 @@ __all__ = [
     "TASKS",
     "TASK_SPECS",
     "register_tasks",
-    "resolve_task",
+    "gym_task_id",
     "BatchedVecEnv",
     "SB3VecEnvAdapter",
     "make_vec_env",

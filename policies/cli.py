@@ -191,13 +191,13 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
     import numpy as np
     import torch
 
-    from policies.train import Args, build_model, make_sb3_env
+    from policies.train import Args, build_sac, make_sb3_env
 
     torch.set_num_threads(threads)
     args = Args(task=task, num_envs=envs, total_steps=max(envs * (iters + warmup + 10), 20_000), seed=seed)
     t_build = time.perf_counter()
     env = make_sb3_env(task, envs, seed)
-    model = build_model(args, env)
+    model = build_sac(args, env)
     from stable_baselines3.common.logger import configure
 
     model.set_logger(configure(None, [""]))
@@ -340,10 +340,10 @@ def bench_env_main(argv: list[str]) -> int:
             numba.set_num_threads(max(1, min(a.threads, numba.config.NUMBA_NUM_THREADS)))
         else:
             os.environ["NUMBA_NUM_THREADS"] = str(a.threads)
-    from policies.tasks import resolve_task
+    from policies.tasks import gym_task_id
 
     try:
-        resolve_task(a.task)
+        gym_task_id(a.task)
     except ValueError as exc:
         print(f"rodlab bench env: {exc}", file=sys.stderr)
         return 2

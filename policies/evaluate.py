@@ -141,7 +141,7 @@ def evaluate(policy_or_path, task: str | None = None, *, episodes: int = 100, se
     ``trust_pickle``: also load full SB3 checkpoints (unpickles the file: only for trusted files).
     Raises PolicyLoadError (bad/missing/untrusted file, shape mismatch) or ValueError (no task known).
     """
-    from policies.train import resolve_task
+    from policies.train import task_short_name
 
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
@@ -149,7 +149,7 @@ def evaluate(policy_or_path, task: str | None = None, *, episodes: int = 100, se
     task = task or meta.get("task")
     if not task:
         raise ValueError("no task given and the policy file does not name one; pass task=... / --task")
-    task = resolve_task(task)
+    task = task_short_name(task)
     n = int(num_envs or min(episodes, 100))
     per_seed, all_eps = [], []
     t0 = time.perf_counter()

@@ -105,11 +105,11 @@ class Args:
 
 
 # ------------------------------------------------------------------------------------ environments
-def resolve_task(name: str) -> str:
+def task_short_name(name: str) -> str:
     """Short task name (policies.TASKS) or a gymnasium id (tests: 'Pendulum-v1') -> canonical name."""
     import policies
 
-    tasks = getattr(policies, "TASKS", {}) or {}
+    tasks = policies.TASKS
     if name in tasks:
         return name
     for short, tid in dict(tasks).items():
@@ -119,7 +119,7 @@ def resolve_task(name: str) -> str:
 
     if name in gym.registry:
         return name
-    known = ", ".join(sorted(tasks)) or "(no rodlab tasks registered yet)"
+    known = ", ".join(sorted(tasks))
     raise TrainError(f"unknown task {name!r}; known tasks: {known} (or a gymnasium id such as Pendulum-v1)")
 
 
@@ -127,7 +127,7 @@ def make_sb3_env(task: str, num_envs: int, seed: int):
     """SB3 VecEnv for a rodlab task (batched env + adapter) or a gymnasium id (DummyVecEnv)."""
     import policies
 
-    task = resolve_task(task)
+    task = task_short_name(task)
     if task in (getattr(policies, "TASKS", {}) or {}):
         venv = policies.make_vec_env(task, num_envs, seed=seed)
         adapter = policies.SB3VecEnvAdapter(venv)
@@ -174,7 +174,7 @@ def target_entropy(action_space, scale: float) -> float:
     return float(np.sum(np.log(scale * (action_space.high - action_space.low))))
 
 
-def build_model(args: Args, env):
+def build_sac(args: Args, env):
     """A fresh ``RodSAC`` for ``env`` configured from ``args``."""
 
     from policies.sac import InplaceReLU, LayerNormSACPolicy, RodSAC
@@ -229,7 +229,7 @@ def warm_start(model, path: str | os.PathLike, task: str) -> dict:
         raise TrainError(f"--init-from: {p} does not say which task it was trained on "
                          "(no task in meta.json / sidecar config.json)")
     try:
-        src_task = resolve_task(src_task)
+        src_task = task_short_name(src_task)
     except TrainError:
         pass
     if src_task != task:
@@ -316,14 +316,14 @@ def train(args: Args, *, resume: bool = False) -> Path:
         if not cfg_path.is_file():
             raise TrainError(f"--resume: {cfg_path} not found")
         saved = Args.from_json(json.loads(cfg_path.read_text())["args"])
-        if args.task and resolve_task(args.task) != saved.task:
+        if args.task and task_short_name(args.task) != saved.task:
             raise TrainError(f"--resume: run in {run_dir} trains task {saved.task!r}, not {args.task!r}")
         saved.total_steps = args.total_steps
         saved.time_limit_minutes = args.time_limit_minutes
         saved.run_dir = str(run_dir)
         args = saved
     else:
-        args.task = resolve_task(args.task)
+        args.task = task_short_name(args.task)
         args.run_dir = str(run_dir)
         if find_checkpoint(run_dir) is not None:
             raise TrainError(f"{run_dir} already holds a checkpoint; pass --resume or choose another --run-dir")
@@ -342,7 +342,7 @@ def train(args: Args, *, resume: bool = False) -> Path:
         wall_offset = float(state.get("wall_s", 0.0))
         model.set_random_seed(env_seed)  # SB3's load re-seeds the env with the run's seed: use the derived one
     else:
-        model, wall_offset = build_model(args, env), 0.0
+        model, wall_offset = build_sac(args, env), 0.0
     init_info = None
     if args.init_from and not resume:
         try:
@@ -402,5 +402,5 @@ def train(args: Args, *, resume: bool = False) -> Path:
     return run_dir
 
 
-__all__ = ["Args", "TrainError", "PolicyLoadError", "train", "make_sb3_env", "resolve_task", "build_model",
+__all__ = ["Args", "TrainError", "PolicyLoadError", "train", "make_sb3_env", "task_short_name", "build_sac",
            "save_checkpoint", "load_checkpoint", "target_entropy", "warm_start"]

@@ -26,7 +26,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .tasks import TASK_SPECS, resolve_task
+from .tasks import TASK_SPECS, gym_task_id
 from .tasks.base import BatchedTask
 from .tasks.env import action_space, observation_space
 
@@ -101,7 +101,7 @@ def make_vec_env(task: str, num_envs: int, *, seed: int | None = None, config: A
     (equivalent to ``reset(seed=seed)``); the envs are reset once so observations are valid, but
     callers should still call ``reset()`` first as usual.
     """
-    tid = resolve_task(task)
+    tid = gym_task_id(task)
     _, core_cls, default = TASK_SPECS[tid].load()
     if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
         raise ValueError(f"make_vec_env: num_envs must be a positive integer, got {num_envs!r}")

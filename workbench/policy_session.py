@@ -50,9 +50,9 @@ def policy_task(path: Path) -> str | None:
 
 
 def _task_id(task: str) -> str:
-    from policies.tasks import resolve_task
+    from policies.tasks import gym_task_id
 
-    return resolve_task(task)
+    return gym_task_id(task)
 
 
 class PolicySession:
@@ -65,9 +65,9 @@ class PolicySession:
     """
 
     def __init__(self, task: str, policy: str | Path = "zero", *, seed: int = 0, deterministic: bool = True):
-        from policies.tasks import TASK_SPECS, TASKS, resolve_task
+        from policies.tasks import TASK_SPECS, TASKS, gym_task_id
 
-        self.task_id = resolve_task(task)
+        self.task_id = gym_task_id(task)
         self.task = next((k for k, v in TASKS.items() if v == self.task_id), self.task_id)
         _env_cls, core_cls, cfg_fn = TASK_SPECS[self.task_id].load()
         self.core = core_cls(cfg_fn(), envs=1, seed=seed)

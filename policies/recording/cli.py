@@ -68,12 +68,12 @@ def record(task: str, out: str | Path, *, policy: str | None = None, mode: str =
     from sim.validate import check_output_path
 
     import policies
-    from policies.tasks import resolve_task
+    from policies.tasks import gym_task_id
 
     from .probe import TaskProbe
     from .recorder import Recorder
 
-    tid = resolve_task(task)
+    tid = gym_task_id(task)
     if envs < 1 or episodes < 1:
         raise RecordingError("--episodes and --envs must be >= 1")
     if max_steps is not None and max_steps < 1:

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable
 
-__all__ = ["TASKS", "TASK_SPECS", "TaskEntry", "register_tasks", "resolve_task"]
+__all__ = ["TASKS", "TASK_SPECS", "TaskEntry", "register_tasks", "gym_task_id"]
 
 TASKS: dict[str, str] = {
     "follow_target": "rodlab/FollowTarget-v0",
@@ -50,7 +50,7 @@ TASK_SPECS: dict[str, TaskEntry] = {
 }
 
 
-def resolve_task(task: str) -> str:
+def gym_task_id(task: str) -> str:
     """Short name or gymnasium id -> gymnasium id (ValueError naming the choices otherwise)."""
     if task in TASK_SPECS:
         return task

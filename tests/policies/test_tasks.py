@@ -29,7 +29,7 @@ def test_registry():
     for tid in DIMS:
         assert tid in gym.registry
     with pytest.raises(ValueError, match="unknown task"):
-        policies.resolve_task("nope")
+        policies.gym_task_id("nope")
 
 
 @pytest.mark.parametrize("tid", sorted(DIMS))

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 import torch as th
 
-from policies.train import Args, build_model, make_sb3_env, target_entropy
+from policies.train import Args, build_sac, make_sb3_env, target_entropy
 
 
 def _model(**kw):
     args = Args(task="Pendulum-v1", num_envs=2, total_steps=2000, batch_size=32, learning_starts=0, seed=3, **kw)
     env = make_sb3_env("Pendulum-v1", 2, 3)
-    model = build_model(args, env)
+    model = build_sac(args, env)
     from stable_baselines3.common.logger import configure
 
     model.set_logger(configure(None, [""]))
