@@ -6,6 +6,8 @@ Public surface::
     spec = load_scene("assets/scenes/arm.toml"); model = build_model(spec)
     sim = Simulator(model, envs=B); state = sim.reset(); ctrl = sim.make_control()
     stats = sim.step(state, ctrl)
+
+Compiling the kernels ahead of time: ``python -m sim.warmup`` (not imported here, so running it as a module is clean).
 """
 from ._cache import invalidate_if_sources_changed as _invalidate
 
@@ -15,7 +17,6 @@ from .model import Model, build_model  # noqa: E402
 from .scene import RodSpec, SceneError, SceneSpec, SimSpec, dump_scene, load_scene, parse_scene  # noqa: E402
 from .state import Control, State, StepStats  # noqa: E402
 from .step import Simulator  # noqa: E402
-from .warmup import warmup  # noqa: E402
 
 __all__ = ["load_scene", "parse_scene", "dump_scene", "SceneError", "SceneSpec", "SimSpec", "RodSpec", "Model",
-           "build_model", "Simulator", "State", "Control", "StepStats", "warmup"]
+           "build_model", "Simulator", "State", "Control", "StepStats"]
