@@ -49,7 +49,7 @@ BOUNDS: dict[str, tuple[float, float, str]] = {
     "contact.friction": (0.0, 1e3, "-"),
     "contact.friction_velocity_tol": (1e-12, 1e6, "m/s"),
     "contact.margin": (0.0, 1e6, "m"),
-    "contact.max_penetration": (1e-12, 1e6, "m"),
+    "contact.max_penetration": (1e-12, 1e12, "m"),  # a huge value turns the penetration guard off
 }
 _UNIT_TOL = 1e-9  # a stored direction / normal / quaternion must be unit to this tolerance
 
