@@ -10,7 +10,8 @@ observation of its next episode; the last observation of the finished episode is
 ``info["final_obs"][i]`` (object array, mask ``info["_final_obs"]``) and that step's info in
 ``info["final_info"]`` (dict of arrays, mask ``info["_final_info"]``). The top-level info arrays hold
 the values of the step just taken for every env (done ones included). Rewards/terminated/truncated
-are those of the finished step. ``reset(options={"reset_mask": m})`` resets only the envs in ``m``.
+are those of the finished step. ``reset(options={"reset_mask": m})`` resets only the envs in ``m`` (a
+boolean mask of length B, or integer env indices).
 
 Seeding: ``reset(seed=s)`` (or ``make_vec_env(..., seed=s)``) gives env i the generator
 ``PCG64(SeedSequence(s).spawn(B)[i])``; ``reset(seed=[s_0, ..., s_{B-1}])`` gives env i
@@ -60,7 +61,9 @@ class BatchedVecEnv(VectorEnv):
             self._np_random_seed = seed if isinstance(seed, int) else None
         mask = None
         if options and "reset_mask" in options:
-            mask = np.asarray(options["reset_mask"], dtype=bool)
+            from sim.validate import env_mask  # a boolean mask, or integer env indices (never guessed)
+
+            mask = env_mask(options["reset_mask"], self.num_envs, "reset_mask")
         obs = self.core.reset(mask)
         return obs, {}
 

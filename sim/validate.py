@@ -278,12 +278,12 @@ def quarantine_nonfinite(sim: Any, state: Any, stats: Any = None, also: np.ndarr
     return bad
 
 
-def env_mask(sel: Any, envs: int) -> np.ndarray:
+def env_mask(sel: Any, envs: int, what: str = "reset_envs") -> np.ndarray:
     """(envs,) bool mask from ``sel``: a boolean array/list of length ``envs`` (a mask), or integer indices
     (a list, tuple, integer array or a single int; negative counts from the end). Anything else (floats,
     mixed bool/int lists, out-of-range indices) raises ValueError."""
     if isinstance(sel, (bool, np.bool_)):
-        raise ValueError("reset_envs: expected a boolean mask of length envs or integer env indices, got a bool")
+        raise ValueError(f"{what}: expected a boolean mask of length envs or integer env indices, got a bool")
     if isinstance(sel, (int, np.integer)):
         sel = [int(sel)]
     if isinstance(sel, (list, tuple)):
@@ -293,19 +293,19 @@ def env_mask(sel: Any, envs: int) -> np.ndarray:
         elif all(issubclass(k, (int, np.integer)) and not issubclass(k, (bool, np.bool_)) for k in kinds):
             arr = np.asarray(sel, dtype=np.int64).reshape(-1)
         else:
-            raise ValueError(f"reset_envs: a list must hold only bools (a mask) or only integers (indices), got "
+            raise ValueError(f"{what}: a list must hold only bools (a mask) or only integers (indices), got "
                              f"{sorted(k.__name__ for k in kinds)}")
     else:
         arr = np.asarray(sel)
     if arr.dtype == np.bool_:
         if arr.shape != (envs,):
-            raise ValueError(f"reset_envs: boolean mask: expected shape ({envs},), got {arr.shape}")
+            raise ValueError(f"{what}: boolean mask: expected shape ({envs},), got {arr.shape}")
         return arr.copy()
     if arr.dtype.kind not in "iu" or arr.ndim != 1:
-        raise ValueError(f"reset_envs: expected a boolean mask of shape ({envs},) or 1-D integer indices, got "
+        raise ValueError(f"{what}: expected a boolean mask of shape ({envs},) or 1-D integer indices, got "
                          f"dtype {arr.dtype} shape {arr.shape}")
     if arr.size and (arr.min() < -envs or arr.max() >= envs):
-        raise ValueError(f"reset_envs: env index out of range [0, {envs - 1}]: {arr.tolist()}")
+        raise ValueError(f"{what}: env index out of range [0, {envs - 1}]: {arr.tolist()}")
     mask = np.zeros(envs, dtype=bool)
     mask[arr] = True
     return mask

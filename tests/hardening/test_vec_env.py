@@ -50,3 +50,17 @@ def test_integer_dt_override_still_works():
     env = make_vec_env("follow_target", 1, seed=0, dt=1, substeps=np.int64(2))
     obs, _ = env.reset(seed=0)
     assert env.core.model.dt == 1.0 and np.isfinite(obs).all()
+
+
+def test_reset_mask_takes_integer_indices_too():
+    env = make_vec_env("follow_target", 3, seed=0)
+    env.reset(seed=0)
+    for _ in range(2):
+        env.step(np.zeros((3, env.single_action_space.shape[0]), np.float32))
+    env.reset(options={"reset_mask": [1]})  # env 1 only
+    env.reset(options={"reset_mask": [2]})  # read as a mask, [2] would have reset env 0
+    assert env.core.step_count.tolist() == [2, 0, 0]
+    env.reset(options={"reset_mask": np.array([True, False, False])})
+    assert env.core.step_count.tolist() == [0, 0, 0]
+    with pytest.raises(ValueError, match="reset_mask"):
+        env.reset(options={"reset_mask": [0, True]})
