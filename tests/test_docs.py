@@ -99,3 +99,9 @@ def test_links_and_images_resolve(doc):
             if anchor not in heads:
                 missing.append(target)
     assert not missing, f"{doc}: dangling links {missing}"
+
+
+def test_architecture_lists_every_sim_module():
+    text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    missing = [p.name for p in sorted((ROOT / "sim").glob("*.py")) if p.name not in text]
+    assert not missing, f"docs/architecture.md does not list sim modules {missing}"
