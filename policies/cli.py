@@ -121,6 +121,9 @@ def eval_main(argv: list[str]) -> int:
     p.add_argument("--seeds", type=int, default=1, help="evaluate seeds seed..seed+n-1")
     p.add_argument("--envs", type=int, default=None, help="parallel envs (default min(episodes, 100))")
     p.add_argument("--stochastic", action="store_true", help="sample actions instead of the mean")
+    p.add_argument("--backend", choices=("dismech", "elastica"), default="dismech",
+                   help="simulator of the task: rodlab's implicit DER (default) or PyElastica (docs/tasks.md §1.6; "
+                        "needs the peers extra)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--record", default=None, metavar="FILE.rrd",
                    help="also record the evaluated episodes to this rerun file (written atomically; its folder is "
@@ -159,7 +162,7 @@ def eval_main(argv: list[str]) -> int:
         with hook_cm as hook:
             res = evaluate(a.policy, a.task, episodes=a.episodes, seed=a.seed, num_envs=a.envs,
                            deterministic=not a.stochastic, eval_seeds=a.seeds, env_hook=hook,
-                           trust_pickle=a.trust_pickle, callback=on_step)
+                           trust_pickle=a.trust_pickle, callback=on_step, backend=a.backend)
     except (PolicyLoadError, TrainError, ValueError) as exc:
         bar.close()
         print(f"rodlab eval: {exc}", file=sys.stderr)

@@ -132,10 +132,12 @@ def check_compatible(meta_or_policy, env, task: str, source: str = "policy") -> 
 def evaluate(policy_or_path, task: str | None = None, *, episodes: int = 100, seed: int = 0,
              num_envs: int | None = None, deterministic: bool = True,
              callback: Callable[[EvalStep], bool | None] | None = None, gamma: float = 0.99,
-             eval_seeds: int = 1, env_hook: Callable[[Any], Any] | None = None, trust_pickle: bool = False) -> dict:
+             eval_seeds: int = 1, env_hook: Callable[[Any], Any] | None = None, trust_pickle: bool = False,
+             backend: str = "dismech") -> dict:
     """Evaluate a policy for ``episodes`` episodes (per seed) -> metrics dict (see module docstring).
 
     Seeds used: ``seed, seed+1, ..., seed+eval_seeds-1``. ``num_envs`` defaults to min(episodes, 100).
+    ``backend``: "dismech" (rodlab's simulator) or "elastica" (the task on PyElastica, policies/elastica).
     ``env_hook(env)`` is called once per seed right after the SB3 VecEnv is built, before its first
     ``reset()`` (e.g. ``TaskProbe(rec, ...).attach`` to record final sim frames before auto-resets).
     ``trust_pickle``: also load full SB3 checkpoints (unpickles the file: only for trusted files).
@@ -155,7 +157,7 @@ def evaluate(policy_or_path, task: str | None = None, *, episodes: int = 100, se
     t0 = time.perf_counter()
     for s in range(seed, seed + max(1, eval_seeds)):
         eps = _run_episodes(policy, task, episodes, s, n, deterministic, callback, gamma, env_hook=env_hook,
-                            source=str(policy_or_path) if isinstance(policy_or_path, (str, os.PathLike)) else "policy")
+                            backend=backend, source=str(policy_or_path) if isinstance(policy_or_path, (str, os.PathLike)) else "policy")
         per_seed.append(float(np.mean([e["avg_disc_return"] for e in eps])))
         all_eps.extend(eps)
     R = np.array([e["avg_disc_return"] for e in all_eps])
@@ -163,7 +165,7 @@ def evaluate(policy_or_path, task: str | None = None, *, episodes: int = 100, se
     out: dict[str, Any] = {
         "task": task, "policy": str(policy_or_path) if isinstance(policy_or_path, (str, Path)) else type(policy).__name__,
         "episodes": len(all_eps), "seed": seed, "eval_seeds": max(1, eval_seeds), "num_envs": n,
-        "deterministic": deterministic, "gamma": gamma,
+        "deterministic": deterministic, "gamma": gamma, "backend": backend,
         "avg_discounted_return_mean": float(R.mean()), "avg_discounted_return_std": float(R.std()),
         "avg_discounted_return_seed_means": per_seed,
         "avg_discounted_return_seed_std": float(np.std(per_seed)),
@@ -185,10 +187,18 @@ def evaluate(policy_or_path, task: str | None = None, *, episodes: int = 100, se
 
 
 def _run_episodes(policy, task, episodes, seed, n, deterministic, callback, gamma, source,
-                  env_hook=None) -> list[dict]:
+                  env_hook=None, backend: str = "dismech") -> list[dict]:
     from policies.train import make_sb3_env
 
-    env = make_sb3_env(task, n, seed)
+    if backend == "elastica":  # the task on PyElastica (policies/elastica), same observations and rewards
+        from policies.elastica import make_elastica_vec_env
+        from policies.vec_env import SB3VecEnvAdapter
+
+        env = SB3VecEnvAdapter(make_elastica_vec_env(task, n, seed=seed))
+    elif backend == "dismech":
+        env = make_sb3_env(task, n, seed)
+    else:
+        raise ValueError(f"unknown backend {backend!r}; expected 'dismech' or 'elastica'")
     try:
         if policy != "random":
             check_compatible(policy, env, task, source)
