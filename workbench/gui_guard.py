@@ -44,9 +44,9 @@ class GuiGuard:
     def _revert(self, handle, say: Say, why: str) -> bool:
         with self._lock:
             last = self._last.get(id(handle))
-        say(f"⚠ {why}")
         if last is not None and handle.value != last:
             handle.value = last  # runs the callbacks again, with the good value
+        say(f"⚠ {why}")
         return False
 
     def option(self, handle, say: Say) -> bool:

@@ -150,8 +150,12 @@ def _edit_from_obstacle_spec(o) -> ObstacleEdit:
 
 
 def _obstacle_spec_from_edit(e: ObstacleEdit):
-    """ObstacleEdit -> sim ObstacleSpec with the current pose baked in (world coordinates)."""
+    """ObstacleEdit -> sim ObstacleSpec with the current pose baked in (world coordinates). An obstacle that
+    was not edited gives back its original spec unchanged (a saved scene keeps its numbers exactly)."""
     from sim import obstacles as so
+
+    if e.source is not None and _unchanged(e, _edit_from_obstacle_spec(e.source)):
+        return e.source
 
     R = _rotm(e.wxyz)
     p = tuple(float(v) for v in e.position)
@@ -174,6 +178,12 @@ def _obstacle_spec_from_edit(e: ObstacleEdit):
     scale = e.mesh_scale3 or (e.scale,) * 3
     return so.MeshSpec(file=getattr(src, "file", path) if src is not None and src.path == path else path,
                        path=path, scale=tuple(float(v) for v in scale), position=p, orientation=q, name=name)
+
+
+def _unchanged(e: ObstacleEdit, orig: ObstacleEdit) -> bool:
+    same = all(np.array_equal(getattr(e, f), getattr(orig, f)) for f in ("position", "wxyz", "half_extents"))
+    return same and (e.kind, e.radius, e.length, e.mesh, e.scale, e.name, e.mesh_scale3) == (
+        orig.kind, orig.radius, orig.length, orig.mesh, orig.scale, orig.name, orig.mesh_scale3)
 
 
 def sim_pose(e: ObstacleEdit) -> tuple[np.ndarray, np.ndarray]:
