@@ -91,6 +91,7 @@ class Args:
     eval_envs: int = 50                     # batched envs of the evaluation env
     eval_seed: int = 1_000_003              # fixed, independent of the training seed
     eval_stochastic: bool = False           # also evaluate the stochastic policy on the same episodes
+    keep_best_policy: bool = True           # policy_best.zip = policy of the best evaluation so far
 
     def to_json(self) -> dict:
         return dataclasses.asdict(self)

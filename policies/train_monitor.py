@@ -13,7 +13,9 @@ separate batched env of ``eval_envs`` envs seeded with the fixed ``eval_seed``, 
 time and for every training seed; deterministic policy = tanh of the Gaussian mean): one row per
 evaluation in ``RUN_DIR/eval.csv`` (env steps, wall-clock, the evaluation's average discounted return,
 the stochastic training return of the episodes finished since the previous evaluation, ...) and the
-TensorBoard scalars ``eval/*``. A final evaluation is made when training ends (not when stopped by a signal). Evaluation time is part of
+TensorBoard scalars ``eval/*``. With ``keep_best_policy`` the policy of the best evaluation so far is written to
+``RUN_DIR/policy_best.zip`` (selected on the fixed evaluation episodes, so its figure there is biased upwards:
+re-evaluate it on other seeds with ``rodlab eval``). A final evaluation is made when training ends (not when stopped by a signal). Evaluation time is part of
 the run's wall-clock and is also accumulated in the ``eval_s_total`` column.
 """
 from __future__ import annotations
@@ -27,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from policies.checkpoint import save_checkpoint
+from policies.sac import save_policy
 
 METRICS_COLUMNS = ["env_steps", "wall_s", "episodes", "return_mean", "avg_disc_return_mean", "ep_len_mean",
                    "env_step_ms", "update_ms", "iter_ms", "steps_per_s", "step_reward_mean", "n_updates"]
@@ -43,6 +46,21 @@ def evaluate_model(model, args, *, deterministic: bool = True) -> dict:
     return evaluate(model.policy, args.task, episodes=int(args.eval_episodes), seed=int(args.eval_seed),
                     num_envs=int(min(args.eval_envs, args.eval_episodes)), deterministic=deterministic,
                     gamma=float(args.gamma))
+
+
+def _best_logged_eval(path: Path) -> float:
+    """Best deterministic evaluation already in eval.csv (a resumed run keeps its policy_best.zip)."""
+    best = -math.inf
+    if path.is_file():
+        with open(path, newline="") as f:
+            for r in csv.DictReader(f):
+                try:
+                    v = float(r.get("eval_avg_disc_return_mean", "nan"))
+                except ValueError:
+                    continue
+                if math.isfinite(v):
+                    best = max(best, v)
+    return best
 
 
 def _append_csv(path: Path, columns: list[str]):
@@ -82,6 +100,7 @@ def monitor_callback(args, run_dir: Path, wall_offset: float, stop_flag: dict, e
             self.win_rew_sum, self.win_rew_n = 0.0, 0
             self.last = {"ret": math.nan, "dret": math.nan}
             self.last_eval_result: dict | None = None
+            self.best_eval = _best_logged_eval(run_dir / "eval.csv")
             self.bar = None
             if sys.stderr.isatty():
                 from tqdm import tqdm
@@ -187,6 +206,10 @@ def monitor_callback(args, run_dir: Path, wall_offset: float, stop_flag: dict, e
             lg.record("eval/wall_s", row["wall_s"])
             lg.dump(step=self.num_timesteps)
             self.eval_window = []
+            if args.keep_best_policy and row["eval_avg_disc_return_mean"] > self.best_eval:
+                self.best_eval = row["eval_avg_disc_return_mean"]
+                save_policy(self.model, run_dir / "policy_best.zip", task=args.task,
+                            extra={"best_eval": row, "selected_on": "eval.csv (fixed evaluation seeds)"})
             self.last_eval, self.last_eval_steps = time.perf_counter(), self.num_timesteps
             self.last_eval_result = row
             msg = (f"eval at {self.num_timesteps} steps: avg-disc-ret {row['eval_avg_disc_return_mean']:.2f} ± "

@@ -139,7 +139,9 @@ def _umask() -> int:
 
 def test_evaluation_during_training_is_logged(tmp_path):
     run = tmp_path / "run"
-    train(_args(run, 60 * ENVS, eval_every_steps=25 * ENVS, eval_episodes=2, eval_envs=2, eval_stochastic=True))
+    # ik4d: 101-step episodes keep the evaluations short
+    train(_args(run, 60 * ENVS, task="ik4d", eval_every_steps=25 * ENVS, eval_episodes=2, eval_envs=2,
+                eval_stochastic=True))
     with open(run / "eval.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     # evaluations at >= 100 and >= 200 env steps, and a final one at 240
@@ -162,3 +164,10 @@ def test_evaluation_during_training_is_logged(tmp_path):
     assert "eval/avg_discounted_return" in ea.Tags()["scalars"]
     side = json.loads((run / "policy.json").read_text())
     assert side["training"]["last_eval"]["env_steps"] == 240
+    # policy_best.zip: the policy of the best of the three evaluations
+    from policies.sac import read_policy_meta
+
+    best = read_policy_meta(run / "policy_best.zip")["extra"]["best_eval"]
+    assert best["eval_avg_disc_return_mean"] == max(float(r["eval_avg_disc_return_mean"]) for r in rows)
+    again = evaluate(run / "policy_best.zip", episodes=2, seed=1_000_003, num_envs=2)
+    assert abs(again["avg_discounted_return_mean"] - best["eval_avg_disc_return_mean"]) < 1e-3
