@@ -185,7 +185,7 @@ def eval_main(argv: list[str]) -> int:
 
 # ----------------------------------------------------------------------------------------- bench train
 def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3, seed: int = 0,
-                threads: int = 1) -> dict:
+                threads: int = 1, speed=None) -> dict:
     """Time training iterations (one batched env step + ``updates`` gradient updates of batch 1024).
 
     Returns ms per iteration split into policy (action sampling), env step, buffer add and updates.
@@ -201,6 +201,10 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
     t_build = time.perf_counter()
     env = make_sb3_env(task, envs, seed)
     model = build_sac(args, env)
+    from policies.train_speed import SpeedSettings, apply_speed_settings
+
+    speed = speed or SpeedSettings()
+    update_ctx = apply_speed_settings(model, speed)  # settings to try (policies/train_speed.py)
     from stable_baselines3.common.logger import configure
 
     model.set_logger(configure(None, [""]))
@@ -222,7 +226,8 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
         rb.add(obs, nobs, model.policy.scale_action(act), rew, done, infos)
         obs = nobs
         t3 = time.perf_counter()
-        model.train(gradient_steps=args.updates_per_iter, batch_size=args.batch_size)
+        with update_ctx():
+            model.train(gradient_steps=args.updates_per_iter, batch_size=args.batch_size)
         t4 = time.perf_counter()
         if it >= warmup:
             rows.append((t1 - t0, t2 - t1, t3 - t2, t4 - t3, t4 - t0))
@@ -230,7 +235,8 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
     r = 1e3 * np.array(rows)
     names = ["policy_ms", "env_step_ms", "buffer_add_ms", "update_ms", "iteration_ms"]
     out = {"task": task, "envs": envs, "iters": iters, "updates_per_iter": args.updates_per_iter,
-           "batch_size": args.batch_size, "torch_threads": threads, "setup_s": round(build_s, 2)}
+           "batch_size": args.batch_size, "torch_threads": threads, "setup_s": round(build_s, 2),
+           "speed_settings": speed.label()}
     for j, nm in enumerate(names):
         out[nm] = round(float(np.median(r[:, j])), 2)
         out[nm.replace("_ms", "_ms_mean")] = round(float(r[:, j].mean()), 2)
@@ -247,12 +253,17 @@ def bench_train_main(argv: list[str]) -> int:
     p.add_argument("--iters", type=int, default=20)
     p.add_argument("--warmup", type=int, default=3)
     p.add_argument("--threads", type=int, default=1, help="torch threads")
+    p.add_argument("--compile", action="store_true", help="torch.compile the actor trunk and critic MLPs")
+    p.add_argument("--bf16", action="store_true", help="updates under bfloat16 autocast")
+    p.add_argument("--adam", choices=("fused", "foreach", "plain"), default="fused", help="Adam implementation")
     p.add_argument("--json", action="store_true")
     a = p.parse_args(argv)
     from policies.train import TrainError
+    from policies.train_speed import SpeedSettings
 
     try:
-        res = bench_train(a.task, envs=a.envs, iters=a.iters, warmup=a.warmup, threads=a.threads)
+        res = bench_train(a.task, envs=a.envs, iters=a.iters, warmup=a.warmup, threads=a.threads,
+                          speed=SpeedSettings(compile=a.compile, bf16=a.bf16, adam=a.adam))
     except TrainError as exc:
         print(f"rodlab bench train: {exc}", file=sys.stderr)
         return 2

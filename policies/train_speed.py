@@ -1,0 +1,68 @@
+"""Settings that may make the SAC updates faster on a CPU, for ``rodlab bench train`` to try one at a time.
+
+Nothing here is used by ``rodlab train`` by default; each setting must first be measured on a quiet machine
+(iteration time) and checked to keep the learning curve (docs/training.md). Settings:
+
+* ``compile``: ``torch.compile`` of the actor trunk and of each critic MLP (the modules that do the work;
+  SB3's own methods around them stay eager). Needs a C++ compiler for the CPU inductor back-end.
+* ``bf16``: the gradient updates run under ``torch.autocast("cpu", dtype=torch.bfloat16)`` (matrix products
+  in bfloat16, LayerNorm and the losses in float32 by autocast's CPU rules).
+* ``adam``: ``"fused"`` (default of policies/train.py), ``"foreach"`` or ``"plain"`` (one kernel per tensor)
+  for the actor, critic and entropy-coefficient optimizers, rebuilt with the same lr and eps.
+* torch threads: ``torch.set_num_threads`` (``rodlab bench train --threads``).
+"""
+from __future__ import annotations
+
+import contextlib
+from dataclasses import dataclass
+
+__all__ = ["SpeedSettings", "apply_speed_settings", "ADAM_KINDS"]
+
+ADAM_KINDS = ("fused", "foreach", "plain")
+
+
+@dataclass(frozen=True)
+class SpeedSettings:
+    compile: bool = False
+    bf16: bool = False
+    adam: str = "fused"
+
+    def __post_init__(self):
+        if self.adam not in ADAM_KINDS:
+            raise ValueError(f"adam must be one of {ADAM_KINDS}, got {self.adam!r}")
+
+    def label(self) -> str:
+        return ",".join([f"adam={self.adam}"] + (["compile"] if self.compile else []) + (["bf16"] if self.bf16 else []))
+
+
+def _adam(params, lr, eps, kind: str):
+    import torch as th
+
+    kw = {"fused": {"fused": True}, "foreach": {"foreach": True, "fused": False},
+          "plain": {"foreach": False, "fused": False}}[kind]
+    return th.optim.Adam(params, lr=lr, eps=eps, **kw)
+
+
+def apply_speed_settings(model, settings: SpeedSettings):
+    """Apply ``settings`` to a fresh ``RodSAC`` in place; returns a context manager for the update calls."""
+    import torch as th
+
+    pol = model.policy
+    for holder in (pol.actor, pol.critic):
+        opt = holder.optimizer
+        g = opt.param_groups[0]
+        holder.optimizer = _adam([p for grp in opt.param_groups for p in grp["params"]], g["lr"], g["eps"],
+                                 settings.adam)
+    if model.ent_coef_optimizer is not None:
+        g = model.ent_coef_optimizer.param_groups[0]
+        model.ent_coef_optimizer = _adam([model.log_ent_coef], g["lr"], g["eps"], settings.adam)
+    if settings.compile:
+        pol.actor.latent_pi = th.compile(pol.actor.latent_pi)
+        for i, q in enumerate(list(pol.critic.q_networks)):
+            cq = th.compile(q)
+            pol.critic.q_networks[i] = cq
+        for i, q in enumerate(list(pol.critic_target.q_networks)):
+            pol.critic_target.q_networks[i] = th.compile(q)
+    if settings.bf16:
+        return lambda: th.autocast("cpu", dtype=th.bfloat16)
+    return contextlib.nullcontext

@@ -1,0 +1,64 @@
+"""The speed settings `rodlab bench train` can try (policies/train_speed.py) apply and keep the updates working.
+
+No timing is asserted (speed is measured on a quiet machine)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from policies.train import Args, build_sac, make_sb3_env
+from policies.train_speed import SpeedSettings, apply_speed_settings
+
+
+def _model():
+    env = make_sb3_env("ik4d", 4, 0)
+    args = Args(task="ik4d", num_envs=4, total_steps=10_000, batch_size=64, net_arch=[32, 32], learning_starts=0)
+    model = build_sac(args, env)
+    from stable_baselines3.common.logger import configure
+
+    model.set_logger(configure(None, [""]))
+    obs = env.reset()
+    for _ in range(20):
+        act = np.stack([env.action_space.sample() for _ in range(4)])
+        nobs, rew, done, infos = env.step(act)
+        model.replay_buffer.add(obs, nobs, act, rew, done, infos)
+        obs = nobs
+    env.close()
+    return model
+
+
+def _params(model):
+    return torch.cat([p.detach().flatten().clone() for p in model.policy.parameters()])
+
+
+@pytest.mark.parametrize("settings", [SpeedSettings(adam="plain"), SpeedSettings(adam="foreach", bf16=True)])
+def test_settings_apply_and_updates_run(settings):
+    model = _model()
+    ctx = apply_speed_settings(model, settings)
+    for opt in (model.actor.optimizer, model.critic.optimizer, model.ent_coef_optimizer):
+        d = opt.defaults
+        assert d["eps"] == pytest.approx(1e-7) and d["lr"] == pytest.approx(1e-3)
+        assert bool(d.get("fused")) is False
+        assert bool(d.get("foreach")) is (settings.adam == "foreach")
+    before = _params(model)
+    with ctx():
+        model.train(gradient_steps=2, batch_size=64)
+    after = _params(model)
+    assert torch.isfinite(after).all() and not torch.equal(before, after)  # the updates reached the weights
+    assert model._n_updates == 2
+
+
+@pytest.mark.slow  # inductor compilation takes minutes on this CPU
+def test_compile_setting_runs():
+    model = _model()
+    ctx = apply_speed_settings(model, SpeedSettings(compile=True))
+    before = _params(model)
+    with ctx():
+        model.train(gradient_steps=1, batch_size=64)
+    assert not torch.equal(before, _params(model))
+
+
+def test_bad_adam_kind():
+    with pytest.raises(ValueError, match="adam must be one of"):
+        SpeedSettings(adam="sgd")
