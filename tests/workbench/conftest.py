@@ -43,7 +43,7 @@ def shared(browser, tmp_path_factory):
     """(app, page) shared by the browser tests."""
     from workbench.browser import open_page
 
-    app = make_app(recordings_dir=tmp_path_factory.mktemp("recordings"))
+    app = make_app(recordings_dir=tmp_path_factory.mktemp("recordings"), scenes_dir=tmp_path_factory.mktemp("scenes"))
     page = open_page(browser, app, width=960, height=640)
     yield app, page
     page.close()
