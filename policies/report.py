@@ -87,6 +87,8 @@ def load_run(run: Path) -> dict:
             "eval": {"steps": es[eok], "hours": ew[eok] / 3600.0, "ret": er[eok]},
             "final_steps": float(steps.max()) if steps.size else 0.0,
             "final_hours": float(wall.max() / 3600.0) if wall.size else 0.0, "timing": timing,
+            "eval_share": (float(_col(e, "eval_s_total")[-1]) / float(max(wall.max(), ew.max())))
+            if e and wall.size and math.isfinite(float(_col(e, "eval_s_total")[-1])) else math.nan,
             "num_envs": args.get("num_envs")}
 
 
@@ -151,6 +153,8 @@ def summarize(runs: list[dict]) -> list[dict]:
         for key in ("iter_ms", "env_step_ms", "update_ms"):
             v = [r["timing"][key] for r in rs if math.isfinite(r["timing"][key])]
             row[key] = _num(float(np.median(v))) if v else None
+        share = [r["eval_share"] for r in rs if math.isfinite(r["eval_share"])]
+        row["eval_share_of_wallclock"] = _num(float(np.mean(share))) if share else None
         row["env_steps_max"] = max(r["final_steps"] for r in rs)
         row["hours_max"] = max(r["final_hours"] for r in rs)
         out.append(row)
@@ -188,7 +192,7 @@ def markdown(rows: list[dict]) -> str:
     lines += ["", "Time to plateau: first point at which the seed-mean curve reaches the paper's Table II value "
               "minus its std (DisMech -> DisMech); 'not reached' within the runs. Training curve: stochastic policy, "
               "episodes finished in each log window; eval curve: deterministic policy on fixed seeds. Wall-clock "
-              "includes the evaluations during training. Paper wall-clock: docs/tasks.md §8.5."]
+              "includes the evaluations during training (their share: report.json eval_share_of_wallclock). Paper wall-clock: docs/tasks.md §8.5."]
     return "\n".join(lines) + "\n"
 
 
