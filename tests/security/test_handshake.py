@@ -140,3 +140,22 @@ def test_start_up_prints_the_full_url_first():
         assert exc.value.code == 403
         err = proc.communicate(timeout=120)[1]
     assert proc.returncode == 0 and "WARNING" in err and "0.0.0.0" in err
+
+
+def test_server_refuses_to_run_unguarded(monkeypatch):
+    """If viser stops starting its server through websockets' serve, the check cannot be installed: the
+    workbench then refuses to serve instead of serving unchecked."""
+    import viser
+
+    from workbench.handshake import Guard, HandshakeGuardMissing, start_viser
+
+    class ServerWithoutServe:
+        def __init__(self, **_kw):
+            self.stopped = False
+
+        def stop(self):
+            self.stopped = True
+
+    monkeypatch.setattr(viser, "ViserServer", ServerWithoutServe)
+    with pytest.raises(HandshakeGuardMissing):
+        start_viser("127.0.0.1", 0, Guard.for_host("127.0.0.1"))

@@ -195,13 +195,18 @@ def test_oversize_upload_is_refused(env):
     ob = app.obstacles
     n = len(app.wb.obstacles)
     big = b"solid x\n" * (200 * 1024)  # 1.6 MB > 1 MB limit
+    from workbench.gui_guard import _CappedUploads
+
+    # the limit sits in viser's upload bookkeeping (fails if viser's internals change): refused before the
+    # bytes are collected, not only after
+    assert isinstance(app.server.gui._current_file_upload_states, _CappedUploads)
     clear(ob.msg)
     client.upload(ob.upload, "big.stl", big)
-    said(ob.msg, "upload refused")
+    said(ob.msg, "upload refused: over the limit of 1 MB")
     # a client that declares a small size but sends more is cut off too
     clear(ob.msg)
     client.upload(ob.upload, "liar.stl", big, declared=1000, part=256 * 1024)
-    said(ob.msg, "upload refused")
+    said(ob.msg, "upload refused: over the limit of 1 MB")
     time.sleep(0.3)
     assert list(app.files.uploads.iterdir()) == [] and len(app.wb.obstacles) == n
     assert app.obstacles.receive_upload("big.stl", big) is None and "upload refused" in ob.msg.content
