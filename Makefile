@@ -42,7 +42,7 @@ test: install system-deps warmup
 	$(PY) -m pytest
 
 lint: install
-	$(VENV)/bin/ruff check sim policies workbench benchmarks tests examples rodlab_cli.py
+	$(VENV)/bin/ruff check sim policies workbench benchmarks tests examples tools rodlab_cli.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache

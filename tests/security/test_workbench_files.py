@@ -17,7 +17,7 @@ import pytest
 from sim import load_scene
 from tests.security.hostile_client import HostileClient
 from tests.security.payloads import rodlab_zip, sb3_zip
-from workbench.browser import wait_for
+from tools.browser import wait_for
 
 REPO = Path(__file__).resolve().parents[2]
 DEFAULT = REPO / "assets" / "scenes" / "default.toml"

@@ -16,7 +16,7 @@ SHOTS = Path(__file__).resolve().parents[2] / "docs" / "screenshots"
 
 @pytest.fixture(scope="session")
 def browser():
-    from workbench.browser import ChromiumMissing, chromium_path, launch
+    from tools.browser import ChromiumMissing, chromium_path, launch
 
     try:
         chromium_path()
@@ -41,7 +41,7 @@ def make_app(wb=None, **kw):
 @pytest.fixture(scope="session")
 def shared(browser, tmp_path_factory):
     """(app, page) shared by the browser tests."""
-    from workbench.browser import open_page
+    from tools.browser import open_page
 
     app = make_app(recordings_dir=tmp_path_factory.mktemp("recordings"), scenes_dir=tmp_path_factory.mktemp("scenes"))
     page = open_page(browser, app, width=960, height=640)

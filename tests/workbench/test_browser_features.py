@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench.browser import (
+from tools.browser import (
     canvas_png,
     drag_gizmo_x,
     expand_folder,

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from sim import load_scene
-from workbench.browser import expand_folder, wait_for
+from tools.browser import expand_folder, wait_for
 
 pytestmark = pytest.mark.browser
 DEFAULT = Path(__file__).resolve().parents[2] / "assets" / "scenes" / "default.toml"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench.browser import canvas_variance, slider_thumb, wait_for
+from tools.browser import canvas_variance, slider_thumb, wait_for
 
 pytestmark = pytest.mark.browser
 

@@ -1,6 +1,6 @@
 """Frame-rate benchmark of single-env teleop with a headless browser attached.
 
-    python -m workbench.fps_bench [--seconds 10] [SCENE.toml] [--no-browser]
+    python -m tools.fps_bench [--seconds 10] [SCENE.toml] [--no-browser]
 
 The sim thread runs as fast as it can (``speed=inf``): every frame is one sim step of the live rod
 plus one full scene update (tube, frames, contacts) pushed over the websocket to the page, which
@@ -17,7 +17,7 @@ from pathlib import Path
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m workbench.fps_bench", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m tools.fps_bench", description=__doc__.split("\n")[0])
     ap.add_argument("scene", nargs="?", help="scene TOML (default: the workbench default scene)")
     ap.add_argument("--seconds", type=float, default=10.0, help="measurement window [s] (default 10)")
     ap.add_argument("--warmup", type=float, default=3.0, help="seconds before measuring (default 3)")
@@ -45,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
         if not args.no_browser:
             from playwright.sync_api import sync_playwright
 
-            from workbench.browser import launch, open_page
+            from tools.browser import launch, open_page
 
             pw = sync_playwright().start()
             browser = launch(pw)

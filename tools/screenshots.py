@@ -1,6 +1,6 @@
 """Screenshots of each workbench view for the README (docs/screenshots/*.png).
 
-    python -m workbench.screenshots [--out docs/screenshots]
+    python -m tools.screenshots [--out docs/screenshots]
 
 Drives a real workbench server with headless Chromium: teleop on the default obstacle scene
 (curvature colours, material frames, contacts), a shipped policy (if any) with its plots, and a
@@ -20,7 +20,7 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 
 
 def _shot(page, path: Path) -> None:
-    from workbench.browser import close_toasts
+    from tools.browser import close_toasts
 
     close_toasts(page)
     time.sleep(0.5)
@@ -29,7 +29,7 @@ def _shot(page, path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m workbench.screenshots", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m tools.screenshots", description=__doc__.split("\n")[0])
     ap.add_argument("--out", default=str(REPO_ROOT / "docs" / "screenshots"), help="output folder")
     args = ap.parse_args(argv)
     out = Path(args.out)
@@ -37,8 +37,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from playwright.sync_api import sync_playwright
 
+    from tools.browser import expand_folder, launch, open_page, wait_for
     from workbench.app import WorkbenchApp
-    from workbench.browser import expand_folder, launch, open_page, wait_for
     from workbench.cli import default_scene
     from workbench.core import Workbench
     from workbench.policy_session import shipped_policies
