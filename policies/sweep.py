@@ -348,7 +348,10 @@ def run_sweep(trials: list[Trial], out: Path, *, address: str | None, cpus_per_t
     if not pending:
         return states
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    import ray
+    try:
+        import ray
+    except ImportError:
+        raise SweepError("Ray is not installed: pip install 'rodlab[sweep]' (make test installs it)") from None
 
     if address:
         ray.init(address=address, log_to_driver=False)
@@ -467,6 +470,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"rodlab sweep: stopped; re-run the same command to continue ({out})", file=sys.stderr)
         return 130
+    except SweepError as exc:
+        print(f"rodlab sweep: {exc}", file=sys.stderr)
+        return 2
     bad = [n for n, s in states.items() if s != "done"]
     print(f"rodlab sweep: {len(states) - len(bad)}/{len(states)} trials finished in {out}"
           + (f"; not finished: {', '.join(bad)}" if bad else "") + f"  (report: rodlab report {out})")
