@@ -200,6 +200,7 @@ def run_trial_process(run_dir: Path) -> int:
     from policies.checkpoint import read_state
     from policies.train import Args, train
 
+    _set_parent_death_signal()
     spec = json.loads((run_dir / "trial.json").read_text())
     args = Args.from_json(spec["args"])
     with open(run_dir / "trial.lock", "a") as lock:
@@ -222,13 +223,18 @@ def run_trial_process(run_dir: Path) -> int:
     return 0
 
 
-def _set_parent_death_signal() -> None:  # the child stops (SIGTERM -> checkpoint) when its Ray worker dies
+def _set_parent_death_signal() -> None:
+    """The trial process stops (SIGTERM -> checkpoint) when the Ray worker that started it dies (set in the child
+    itself: a ``preexec_fn`` is not safe in the multi-threaded worker)."""
     try:
         import ctypes
 
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):
-        pass
+        return
+    parent = os.environ.get("RODLAB_TRIAL_PARENT")
+    if parent and str(os.getppid()) != parent:  # the worker died before prctl took effect
+        os.kill(os.getpid(), signal.SIGTERM)
 
 
 def launch_trial(run_dir: str, cpus: int) -> dict:
@@ -237,8 +243,9 @@ def launch_trial(run_dir: str, cpus: int) -> dict:
     root = str(Path(__file__).resolve().parent.parent)
     env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
     with open(Path(run_dir) / "train.log", "ab") as log:
+        env["RODLAB_TRIAL_PARENT"] = str(os.getpid())
         proc = subprocess.Popen([sys.executable, "-m", "policies.sweep", "_trial", run_dir], cwd=root, env=env,
-                                stdout=log, stderr=subprocess.STDOUT, preexec_fn=_set_parent_death_signal)
+                                stdout=log, stderr=subprocess.STDOUT)
         rc = proc.wait()
     return {"run_dir": run_dir, "returncode": rc}
 
