@@ -13,12 +13,14 @@ strictly closer. So each local minimum of the distance along the rod is counted 
 Friction (§4.6 "rod vs rigid obstacle", [REC]): smooth Coulomb with lagged ``n`` and ``s`` (no
 derivatives through them), skipped when ``friction_on`` is False (Newton iteration 0).
 
-``cd`` is the tuple built by :meth:`sim.obstacles.ObstacleSet.kernel_data`:
+``cd`` is the :class:`sim.contact_set.ContactData` namedtuple built by
+:meth:`sim.obstacles.ObstacleSet.kernel_data`:
 ``(kind (M,), p0 (B,M,3), p1 (B,M,3), rot (B,M,3,3), radius (B,M), half (M,3), mesh_root (M,),
 tri (T,3,3), node_lo (K,3), node_hi (K,3), node_child (K,2), node_range (K,2), cand (B,C,2) int64,
 cand_count (B,), params (4,) [rod_radius, ...], active (B,M) bool, box (B,M,2,3) world AABBs,
 iter_flag (B,) int64 (0 right after the broad phase: friction is skipped on that first Newton iteration),
-scratch_f (B,128), scratch_m (B,2,6,6), scratch_i (B,128) int64 per-env work space (no allocation in the kernels))``.
+scratch_f (B,128), scratch_m (B,2,6,6), scratch_i (B,128) int64 per-env work space (no allocation in the kernels),
+friction (M,) per-obstacle μ (-1: use the kernels' scalar μ, the [contact] friction))``.
 Kinds: 0 plane (p0 point, p1 unit normal), 1 sphere (p0 centre), 2 capsule (p0, p1 axis ends),
 3 box (p0 centre, rot, half), 4 mesh (p0, rot, mesh_root = BVH root node).
 Shapes: ``x``, ``x_prev``, ``x_start``, ``x_guess`` (N, >=3) [m]; ``grad`` (N, 3); ``hess`` (N-1, 6, 6)
@@ -206,7 +208,7 @@ def _eval_edge(cd, e, o, a, b, r, reach, g6, H6, nhat, ws, stack, derivs=True):
     gap = inf otherwise.
     """
     (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
-     scm, sci) = cd
+     scm, sci, fric) = cd
     z = (0.0, 0.0, 0.0)
     k = kind[o]
     P = (p0[e, o, 0], p0[e, o, 1], p0[e, o, 2])
@@ -288,8 +290,8 @@ def _row3(x, k):
 @njit(cache=True, inline="always")
 def _scratch(cd, e):
     """Env ``e``'s distance scratch: (ws (64,), g6 (6,), nhat (3,), H6 (6, 6), BVH stack)."""
-    scf = cd[18]
-    return scf[e, 0:64], scf[e, 64:70], scf[e, 70:73], cd[19][e, 0], cd[20][e]
+    scf = cd.scratch_f
+    return scf[e, 0:64], scf[e, 64:70], scf[e, 70:73], cd.scratch_m[e, 0], cd.scratch_i[e]
 
 
 @njit(cache=True)
@@ -297,7 +299,7 @@ def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemb
                   out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
                   out_normal_force, out_friction_force, out_gap, out_max_penetration):
     (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
-     scm, sci) = cd
+     scm, sci, fric) = cd
     ws = scf[e, 0:64]
     g6 = scf[e, 64:70]
     nhat = scf[e, 70:73]
@@ -314,10 +316,11 @@ def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemb
     prev_j = -2
     prev_o = -1
     prev_gap = np.inf
-    do_fric = friction_on and mu > 0.0
     for c in range(nc):
         j = cand[e, c, 0]
         o = cand[e, c, 1]
+        mu_o = fric[o] if fric[o] >= 0.0 else mu  # the obstacle's own μ, else the [contact] one
+        do_fric = friction_on and mu_o > 0.0
         if kind[o] == PLANE:
             xk = _row3(x, j)
             n = (p1[e, o, 0], p1[e, o, 1], p1[e, o, 2])
@@ -332,7 +335,7 @@ def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemb
             if do_fric:
                 xp = _row3(x_prev, j)
                 v = ((xk[0] - xp[0]) / dt, (xk[1] - xp[1]) / dt, (xk[2] - xp[2]) / dt)
-                ff = friction_block(v, v, 0.0, n, -dE, d2E, mu, nu, dt, fr, Jf)
+                ff = friction_block(v, v, 0.0, n, -dE, d2E, mu_o, nu, dt, fr, Jf)
             if assemble:
                 for i in range(3):
                     grad[j, i] += dE * n[i]
@@ -380,7 +383,7 @@ def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemb
             xb0 = _row3(x_prev, j + 1)
             va = ((a[0] - xa0[0]) / dt, (a[1] - xa0[1]) / dt, (a[2] - xa0[2]) / dt)
             vb = ((b[0] - xb0[0]) / dt, (b[1] - xb0[1]) / dt, (b[2] - xb0[2]) / dt)
-            ff = friction_block(va, vb, s, n, -dE, d2E, mu, nu, dt, fr, Jf)
+            ff = friction_block(va, vb, s, n, -dE, d2E, mu_o, nu, dt, fr, Jf)
         if assemble:
             for i in range(3):
                 grad[j, i] += dE * g6[i]
@@ -399,11 +402,13 @@ def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemb
             maxpen = max(maxpen, -gap)
             if rc < cap:
                 xr = vlerp(a, b, s)
+                # q is the closest point of a sphere's centre / a capsule's axis: step out to its surface
+                ro = rad[e, o] if (kind[o] == SPHERE or kind[o] == CAPSULE) else 0.0
                 out_edge[e, rc] = j
                 out_obstacle[e, rc] = o
                 for i in range(3):
                     out_rod_point[e, rc, i] = xr[i]
-                    out_obstacle_point[e, rc, i] = q[i]
+                    out_obstacle_point[e, rc, i] = q[i] + ro * n[i]
                     out_normal[e, rc, i] = n[i]
                     out_friction_force[e, rc, i] = ff[i]
                 out_normal_force[e, rc] = -dE
@@ -417,8 +422,8 @@ def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemb
 
 @njit(cache=True)
 def _plane_gap(cd, e, o, xx, kk):
-    p0 = cd[1]
-    p1 = cd[2]
+    p0 = cd.p0
+    p1 = cd.p1
     return (p1[e, o, 0] * (xx[kk, 0] - p0[e, o, 0]) + p1[e, o, 1] * (xx[kk, 1] - p0[e, o, 1])
             + p1[e, o, 2] * (xx[kk, 2] - p0[e, o, 2]))
 
@@ -433,7 +438,7 @@ def contact_broadphase(e, cd, x_start, x_guess, margin):
     obstacle-major with increasing j (the ownership rule relies on that order). Returns the count.
     """
     (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
-     scm, sci) = cd
+     scm, sci, fric) = cd
     r = params[0]
     N = x_start.shape[0]
     M = kind.shape[0]
@@ -489,7 +494,7 @@ def contact_broadphase(e, cd, x_start, x_guess, margin):
                 cand[e, cnt, 1] = o
                 cnt += 1
     ccount[e] = cnt
-    cd[17][e] = 0  # next accumulate = Newton iteration 0 of this (sub)step: no friction
+    cd.iter_flag[e] = 0  # next accumulate = Newton iteration 0 of this (sub)step: no friction
     return cnt
 
 
@@ -502,8 +507,8 @@ def contact_refresh(e, cd, x_start, x_end, margin):
     onto within the step; this catches them (and the guard then sees their penetration). The merged list
     keeps the broad phase's order (obstacle-major, increasing edge/node index), truncated at capacity.
     """
-    cand = cd[12]
-    ccount = cd[13]
+    cand = cd.cand
+    ccount = cd.cand_count
     cap = cand.shape[1]
     n1 = ccount[e]
     old = np.empty((n1, 2), np.int64)
@@ -546,13 +551,13 @@ def contact_refresh(e, cd, x_start, x_end, margin):
 @njit(cache=True)
 def _pair_gap(cd, e, c, x, dxp, t, r, reach, g6, H6, nhat, ws, stack):
     """Gap [m] of candidate c of env e at node positions x + t·dxp ((N, 3) arrays)."""
-    cand = cd[12]
+    cand = cd.cand
     j = cand[e, c, 0]
     o = cand[e, c, 1]
     a = (x[j, 0] + t * dxp[j, 0], x[j, 1] + t * dxp[j, 1], x[j, 2] + t * dxp[j, 2])
-    if cd[0][o] == PLANE:
-        p0 = cd[1]
-        p1 = cd[2]
+    if cd.kind[o] == PLANE:
+        p0 = cd.p0
+        p1 = cd.p1
         return (p1[e, o, 0] * (a[0] - p0[e, o, 0]) + p1[e, o, 1] * (a[1] - p0[e, o, 1])
                 + p1[e, o, 2] * (a[2] - p0[e, o, 2])) - r
     b = (x[j + 1, 0] + t * dxp[j + 1, 0], x[j + 1, 1] + t * dxp[j + 1, 1], x[j + 1, 2] + t * dxp[j + 1, 2])
@@ -570,7 +575,7 @@ def contact_step_limit(e, cd, x, dxp, rod_radius, delta):
     edge against a fixed obstacle is 1-Lipschitz in the larger end-node displacement D, so steps of
     (g(t) − floor)/D never pass the first time the floor is reached.
     """
-    kind, p1, cand, ccount = cd[0], cd[2], cd[12], cd[13]
+    kind, p1, cand, ccount = cd.kind, cd.p1, cd.cand, cd.cand_count
     ws, g6, nhat, H6, stack = _scratch(cd, e)
     r = rod_radius
     tmax = 1.0
@@ -613,12 +618,12 @@ def contact_accumulate(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, frict
 
     Friction (if ``friction_on``) is skipped on the first call after ``contact_broadphase`` (Newton
     iteration 0 of the (sub)step, docs/physics.md §4.6)."""
-    fr_on = friction_on and cd[17][e] > 0
-    cd[17][e] = 1
+    fr_on = friction_on and cd.iter_flag[e] > 0
+    cd.iter_flag[e] = 1
     return _contact_pass(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, fr_on, True, grad, hess,
-                         False, cd[20][e, :0], cd[12][e, :0], cd[12][e, :0], cd[19][e, :0, :, :3],
-                         cd[19][e, :0, :, :3], cd[19][e, :0, :, :3], cd[18][e:e, :0], cd[19][e, :0, :, :3],
-                         cd[18][e:e, :0], cd[18][e, :0])
+                         False, cd.scratch_i[e, :0], cd.cand[e, :0], cd.cand[e, :0], cd.scratch_m[e, :0, :, :3],
+                         cd.scratch_m[e, :0, :, :3], cd.scratch_m[e, :0, :, :3], cd.scratch_f[e:e, :0], cd.scratch_m[e, :0, :, :3],
+                         cd.scratch_f[e:e, :0], cd.scratch_f[e, :0])
 
 
 @njit(cache=True)
@@ -629,7 +634,7 @@ def contact_min_gap(e, cd, x, rod_radius):
     No derivatives and no ownership filter (dropping non-minimal pairs cannot change the minimum), so
     ``-contact_min_gap`` equals :func:`contact_report`'s max penetration for the same positions and candidates.
     """
-    kind, cand, ccount = cd[0], cd[12], cd[13]
+    kind, cand, ccount = cd.kind, cd.cand, cd.cand_count
     ws, g6, nhat, H6, stack = _scratch(cd, e)
     r = rod_radius
     best = 0.0
@@ -651,10 +656,11 @@ def contact_report(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, friction_
                    out_normal_force, out_friction_force, out_gap, out_max_penetration):
     """Fill env ``e``'s StepStats contact rows (up to capacity C) and max penetration [m]; return energy [J].
 
-    Rows: edge (node for planes), obstacle, rod point, obstacle point [m], unit normal (obstacle -> rod),
+    Rows: edge (node for planes), obstacle, rod point (on the rod's centre line) [m], obstacle point (the
+    closest point on the obstacle's surface, for every kind) [m], unit normal (obstacle -> rod),
     normal force magnitude [N], friction force on the rod [N] (3,), gap [m]. Velocities (x - x_prev)/dt.
     """
-    return _contact_pass(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, friction_on, False, cd[18][e:e, :3], cd[19][e, :0],
+    return _contact_pass(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, friction_on, False, cd.scratch_f[e:e, :3], cd.scratch_m[e, :0],
                          True,
                          out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
                          out_normal_force, out_friction_force, out_gap, out_max_penetration)

@@ -8,6 +8,7 @@ derived world arrays (centres, axes, rotations, AABBs) are refreshed only for wh
 from __future__ import annotations
 
 import copy
+from collections import namedtuple
 from collections.abc import Sequence
 
 import numpy as np
@@ -24,9 +25,15 @@ from .obstacles import (
     quat_to_matrix,
 )
 
-__all__ = ["ObstacleSet"]
+__all__ = ["ObstacleSet", "ContactData"]
 
 REPORT_CAPACITY = 64
+
+ContactData = namedtuple("ContactData", [
+    "kind", "p0", "p1", "rot", "radius", "half", "mesh_root", "tri", "node_lo", "node_hi", "node_child",
+    "node_range", "cand", "cand_count", "params", "active", "box", "iter_flag", "scratch_f", "scratch_m",
+    "scratch_i", "friction"])
+ContactData.__doc__ = "Arrays read by :mod:`sim.contact_kernels` (fields documented there); a numba namedtuple."
 
 
 class ObstacleSet:
@@ -42,6 +49,8 @@ class ObstacleSet:
         M = len(self.specs)
         self.kind = np.array([KIND_CODES[s.type] for s in self.specs], dtype=np.int64)  # type: ignore
         self.half = np.zeros((M, 3))
+        # per-obstacle Coulomb μ; -1 = the [contact] friction (the kernels' scalar μ)
+        self.friction = np.array([-1.0 if s.friction is None else float(s.friction) for s in self.specs])
         self.mesh_root = -np.ones(M, dtype=np.int64)
         self._mesh_box = np.zeros((M, 2, 3))  # local AABB of each mesh
         tris, lo, hi, ch, rg = [], [], [], [], []
@@ -91,7 +100,7 @@ class ObstacleSet:
                 self._pos0[i], self._quat0[i] = s.position, s.orientation
         self._n_nodes = 0
         self._rod_radius = 0.0
-        self._kd: tuple | None = None
+        self._kd: ContactData | None = None
         self._alloc(envs)
 
     @classmethod
@@ -258,9 +267,13 @@ class ObstacleSet:
         self.active[ids] = True
         self._refresh(ids, np.arange(self.count))
 
+    def effective_friction(self, default: float) -> np.ndarray:
+        """(M,) Coulomb μ of each obstacle: its own ``friction`` or ``default`` (the [contact] friction)."""
+        return np.where(self.friction >= 0.0, self.friction, float(default))
+
     # ------------------------------------------------------------------ kernel data
     def kernel_data(self, envs: int | None = None, *, n_nodes: int | None = None,
-                    rod_radius: float | None = None) -> tuple:
+                    rod_radius: float | None = None) -> ContactData:
         """The tuple of arrays read by :mod:`sim.contact_kernels` (layout documented there).
 
         Re-allocates per-env arrays only if ``envs`` changes (then poses return to the spec); otherwise
@@ -277,9 +290,9 @@ class ObstacleSet:
             B, M = self.envs, self.count
             cand = np.zeros((B, max(n * M, 1), 2), dtype=np.int64)
             params = np.array([rr, 0.0, 0.0, 0.0])
-            self._kd = (self.kind, self.p0, self.p1, self.rot, self.radius, self.half, self.mesh_root, self.tri,
+            self._kd = ContactData(self.kind, self.p0, self.p1, self.rot, self.radius, self.half, self.mesh_root, self.tri,
                         self.node_lo, self.node_hi, self.node_child, self.node_range, cand,
                         np.zeros(B, dtype=np.int64), params, self.active, self.box,
                         np.ones(B, dtype=np.int64), np.zeros((B, 128)), np.zeros((B, 2, 6, 6)),
-                        np.zeros((B, 128), dtype=np.int64))
+                        np.zeros((B, 128), dtype=np.int64), self.friction)
         return self._kd

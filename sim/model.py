@@ -37,7 +37,7 @@ class Model:
     gravity: np.ndarray              # (3,) [m/s^2]
     damping: float                   # [1/s], F_k = -damping * m_k * v_k
     integrator: Literal["backward_euler", "midpoint"]
-    line_search: Literal["none", "backtrack"]
+    line_search: Literal["none", "backtrack", "auto"]
     newton_tol: float
     newton_dtol: float               # [m/s]
     newton_max_iter: int

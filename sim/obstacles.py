@@ -7,6 +7,7 @@ Scene keys (SI units; every obstacle may carry ``name = "..."``)::
     [[obstacle]] type = "plane"    point [m], normal (normalised here; contact side = +normal)
     [[obstacle]] type = "box"      position [m], orientation (quaternion w,x,y,z; default identity),
                                    half_extents [m]
+    [[obstacle]] any type may add friction = μ [-] (default: the [contact] friction)
     [[obstacle]] type = "mesh"     file (relative to the scene file; STL/OBJ/PLY/GLB...), scale (number or
                                    3 numbers, default 1), position [m], orientation (wxyz)
     [contact] stiffness [N/m] (1e6), delta [m] (5e-3), friction mu [-] (0),
@@ -23,7 +24,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -54,6 +55,7 @@ class PlaneSpec(ObstacleSpec):
     point: Vec3
     normal: Vec3
     name: str = ""
+    friction: float | None = None  # Coulomb μ of this obstacle; None = the [contact] friction
     type = "plane"
 
 
@@ -64,6 +66,7 @@ class SphereSpec(ObstacleSpec):
     center: Vec3
     radius: float
     name: str = ""
+    friction: float | None = None  # Coulomb μ of this obstacle; None = the [contact] friction
     type = "sphere"
 
 
@@ -75,6 +78,7 @@ class CapsuleSpec(ObstacleSpec):
     end: Vec3
     radius: float
     name: str = ""
+    friction: float | None = None  # Coulomb μ of this obstacle; None = the [contact] friction
     type = "capsule"
 
 
@@ -86,6 +90,7 @@ class BoxSpec(ObstacleSpec):
     half_extents: Vec3
     orientation: Quat = _IDQ
     name: str = ""
+    friction: float | None = None  # Coulomb μ of this obstacle; None = the [contact] friction
     type = "box"
 
 
@@ -101,6 +106,7 @@ class MeshSpec(ObstacleSpec):
     position: Vec3 = (0.0, 0.0, 0.0)
     orientation: Quat = _IDQ
     name: str = ""
+    friction: float | None = None  # Coulomb μ of this obstacle; None = the [contact] friction
     type = "mesh"
 
     def __post_init__(self) -> None:  # equality is by resolved path, not by how the file was written
@@ -156,10 +162,17 @@ def _unit(v: Vec3, where: str) -> Vec3:
 
 
 def _parse_one(t: Mapping[str, Any], i: int, scene_path: str | None) -> ObstacleSpec:
+    spec = _parse_shape(t, i, scene_path)
+    if "friction" in t:
+        spec = replace(spec, friction=take_float(t, "friction", f"obstacle[{i}].", scene_path, nonnegative=True))
+    return spec
+
+
+def _parse_shape(t: Mapping[str, Any], i: int, scene_path: str | None) -> ObstacleSpec:
     p = f"obstacle[{i}]."
     where = f"{scene_path or '<scene>'}: {p}"
     typ = take_str(t, "type", p, scene_path, choices=tuple(_KEYS))
-    check_unknown(t, _KEYS[typ] | {"type", "name"}, p, scene_path)
+    check_unknown(t, _KEYS[typ] | {"type", "name", "friction"}, p, scene_path)
     name = take_str(t, "name", p, scene_path, "")
     if typ == "plane":
         return PlaneSpec(point=take_vec3(t, "point", p, scene_path),
@@ -232,6 +245,8 @@ def dump_obstacles(obstacles: Sequence[ObstacleSpec], *, base_dir: str | os.Path
         lines += ["[[obstacle]]", f"type = {format_value(ob.type)}"]  # type: ignore[attr-defined]
         if getattr(ob, "name", ""):
             lines.append(f"name = {format_value(ob.name)}")  # type: ignore[attr-defined]
+        if getattr(ob, "friction", None) is not None:
+            lines.append(f"friction = {format_value(float(ob.friction))}")  # type: ignore[attr-defined]
         if isinstance(ob, MeshSpec):
             f = ob.file
             if base_dir is not None and ob.path:

@@ -6,7 +6,8 @@ Keys (SI units)::
            F_k = -damping * m_k * v_k on every node), newton_tol [-] (relative force test),
            newton_max_iter, accept_unconverged (bool), mode ("3d"|"2d", default "3d"),
            integrator ("backward_euler"|"midpoint", default "backward_euler"),
-           line_search ("none"|"backtrack", default "none"), newton_dtol [m/s] (displacement
+           line_search ("auto"|"backtrack"|"none", default "auto": backtrack only in envs with contact
+           candidates and only when an update raised the residual), newton_dtol [m/s] (displacement
            test, default 1e-2), divergence_guard [-] (default 10; 0 = off: an accepted unconverged
            solve whose force residual grew more than this factor over its iterations is retried with
            2, 4, 8, 16 sub-steps, the least-bad result kept; see docs/architecture.md)
@@ -40,7 +41,7 @@ __all__ = ["SceneError", "SimSpec", "RodSpec", "SceneSpec", "load_scene", "parse
 
 Mode = Literal["3d", "2d"]
 Integrator = Literal["backward_euler", "midpoint"]
-LineSearch = Literal["none", "backtrack"]
+LineSearch = Literal["none", "backtrack", "auto"]
 Clamp = Literal["first_edge", "none"]
 
 
@@ -56,7 +57,7 @@ class SimSpec:
     damping: float = 0.0
     mode: Mode = "3d"
     integrator: Integrator = "backward_euler"
-    line_search: LineSearch = "none"
+    line_search: LineSearch = "auto"
     newton_dtol: float = 1e-2
     divergence_guard: float = 10.0
 
@@ -125,8 +126,8 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
         mode=take_str(s, "mode", "sim.", path, "3d", choices=("3d", "2d")),  # type: ignore[arg-type]
         integrator=take_str(s, "integrator", "sim.", path, "backward_euler",
                             choices=("backward_euler", "midpoint")),  # type: ignore[arg-type]
-        line_search=take_str(s, "line_search", "sim.", path, "none",
-                             choices=("none", "backtrack")),  # type: ignore[arg-type]
+        line_search=take_str(s, "line_search", "sim.", path, "auto",
+                             choices=("none", "backtrack", "auto")),  # type: ignore[arg-type]
         newton_dtol=take_float(s, "newton_dtol", "sim.", path, 1e-2, positive=True),
         divergence_guard=take_float(s, "divergence_guard", "sim.", path, 10.0, nonnegative=True),
     )

@@ -21,7 +21,15 @@ from .energies.planar import planar_bend_element
 from .energies.stretch import stretch_element_2d
 from .frames import update_frames
 from .solve_params import *  # noqa: F403  (P_* prm indices, F_*/I_* output columns, _OPT)
-from .solve_params import _CHUNK, _OPT, guard_score, jacobian_symmetric
+from .solve_params import (
+    _CHUNK,
+    _OPT,
+    guard_score,
+    jacobian_symmetric,
+    lazy_line_search,
+    midpoint_gained_energy,
+    newton_dtol,
+)
 
 __all__ = ["step_kernel_2d"]
 
@@ -123,7 +131,7 @@ def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
     n = x0.shape[0]
     maxit = int(prm[P_MAXIT])
     tol = prm[P_TOL]
-    dtol = prm[P_DTOL]
+    dtol = newton_dtol(prm, cd, e)
     sym = jacobian_symmetric(prm)
     for k in range(n):
         x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
@@ -131,9 +139,23 @@ def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
     r = 0.0
     conv = False
     it = 0
+    rp = 0.0
+    lazy = lazy_line_search(prm, cd, e)
     while it < maxit:
         r, _, _, _, _ = _assemble_2d(e, x, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, pos, pos0,
                                      f, ab, g4, H4, g6, H6, cg, ch, True, sym)
+        if lazy and it > 0 and not r <= rp:  # the last update raised ‖f‖: backtrack along it
+            alpha = 1.0
+            for trial in range(4):
+                alpha *= 0.5
+                for k in range(n):
+                    x[k] += alpha * dx[k]  # x = x_prev - alpha dx
+                rt, _, _, _, _ = _assemble_2d(e, x, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, pos, pos0,
+                                             f, ab, g4, H4, g6, H6, cg, ch, False, sym)
+                if rt <= rp:
+                    break
+            r, _, _, _, _ = _assemble_2d(e, x, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, pos, pos0,
+                                         f, ab, g4, H4, g6, H6, cg, ch, True, sym)
         if not np.isfinite(r):
             return 1, it, False, r, r0
         if it == 0:
@@ -143,11 +165,12 @@ def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
         if r <= tol * r0 and (it > 0 or r == 0.0):
             conv = True
             break
+        rp = r
         for k in range(n):
             dx[k] = f[k]
         if (band_ldl_solve(ab, n, 5, dx) if sym else band_lu_solve(ab, n, 5, dx)) != 0:
             return 3, it, False, r, r0
-        if prm[P_CCD] > 0 and prm[P_NOBS] > 0 and cd[13][e] > 0:  # no update may tunnel (see _newton_3d)
+        if prm[P_CCD] > 0 and prm[P_NOBS] > 0 and cd.cand_count[e] > 0:  # no update may tunnel (see _newton_3d)
             N = n // 2
             for k in range(N):
                 cg[k, 0] = -dx[2 * k]
@@ -157,7 +180,7 @@ def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
             if tcap < 1.0:
                 for k in range(n):
                     dx[k] *= tcap
-        if prm[P_LS] > 0:
+        if prm[P_LS] == 1:
             alpha = 1.0
             for trial in range(5):
                 for k in range(n):
@@ -187,11 +210,45 @@ def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
 
 @njit(**_OPT)
 def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, want_pen0):
-    """2-D analogue of _substep_3d (frames are updated by the caller)."""
+    """2-D analogue of _substep_3d (frames are updated by the caller): a midpoint step that gains energy is
+    redone by backward Euler."""
+    st, it, conv, r, r0, pen, pen0 = _substep_with_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm,
+                                                      cd, w, want_pen0, prm[P_INTEG] != 0)
+    if st == 6:
+        st, it2, conv, r, r0, pen, pen0 = _substep_with_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav,
+                                                           prm, cd, w, want_pen0, False)
+        it += it2
+    return st, it, conv, r, r0, pen, pen0
+
+
+@njit(**_OPT)
+def _mech_energy_2d(e, xs, us, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, pos, pos0, h):
+    """(E_total, E_total − E_gravity) [J] of a planar state; contact over the current candidates (friction
+    off), ``pos`` the node positions of xs."""
+    g4, H4, g6, H6, cg, ch = w[7], w[8], w[9], w[10], w[11], w[12]
+    es, eb = _energies_2d(xs, kb, rest_len, vor_len, prm, g4, H4, g6, H6)
+    ek = 0.0
+    eg = 0.0
+    for k in range(xs.shape[0]):
+        if not fixed[k]:
+            ek += 0.5 * mass[k] * us[k] * us[k]
+        eg -= grav[k] * xs[k]
+    ec = 0.0
+    if prm[P_NOBS] > 0 and cd.cand_count[e] > 0:
+        ec = contact_accumulate(e, cd, pos, pos0, h, prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
+                                prm[P_CNU], False, cg, ch)
+    e_in = es + eb + ek + ec
+    return e_in + eg, e_in
+
+
+@njit(**_OPT)
+def _substep_with_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, want_pen0, midpoint):
+    """One (sub)step by implicit midpoint (``midpoint``) or backward Euler; status 6: a midpoint step gained
+    energy (nothing committed)."""
     (x, f, dx, xt, ab, pos, pos0, g4, H4, g6, H6, cg, ch) = w
     n = x0.shape[0]
     N = n // 2
-    hs = h if prm[P_INTEG] == 0 else 0.5 * h
+    hs = h if not midpoint else 0.5 * h
     pen0 = 0.0
     if prm[P_NOBS] > 0:
         py = prm[P_PLANEY]
@@ -203,7 +260,7 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
             pos[k, 1] = py
             pos[k, 2] = x0[2 * k + 1] + hs * u[2 * k + 1]
         contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
-        if want_pen0 and cd[13][e] > 0:
+        if want_pen0 and cd.cand_count[e] > 0:
             pen0 = -contact_min_gap(e, cd, pos0, prm[P_RADIUS])
     st, it, conv, r, r0 = _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
     if st != 0:
@@ -217,7 +274,7 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
             pos[k, 2] = x[2 * k + 1]
         # backward Euler ends where the solve ended: then the refreshed list already covers the whole
         # sub-step motion and the end-of-sub-step broad phase below is not needed again
-        list_covers_step = prm[P_INTEG] == 0
+        list_covers_step = not midpoint
         if contact_refresh(e, cd, pos0, pos, prm[P_CMARGIN]):
             list_covers_step = False
             st, it2, conv, r, r0 = _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
@@ -226,7 +283,7 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
                 return st, it, False, r, r0, 0.0, pen0
     if not conv and prm[P_ACCEPT] == 0:
         return 4, it, False, r, r0, 0.0, pen0
-    if prm[P_INTEG] == 0:
+    if not midpoint:
         for k in range(n):
             dx[k] = (x[k] - x0[k]) / h
     else:
@@ -245,6 +302,19 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
     for k in range(n):
         if not (np.isfinite(x[k]) and np.isfinite(dx[k])):
             return 1, it, conv, r, r0, 0.0, pen0
+    if midpoint and prm[P_MIDTOL] > 0:  # energy at the start and at the end of the sub-step
+        py = prm[P_PLANEY]
+        for k in range(N):
+            pos0[k, 0] = x0[2 * k]
+            pos0[k, 1] = py
+            pos0[k, 2] = x0[2 * k + 1]
+            pos[k, 0] = x[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = x[2 * k + 1]
+        e0, s0 = _mech_energy_2d(e, x0, u, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, pos0, pos0, h)
+        e1, s1 = _mech_energy_2d(e, x, dx, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, pos, pos0, h)
+        if midpoint_gained_energy(e0, s0, e1, s1, prm[P_MIDTOL]):
+            return 6, it, conv, r, r0, 0.0, pen0
     for k in range(n):
         x0[k] = x[k]
         u[k] = dx[k]
@@ -257,7 +327,7 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
             pos[k, 2] = x[2 * k + 1]
         if not list_covers_step:
             contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
-        if cd[13][e] > 0:
+        if cd.cand_count[e] > 0:
             pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
     return 0, it, conv, r, r0, pen, pen0
 

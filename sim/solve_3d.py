@@ -20,7 +20,15 @@ from .energies.bend_twist import bend_twist_core, material_curvatures, material_
 from .energies.stretch import stretch_element
 from .frames import update_frames
 from .solve_params import *  # noqa: F403  (P_* prm indices, F_*/I_* output columns, _OPT)
-from .solve_params import _CHUNK, _OPT, guard_score, jacobian_symmetric
+from .solve_params import (
+    _CHUNK,
+    _OPT,
+    guard_score,
+    jacobian_symmetric,
+    lazy_line_search,
+    midpoint_gained_energy,
+    newton_dtol,
+)
 
 __all__ = ["step_kernel_3d"]
 
@@ -146,7 +154,7 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
     n = x0.shape[0]
     maxit = int(prm[P_MAXIT])
     tol = prm[P_TOL]
-    dtol = prm[P_DTOL]
+    dtol = newton_dtol(prm, cd, e)
     sym = jacobian_symmetric(prm)
     for k in range(n):
         x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
@@ -154,10 +162,26 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
     r = 0.0
     conv = False
     it = 0
+    rp = 0.0
+    lazy = lazy_line_search(prm, cd, e)
     while it < maxit:
         r, _, _, _, _ = _assemble_3d(e, x, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav,
                                      prm, cd, pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk,
                                      cg, ch, mf, True, sym)
+        if lazy and it > 0 and not r <= rp:  # the last update raised ‖f‖: backtrack along it
+            alpha = 1.0
+            for trial in range(4):
+                alpha *= 0.5
+                for k in range(n):
+                    x[k] += alpha * dx[k]  # x = x_prev - alpha dx
+                rt, _, _, _, _ = _assemble_3d(e, x, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav,
+                                             prm, cd, pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk,
+                                             cg, ch, mf, False, sym)
+                if rt <= rp:
+                    break
+            r, _, _, _, _ = _assemble_3d(e, x, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav,
+                                         prm, cd, pos, pos0, t, d1, d2, elen, beta, f, ab, g6, H6, g11, H11, wk,
+                                         cg, ch, mf, True, sym)
         if not np.isfinite(r):
             return 1, it, False, r, r0
         if it == 0:
@@ -167,11 +191,12 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
         if r <= tol * r0 and (it > 0 or r == 0.0):
             conv = True
             break
+        rp = r
         for k in range(n):
             dx[k] = f[k]
         if (band_ldl_solve(ab, n, 10, dx) if sym else band_lu_solve(ab, n, 10, dx)) != 0:
             return 3, it, False, r, r0
-        if prm[P_CCD] > 0 and prm[P_NOBS] > 0 and cd[13][e] > 0:  # no update may tunnel (pos = nodes at x)
+        if prm[P_CCD] > 0 and prm[P_NOBS] > 0 and cd.cand_count[e] > 0:  # no update may tunnel (pos = nodes at x)
             N = n // 4
             for k in range(N):
                 for a in range(3):
@@ -180,7 +205,7 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
             if tcap < 1.0:
                 for k in range(n):
                     dx[k] *= tcap
-        if prm[P_LS] > 0:
+        if prm[P_LS] == 1:
             alpha = 1.0
             for trial in range(5):
                 for k in range(n):
@@ -211,15 +236,51 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
 
 @njit(**_OPT)
 def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, want_pen0):
-    """One implicit (sub)step of size h; on success x0, u, d1o, to, bo hold the new values.
+    """One implicit (sub)step of size h with the scene's integrator; a midpoint step that gains energy (see
+    :func:`sim.solve_params.midpoint_gained_energy`) is redone by backward Euler. On success x0, u, d1o, to, bo
+    hold the new values.
 
     Returns (status, iterations, converged, ‖f‖ last, ‖f0‖, max penetration [m] at the end of the sub-step,
     max penetration [m] at its start (only if want_pen0)) (penetrations 0 without obstacles or contact
     candidates); status 0 = ok."""
+    st, it, conv, r, r0, pen, pen0 = _substep_with_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass,
+                                                      fixed, grav, prm, cd, w, want_pen0, prm[P_INTEG] != 0)
+    if st == 6:
+        st, it2, conv, r, r0, pen, pen0 = _substep_with_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len,
+                                                           mass, fixed, grav, prm, cd, w, want_pen0, False)
+        it += it2
+    return st, it, conv, r, r0, pen, pen0
+
+
+@njit(**_OPT)
+def _mech_energy_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, pos, pos0, h):
+    """(E_total, E_total − E_gravity) [J] of a state whose frames (d1s, ts, bs) are at xs; contact energy over
+    the current candidates (friction off), with ``pos`` the node positions of xs."""
+    mf, cg, ch = w[19], w[17], w[18]
+    es, eb, et = _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm, mf)
+    ek = 0.0
+    eg = 0.0
+    for k in range(xs.shape[0]):
+        if not fixed[k]:
+            ek += 0.5 * mass[k] * us[k] * us[k]
+        eg -= grav[k] * xs[k]
+    ec = 0.0
+    if prm[P_NOBS] > 0 and cd.cand_count[e] > 0:
+        ec = contact_accumulate(e, cd, pos, pos0, h, prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
+                                prm[P_CNU], False, cg, ch)
+    e_in = es + eb + et + ek + ec
+    return e_in + eg, e_in
+
+
+@njit(**_OPT)
+def _substep_with_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, want_pen0,
+                     midpoint):
+    """One (sub)step by implicit midpoint (``midpoint``) or backward Euler; status 6: a midpoint step gained
+    energy (nothing committed)."""
     (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch, mf) = w
     n = x0.shape[0]
     N = n // 4
-    hs = h if prm[P_INTEG] == 0 else 0.5 * h
+    hs = h if not midpoint else 0.5 * h
     pen0 = 0.0
     if prm[P_NOBS] > 0:
         for k in range(N):
@@ -227,7 +288,7 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
                 pos0[k, a] = x0[4 * k + a]
                 pos[k, a] = x0[4 * k + a] + hs * u[4 * k + a]  # predicted end of step (contact: swept list)
         contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
-        if want_pen0 and cd[13][e] > 0:
+        if want_pen0 and cd.cand_count[e] > 0:
             pen0 = -contact_min_gap(e, cd, pos0, prm[P_RADIUS])
     st, it, conv, r, r0 = _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
     if st != 0:
@@ -241,7 +302,7 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
                 pos[k, a] = x[4 * k + a]
         # backward Euler ends where the solve ended: then the refreshed list already covers the whole
         # sub-step motion and the end-of-sub-step broad phase below is not needed again
-        list_covers_step = prm[P_INTEG] == 0
+        list_covers_step = not midpoint
         if contact_refresh(e, cd, pos0, pos, prm[P_CMARGIN]):
             list_covers_step = False
             st, it2, conv, r, r0 = _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed,
@@ -252,7 +313,7 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
     if not conv and prm[P_ACCEPT] == 0:
         return 4, it, False, r, r0, 0.0, pen0
     # velocity / position update (u_new into dx)
-    if prm[P_INTEG] == 0:
+    if not midpoint:
         for k in range(n):
             dx[k] = (x[k] - x0[k]) / h
     else:
@@ -273,6 +334,19 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
     for k in range(n):
         if not (np.isfinite(x[k]) and np.isfinite(dx[k])):
             return 1, it, conv, r, r0, 0.0, pen0
+    if midpoint and prm[P_MIDTOL] > 0:  # energy at the start (frames d1o, to, bo) and at the end (d1, t, beta)
+        for k in range(N):
+            for a in range(3):
+                pos0[k, a] = x0[4 * k + a]
+        e0, s0 = _mech_energy_3d(e, x0, u, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w,
+                                 pos0, pos0, h)
+        for k in range(N):
+            for a in range(3):
+                pos[k, a] = x[4 * k + a]
+        e1, s1 = _mech_energy_3d(e, x, dx, d1, t, beta, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w,
+                                 pos, pos0, h)
+        if midpoint_gained_energy(e0, s0, e1, s1, prm[P_MIDTOL]):
+            return 6, it, conv, r, r0, 0.0, pen0
     for j in range(N - 1):
         for a in range(3):
             d1o[j, a] = d1[j, a]
@@ -288,7 +362,7 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
     if prm[P_NOBS] > 0:  # pos: end-of-sub-step, pos0: start positions; list over the whole sub-step motion
         if not list_covers_step:
             contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
-        if cd[13][e] > 0:
+        if cd.cand_count[e] > 0:
             pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
     return 0, it, conv, r, r0, pen, pen0
 

@@ -10,8 +10,8 @@ from numba import njit
 # indices into the float64 parameter vector ``prm``
 P_EA, P_EI1, P_EI2, P_GJ, P_DT, P_DAMP, P_TOL, P_DTOL, P_MAXIT, P_ACCEPT, P_INTEG, P_LS = range(12)
 P_RADIUS, P_CK, P_CDELTA, P_CMU, P_CNU, P_CFRIC, P_CMARGIN, P_NOBS, P_SIGN2D, P_PLANEY = range(12, 22)
-P_LEVELS, P_STRAIN, P_MAXPEN, P_CCD, P_RGUARD = 22, 23, 24, 25, 26
-PRM_SIZE = 27
+P_LEVELS, P_STRAIN, P_MAXPEN, P_CCD, P_RGUARD, P_MIDTOL = 22, 23, 24, 25, 26, 27
+PRM_SIZE = 28
 # columns of the float / int per-env outputs
 F_RES, F_RES0, F_ES, F_EB, F_ET, F_EC, F_EK, F_EG, F_PEN = range(9)
 F_COLS = 9
@@ -39,3 +39,33 @@ def guard_score(pen, lim, grow, rg):
     if rg > 0.0 and grow > rg:
         score = max(score, grow / rg)
     return score
+
+
+@njit(inline="always", **_OPT)
+def lazy_line_search(prm, cd, e):
+    """Whether env ``e``'s Newton loop backtracks lazily (``line_search = "auto"``, the default): only in
+    an env with contact candidates (where friction's stick law and the stiff contact potential make full
+    Newton steps overshoot), and only when an update raised ‖f‖; otherwise the full step costs nothing
+    extra. The decision is read once per Newton solve (the candidate list is fixed during it)."""
+    return prm[P_LS] == 2 and prm[P_NOBS] > 0 and cd.cand_count[e] > 0
+
+
+@njit(inline="always", **_OPT)
+def newton_dtol(prm, cd, e):
+    """Displacement-test tolerance [m/s] of env ``e``'s Newton solve: ``newton_dtol``, capped at 1 % of the
+    friction velocity tolerance ν where friction can act (contact candidates and μ > 0): the stick law
+    γ(|v_t|/ν) resolves velocities on the scale ν, so an update that still changes velocities by ~ν is
+    not converged (physics.md §4.6; docs/physics.md)."""
+    dtol = prm[P_DTOL]
+    if prm[P_CFRIC] > 0 and prm[P_NOBS] > 0 and cd.cand_count[e] > 0:
+        dtol = min(dtol, 0.01 * prm[P_CNU])
+    return dtol
+
+
+@njit(inline="always", **_OPT)
+def midpoint_gained_energy(e0, s0, e1, s1, tol):
+    """Whether an implicit-midpoint (sub)step gained energy beyond ``tol``: total energy e1 at its end exceeds
+    e0 at its start by more than tol · max(s0, s1) (s: the energy without the gravity potential, whose zero is
+    arbitrary). Within a step κ̄, τ̄ and the constraints are fixed and damping/friction only dissipate, so a
+    gain is the midpoint rule's own nonlinear instability; the sub-step is then redone by backward Euler."""
+    return e1 - e0 > tol * max(s0, s1)

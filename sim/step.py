@@ -10,7 +10,10 @@ from . import validate as _validate
 from .model import Model
 from .state import Control, State, StepStats
 
-__all__ = ["Simulator"]
+__all__ = ["Simulator", "MIDPOINT_ENERGY_TOL"]
+
+# an implicit-midpoint (sub)step whose energy rises by more than this fraction is redone by backward Euler
+MIDPOINT_ENERGY_TOL = 1e-3
 
 IndexLike = int | Sequence[int] | np.ndarray | slice | None
 
@@ -34,11 +37,11 @@ class Simulator:
         prm[_solve.P_TOL], prm[_solve.P_DTOL], prm[_solve.P_MAXIT] = m.newton_tol, m.newton_dtol, m.newton_max_iter
         prm[_solve.P_ACCEPT] = 1.0 if m.accept_unconverged else 0.0
         prm[_solve.P_INTEG] = 0.0 if m.integrator == "backward_euler" else 1.0
-        prm[_solve.P_LS] = 0.0 if m.line_search == "none" else 1.0
+        prm[_solve.P_LS] = {"none": 0.0, "backtrack": 1.0, "auto": 2.0}[m.line_search]
         prm[_solve.P_RADIUS] = m.radius
         prm[_solve.P_CK], prm[_solve.P_CDELTA], prm[_solve.P_CMU] = c.stiffness, c.delta, c.friction
         prm[_solve.P_CNU], prm[_solve.P_CMARGIN] = c.friction_velocity_tol, c.margin
-        prm[_solve.P_CFRIC] = 1.0 if c.friction > 0 else 0.0
+        prm[_solve.P_CFRIC] = 1.0 if np.any(m.obstacles.effective_friction(c.friction) > 0) else 0.0
         prm[_solve.P_NOBS] = float(m.obstacles.count if getattr(c, "enabled", True) else 0)
         prm[_solve.P_SIGN2D], prm[_solve.P_PLANEY] = m.planar_sign, m.plane_y
         prm[_solve.P_LEVELS], prm[_solve.P_STRAIN] = 5.0, 0.9
@@ -46,6 +49,7 @@ class Simulator:
         prm[_solve.P_MAXPEN] = 4.0 * c.delta if mp is None else float(mp)
         prm[_solve.P_CCD] = 1.0 if getattr(c, "step_limit", True) else 0.0
         prm[_solve.P_RGUARD] = m.divergence_guard
+        prm[_solve.P_MIDTOL] = MIDPOINT_ENERGY_TOL
         self._prm = prm
         self._arr = tuple(np.array(a) for a in (m.rest_edge_length, m.voronoi_length, m.dof_mass, m.dof_fixed,
                                                 m.dof_gravity))

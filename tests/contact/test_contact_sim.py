@@ -186,7 +186,7 @@ def test_contact_rows_and_energy_reported():
     n = s.contact_normal[0, :k]
     np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-9)
     dist = np.linalg.norm(s.contact_rod_point[0, :k] - s.contact_obstacle_point[0, :k], axis=1)
-    np.testing.assert_allclose(dist - 0.05 - 0.05, s.contact_gap[0, :k], atol=1e-9)  # gap = |p - q| - r - R
+    np.testing.assert_allclose(dist - 0.05, s.contact_gap[0, :k], atol=1e-9)  # q on the surface: gap = |p - q| - r
     assert np.all(s.contact_normal_force[0, :k] > 0) and np.all(s.contact_gap[0, :k] < DELTA)
     assert np.all(s.contact_obstacle[0, :k] == 0)
 

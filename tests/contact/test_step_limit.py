@@ -77,7 +77,7 @@ def test_refresh_adds_the_pairs_of_the_motion_taken():
     down[:, 2] -= 0.25
     assert contact_broadphase(0, cd, x, up, 0.05) == 0
     assert contact_refresh(0, cd, x, down, 0.05)
-    assert cd[13][0] > 0
+    assert cd.cand_count[0] > 0
     assert not contact_refresh(0, cd, x, down, 0.05)
 
 
