@@ -140,7 +140,7 @@ def check_scene(spec: Any, where: str | None = None) -> None:
         c.fail("sim.accept_unconverged", f"expected true/false, got {s.accept_unconverged!r}")
     c.choice("sim.mode", s.mode, ("3d", "2d"))
     c.choice("sim.integrator", s.integrator, ("backward_euler", "midpoint"))
-    c.choice("sim.line_search", s.line_search, ("none", "backtrack"))
+    c.choice("sim.line_search", s.line_search, ("none", "backtrack", "auto"))
     n = c.integer("rod.nodes", r.nodes)
     length = c.num("rod.length", r.length, positive=True)
     radius = c.num("rod.radius", r.radius, positive=True)
@@ -190,6 +190,8 @@ def _check_obstacle(c: _Checker, i: int, ob: Any) -> None:
         c.unit(p + "orientation", ob.orientation, 4)
     else:
         c.fail(p + "type", f"unknown obstacle type {typ!r}")
+    if getattr(ob, "friction", None) is not None:
+        c.num(p + "friction", ob.friction, "contact.friction")
 
 
 def _check_contact(c: _Checker, ct: Any) -> None:
