@@ -55,7 +55,7 @@ def newton_dtol(prm, cd, e):
     """Displacement-test tolerance [m/s] of env ``e``'s Newton solve: ``newton_dtol``, capped at 1 % of the
     friction velocity tolerance ν where friction can act (contact candidates and μ > 0): the stick law
     γ(|v_t|/ν) resolves velocities on the scale ν, so an update that still changes velocities by ~ν is
-    not converged (physics.md §4.6; docs/physics.md)."""
+    not converged (docs/physics.md §4.6)."""
     dtol = prm[P_DTOL]
     if prm[P_CFRIC] > 0 and prm[P_NOBS] > 0 and cd.cand_count[e] > 0:
         dtol = min(dtol, 0.01 * prm[P_CNU])
