@@ -16,7 +16,7 @@ from workbench.core import Workbench
 from workbench.files import Folders
 from workbench.frame import Frame
 from workbench.gui_controls import ControlsPanel
-from workbench.gui_guard import GuiGuard, finite_pose
+from workbench.gui_guard import GuiGuard, finite_pose, only_value_updates
 from workbench.handshake import Guard, start_viser
 from workbench.runner import SimThread
 from workbench.view_scene import SceneView
@@ -50,6 +50,9 @@ class WorkbenchApp:
         except BaseException:
             self.files.cleanup()
             raise
+        if not only_value_updates(self.server):
+            self.stop_server_and_cleanup()
+            raise RuntimeError("viser changed: GUI updates from the page could not be restricted to values")
         self.server.gui.configure_theme(control_width="large", show_share_button=False)
         self.view = SceneView(self.server, wb.live.n_nodes, env_map=env_map)
         self.thread = SimThread(wb, self._render, speed=speed)
@@ -89,6 +92,10 @@ class WorkbenchApp:
         rec, self.wb.recorder = self.wb.recorder, None  # no lock: the sim thread may be mid-step
         if rec is not None:
             rec.close()
+        self.server.stop()
+        self.files.cleanup()
+
+    def stop_server_and_cleanup(self) -> None:
         self.server.stop()
         self.files.cleanup()
 

@@ -121,3 +121,24 @@ def cap_uploads(server, limit: int, on_refused: Callable[[str, int], None]) -> b
         return False
     gui._current_file_upload_states = _CappedUploads(limit, on_refused)
     return True
+
+
+def only_value_updates(server) -> bool:
+    """Let clients change only the ``value`` of a GUI element. viser applies any attribute a client names in
+    a GUI update (its callback list, its options, ...); the page itself only ever sends ``value``. Returns
+    False if viser changed and the filter could not be installed."""
+    from viser import _messages as vm
+
+    ws, handler = server._websock_server, server.gui._handle_gui_updates
+    if handler not in ws._incoming_handlers.get(vm.GuiUpdateMessage, []):
+        return False
+    ws.unregister_handler(vm.GuiUpdateMessage, handler)
+
+    async def values_only(client_id, message) -> None:
+        updates = {k: v for k, v in message.updates.items() if k == "value"}
+        if updates:
+            message.updates = updates
+            await handler(client_id, message)
+
+    ws.register_handler(vm.GuiUpdateMessage, values_only)
+    return True

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
+from viser import _messages as vm
 
 from sim import load_scene
 from tests.security.hostile_client import HostileClient
@@ -163,6 +164,17 @@ def test_dropdown_values_outside_the_options_are_refused(env):
         client.set(s, bad)
         said(c.msg, "finite number")
     assert abs(app.wb.teleop.values[0, 0]) <= 10
+
+
+def test_a_client_can_change_values_only(env):
+    """viser would apply any attribute a client names (e.g. replace the callback list, skipping the checks)."""
+    app, client, _root = env
+    c = app.controls
+    client.send(vm.GuiUpdateMessage(c.color_by._impl.uuid, {"update_cb": [], "options": ["evil"]}))
+    clear(c.msg)
+    client.set(c.color_by, "evil")
+    said(c.msg, "not one of the listed options")
+    assert c.color_by._impl.update_cb and tuple(c.color_by.options) == ("curvature", "strain", "none")
 
 
 def test_policy_path_from_the_page_is_never_loaded(env, tmp_path):
