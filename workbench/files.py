@@ -12,6 +12,7 @@ refused with a message saying so. Messages never quote a file's contents.
 """
 from __future__ import annotations
 
+import atexit
 import dataclasses
 import re
 import secrets
@@ -86,9 +87,12 @@ class Folders:
             raise FileAccessError(f"the scenes folder cannot be the shipped {SHIPPED_SCENES} (it is never written)")
         if not max_upload_mb > 0:
             raise FileAccessError(f"--max-upload-mb must be > 0, got {max_upload_mb}")
-        return cls(scenes=scenes.absolute(), recordings=Path(recordings_dir or REPO_ROOT / "recordings").absolute(),
-                   uploads=Path(tempfile.mkdtemp(prefix="rodlab-uploads-")),
-                   max_upload_bytes=int(max_upload_mb * 1024 * 1024))
+        folders = cls(scenes=scenes.absolute(),
+                      recordings=Path(recordings_dir or REPO_ROOT / "recordings").absolute(),
+                      uploads=Path(tempfile.mkdtemp(prefix="rodlab-uploads-")),
+                      max_upload_bytes=int(max_upload_mb * 1024 * 1024))
+        atexit.register(folders.cleanup)  # also when the process ends without WorkbenchApp.stop()
+        return folders
 
     def cleanup(self) -> None:
         """Remove the uploads folder (at exit)."""
