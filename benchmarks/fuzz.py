@@ -373,10 +373,35 @@ def run_cli_case(args: list[str]) -> tuple[str, str]:
 
 
 # ----------------------------------------------------------------------------------------------- driver
+class CaseTimeout(BaseException):
+    """A case ran past its time limit (a hang counts as a crash); BaseException so no case catches it."""
+
+
+@contextlib.contextmanager
+def _time_limit(seconds: float | None):
+    import signal
+    import threading
+
+    if not seconds or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def _raise(signum: int, frame: Any) -> None:
+        raise CaseTimeout()
+
+    old = signal.signal(signal.SIGALRM, _raise)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
 def fuzz(n: int, *, seed: int = 0, parts: tuple[str, ...] = PARTS, time_limit_s: float | None = None,
-         tmp: str | None = None, progress: bool = False) -> dict[str, Any]:
+         tmp: str | None = None, progress: bool = False, case_limit_s: float | None = 60.0) -> dict[str, Any]:
     """Run ``n`` cases spread over ``parts``; return counts per part and outcome, and the first examples of
-    every crash and silent-wrong case."""
+    every crash and silent-wrong case. A case taking longer than ``case_limit_s`` counts as a crash (hang)."""
     import tempfile
 
     rng = np.random.default_rng(seed)
@@ -394,17 +419,22 @@ def fuzz(n: int, *, seed: int = 0, parts: tuple[str, ...] = PARTS, time_limit_s:
                     break
                 part = parts[i % len(parts)]
                 if part == "scene":
-                    doc, edits = random_scene(rng)
-                    res, case = run_scene_case(doc), edits
+                    doc, case = random_scene(rng)
+                    fn = lambda: run_scene_case(doc)  # noqa: E731
                 elif part == "control":
                     case = random_control_case(rng)
-                    res = run_control_case(case)
+                    fn = lambda: run_control_case(case)  # noqa: E731
                 elif part == "env":
                     case = random_env_case(rng)
-                    res = run_env_case(case)
+                    fn = lambda: run_env_case(case)  # noqa: E731
                 else:
                     case = random_cli_case(rng, tmp)
-                    res = run_cli_case(case)
+                    fn = lambda: run_cli_case(case)  # noqa: E731
+                try:
+                    with _time_limit(case_limit_s):
+                        res = fn()
+                except CaseTimeout:
+                    res = ("crash", f"no answer within {case_limit_s} s (hang)")
                 counts[part][res[0]] += 1
                 if res[0] in ("crash", "silent_wrong") and len(bad) < 50:
                     bad.append({"part": part, "outcome": res[0], "case": repr(case)[:400], "detail": res[1]})

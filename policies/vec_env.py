@@ -127,6 +127,7 @@ def check_overrides(cfg: Any, overrides: dict[str, Any]) -> None:
     never truncated), a bool field a bool, a str field a str (or None where the default is None)."""
     name = type(cfg).__name__
     fields = {f.name for f in dataclasses.fields(cfg)}
+    limits = {"substeps": (1, 1000), "newton_max_iter": (1, 10_000), "timeout_steps": (0, 10 ** 9)}
     for k, v in overrides.items():
         if k not in fields:
             raise ValueError(f"make_vec_env: {name} has no field {k!r} (fields: {sorted(fields)})")
@@ -149,6 +150,9 @@ def check_overrides(cfg: Any, overrides: dict[str, Any]) -> None:
             continue  # arrays / nested settings: checked by the task itself
         if not ok:
             raise ValueError(f"make_vec_env: {name}.{k}: expected {want}, got {got}")
+        lo, hi = limits.get(k, (None, None))
+        if lo is not None and not lo <= v <= hi:
+            raise ValueError(f"make_vec_env: {name}.{k}: must be within [{lo}, {hi}], got {v!r}")
 
 
 def vector_entry_point(task_id: str, num_envs: int = 1, **kwargs: Any) -> BatchedVecEnv:

@@ -17,6 +17,7 @@ from sim.scene import SceneError
     ({"smoothing": 3}, r"smoothing: expected a string"),
     ({"scene": 1}, r"scene: expected a string"),
     ({"no_such_field": 1}, r"has no field 'no_such_field'"),
+    ({"substeps": 2 ** 62}, r"substeps: must be within \[1, 1000\]"),   # found by the fuzz: a hang
 ])
 def test_bad_overrides_name_the_field(kw, match):
     with pytest.raises(ValueError, match=match):
