@@ -86,3 +86,20 @@ def test_saved_mesh_scene_reloads_from_another_folder(wb, tmp_path):
     other = Workbench.from_path(path)
     assert [e.kind for e in other.obstacles][-1] == "mesh"
     np.testing.assert_allclose(other.obstacles[-1].position, (0.5, 0.0, 0.5))
+
+
+def test_scene_with_a_moved_capsule_saves_and_loads(tmp_path):
+    """The default scene has a capsule: saving it used to write ``np.float64(...)``, which no TOML reader loads."""
+    from sim import load_scene
+    from workbench.cli import default_scene
+
+    wb = Workbench.from_path(default_scene())
+    i = next(k for k, e in enumerate(wb.obstacles) if e.kind == "capsule")
+    wb.set_obstacle_pose(i, wb.obstacles[i].position + np.array([0.0, 0.05, 0.02]), wb.obstacles[i].wxyz)
+    path = wb.save_scene(tmp_path / "moved.toml")
+    assert "np." not in path.read_text()
+    spec = load_scene(path)
+    cap = spec.obstacles[i]
+    np.testing.assert_allclose(0.5 * (np.array(cap.start) + np.array(cap.end)), wb.obstacles[i].position, atol=1e-12)
+    other = Workbench.from_path(path)
+    assert [e.kind for e in other.obstacles] == [e.kind for e in wb.obstacles]
