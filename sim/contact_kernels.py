@@ -6,6 +6,10 @@ spheres/capsules, 0 for boxes and meshes); planes act per node with ``g = n.(x_k
 ``E(g) = k softplus(-K1 g)^2 / K1^2`` (K1 = 15/delta, one stable formula); gradient ``E' grad Delta``,
 Hessian ``E'' grad Delta grad Delta^T + E' hess Delta`` over the edge's two nodes (6 DOFs).
 
+Box faces: an edge whose two nodes both lie over the same face of a box acts per node like a plane (weights
+1/2 at nodes shared by two edges, 1 at the rod's ends) instead of through its closest point, which jumps
+between the edge's ends as a rod lying on the face tilts.
+
 Ownership (docs/physics.md §4.7 artefact 1): a pair whose closest rod point is the edge's end node is left
 to the next edge; a pair at the start node is skipped when the previous edge of the same obstacle is
 strictly closer. So each local minimum of the distance along the rod is counted once.
@@ -283,6 +287,28 @@ def _eval_edge(cd, e, o, a, b, r, reach, g6, H6, nhat, ws, stack, derivs=True):
 
 
 @njit(cache=True)
+def _box_face(cd, e, o, a, b):
+    """The box face that both end points of segment (a, b) lie over (outside the box, each projecting along the
+    face normal onto the face): returns (axis, side, d_a, d_b) with the nodes' distances to the face [m],
+    else (-1, 0.0, 0.0, 0.0)."""
+    P = (cd.p0[e, o, 0], cd.p0[e, o, 1], cd.p0[e, o, 2])
+    Rm = cd.rot[e, o]
+    al = _to_local(P, Rm, a)
+    bl = _to_local(P, Rm, b)
+    for i in range(3):
+        hi = cd.half[o, i]
+        for sg in (-1.0, 1.0):
+            if sg * al[i] > hi and sg * bl[i] > hi:
+                over = True
+                for m in range(3):
+                    if m != i and (abs(al[m]) > cd.half[o, m] or abs(bl[m]) > cd.half[o, m]):
+                        over = False
+                if over:
+                    return i, sg, sg * al[i] - hi, sg * bl[i] - hi
+    return -1, 0.0, 0.0, 0.0
+
+
+@njit(cache=True)
 def _row3(x, k):
     return (x[k, 0], x[k, 1], x[k, 2])
 
@@ -362,6 +388,56 @@ def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemb
             continue
         a = _row3(x, j)
         b = _row3(x, j + 1)
+        if kind[o] == BOX:
+            fi, sg, da, db = _box_face(cd, e, o, a, b)
+            if fi >= 0:
+                # both nodes over one face: the segment's closest point would jump between its ends as the edge
+                # tilts; act per node instead, like a plane (weight 1/2 at a node shared with the next or
+                # previous edge, 1 at the rod's ends), which is smooth as the rod slides across the face
+                n = (sg * rot[e, o, 0, fi], sg * rot[e, o, 1, fi], sg * rot[e, o, 2, fi])
+                prev_j = j
+                prev_o = o
+                prev_gap = db - r
+                for end in range(2):
+                    kk = j + end
+                    gap = (da if end == 0 else db) - r
+                    if gap >= delta:
+                        continue
+                    w = 1.0 if (end == 0 and j == 0) or (end == 1 and j == N - 2) else 0.5
+                    E, dE, d2E = imc_energy(gap, k, delta)
+                    energy += w * E
+                    dE *= w
+                    d2E *= w
+                    xk = _row3(x, kk)
+                    ff = (0.0, 0.0, 0.0)
+                    if do_fric:
+                        xp = _row3(x_prev, kk)
+                        v = ((xk[0] - xp[0]) / dt, (xk[1] - xp[1]) / dt, (xk[2] - xp[2]) / dt)
+                        ff = friction_block(v, v, float(end), n, -dE, d2E, mu_o, nu, dt, fr, Jf)
+                    if assemble:
+                        for i in range(3):
+                            grad[kk, i] += dE * n[i]
+                            for m in range(3):
+                                hess[j, 3 * end + i, 3 * end + m] += d2E * n[i] * n[m]
+                        if do_fric:
+                            for i in range(6):
+                                grad[j + i // 3, i % 3] += fr[i]
+                                for m in range(6):
+                                    hess[j, i, m] += Jf[i, m]
+                    if report:
+                        maxpen = max(maxpen, -gap)
+                        if rc < cap:
+                            out_edge[e, rc] = j
+                            out_obstacle[e, rc] = o
+                            for i in range(3):
+                                out_rod_point[e, rc, i] = xk[i]
+                                out_obstacle_point[e, rc, i] = xk[i] - (gap + r) * n[i]
+                                out_normal[e, rc, i] = n[i]
+                                out_friction_force[e, rc, i] = ff[i]
+                            out_normal_force[e, rc] = -dE
+                            out_gap[e, rc] = gap
+                            rc += 1
+                continue
         gap, s, q = _eval_edge(cd, e, o, a, b, r, r + delta, g6, H6, nhat, ws, stack)
         keep = gap < delta
         if keep and s >= 1.0 and j < N - 2 and c + 1 < nc and cand[e, c + 1, 0] == j + 1 \

@@ -106,14 +106,16 @@ def _rand_rot(rng):
 
 @pytest.mark.parametrize("kind", ["capsule", "box", "mesh"])
 def test_set_pose_rigid_motion_invariance(kind):
-    """Moving obstacle and rod by the same rigid motion leaves energy unchanged and rotates the gradient."""
+    """Moving obstacle and rod by the same rigid motion leaves energy unchanged and rotates the gradient.
+    (No node sits exactly on the edge of a box face's outline: there the box contact switches between its
+    per-node face form and the segment form, and round-off could pick either.)"""
     rng = np.random.default_rng(1)
     mesh = ROOT / "assets" / "meshes" / "unit_box.obj"
     spec = {"capsule": CapsuleSpec((0.0, -0.3, 0.0), (0.0, 0.3, 0.0), 0.1),
             "box": BoxSpec((0.0, 0.0, 0.0), (0.1, 0.3, 0.2)),
             "mesh": MeshSpec("unit_box.obj", str(mesh), (0.2, 0.6, 0.4))}[kind]
     obs, cd = make_set([spec], 4, envs=2)
-    x = np.array([[0.13, -0.1, -0.2], [0.151, -0.05, -0.05], [0.152, 0.0, 0.1], [0.17, 0.05, 0.25]])
+    x = np.array([[0.13, -0.1, -0.19], [0.151, -0.05, -0.05], [0.152, 0.0, 0.1], [0.17, 0.05, 0.25]])
     E0, g0, _ = accumulate(cd, x, e=0)
     assert E0 > 0
     q = _rand_rot(rng)
