@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+from sim.rotations import from_xyzw, quat_yaw
 
 from policies.sac import PolicyLoadError, load_policy
 
@@ -65,8 +66,7 @@ class EvalStep:
 
 
 def _quat_xyzw_to_yaw(q: np.ndarray) -> np.ndarray:
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return quat_yaw(from_xyzw(q))  # task observations carry scalar-last quaternions
 
 
 def layout_from_fields(fields) -> dict[str, Any]:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 _HERE = Path(__file__).resolve().parent
 _SOURCES = ["frames.py", "banded.py", "solve.py", "solve_params.py", "solve_3d.py", "solve_2d.py", "contact_kernels.py",
-            "geometry_distance.py", "energies/stretch.py", "energies/bend_twist.py", "energies/planar.py"]
+            "geometry_distance.py", "kinds.py", "energies/stretch.py", "energies/bend_twist.py", "energies/planar.py"]
 
 
 def _cache_dirs() -> list[Path]:

@@ -47,15 +47,11 @@ from .geometry_distance import (
     vlerp,
     vsub,
 )
+from .kinds import BOX, CAPSULE, MESH, PLANE, SPHERE
 
 __all__ = ["contact_broadphase", "contact_accumulate", "contact_report", "contact_min_gap", "imc_energy",
            "friction_block", "PLANE", "SPHERE", "CAPSULE", "BOX", "MESH"]
 
-PLANE = 0
-SPHERE = 1
-CAPSULE = 2
-BOX = 3
-MESH = 4
 
 
 @njit(cache=True)

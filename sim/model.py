@@ -12,6 +12,7 @@ from typing import Literal
 
 import numpy as np
 
+from .curvature import material_curvature
 from .frames import initial_reference_frames
 from .obstacles import ObstacleSet
 from .scene import SceneSpec
@@ -104,13 +105,7 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
     EI = E * math.pi * r ** 4 / 4.0
     GJ = G * Jp
     d1, t = initial_reference_frames(x)
-    kbar = np.zeros((N, 2))
-    for i in range(1, N - 1):
-        te, tf = t[i - 1], t[i]
-        kb = 2.0 * np.cross(te, tf) / (1.0 + te @ tf)
-        d2e, d2f = np.cross(te, d1[i - 1]), np.cross(tf, d1[i])
-        kbar[i, 0] = 0.5 * kb @ (d2e + d2f)
-        kbar[i, 1] = -0.5 * kb @ (d1[i - 1] + d1[i])
+    kbar = material_curvature(x, d1, np.cross(t, d1))  # rest shape: material = reference frame (θ = 0)
     g = np.asarray(sim.gravity, dtype=np.float64)
     locked = set(int(j) for j in locked_edges)
     for j in locked:

@@ -31,6 +31,8 @@ from typing import Any
 import numpy as np
 
 from .contact_mesh import MeshError, load_mesh_triangles
+from .kinds import KIND_CODES
+from .rotations import quat_to_matrix  # noqa: F401  (re-exported: sim.obstacles.quat_to_matrix)
 from .tomlio import SceneError, check_unknown, format_value, take_bool, take_float, take_str, take_vec3
 from .validate import unit_vector
 
@@ -40,7 +42,6 @@ __all__ = ["ObstacleSpec", "PlaneSpec", "SphereSpec", "CapsuleSpec", "BoxSpec", 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
 _IDQ: Quat = (1.0, 0.0, 0.0, 0.0)
-KIND_CODES = {"plane": 0, "sphere": 1, "capsule": 2, "box": 3, "mesh": 4}
 
 
 @dataclass(frozen=True)
@@ -269,24 +270,6 @@ def dump_contact(contact: ContactSpec) -> list[str]:
     if contact.max_penetration is not None:  # omitted = 4 * delta (follows delta)
         lines.append(f"max_penetration = {format_value(float(contact.max_penetration))}")
     return lines
-
-
-def quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """Unit quaternions (..., 4) wxyz -> rotation matrices (..., 3, 3) (normalised here)."""
-    q = np.asarray(q, dtype=np.float64)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    R = np.empty(q.shape[:-1] + (3, 3))
-    R[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    R[..., 0, 1] = 2 * (x * y - w * z)
-    R[..., 0, 2] = 2 * (x * z + w * y)
-    R[..., 1, 0] = 2 * (x * y + w * z)
-    R[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    R[..., 1, 2] = 2 * (y * z - w * x)
-    R[..., 2, 0] = 2 * (x * z - w * y)
-    R[..., 2, 1] = 2 * (y * z + w * x)
-    R[..., 2, 2] = 1 - 2 * (x * x + y * y)
-    return R
 
 
 from .contact_set import ObstacleSet  # noqa: E402  (runtime arrays live in their own module)

@@ -9,6 +9,10 @@ import dataclasses
 
 import numpy as np
 
+from sim.curvature import curvature_binormal
+from sim.rotations import matrix_to_quat as quat_from_matrix  # noqa: F401  (re-exported)
+from sim.rotations import quat_z_to  # noqa: F401  (re-exported)
+
 
 @dataclasses.dataclass
 class Frame:
@@ -50,56 +54,12 @@ class Frame:
 
 def integrated_curvature(node_pos: np.ndarray) -> np.ndarray:
     """|κb_i| = 2 tan(φ_i/2) at every node (ends 0). node_pos (..., N, 3) -> (..., N)."""
-    e = np.diff(node_pos, axis=-2)
-    t = e / np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-12)
-    a, b = t[..., :-1, :], t[..., 1:, :]
-    kb = 2.0 * np.cross(a, b) / np.maximum(1.0 + np.sum(a * b, axis=-1), 1e-9)[..., None]
-    out = np.zeros(node_pos.shape[:-1])
-    out[..., 1:-1] = np.linalg.norm(kb, axis=-1)
-    return out
+    return np.linalg.norm(curvature_binormal(node_pos), axis=-1)
 
 
 def edge_strain(node_pos: np.ndarray, rest_length: np.ndarray) -> np.ndarray:
     """Axial strain per edge: (..., N, 3), (N-1,) -> (..., N-1)."""
     return np.linalg.norm(np.diff(node_pos, axis=-2), axis=-1) / rest_length - 1.0
-
-
-def quat_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) -> unit quaternions (..., 4) in wxyz order."""
-    R = np.asarray(R, dtype=np.float64)
-    m00, m11, m22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
-    tr = m00 + m11 + m22
-    q = np.empty(R.shape[:-2] + (4,))
-    c0 = tr > 0
-    s = np.sqrt(np.maximum(tr + 1.0, 1e-12)) * 2
-    q0 = np.stack([0.25 * s, (R[..., 2, 1] - R[..., 1, 2]) / s, (R[..., 0, 2] - R[..., 2, 0]) / s,
-                   (R[..., 1, 0] - R[..., 0, 1]) / s], -1)
-    s1 = np.sqrt(np.maximum(1.0 + m00 - m11 - m22, 1e-12)) * 2
-    q1 = np.stack([(R[..., 2, 1] - R[..., 1, 2]) / s1, 0.25 * s1, (R[..., 0, 1] + R[..., 1, 0]) / s1,
-                   (R[..., 0, 2] + R[..., 2, 0]) / s1], -1)
-    s2 = np.sqrt(np.maximum(1.0 + m11 - m00 - m22, 1e-12)) * 2
-    q2 = np.stack([(R[..., 0, 2] - R[..., 2, 0]) / s2, (R[..., 0, 1] + R[..., 1, 0]) / s2, 0.25 * s2,
-                   (R[..., 1, 2] + R[..., 2, 1]) / s2], -1)
-    s3 = np.sqrt(np.maximum(1.0 + m22 - m00 - m11, 1e-12)) * 2
-    q3 = np.stack([(R[..., 1, 0] - R[..., 0, 1]) / s3, (R[..., 0, 2] + R[..., 2, 0]) / s3,
-                   (R[..., 1, 2] + R[..., 2, 1]) / s3, 0.25 * s3], -1)
-    c1 = ~c0 & (m00 > m11) & (m00 > m22)
-    c2 = ~c0 & ~c1 & (m11 > m22)
-    q[...] = q3
-    q[c2] = q2[c2]
-    q[c1] = q1[c1]
-    q[c0] = q0[c0]
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
-
-
-def quat_z_to(direction: np.ndarray) -> np.ndarray:
-    """Shortest rotations taking +z to each unit ``direction`` (..., 3) -> wxyz (..., 4)."""
-    d = direction / np.maximum(np.linalg.norm(direction, axis=-1, keepdims=True), 1e-12)
-    w = 1.0 + d[..., 2]
-    q = np.stack([w, -d[..., 1], d[..., 0], np.zeros_like(w)], -1)
-    flip = w < 1e-9  # d == -z: rotate pi about x
-    q[flip] = np.array([0.0, 1.0, 0.0, 0.0])
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
 
 def colormap(values: np.ndarray, vmax: float) -> np.ndarray:

@@ -12,6 +12,8 @@ from typing import Literal
 
 import numpy as np
 
+from sim.rotations import quat_to_matrix
+
 ObstacleKind = Literal["sphere", "capsule", "box", "mesh", "plane"]
 KINDS: tuple[str, ...] = ("sphere", "capsule", "box", "mesh", "plane")
 PLANE_DRAW_SIZE = 2.4  # [m] side of the square drawn for a plane
@@ -105,10 +107,7 @@ def dump(spec, path: Path) -> Path:
 
 # ---------------------------------------------------------------------- sim-specific parts
 def _rotm(wxyz) -> np.ndarray:
-    w, x, y, z = np.asarray(wxyz, dtype=np.float64) / np.linalg.norm(wxyz)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return quat_to_matrix(np.asarray(wxyz, dtype=np.float64))
 
 
 def _quat(R: np.ndarray) -> np.ndarray:

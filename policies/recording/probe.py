@@ -26,6 +26,8 @@ from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
+from sim.curvature import material_curvature
+from sim.rotations import quat_to_matrix, quat_z_to, to_xyzw
 
 from .schema import StaticScene
 
@@ -51,14 +53,7 @@ def integrated_curvature(pos: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> np.
     pos (..., N, 3) [m]; m1, m2 (..., N-1, 3) material directors. κb_i = 2 t_{i-1}×t_i / (1 + t_{i-1}·t_i),
     κ1_i = ½ κb_i·(m2_{i-1} + m2_i), κ2_i = −½ κb_i·(m1_{i-1} + m1_i)  (docs/tasks.md §1.5).
     """
-    e = np.diff(pos, axis=-2)
-    t = e / np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-300)
-    ta, tb = t[..., :-1, :], t[..., 1:, :]
-    kb = 2.0 * np.cross(ta, tb) / np.maximum(1.0 + np.sum(ta * tb, axis=-1, keepdims=True), 1e-12)
-    out = np.zeros(pos.shape[:-1] + (2,))
-    out[..., 1:-1, 0] = 0.5 * np.sum(kb * (m2[..., :-1, :] + m2[..., 1:, :]), axis=-1)
-    out[..., 1:-1, 1] = -0.5 * np.sum(kb * (m1[..., :-1, :] + m1[..., 1:, :]), axis=-1)
-    return out
+    return material_curvature(pos, m1, m2)
 
 
 def integrated_twist(theta: np.ndarray, ref_twist: np.ndarray) -> np.ndarray:
@@ -87,13 +82,6 @@ def task_target(core: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
     return pos, quat
 
 
-def _quat_wxyz_to_matrix(q) -> np.ndarray:
-    w, x, y, z = np.asarray(q, np.float64) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 def scene_from_specs(specs: Any, *, rod_radius: float = 0.05, planar: bool = False,
                      plane_half_size: float = 2.0) -> StaticScene:
     """StaticScene from ``sim.obstacles`` specs (capsules, spheres, boxes, meshes; a plane is shown as a
@@ -108,21 +96,19 @@ def scene_from_specs(specs: Any, *, rod_radius: float = 0.05, planar: bool = Fal
             sc.append(o.center)
             sr.append(o.radius)
         elif kind == "box":
-            w, x, y, z = o.orientation
             bc.append(o.position)
             bh.append(o.half_extents)
-            bq.append([x, y, z, w])
+            bq.append(to_xyzw(np.asarray(o.orientation, np.float64)))  # recordings store x y z w
         elif kind == "plane":
             n = np.asarray(o.normal, np.float64)
             n = n / np.linalg.norm(n)
-            from .recorder import _quat_z_to
             bc.append(np.asarray(o.point, np.float64) - 1e-3 * n)
             bh.append([plane_half_size, plane_half_size, 1e-3])
-            bq.append(_quat_z_to(n[None])[0])
+            bq.append(to_xyzw(quat_z_to(n)))
         elif kind == "mesh":
             from sim.contact_mesh import load_mesh_triangles
             tri = np.asarray(load_mesh_triangles(o.path, o.scale), np.float64).reshape(-1, 3)
-            v = tri @ _quat_wxyz_to_matrix(o.orientation).T + np.asarray(o.position, np.float64)
+            v = tri @ quat_to_matrix(o.orientation).T + np.asarray(o.position, np.float64)
             meshes.append((v, np.arange(len(v)).reshape(-1, 3)))
 
     def arr(a, shape):

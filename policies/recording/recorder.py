@@ -35,6 +35,7 @@ from typing import Any, Literal
 
 import numpy as np
 import rerun as rr
+from sim.rotations import quat_z_to, to_xyzw
 
 from . import schema as S
 from .schema import RecordingError, StaticScene
@@ -86,18 +87,8 @@ def _vec(a: Any, name: str, shape: tuple[int | None, ...], dtype=np.float32) -> 
 
 
 def _quat_z_to(d: np.ndarray) -> np.ndarray:
-    """Unit quaternions (K, 4) x y z w rotating +z onto the unit vectors d (K, 3)."""
-    z = np.array([0.0, 0.0, 1.0])
-    q = np.empty((len(d), 4))
-    for i, v in enumerate(d):
-        c = float(np.dot(z, v))
-        if c < -1 + 1e-12:
-            q[i] = (1.0, 0.0, 0.0, 0.0)              # 180 deg about x
-            continue
-        ax = np.cross(z, v)
-        q[i, :3], q[i, 3] = ax, 1.0 + c
-        q[i] /= np.linalg.norm(q[i])
-    return q
+    """Unit quaternions (K, 4) x y z w (rerun's order) rotating +z onto the unit vectors d (K, 3)."""
+    return to_xyzw(quat_z_to(d))
 
 
 def _vertex_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:

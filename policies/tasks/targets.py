@@ -10,6 +10,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
+from sim.rotations import matrix_to_quat, to_xyzw, yaw_quat
 
 __all__ = ["FollowTargetMotion", "sample_ik_targets", "matrix_to_quat_xyzw", "yaw_quat_xyzw"]
 
@@ -78,11 +79,7 @@ class FollowTargetMotion:
 
 def yaw_quat_xyzw(yaw: np.ndarray) -> np.ndarray:
     """(B,) yaw [rad] about world z -> (B, 4) scalar-last quaternion (0, 0, sin(y/2), cos(y/2))."""
-    yaw = np.asarray(yaw, np.float64)
-    q = np.zeros(yaw.shape + (4,))
-    q[..., 2] = np.sin(0.5 * yaw)
-    q[..., 3] = np.cos(0.5 * yaw)
-    return q
+    return to_xyzw(yaw_quat(yaw))
 
 
 def sample_ik_targets(rng: np.random.Generator, *, lo: Sequence[float], hi: Sequence[float],
@@ -98,33 +95,6 @@ def sample_ik_targets(rng: np.random.Generator, *, lo: Sequence[float], hi: Sequ
 
 
 def matrix_to_quat_xyzw(R: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) -> scalar-last quaternions (..., 4), SciPy's convention.
-
-    Same branch rule as ``scipy.spatial.transform.Rotation.from_matrix`` (largest of the three diagonal
-    entries and the trace decides the pivot; sign not canonicalised), elementwise so results do not
-    depend on the batch size.
-    """
-    R = np.asarray(R, np.float64)
-    tr = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
-    dec = np.stack([R[..., 0, 0], R[..., 1, 1], R[..., 2, 2], tr], axis=-1)
-    choice = np.argmax(dec, axis=-1)
-    q = np.empty(R.shape[:-2] + (4,))
-    # trace branch
-    t = choice == 3
-    q[..., 0] = np.where(t, R[..., 2, 1] - R[..., 1, 2], 0.0)
-    q[..., 1] = np.where(t, R[..., 0, 2] - R[..., 2, 0], 0.0)
-    q[..., 2] = np.where(t, R[..., 1, 0] - R[..., 0, 1], 0.0)
-    q[..., 3] = np.where(t, 1.0 + tr, 0.0)
-    for i in range(3):
-        j, k = (i + 1) % 3, (i + 2) % 3
-        m = choice == i
-        qi = 1.0 - tr + 2.0 * R[..., i, i]
-        qj = R[..., j, i] + R[..., i, j]
-        qk = R[..., k, i] + R[..., i, k]
-        qw = R[..., k, j] - R[..., j, k]
-        q[..., i] = np.where(m, qi, q[..., i])
-        q[..., j] = np.where(m, qj, q[..., j])
-        q[..., k] = np.where(m, qk, q[..., k])
-        q[..., 3] = np.where(m, qw, q[..., 3])
-    n = np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
-    return q / np.where(n > 0, n, 1.0)
+    """Rotation matrices (..., 3, 3) -> scalar-last quaternions (..., 4), SciPy's convention
+    (:func:`sim.rotations.matrix_to_quat`, reordered)."""
+    return to_xyzw(matrix_to_quat(R))

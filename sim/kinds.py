@@ -1,0 +1,12 @@
+"""Obstacle kind codes: the one definition, read by the scene specs (:mod:`sim.obstacles`), the runtime arrays
+(:mod:`sim.contact_set`) and the numba contact kernels (:mod:`sim.contact_kernels`, as compile-time constants)."""
+from __future__ import annotations
+
+__all__ = ["PLANE", "SPHERE", "CAPSULE", "BOX", "MESH", "KIND_CODES"]
+
+PLANE = 0
+SPHERE = 1
+CAPSULE = 2
+BOX = 3
+MESH = 4
+KIND_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "box": BOX, "mesh": MESH}
