@@ -34,12 +34,15 @@ class WorkbenchApp:
         env_map: viser's HDRI lighting (off in tests: SwiftShader stalls on it).
         speed: initial real-time factor (``float('inf')`` = as fast as possible).
         recordings_dir / scenes_dir / max_upload_mb: the folders the page may use (``workbench.files``).
+        wait_for_browser: stay paused at frame 0 until the first page connects (:meth:`start`).
     """
 
     def __init__(self, wb: Workbench, *, host: str = "127.0.0.1", port: int = 8080,
                  env_map: bool = True, speed: float = 1.0, recordings_dir: str | Path | None = None,
-                 scenes_dir: str | Path | None = None, max_upload_mb: float = 50.0):
+                 scenes_dir: str | Path | None = None, max_upload_mb: float = 50.0, wait_for_browser: bool = True):
         self.wb = wb
+        self.wait_for_browser = wait_for_browser
+        self.waiting_for_browser = False
         self.files = Folders.create(scenes_dir=scenes_dir, recordings_dir=recordings_dir or REPO_ROOT / "recordings",
                                     max_upload_mb=max_upload_mb)
         self.recordings_dir = self.files.recordings
@@ -65,13 +68,15 @@ class WorkbenchApp:
 
     def _build_optional_panels(self) -> None:
         from workbench.gui_obstacles import ObstaclesPanel
+        from workbench.gui_plots import PlotsPanel
         from workbench.gui_policy import PolicyPanel
         from workbench.gui_replay import ReplayPanel
 
         self.obstacles = ObstaclesPanel(self)
         self.policy = PolicyPanel(self)
         self.replay = ReplayPanel(self)
-        self.panels += [self.obstacles, self.policy, self.replay]
+        self.plots = PlotsPanel(self)
+        self.panels += [self.obstacles, self.policy, self.replay, self.plots]
 
     @property
     def port(self) -> int:
@@ -83,9 +88,24 @@ class WorkbenchApp:
         return self.guard.url(self.port)
 
     def start(self) -> "WorkbenchApp":
+        """Start the sim thread. With ``wait_for_browser`` (the default) the session stays paused at frame 0
+        until the first page connects, so the first view is the start of the session."""
+        if self.wait_for_browser and not self.server.get_clients():
+            self.waiting_for_browser = True
+            self.wb.set_playing(False)
+            self.controls.set_quiet(self.controls.playing, False)
+            self.server.on_client_connect(self._first_client)
         self._render(self.wb.frame())
         self.thread.start()
         return self
+
+    def _first_client(self, _client) -> None:
+        if not self.waiting_for_browser:
+            return
+        self.waiting_for_browser = False
+        self.wb.set_playing(True)
+        self.controls.set_quiet(self.controls.playing, True)
+        self.request_render()
 
     def stop(self) -> None:
         self.thread.stop()

@@ -218,6 +218,8 @@ class Workbench:
             self.mode = "teleop"
             self.live = getattr(self, "_teleop_live", self.live)
             self.obstacles = obst.edits_from_spec(self.live.base_spec)
+            self.frame_index = 0
+            self._last_scalars = {}
             self.history.clear()
             self._push_snapshot()
         for cb in list(self.on_scene_changed):

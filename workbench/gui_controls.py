@@ -175,8 +175,16 @@ class ControlsPanel:
         th = app.thread
         fr = app.view.last_frame
         tip = fr.tip if fr is not None else np.zeros(3)
-        lines = [f"**{wb.mode}**{' (hand)' if wb.hand_control else ''} · frame {wb.frame_index}"
-                 f" · t = {fr.time if fr else 0.0:.2f} s",
+        rp = wb.replay if wb.mode == "replay" else None
+        if rp is not None:
+            head = (f"**replay** · episode {rp.episode_index} · frame {rp.index} / {rp.length - 1}"
+                    f" · t = {fr.time if fr else 0.0:.2f} s{'' if rp.playing else ' · paused'}")
+        else:
+            head = (f"**{wb.mode}**{' (hand)' if wb.hand_control else ''} · frame {wb.frame_index}"
+                    f" · t = {fr.time if fr else 0.0:.2f} s")
+            if app.waiting_for_browser:
+                head += " · paused until a browser connects"
+        lines = [head,
                  f"real-time factor **{th.rtf:.2f}** · step {th.step_ms:.1f} ms · {th.fps:.0f} frames/s",
                  f"tip ({tip[0]:+.3f}, {tip[1]:+.3f}, {tip[2]:+.3f}) m"]
         if fr is not None and fr.scalars:

@@ -72,9 +72,24 @@ class PolicyPanel:
             policy = str(PRETRAINED / policy)
         session = PolicySession(task, policy)
         self.app.wb.start_policy(session)
+        self.show_choice(session.task, policy if policy in NO_POLICY else Path(policy).name)
         self.take_btn.label = "Take over"
         self.app.controls.sync_sliders()
         self.app.request_render()
+
+    def show_choice(self, task: str, policy: str) -> None:
+        """The Task and Policy file dropdowns show the running task and policy (a policy file outside the
+        shipped list is shown as its name but cannot be started from the page)."""
+        ok = self.app.checks
+        if task in tuple(self.task.options) and self.task.value != task:
+            self.task.value = task  # its callback lists that task's policies
+        opts = self._policies()
+        if policy not in opts:
+            opts = [*opts, policy]
+        self.policy.options = opts
+        self.policy.value = policy
+        ok.accept(self.task)
+        ok.accept(self.policy)
 
     def _say(self, text: str) -> None:
         self.reward.content = text
@@ -123,6 +138,7 @@ class PolicyPanel:
         def _(_e) -> None:
             wb.stop_policy()
             self.take_btn.label = "Take over"
+            self.reward.content = ""
             app.controls.sync_sliders()
             app.request_render()
 

@@ -1,12 +1,9 @@
-"""GUI: open a recorded episode (.rrd), scrub its timeline, play at a chosen speed; plots
-(reward, tip error, contact force, Newton iterations) of the live session or the recording."""
+"""GUI: open a recorded episode (.rrd), scrub its timeline, play at a chosen speed (its plots:
+``workbench.gui_plots``)."""
 from __future__ import annotations
 
 from pathlib import Path
 from typing import TYPE_CHECKING
-
-import numpy as np
-from viser import uplot
 
 from workbench.files import FileAccessError, page_error
 from workbench.replay import ReplaySession, list_recordings
@@ -14,10 +11,6 @@ from workbench.replay import ReplaySession, list_recordings
 if TYPE_CHECKING:
     from workbench.app import WorkbenchApp
 
-PLOTS = (("reward", "reward", "reward"), ("tip_error", "tip error [m]", "tip_error"),
-         ("contact_force", "max contact force [N]", "contact/max_normal_force"),
-         ("newton_iters", "Newton iterations", "solver/newton_iters"))
-LIVE_WINDOW = 400  # frames shown in the live plots
 NONE = "(no recordings)"
 
 
@@ -35,13 +28,6 @@ class ReplayPanel:
             self.speed = gui.add_dropdown("Replay speed", ("0.25", "0.5", "1", "2", "4"), initial_value="1")
             self.close_btn = gui.add_button("Close recording")
             self.msg = gui.add_markdown("")
-        with gui.add_folder("Plots", expand_by_default=False):
-            self.plots = {}
-            for key, title, _rec in PLOTS:
-                self.plots[key] = gui.add_uplot(
-                    data=(np.zeros(2), np.zeros(2)),
-                    series=(uplot.Series(label="time [s]"), uplot.Series(label=key, stroke="#d2553c", width=2)),
-                    scales={"x": {"time": False}}, title=title, aspect=2.2)
         self._scrubbing = False
         for h in (self.file, self.episode, self.timeline, self.speed):
             app.checks.track(h)
@@ -110,7 +96,7 @@ class ReplayPanel:
         self.msg.content = (f"`{s.path.name if s.path else ''}` · episode {s.episode_index} · {s.length} frames  \n"
                             f"task {meta.get('task', '?')} · policy {meta.get('policy', '?')}")
         self.app.view.sync_obstacles(s.obstacles, None)
-        self._plot_recording(s)
+        self._plot(force=True)
         self.app.request_render()
 
     def _wire(self) -> None:
@@ -135,6 +121,7 @@ class ReplayPanel:
                 return
             with wb.lock:
                 wb.replay.seek(int(self.timeline.value))
+            self._plot()
             app.request_render()
 
         @self.play.on_update
@@ -152,18 +139,15 @@ class ReplayPanel:
         @self.close_btn.on_click
         def _(_e) -> None:
             wb.close_replay()
+            self.play.value = False
             self.msg.content = ""
             app.view.sync_obstacles(wb.obstacles, app._on_gizmo)
             app.request_render()
 
-    # ------------------------------------------------------------------ plots
-    def _plot_recording(self, s: ReplaySession) -> None:
-        for key, _title, rec in PLOTS:
-            ser = s.series(rec)
-            if ser is None:
-                ser = (np.zeros(2), np.full(2, np.nan))
-            t, v = ser
-            self.plots[key].data = (np.asarray(t, np.float64), np.asarray(v, np.float64))
+    def _plot(self, force: bool = False) -> None:
+        plots, s = getattr(self.app, "plots", None), self.app.wb.replay
+        if plots is not None and s is not None:
+            plots.show_replay(s, force=force)
 
     def update_status(self) -> None:
         wb = self.app.wb
@@ -178,13 +162,3 @@ class ReplayPanel:
                 self.app.checks.accept(self.timeline)
             if not s.playing and self.play.value:
                 self.play.value = False
-            return
-        with wb.lock:
-            items = wb.history._items[-LIVE_WINDOW:]
-            t = np.array([it.time for it in items], dtype=np.float64)
-            cols = {key: np.array([it.scalars.get(key, np.nan) for it in items], dtype=np.float64)
-                    for key, _t, _r in PLOTS}
-        if len(t) < 2:
-            return
-        for key, _title, _rec in PLOTS:
-            self.plots[key].data = (t, cols[key])

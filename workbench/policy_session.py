@@ -160,6 +160,9 @@ class PolicySession:
         d = extra.get("tip_distance")
         if d is not None:
             sc["tip_error"] = float(np.asarray(d)[0])
+        o = extra.get("orientation_distance")
+        if o is not None:
+            sc["ori_error"] = float(np.asarray(o)[0])
         self.scalars = sc
         return dict(sc)
 

@@ -15,7 +15,7 @@ import numpy as np
 from workbench.frame import Frame
 from workbench.obstacles import ObstacleEdit, mesh_for_edit
 
-SCALAR_NAMES = {"reward": "reward", "tip_error": "tip_error", "newton_iters": "solver/newton_iters",
+SCALAR_NAMES = {"reward": "reward", "tip_error": "tip_error", "ori_error": "ori_error", "newton_iters": "solver/newton_iters",
                 "contact_force": "contact/max_normal_force", "max_penetration": "contact/max_penetration"}
 
 

@@ -1,0 +1,53 @@
+"""Plot layout (workbench.plots): every series kept, episodes split, fixed y range, timeline cursor."""
+from __future__ import annotations
+
+import numpy as np
+
+from workbench.plots import episode_numbers, layout, live_name
+
+
+def test_leading_nan_series_kept_with_finite_range():
+    x = np.arange(6.0)
+    vals = {"reward": np.array([np.nan, -1.0, -0.5, -0.2, -0.1, 0.0]),
+            "solver/newton_iters": np.array([np.nan, np.nan, 3, 4, 2, 3.0]),
+            "energy/bend": np.linspace(0, 1, 6), "energy/kinetic": np.linspace(1, 0, 6),
+            "ori_error": np.linspace(0.5, 0.1, 6), "never": np.full(6, np.nan)}
+    plots = {p.key: p for p in layout(x, vals)}
+    assert set(plots) == {"reward", "solver/newton_iters", "energy", "ori_error"}  # all-NaN series left out
+    assert plots["energy"].labels == ("time [s]", "bend", "kinetic")
+    for p in plots.values():
+        lo, hi = p.y
+        assert np.isfinite([lo, hi]).all() and lo < hi
+        for col in p.data[1:]:
+            fin = col[np.isfinite(col)]
+            assert fin.size and lo <= fin.min() and fin.max() <= hi
+
+
+def test_episodes_split_into_current_and_previous_series():
+    t = np.array([0, 1, 2, 3, 0, 1, 2, 0, 1.0])  # three episodes: only the last two are shown
+    x = np.arange(len(t)) * 0.1
+    ep = episode_numbers(t)
+    assert ep.tolist() == [0, 0, 0, 0, 1, 1, 1, 2, 2]
+    (p,) = layout(x, {"reward": np.arange(len(t), dtype=float)}, episode=ep)
+    assert p.labels == ("time [s]", "reward", "reward (prev. episode)")
+    xs, cur, prev = p.data
+    assert np.allclose(xs, x[4:])
+    assert np.isfinite(cur).tolist() == [False] * 3 + [True] * 2
+    assert np.isfinite(prev).tolist() == [True] * 3 + [False] * 2
+    assert p.dashed == (False, False, True)
+
+
+def test_cursor_is_a_vertical_line_at_the_timeline_time():
+    x = np.linspace(0, 1, 11)
+    (p,) = layout(x, {"tip_error": np.linspace(0.3, 0.1, 11)}, cursor=0.45)
+    xs, v, line = p.data
+    assert p.labels[-1] == "timeline"
+    k = np.nonzero(np.isfinite(line))[0]
+    assert len(k) == 2 and np.allclose(xs[k], 0.45) and np.allclose(line[k], p.y)
+    assert np.all(np.diff(xs) >= 0) and not np.isfinite(v[k]).any()
+
+
+def test_live_names():
+    assert live_name("r_distance") == "reward_terms/distance"
+    assert live_name("contact_force") == "contact/max_normal_force"
+    assert live_name("episode_step") is None and live_name("return") is None

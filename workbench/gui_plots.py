@@ -1,0 +1,106 @@
+"""GUI: time-series plots (uPlot) of the live session or of the open recording (``workbench.plots`` lays them out).
+
+Live: every scalar of the last ``LIVE_WINDOW`` frames (reward and its terms, tip/orientation error, contact force,
+Newton iterations, ...), the episode before the last reset dashed, never joined to the current one. Replay: every
+scalar recorded in the episode, with a vertical cursor at the timeline position.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from viser import uplot
+
+from workbench.plots import Plot, layout, live_series
+
+if TYPE_CHECKING:
+    from workbench.app import WorkbenchApp
+
+LIVE_WINDOW = 400  # frames shown in the live plots
+
+
+class PlotsPanel:
+    def __init__(self, app: "WorkbenchApp", container=None):
+        self.app = app
+        gui = app.server.gui
+        self.folder = container if container is not None else gui.add_folder("Plots", expand_by_default=False)
+        self.handles: dict[str, object] = {}
+        self._sig: dict[str, tuple] = {}
+        self._range: dict[str, tuple[float, float]] = {}
+        self._replay_key: tuple | None = None
+        self.shown: list[Plot] = []  # what the page shows now (tests read it)
+
+    # ------------------------------------------------------------------ drawing
+    def show(self, plots: list[Plot]) -> None:
+        keys = [p.key for p in plots]
+        for k in list(self.handles):
+            if k not in keys:
+                self._drop(k)
+        for i, p in enumerate(plots):
+            h = self.handles.get(p.key)
+            if h is not None and self._sig[p.key] != (p.signature, i):
+                self._drop(p.key)
+                h = None
+            if h is None:
+                self._create(p, i)
+                continue
+            lo, hi = self._range[p.key]
+            if p.y[0] < lo or p.y[1] > hi or (hi - lo) > 4.0 * (p.y[1] - p.y[0]):
+                self._range[p.key] = p.y
+                h.scales = self._scales(p.y)
+            h.data = p.data
+        self.shown = plots
+
+    def _drop(self, key: str) -> None:
+        self.handles.pop(key).remove()
+        self._sig.pop(key, None)
+        self._range.pop(key, None)
+
+    @staticmethod
+    def _scales(y: tuple[float, float]) -> dict:
+        # a fixed y range: uPlot's own range is NaN when a series starts with NaN (see workbench.plots)
+        return {"x": {"time": False}, "y": {"auto": False, "range": [float(y[0]), float(y[1])]}}
+
+    def _create(self, p: Plot, order: int) -> None:
+        series = [uplot.Series(label=p.labels[0])]
+        for label, color, dashed in zip(p.labels[1:], p.colors[1:], p.dashed[1:]):
+            s = uplot.Series(label=label, stroke=color, width=1.5 if label == "timeline" else 2)
+            if dashed:
+                s["dash"] = [6, 4]
+            series.append(s)
+        with self.folder:
+            self.handles[p.key] = self.app.server.gui.add_uplot(
+                data=p.data, series=tuple(series), scales=self._scales(p.y), title=p.title, aspect=2.2,
+                order=1000.0 + order)
+        self._sig[p.key] = (p.signature, order)
+        self._range[p.key] = p.y
+
+    # ------------------------------------------------------------------ sources
+    def show_replay(self, session, *, force: bool = False) -> None:
+        """Every scalar of the open episode, cursor at the timeline position."""
+        key = (id(session), session.episode_index, session.index)
+        if not force and key == self._replay_key:
+            return
+        self._replay_key = key
+        ep = session.ep
+        t = np.asarray(ep.sim_time, dtype=np.float64)
+        vals = {name: np.asarray(v, dtype=np.float64) for name, v in ep.scalars.items()}
+        self.show(layout(t, vals, cursor=float(t[session.index]) if len(t) else None))
+
+    def update_live(self) -> None:
+        wb = self.app.wb
+        with wb.lock:
+            items = wb.history._items[-LIVE_WINDOW:]
+            dt = float(wb.live.dt)
+        if len(items) < 2:
+            return
+        x, episode, vals = live_series(items, dt)
+        self.show(layout(x, vals, episode=episode, x_label="session time [s]"))
+
+    def update_status(self) -> None:
+        wb = self.app.wb
+        if wb.mode == "replay" and wb.replay is not None:
+            self.show_replay(wb.replay)
+        else:
+            self._replay_key = None
+            self.update_live()

@@ -1,0 +1,181 @@
+"""Time-series plots of the workbench: which scalars go into which plot, and the arrays handed to uPlot.
+
+Pure numpy (no viser): ``workbench.gui_plots`` draws what :func:`layout` returns.
+
+Facts about viser's uPlot client that shape the arrays (checked in headless Chromium):
+
+* data arrive as float arrays, so a gap cannot be sent as ``null``. A NaN sample is skipped by the line
+  (the canvas ignores it) but does not break it: the line joins the samples on both sides.
+* uPlot's automatic y range starts from the first sample of a series: a leading NaN makes the range NaN and the
+  whole plot stays empty. Every plot therefore gets a fixed y range computed here (:func:`y_range`).
+
+Episode resets (sim time going back) therefore never join: the samples of the current episode and of the one
+before go into two different series (the previous one dashed); older episodes are left out of the window.
+A replay's timeline cursor is a vertical line: two extra samples at the cursor time, NaN in every other series.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+#: live scalar key (``Frame.scalars``) -> recorded scalar name (docs/architecture.md: recording schema)
+LIVE_NAMES = {"reward": "reward", "tip_error": "tip_error", "ori_error": "ori_error",
+              "newton_iters": "solver/newton_iters", "contact_force": "contact/max_normal_force",
+              "max_penetration": "contact/max_penetration"}
+COLORS = ("#d2553c", "#3c78d2", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf")
+CURSOR_COLOR = "#222222"
+_ORDER = ("reward", "tip_error", "ori_error", "contact/max_normal_force", "contact/max_penetration", "contact/count",
+          "solver/newton_iters", "solver/residual", "energy", "solver/wall_time")
+
+
+def live_name(key: str) -> str | None:
+    """Recorded name of a live scalar (``r_<term>`` -> ``reward_terms/<term>``); None for bookkeeping values."""
+    if key.startswith("r_"):
+        return f"reward_terms/{key[2:]}"
+    return LIVE_NAMES.get(key)
+
+
+def group_of(name: str) -> tuple[str, str]:
+    """(plot key, plot title with unit) of a recorded scalar."""
+    if name == "reward" or name.startswith("reward_terms/"):
+        return "reward", "reward and its terms"
+    if name.startswith("energy/"):
+        return "energy", "energies [J]"
+    if name in ("solver/newton_iters", "solver/newton_iters_control", "solver/substeps", "solver/converged"):
+        return "solver/newton_iters", "Newton iterations / substeps"
+    titles = {"tip_error": "tip error [m]", "ori_error": "orientation error 1 − (q·q*)² [-]",
+              "contact/max_normal_force": "max contact force [N]", "contact/max_penetration": "max penetration [m]",
+              "contact/count": "contacts [-]", "solver/residual": "Newton residual [-]",
+              "solver/wall_time": "step wall time [s]"}
+    return name, titles.get(name, name)
+
+
+def short_label(name: str) -> str:
+    return name.split("/", 1)[1] if "/" in name else name
+
+
+def y_range(arrays) -> tuple[float, float]:
+    """A y range holding every finite value (5 % margin; a flat or empty series gets a unit-sized range)."""
+    vals = [np.asarray(a, np.float64) for a in arrays]
+    fin = np.concatenate([v[np.isfinite(v)] for v in vals]) if vals else np.zeros(0)
+    if fin.size == 0:
+        return 0.0, 1.0
+    lo, hi = float(fin.min()), float(fin.max())
+    span = hi - lo
+    if span <= 1e-12 * max(abs(lo), abs(hi), 1.0):
+        pad = 0.5 * max(abs(lo), 1e-3)
+        return lo - pad, hi + pad
+    return lo - 0.05 * span, hi + 0.05 * span
+
+
+def episode_starts(episode: np.ndarray) -> np.ndarray:
+    """Indices where a new episode starts (the episode number changes), always including 0."""
+    e = np.asarray(episode)
+    if e.size == 0:
+        return np.zeros(0, dtype=int)
+    return np.concatenate([[0], np.nonzero(np.diff(e) != 0)[0] + 1])
+
+
+def episode_numbers(time: np.ndarray) -> np.ndarray:
+    """Episode number per sample: a new episode starts where the sim time goes back (a reset sets it to 0)."""
+    t = np.asarray(time, np.float64)
+    return np.concatenate([[0], np.cumsum(np.diff(t) < 0)]) if t.size else np.zeros(0, dtype=int)
+
+
+@dataclasses.dataclass
+class Plot:
+    """One uPlot: title, series labels/colours/dash (x first) and the data arrays (x first)."""
+
+    key: str
+    title: str
+    labels: tuple[str, ...]
+    colors: tuple[str, ...]
+    dashed: tuple[bool, ...]
+    data: tuple[np.ndarray, ...]
+    y: tuple[float, float]
+
+    @property
+    def signature(self) -> tuple:
+        return self.labels, self.colors, self.dashed
+
+
+def layout(x: np.ndarray, values: dict[str, np.ndarray], *, episode: np.ndarray | None = None,
+           cursor: float | None = None, x_label: str = "time [s]") -> list[Plot]:
+    """Plots of the named series over ``x`` (ascending).
+
+    Args:
+        x: sample positions (seconds), ascending.
+        values: recorded name -> samples (same length as ``x``; NaN = not logged at that sample). Series without
+            a single finite value are left out.
+        episode: per-sample episode number (:func:`episode_numbers`). Only the last two episodes are kept; the
+            previous one becomes its own (dashed) series, so no line joins the two across the reset.
+        cursor: x of a vertical cursor line drawn in every plot (the replay's timeline position).
+    """
+    x = np.asarray(x, np.float64)
+    prev = np.zeros(len(x), bool)
+    if episode is not None and len(x):
+        starts = episode_starts(episode)
+        i0 = int(starts[-2]) if len(starts) >= 2 else 0
+        x = x[i0:]
+        values = {k: np.asarray(v, np.float64)[i0:] for k, v in values.items()}
+        prev = np.zeros(len(x), bool)
+        if len(starts) >= 2:
+            prev[: int(starts[-1]) - i0] = True
+    groups: dict[str, tuple[str, list[str]]] = {}
+    for name in sorted(values):
+        v = np.asarray(values[name], np.float64)
+        if v.shape != x.shape or not np.isfinite(v).any():
+            continue
+        key, title = group_of(name)
+        groups.setdefault(key, (title, []))[1].append(name)
+    order = {k: i for i, k in enumerate(_ORDER)}
+    plots = []
+    for key in sorted(groups, key=lambda k: (order.get(k, len(order)), k)):
+        title, names = groups[key]
+        names = sorted(names, key=lambda n: (n != "reward", n))
+        labels, colors, dashed, cols = [x_label], ["#000000"], [False], []
+        for j, name in enumerate(names):
+            v = np.asarray(values[name], np.float64)
+            color = COLORS[j % len(COLORS)]
+            labels.append(short_label(name))
+            colors.append(color)
+            dashed.append(False)
+            cols.append(np.where(prev, np.nan, v))
+            if prev.any():
+                labels.append(f"{short_label(name)} (prev. episode)")
+                colors.append(color)
+                dashed.append(True)
+                cols.append(np.where(prev, v, np.nan))
+        lo, hi = y_range(cols)
+        xs = x
+        if cursor is not None and len(x):
+            k = int(np.searchsorted(x, cursor))
+            xs = np.insert(x, [k, k], [cursor, cursor])
+            cols = [np.insert(c, [k, k], [np.nan, np.nan]) for c in cols]
+            line = np.full(len(xs), np.nan)
+            line[k], line[k + 1] = lo, hi
+            cols.append(line)
+            labels.append("timeline")
+            colors.append(CURSOR_COLOR)
+            dashed.append(False)
+        plots.append(Plot(key=key, title=title, labels=tuple(labels), colors=tuple(colors), dashed=tuple(dashed),
+                          data=(xs, *cols), y=(lo, hi)))
+    return plots
+
+
+def live_series(items, dt: float) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """(session time, episode number, recorded name -> values) of history snapshots (``workbench.history``).
+    Session time is frame index × ``dt`` (it keeps increasing across episode resets)."""
+    x = np.array([it.index for it in items], dtype=np.float64) * dt
+    t = np.array([it.time for it in items], dtype=np.float64)
+    names: dict[str, str] = {}
+    for it in items:
+        for k in it.scalars:
+            if k not in names:
+                names[k] = live_name(k)
+    vals = {}
+    for k, name in names.items():
+        if name is not None:
+            vals[name] = np.array([it.scalars.get(k, np.nan) for it in items], dtype=np.float64)
+    return x, episode_numbers(t), vals
