@@ -10,17 +10,17 @@ test max|Δx|/h < dtol on free position DOFs, accept at max_iter if allowed. The
 end-of-step frame update. Failure (non-finite, residual growth > 1e6, bad pivot, |strain| > 0.9, or
 unconverged when accept_unconverged is false) -> retry with 2, 4, 8, 16 sub-steps, else the env is restored
 and flagged failed. Penetration guard (obstacle scenes only): a finite level whose deepest end-of-sub-step
-penetration exceeds max(P_MAXPEN, p0 + P_MAXPEN/4) (p0 = penetration at the step start) is also retried with
+penetration exceeds max(max_penetration, p0 + max_penetration/4) (p0 = penetration at the step start) is also retried with
 more sub-steps; it never fails an env: the finest level is accepted however deep, and if that level diverges,
-the least-penetrating finite coarser result is used. Divergence guard (P_RGUARD > 0): an accepted unconverged
-(sub)step whose residual grew by more than P_RGUARD over its iterations is retried the same way; both guards
-share one fallback, scored by max(pen/limit, growth/P_RGUARD).
+the least-penetrating finite coarser result is used. Divergence guard (divergence_guard > 0): an accepted unconverged
+(sub)step whose residual grew by more than divergence_guard over its iterations is retried the same way; both guards
+share one fallback, scored by max(pen/limit, growth/divergence_guard).
 """
 from __future__ import annotations
 
 from .solve_2d import step_kernel_2d
 from .solve_3d import step_kernel_3d
-from .solve_params import *  # noqa: F403  (re-exported: P_* prm indices, F_*/I_* output columns)
-from .solve_params import F_COLS, I_COLS, PRM_SIZE
+from .solve_params import *  # noqa: F403  (re-exported: Params, F_*/I_* output columns)
+from .solve_params import F_COLS, I_COLS, Params
 
-__all__ = ["step_kernel_3d", "step_kernel_2d", "PRM_SIZE", "F_COLS", "I_COLS"]
+__all__ = ["step_kernel_3d", "step_kernel_2d", "Params", "F_COLS", "I_COLS"]

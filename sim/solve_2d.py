@@ -20,7 +20,7 @@ from .contact_kernels import (
 from .energies.planar import planar_bend_element
 from .energies.stretch import stretch_element_2d
 from .frames import update_frames
-from .solve_params import *  # noqa: F403  (P_* prm indices, F_*/I_* output columns, _OPT)
+from .solve_params import *  # noqa: F403  (F_*/I_* output columns)
 from .solve_params import (
     _CHUNK,
     _OPT,
@@ -42,10 +42,10 @@ def _assemble_2d(e, x, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, 
     n = x.shape[0]
     N = n // 2
     kl = 5
-    EA = prm[P_EA]
-    EI = prm[P_EI1]
-    sgn = prm[P_SIGN2D]
-    damp = prm[P_DAMP]
+    EA = prm.EA
+    EI = prm.EI1
+    sgn = prm.planar_sign
+    damp = prm.damping
     ih = 1.0 / h
     ih2 = ih * ih
     if with_jac:
@@ -85,8 +85,8 @@ def _assemble_2d(e, x, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, 
                 for b in range(a if sym else 0, 6):
                     ab[o + a, kl + b - a] += H6[a, b]
     ec = 0.0
-    if prm[P_NOBS] > 0:
-        py = prm[P_PLANEY]
+    if prm.n_obstacles > 0:
+        py = prm.plane_y
         for k in range(N):
             pos[k, 0] = x[2 * k]
             pos[k, 1] = py
@@ -96,8 +96,8 @@ def _assemble_2d(e, x, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, 
             pos0[k, 2] = x0[2 * k + 1]
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
-        ec = contact_accumulate(e, cd, pos, pos0, h, prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
-                                prm[P_CNU], prm[P_CFRIC] > 0, cg, ch)
+        ec = contact_accumulate(e, cd, pos, pos0, h, prm.radius, prm.contact_k, prm.contact_delta, prm.friction,
+                                prm.friction_nu, prm.friction_on > 0, cg, ch)
         for k in range(N):
             f[2 * k] += cg[k, 0]
             f[2 * k + 1] += cg[k, 2]
@@ -129,8 +129,8 @@ def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
     """2-D analogue of _newton_3d."""
     (x, f, dx, xt, ab, pos, pos0, g4, H4, g6, H6, cg, ch) = w
     n = x0.shape[0]
-    maxit = int(prm[P_MAXIT])
-    tol = prm[P_TOL]
+    maxit = int(prm.newton_max_iter)
+    tol = prm.newton_tol
     dtol = newton_dtol(prm, cd, e)
     sym = jacobian_symmetric(prm)
     for k in range(n):
@@ -170,17 +170,17 @@ def _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
             dx[k] = f[k]
         if (band_ldl_solve(ab, n, 5, dx) if sym else band_lu_solve(ab, n, 5, dx)) != 0:
             return 3, it, False, r, r0
-        if prm[P_CCD] > 0 and prm[P_NOBS] > 0 and cd.cand_count[e] > 0:  # no update may tunnel (see _newton_3d)
+        if prm.step_limit > 0 and prm.n_obstacles > 0 and cd.cand_count[e] > 0:  # no update may tunnel (see _newton_3d)
             N = n // 2
             for k in range(N):
                 cg[k, 0] = -dx[2 * k]
                 cg[k, 1] = 0.0
                 cg[k, 2] = -dx[2 * k + 1]
-            tcap = contact_step_limit(e, cd, pos, cg, prm[P_RADIUS], prm[P_CDELTA])
+            tcap = contact_step_limit(e, cd, pos, cg, prm.radius, prm.contact_delta)
             if tcap < 1.0:
                 for k in range(n):
                     dx[k] *= tcap
-        if prm[P_LS] == 1:
+        if prm.line_search == 1:
             alpha = 1.0
             for trial in range(5):
                 for k in range(n):
@@ -213,7 +213,7 @@ def _substep_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, 
     """2-D analogue of _substep_3d (frames are updated by the caller): a midpoint step that gains energy is
     redone by backward Euler."""
     st, it, conv, r, r0, pen, pen0 = _substep_with_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm,
-                                                      cd, w, want_pen0, prm[P_INTEG] != 0)
+                                                      cd, w, want_pen0, prm.midpoint != 0)
     if st == 6:
         st, it2, conv, r, r0, pen, pen0 = _substep_with_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav,
                                                            prm, cd, w, want_pen0, False)
@@ -234,9 +234,9 @@ def _mech_energy_2d(e, xs, us, kb, rest_len, vor_len, mass, fixed, grav, prm, cd
             ek += 0.5 * mass[k] * us[k] * us[k]
         eg -= grav[k] * xs[k]
     ec = 0.0
-    if prm[P_NOBS] > 0 and cd.cand_count[e] > 0:
-        ec = contact_accumulate(e, cd, pos, pos0, h, prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
-                                prm[P_CNU], False, cg, ch)
+    if prm.n_obstacles > 0 and cd.cand_count[e] > 0:
+        ec = contact_accumulate(e, cd, pos, pos0, h, prm.radius, prm.contact_k, prm.contact_delta, prm.friction,
+                                prm.friction_nu, False, cg, ch)
     e_in = es + eb + ek + ec
     return e_in + eg, e_in
 
@@ -250,8 +250,8 @@ def _substep_with_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm,
     N = n // 2
     hs = h if not midpoint else 0.5 * h
     pen0 = 0.0
-    if prm[P_NOBS] > 0:
-        py = prm[P_PLANEY]
+    if prm.n_obstacles > 0:
+        py = prm.plane_y
         for k in range(N):
             pos0[k, 0] = x0[2 * k]
             pos0[k, 1] = py
@@ -259,15 +259,15 @@ def _substep_with_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm,
             pos[k, 0] = x0[2 * k] + hs * u[2 * k]  # predicted end of step (contact: swept list)
             pos[k, 1] = py
             pos[k, 2] = x0[2 * k + 1] + hs * u[2 * k + 1]
-        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        contact_broadphase(e, cd, pos0, pos, prm.contact_margin)
         if want_pen0 and cd.cand_count[e] > 0:
-            pen0 = -contact_min_gap(e, cd, pos0, prm[P_RADIUS])
+            pen0 = -contact_min_gap(e, cd, pos0, prm.radius)
     st, it, conv, r, r0 = _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
     if st != 0:
         return st, it, False, r, r0, 0.0, pen0
     list_covers_step = False
-    if prm[P_NOBS] > 0:  # refresh the candidates over the motion actually taken (see _substep_3d)
-        py = prm[P_PLANEY]
+    if prm.n_obstacles > 0:  # refresh the candidates over the motion actually taken (see _substep_3d)
+        py = prm.plane_y
         for k in range(N):
             pos[k, 0] = x[2 * k]
             pos[k, 1] = py
@@ -275,13 +275,13 @@ def _substep_with_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm,
         # backward Euler ends where the solve ended: then the refreshed list already covers the whole
         # sub-step motion and the end-of-sub-step broad phase below is not needed again
         list_covers_step = not midpoint
-        if contact_refresh(e, cd, pos0, pos, prm[P_CMARGIN]):
+        if contact_refresh(e, cd, pos0, pos, prm.contact_margin):
             list_covers_step = False
             st, it2, conv, r, r0 = _newton_2d(e, x0, u, hs, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
             it += it2
             if st != 0:
                 return st, it, False, r, r0, 0.0, pen0
-    if not conv and prm[P_ACCEPT] == 0:
+    if not conv and prm.accept_unconverged == 0:
         return 4, it, False, r, r0, 0.0, pen0
     if not midpoint:
         for k in range(n):
@@ -297,13 +297,13 @@ def _substep_with_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm,
         ex = x[2 * j + 2] - x[2 * j]
         ez = x[2 * j + 3] - x[2 * j + 1]
         s = math.sqrt(ex * ex + ez * ez) / rest_len[j] - 1.0
-        if not abs(s) <= prm[P_STRAIN]:
+        if not abs(s) <= prm.max_strain:
             return 5, it, conv, r, r0, 0.0, pen0
     for k in range(n):
         if not (np.isfinite(x[k]) and np.isfinite(dx[k])):
             return 1, it, conv, r, r0, 0.0, pen0
-    if midpoint and prm[P_MIDTOL] > 0:  # energy at the start and at the end of the sub-step
-        py = prm[P_PLANEY]
+    if midpoint and prm.midpoint_energy_tol > 0:  # energy at the start and at the end of the sub-step
+        py = prm.plane_y
         for k in range(N):
             pos0[k, 0] = x0[2 * k]
             pos0[k, 1] = py
@@ -313,22 +313,22 @@ def _substep_with_2d(e, x0, u, h, kb, rest_len, vor_len, mass, fixed, grav, prm,
             pos[k, 2] = x[2 * k + 1]
         e0, s0 = _mech_energy_2d(e, x0, u, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, pos0, pos0, h)
         e1, s1 = _mech_energy_2d(e, x, dx, kb, rest_len, vor_len, mass, fixed, grav, prm, cd, w, pos, pos0, h)
-        if midpoint_gained_energy(e0, s0, e1, s1, prm[P_MIDTOL]):
+        if midpoint_gained_energy(e0, s0, e1, s1, prm.midpoint_energy_tol):
             return 6, it, conv, r, r0, 0.0, pen0
     for k in range(n):
         x0[k] = x[k]
         u[k] = dx[k]
     pen = 0.0
-    if prm[P_NOBS] > 0:  # end-of-sub-step penetration over a list covering the whole sub-step motion
-        py = prm[P_PLANEY]
+    if prm.n_obstacles > 0:  # end-of-sub-step penetration over a list covering the whole sub-step motion
+        py = prm.plane_y
         for k in range(N):
             pos[k, 0] = x[2 * k]
             pos[k, 1] = py
             pos[k, 2] = x[2 * k + 1]
         if not list_covers_step:
-            contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+            contact_broadphase(e, cd, pos0, pos, prm.contact_margin)
         if cd.cand_count[e] > 0:
-            pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
+            pen = -contact_min_gap(e, cd, pos, prm.radius)
     return 0, it, conv, r, r0, pen, pen0
 
 
@@ -369,13 +369,13 @@ def _energies_2d(xs, kb, rest_len, vor_len, prm, g4, H4, g6, H6):
     es = 0.0
     for j in range(N - 1):
         o = 2 * j
-        ej, _ = stretch_element_2d((xs[o], xs[o + 1]), (xs[o + 2], xs[o + 3]), rest_len[j], prm[P_EA], g4, H4, False)
+        ej, _ = stretch_element_2d((xs[o], xs[o + 1]), (xs[o + 2], xs[o + 3]), rest_len[j], prm.EA, g4, H4, False)
         es += ej
     eb = 0.0
     for i in range(1, N - 1):
         o = 2 * (i - 1)
         ebi, _ = planar_bend_element((xs[o], xs[o + 1]), (xs[o + 2], xs[o + 3]), (xs[o + 4], xs[o + 5]),
-                                     prm[P_SIGN2D] * kb[i, 0], prm[P_EI1], vor_len[i], g6, H6, False)
+                                     prm.planar_sign * kb[i, 0], prm.EI1, vor_len[i], g6, H6, False)
         eb += ebi
     return es, eb
 
@@ -392,14 +392,14 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
     r = 0.0
     r0 = 0.0
     ns = 1
-    levels = int(prm[P_LEVELS])
+    levels = int(prm.retry_levels)
     fb_pen = np.inf  # penetration / divergence guard fallback (see _env_step_3d): its score
-    rg = prm[P_RGUARD]
+    rg = prm.divergence_guard
     fb_ns, fb_it, fb_conv, fb_r, fb_r0 = 1, 0, False, 0.0, 0.0
-    lim = prm[P_MAXPEN]  # guard limit [m]: raised to (start penetration + limit/4) for a step starting deeper
+    lim = prm.max_penetration  # guard limit [m]: raised to (start penetration + limit/4) for a step starting deeper
     for level in range(levels):
         ns = 1 << level
-        h = prm[P_DT] / ns
+        h = prm.dt / ns
         x0[:] = xs
         u[:] = us
         ok = True
@@ -413,7 +413,7 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
             if s == 0:
                 r0 = r0s
                 if level == 0:
-                    lim = max(prm[P_MAXPEN], pen0 + 0.25 * prm[P_MAXPEN])
+                    lim = max(prm.max_penetration, pen0 + 0.25 * prm.max_penetration)
             iters += it
             conv_all = conv_all and conv
             if st != 0:
@@ -442,20 +442,20 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
     if ok:
         xs[:] = x0
         us[:] = u
-        _frames_from_2d(xs, prm[P_PLANEY], d1s, ts, bs, pos, t, d1, d2, elen, beta)
+        _frames_from_2d(xs, prm.plane_y, d1s, ts, bs, pos, t, d1, d2, elen, beta)
     es, eb = _energies_2d(xs, kb, rest_len, vor_len, prm, g4, H4, g6, H6)
     ec = 0.0
-    if prm[P_NOBS] > 0:
-        py = prm[P_PLANEY]
+    if prm.n_obstacles > 0:
+        py = prm.plane_y
         for k in range(N):
             pos[k, 0] = xs[2 * k]
             pos[k, 1] = py
             pos[k, 2] = xs[2 * k + 1]
-        contact_broadphase(e, cd, pos, pos, prm[P_CMARGIN])  # pairs near the state kept (see _env_step_3d)
+        contact_broadphase(e, cd, pos, pos, prm.contact_margin)  # pairs near the state kept (see _env_step_3d)
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
-        ec = contact_accumulate(e, cd, pos, pos, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
-                                prm[P_CNU], prm[P_CFRIC] > 0, cg, ch)
+        ec = contact_accumulate(e, cd, pos, pos, prm.dt, prm.radius, prm.contact_k, prm.contact_delta, prm.friction,
+                                prm.friction_nu, prm.friction_on > 0, cg, ch)
     ek = 0.0
     eg = 0.0
     for k in range(n):
@@ -473,17 +473,17 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
     io[I_CONV] = 1 if (ok and conv_all) else 0
     io[I_SUB] = ns
     io[I_FAIL] = 0 if ok else 1
-    if prm[P_NOBS] > 0:
-        py = prm[P_PLANEY]
+    if prm.n_obstacles > 0:
+        py = prm.plane_y
         for k in range(N):
             pos[k, 0] = xs[2 * k]
             pos[k, 1] = py
             pos[k, 2] = xs[2 * k + 1]
-            pos0[k, 0] = xs[2 * k] - prm[P_DT] * us[2 * k]  # step start (friction velocity)
+            pos0[k, 0] = xs[2 * k] - prm.dt * us[2 * k]  # step start (friction velocity)
             pos0[k, 1] = py
-            pos0[k, 2] = xs[2 * k + 1] - prm[P_DT] * us[2 * k + 1]
-        contact_report(e, cd, pos, pos0, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU], prm[P_CNU],
-                       prm[P_CFRIC] > 0, crep[0], crep[1], crep[2], crep[3], crep[4], crep[5], crep[6], crep[7],
+            pos0[k, 2] = xs[2 * k + 1] - prm.dt * us[2 * k + 1]
+        contact_report(e, cd, pos, pos0, prm.dt, prm.radius, prm.contact_k, prm.contact_delta, prm.friction, prm.friction_nu,
+                       prm.friction_on > 0, crep[0], crep[1], crep[2], crep[3], crep[4], crep[5], crep[6], crep[7],
                        crep[8], crep[9])
     return ok
 
@@ -508,6 +508,6 @@ def step_kernel_2d(dof, vel, d1s, ts, bs, times, failed, kappa_bar, rest_len, vo
             ok = _env_step_2d(e, dof[e], vel[e], d1s[e], ts[e], bs[e], kappa_bar[e], rest_len, vor_len, mass, fixed,
                               grav, prm, cd, crep, fo[e], io[e], w, sw)
             if ok:
-                times[e] += prm[P_DT]
+                times[e] += prm.dt
             else:
                 failed[e] = True

@@ -19,7 +19,7 @@ from .contact_kernels import (
 from .energies.bend_twist import bend_twist_core, material_curvatures, material_directors
 from .energies.stretch import stretch_element
 from .frames import update_frames
-from .solve_params import *  # noqa: F403  (P_* prm indices, F_*/I_* output columns, _OPT)
+from .solve_params import *  # noqa: F403  (F_*/I_* output columns)
 from .solve_params import (
     _CHUNK,
     _OPT,
@@ -42,11 +42,11 @@ def _assemble_3d(e, x, x0, u, h, d1o, to, bo, kb, tb, rest_len, vor_len, mass, f
     n = x.shape[0]
     N = n // 4
     kl = 10
-    EA = prm[P_EA]
-    EI1 = prm[P_EI1]
-    EI2 = prm[P_EI2]
-    GJ = prm[P_GJ]
-    damp = prm[P_DAMP]
+    EA = prm.EA
+    EI1 = prm.EI1
+    EI2 = prm.EI2
+    GJ = prm.GJ
+    damp = prm.damping
     ih = 1.0 / h
     ih2 = ih * ih
     for k in range(N):
@@ -112,14 +112,14 @@ def _assemble_3d(e, x, x0, u, h, d1o, to, bo, kb, tb, rest_len, vor_len, mass, f
                 for b in range(a if sym else 0, 11):
                     ab[r, kl + b - a] += H11[a, b]
     ec = 0.0
-    if prm[P_NOBS] > 0:
+    if prm.n_obstacles > 0:
         for k in range(N):
             for a in range(3):
                 pos0[k, a] = x0[4 * k + a]
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
-        ec = contact_accumulate(e, cd, pos, pos0, h, prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
-                                prm[P_CNU], prm[P_CFRIC] > 0, cg, ch)
+        ec = contact_accumulate(e, cd, pos, pos0, h, prm.radius, prm.contact_k, prm.contact_delta, prm.friction,
+                                prm.friction_nu, prm.friction_on > 0, cg, ch)
         for k in range(N):
             for a in range(3):
                 f[4 * k + a] += cg[k, a]
@@ -152,8 +152,8 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
     the iteration cap), 1 non-finite, 2 residual growth, 3 bad pivot."""
     (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch, mf) = w
     n = x0.shape[0]
-    maxit = int(prm[P_MAXIT])
-    tol = prm[P_TOL]
+    maxit = int(prm.newton_max_iter)
+    tol = prm.newton_tol
     dtol = newton_dtol(prm, cd, e)
     sym = jacobian_symmetric(prm)
     for k in range(n):
@@ -196,16 +196,16 @@ def _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed
             dx[k] = f[k]
         if (band_ldl_solve(ab, n, 10, dx) if sym else band_lu_solve(ab, n, 10, dx)) != 0:
             return 3, it, False, r, r0
-        if prm[P_CCD] > 0 and prm[P_NOBS] > 0 and cd.cand_count[e] > 0:  # no update may tunnel (pos = nodes at x)
+        if prm.step_limit > 0 and prm.n_obstacles > 0 and cd.cand_count[e] > 0:  # no update may tunnel (pos = nodes at x)
             N = n // 4
             for k in range(N):
                 for a in range(3):
                     cg[k, a] = -dx[4 * k + a]
-            tcap = contact_step_limit(e, cd, pos, cg, prm[P_RADIUS], prm[P_CDELTA])
+            tcap = contact_step_limit(e, cd, pos, cg, prm.radius, prm.contact_delta)
             if tcap < 1.0:
                 for k in range(n):
                     dx[k] *= tcap
-        if prm[P_LS] == 1:
+        if prm.line_search == 1:
             alpha = 1.0
             for trial in range(5):
                 for k in range(n):
@@ -244,7 +244,7 @@ def _substep_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, fixed
     max penetration [m] at its start (only if want_pen0)) (penetrations 0 without obstacles or contact
     candidates); status 0 = ok."""
     st, it, conv, r, r0, pen, pen0 = _substep_with_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass,
-                                                      fixed, grav, prm, cd, w, want_pen0, prm[P_INTEG] != 0)
+                                                      fixed, grav, prm, cd, w, want_pen0, prm.midpoint != 0)
     if st == 6:
         st, it2, conv, r, r0, pen, pen0 = _substep_with_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len,
                                                            mass, fixed, grav, prm, cd, w, want_pen0, False)
@@ -265,9 +265,9 @@ def _mech_energy_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fix
             ek += 0.5 * mass[k] * us[k] * us[k]
         eg -= grav[k] * xs[k]
     ec = 0.0
-    if prm[P_NOBS] > 0 and cd.cand_count[e] > 0:
-        ec = contact_accumulate(e, cd, pos, pos0, h, prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
-                                prm[P_CNU], False, cg, ch)
+    if prm.n_obstacles > 0 and cd.cand_count[e] > 0:
+        ec = contact_accumulate(e, cd, pos, pos0, h, prm.radius, prm.contact_k, prm.contact_delta, prm.friction,
+                                prm.friction_nu, False, cg, ch)
     e_in = es + eb + et + ek + ec
     return e_in + eg, e_in
 
@@ -282,19 +282,19 @@ def _substep_with_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, 
     N = n // 4
     hs = h if not midpoint else 0.5 * h
     pen0 = 0.0
-    if prm[P_NOBS] > 0:
+    if prm.n_obstacles > 0:
         for k in range(N):
             for a in range(3):
                 pos0[k, a] = x0[4 * k + a]
                 pos[k, a] = x0[4 * k + a] + hs * u[4 * k + a]  # predicted end of step (contact: swept list)
-        contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+        contact_broadphase(e, cd, pos0, pos, prm.contact_margin)
         if want_pen0 and cd.cand_count[e] > 0:
-            pen0 = -contact_min_gap(e, cd, pos0, prm[P_RADIUS])
+            pen0 = -contact_min_gap(e, cd, pos0, prm.radius)
     st, it, conv, r, r0 = _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w)
     if st != 0:
         return st, it, False, r, r0, 0.0, pen0
     list_covers_step = False
-    if prm[P_NOBS] > 0:
+    if prm.n_obstacles > 0:
         # the solve can carry the rod onto pairs that the predicted-motion list missed (a control change moves
         # it far from x0 + h u): refresh the list over the motion actually taken; if it gained pairs, solve again
         for k in range(N):
@@ -303,14 +303,14 @@ def _substep_with_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, 
         # backward Euler ends where the solve ended: then the refreshed list already covers the whole
         # sub-step motion and the end-of-sub-step broad phase below is not needed again
         list_covers_step = not midpoint
-        if contact_refresh(e, cd, pos0, pos, prm[P_CMARGIN]):
+        if contact_refresh(e, cd, pos0, pos, prm.contact_margin):
             list_covers_step = False
             st, it2, conv, r, r0 = _newton_3d(e, x0, u, hs, d1o, to, bo, kb, tb, rest_len, vor_len, mass, fixed,
                                              grav, prm, cd, w)
             it += it2
             if st != 0:
                 return st, it, False, r, r0, 0.0, pen0
-    if not conv and prm[P_ACCEPT] == 0:
+    if not conv and prm.accept_unconverged == 0:
         return 4, it, False, r, r0, 0.0, pen0
     # velocity / position update (u_new into dx)
     if not midpoint:
@@ -329,12 +329,12 @@ def _substep_with_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, 
     update_frames(pos, d1o, to, bo, t, d1, d2, elen, beta)
     for j in range(N - 1):
         s = elen[j] / rest_len[j] - 1.0
-        if not abs(s) <= prm[P_STRAIN]:
+        if not abs(s) <= prm.max_strain:
             return 5, it, conv, r, r0, 0.0, pen0
     for k in range(n):
         if not (np.isfinite(x[k]) and np.isfinite(dx[k])):
             return 1, it, conv, r, r0, 0.0, pen0
-    if midpoint and prm[P_MIDTOL] > 0:  # energy at the start (frames d1o, to, bo) and at the end (d1, t, beta)
+    if midpoint and prm.midpoint_energy_tol > 0:  # energy at the start (frames d1o, to, bo) and at the end (d1, t, beta)
         for k in range(N):
             for a in range(3):
                 pos0[k, a] = x0[4 * k + a]
@@ -345,7 +345,7 @@ def _substep_with_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, 
                 pos[k, a] = x[4 * k + a]
         e1, s1 = _mech_energy_3d(e, x, dx, d1, t, beta, kb, tb, rest_len, vor_len, mass, fixed, grav, prm, cd, w,
                                  pos, pos0, h)
-        if midpoint_gained_energy(e0, s0, e1, s1, prm[P_MIDTOL]):
+        if midpoint_gained_energy(e0, s0, e1, s1, prm.midpoint_energy_tol):
             return 6, it, conv, r, r0, 0.0, pen0
     for j in range(N - 1):
         for a in range(3):
@@ -359,11 +359,11 @@ def _substep_with_3d(e, x0, u, d1o, to, bo, h, kb, tb, rest_len, vor_len, mass, 
         x0[k] = x[k]
         u[k] = dx[k]
     pen = 0.0
-    if prm[P_NOBS] > 0:  # pos: end-of-sub-step, pos0: start positions; list over the whole sub-step motion
+    if prm.n_obstacles > 0:  # pos: end-of-sub-step, pos0: start positions; list over the whole sub-step motion
         if not list_covers_step:
-            contact_broadphase(e, cd, pos0, pos, prm[P_CMARGIN])
+            contact_broadphase(e, cd, pos0, pos, prm.contact_margin)
         if cd.cand_count[e] > 0:
-            pen = -contact_min_gap(e, cd, pos, prm[P_RADIUS])
+            pen = -contact_min_gap(e, cd, pos, prm.radius)
     return 0, it, conv, r, r0, pen, pen0
 
 
@@ -389,7 +389,7 @@ def _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm, mf):
     """(E_stretch, E_bend, E_twist) [J] of a state whose stored frames (d1s, ts, bs) are at xs (mf: (N-1, 6)
     scratch for the material directors)."""
     N = xs.shape[0] // 4
-    EA = prm[P_EA]
+    EA = prm.EA
     es = 0.0
     for j in range(N - 1):
         o = 4 * j
@@ -413,9 +413,9 @@ def _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm, mf):
                                      (mf[i - 1, 3], mf[i - 1, 4], mf[i - 1, 5]), (mf[i, 0], mf[i, 1], mf[i, 2]),
                                      (mf[i, 3], mf[i, 4], mf[i, 5]))
         lv = vor_len[i]
-        eb += 0.5 / lv * (prm[P_EI1] * (k1 - kb[i, 0]) ** 2 + prm[P_EI2] * (k2 - kb[i, 1]) ** 2)
+        eb += 0.5 / lv * (prm.EI1 * (k1 - kb[i, 0]) ** 2 + prm.EI2 * (k2 - kb[i, 1]) ** 2)
         tw = xs[o + 7] - xs[o + 3] + bs[i] - tb[i]
-        et += 0.5 * prm[P_GJ] / lv * tw * tw
+        et += 0.5 * prm.GJ / lv * tw * tw
     return es, eb, et
 
 
@@ -433,17 +433,17 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
     r = 0.0
     r0 = 0.0
     ns = 1
-    levels = int(prm[P_LEVELS])
+    levels = int(prm.retry_levels)
     # guards: penetration (end configuration deeper than lim) and divergence (an accepted unconverged solve whose
     # residual grew by more than rg over its iterations); a level that trips one is retried with twice the
     # sub-steps, keeping the least-bad finite level result (score = max(pen/lim, growth/rg) > 1) as fallback
     fb_pen = np.inf
-    rg = prm[P_RGUARD]
+    rg = prm.divergence_guard
     fb_ns, fb_it, fb_conv, fb_r, fb_r0 = 1, 0, False, 0.0, 0.0
-    lim = prm[P_MAXPEN]  # guard limit [m]: raised to (start penetration + limit/4) for a step starting deeper
+    lim = prm.max_penetration  # guard limit [m]: raised to (start penetration + limit/4) for a step starting deeper
     for level in range(levels):
         ns = 1 << level
-        h = prm[P_DT] / ns
+        h = prm.dt / ns
         x0[:] = xs
         u[:] = us
         d1o[:, :] = d1s
@@ -460,7 +460,7 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
             if s == 0:
                 r0 = r0s
                 if level == 0:
-                    lim = max(prm[P_MAXPEN], pen0 + 0.25 * prm[P_MAXPEN])
+                    lim = max(prm.max_penetration, pen0 + 0.25 * prm.max_penetration)
             iters += it
             conv_all = conv_all and conv
             if st != 0:
@@ -501,17 +501,17 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
     (x, f, dx, xt, ab, pos, pos0, t, d1, d2, elen, beta, g6, H6, g11, H11, wk, cg, ch, mf) = w
     es, eb, et = _energies_3d(xs, d1s, ts, bs, kb, tb, rest_len, vor_len, prm, mf)
     ec = 0.0
-    if prm[P_NOBS] > 0:
+    if prm.n_obstacles > 0:
         for k in range(N):
             for a in range(3):
                 pos[k, a] = xs[4 * k + a]
         # candidates of the state actually kept (a guard fallback or a restored state is not the configuration
         # the last sub-step's list was built for): energy and report see every pair near it
-        contact_broadphase(e, cd, pos, pos, prm[P_CMARGIN])
+        contact_broadphase(e, cd, pos, pos, prm.contact_margin)
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
-        ec = contact_accumulate(e, cd, pos, pos, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU],
-                                prm[P_CNU], prm[P_CFRIC] > 0, cg, ch)
+        ec = contact_accumulate(e, cd, pos, pos, prm.dt, prm.radius, prm.contact_k, prm.contact_delta, prm.friction,
+                                prm.friction_nu, prm.friction_on > 0, cg, ch)
     ek = 0.0
     eg = 0.0
     for k in range(n):
@@ -529,13 +529,13 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
     io[I_CONV] = 1 if (ok and conv_all) else 0
     io[I_SUB] = ns
     io[I_FAIL] = 0 if ok else 1
-    if prm[P_NOBS] > 0:
+    if prm.n_obstacles > 0:
         for k in range(N):
             for a in range(3):
                 pos[k, a] = xs[4 * k + a]
-                pos0[k, a] = xs[4 * k + a] - prm[P_DT] * us[4 * k + a]  # step start (friction velocity)
-        contact_report(e, cd, pos, pos0, prm[P_DT], prm[P_RADIUS], prm[P_CK], prm[P_CDELTA], prm[P_CMU], prm[P_CNU],
-                       prm[P_CFRIC] > 0, crep[0], crep[1], crep[2], crep[3], crep[4], crep[5], crep[6], crep[7],
+                pos0[k, a] = xs[4 * k + a] - prm.dt * us[4 * k + a]  # step start (friction velocity)
+        contact_report(e, cd, pos, pos0, prm.dt, prm.radius, prm.contact_k, prm.contact_delta, prm.friction, prm.friction_nu,
+                       prm.friction_on > 0, crep[0], crep[1], crep[2], crep[3], crep[4], crep[5], crep[6], crep[7],
                        crep[8], crep[9])
     return ok
 
@@ -543,7 +543,7 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
 @njit(parallel=True, **_OPT)
 def step_kernel_3d(dof, vel, d1s, ts, bs, times, failed, kappa_bar, tau_bar, rest_len, vor_len, mass, fixed,
                    grav, prm, cd, crep, fo, io):
-    """Advance all non-failed envs by prm[P_DT]. dof/vel (B, 4N) views of State.dof; outputs fo (B, F_COLS),
+    """Advance all non-failed envs by prm.dt. dof/vel (B, 4N) views of State.dof; outputs fo (B, F_COLS),
     io (B, I_COLS) and the contact report arrays crep."""
     B = dof.shape[0]
     N = dof.shape[1] // 4
@@ -561,6 +561,6 @@ def step_kernel_3d(dof, vel, d1s, ts, bs, times, failed, kappa_bar, tau_bar, res
             ok = _env_step_3d(e, dof[e], vel[e], d1s[e], ts[e], bs[e], kappa_bar[e], tau_bar[e], rest_len, vor_len,
                               mass, fixed, grav, prm, cd, crep, fo[e], io[e], w, sw)
             if ok:
-                times[e] += prm[P_DT]
+                times[e] += prm.dt
             else:
                 failed[e] = True

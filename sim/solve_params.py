@@ -1,17 +1,24 @@
-"""Indices into the solver's float parameter vector ``prm`` and per-env output columns, numba options, and the
-two small decisions both step kernels share (symmetric Jacobian? how badly does a retry level trip the guards?).
+"""The solver's named parameters (:class:`Params`, read as ``prm``), per-env output columns, numba options and
+the small decisions both step kernels share (symmetric Jacobian? how badly does a retry level trip the guards?).
 
-Shared by :mod:`sim.solve_3d`, :mod:`sim.solve_2d` and the :class:`sim.Simulator` that fills ``prm``.
+Shared by :mod:`sim.solve_3d`, :mod:`sim.solve_2d` and the :class:`sim.Simulator` that builds ``prm``.
 """
 from __future__ import annotations
 
+from collections import namedtuple
+
 from numba import njit
 
-# indices into the float64 parameter vector ``prm``
-P_EA, P_EI1, P_EI2, P_GJ, P_DT, P_DAMP, P_TOL, P_DTOL, P_MAXIT, P_ACCEPT, P_INTEG, P_LS = range(12)
-P_RADIUS, P_CK, P_CDELTA, P_CMU, P_CNU, P_CFRIC, P_CMARGIN, P_NOBS, P_SIGN2D, P_PLANEY = range(12, 22)
-P_LEVELS, P_STRAIN, P_MAXPEN, P_CCD, P_RGUARD, P_MIDTOL = 22, 23, 24, 25, 26, 27
-PRM_SIZE = 28
+# The solver's scalar parameters by name: a numba namedtuple of float64 (flags 0.0/1.0; line_search 0 none,
+# 1 backtrack, 2 auto), built once by the Simulator from the Model. Units: EA [N], EI1/EI2/GJ [N m²], dt [s],
+# damping [1/s], newton_dtol [m/s], radius/contact_delta/contact_margin/max_penetration/plane_y [m],
+# contact_k [N/m], friction_nu [m/s]; the rest dimensionless.
+Params = namedtuple("Params", [
+    "EA", "EI1", "EI2", "GJ", "dt", "damping", "newton_tol", "newton_dtol", "newton_max_iter", "accept_unconverged",
+    "midpoint", "line_search", "radius", "contact_k", "contact_delta", "friction", "friction_nu", "friction_on",
+    "contact_margin", "n_obstacles", "planar_sign", "plane_y", "retry_levels", "max_strain", "max_penetration",
+    "step_limit", "divergence_guard", "midpoint_energy_tol",
+])
 # columns of the float / int per-env outputs
 F_RES, F_RES0, F_ES, F_EB, F_ET, F_EC, F_EK, F_EG, F_PEN = range(9)
 F_COLS = 9
@@ -28,7 +35,7 @@ _OPT = dict(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"
 def jacobian_symmetric(prm):
     """Whether the Newton Jacobian is symmetric: yes unless friction acts (obstacles present and μ > 0); the
     kernels then assemble only the band's upper half and factor it by LDLᵀ."""
-    return not (prm[P_NOBS] > 0 and prm[P_CFRIC] > 0)
+    return not (prm.n_obstacles > 0 and prm.friction_on > 0)
 
 
 @njit(inline="always", **_OPT)
@@ -47,7 +54,7 @@ def lazy_line_search(prm, cd, e):
     an env with contact candidates (where friction's stick law and the stiff contact potential make full
     Newton steps overshoot), and only when an update raised ‖f‖; otherwise the full step costs nothing
     extra. The decision is read once per Newton solve (the candidate list is fixed during it)."""
-    return prm[P_LS] == 2 and prm[P_NOBS] > 0 and cd.cand_count[e] > 0
+    return prm.line_search == 2 and prm.n_obstacles > 0 and cd.cand_count[e] > 0
 
 
 @njit(inline="always", **_OPT)
@@ -56,9 +63,9 @@ def newton_dtol(prm, cd, e):
     friction velocity tolerance ν where friction can act (contact candidates and μ > 0): the stick law
     γ(|v_t|/ν) resolves velocities on the scale ν, so an update that still changes velocities by ~ν is
     not converged (docs/physics.md §4.6)."""
-    dtol = prm[P_DTOL]
-    if prm[P_CFRIC] > 0 and prm[P_NOBS] > 0 and cd.cand_count[e] > 0:
-        dtol = min(dtol, 0.01 * prm[P_CNU])
+    dtol = prm.newton_dtol
+    if prm.friction_on > 0 and prm.n_obstacles > 0 and cd.cand_count[e] > 0:
+        dtol = min(dtol, 0.01 * prm.friction_nu)
     return dtol
 
 

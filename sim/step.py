@@ -31,26 +31,21 @@ class Simulator:
         self.envs = B = int(envs)
         m = model
         c = m.spec.contact
-        prm = np.zeros(_solve.PRM_SIZE)
-        prm[_solve.P_EA], prm[_solve.P_EI1], prm[_solve.P_EI2], prm[_solve.P_GJ] = m.EA, m.EI1, m.EI2, m.GJ
-        prm[_solve.P_DT], prm[_solve.P_DAMP] = m.dt, m.damping
-        prm[_solve.P_TOL], prm[_solve.P_DTOL], prm[_solve.P_MAXIT] = m.newton_tol, m.newton_dtol, m.newton_max_iter
-        prm[_solve.P_ACCEPT] = 1.0 if m.accept_unconverged else 0.0
-        prm[_solve.P_INTEG] = 0.0 if m.integrator == "backward_euler" else 1.0
-        prm[_solve.P_LS] = {"none": 0.0, "backtrack": 1.0, "auto": 2.0}[m.line_search]
-        prm[_solve.P_RADIUS] = m.radius
-        prm[_solve.P_CK], prm[_solve.P_CDELTA], prm[_solve.P_CMU] = c.stiffness, c.delta, c.friction
-        prm[_solve.P_CNU], prm[_solve.P_CMARGIN] = c.friction_velocity_tol, c.margin
-        prm[_solve.P_CFRIC] = 1.0 if np.any(m.obstacles.effective_friction(c.friction) > 0) else 0.0
-        prm[_solve.P_NOBS] = float(m.obstacles.count if getattr(c, "enabled", True) else 0)
-        prm[_solve.P_SIGN2D], prm[_solve.P_PLANEY] = m.planar_sign, m.plane_y
-        prm[_solve.P_LEVELS], prm[_solve.P_STRAIN] = 5.0, 0.9
         mp = getattr(c, "max_penetration", None)  # penetration guard [m]; None = 4 * delta
-        prm[_solve.P_MAXPEN] = 4.0 * c.delta if mp is None else float(mp)
-        prm[_solve.P_CCD] = 1.0 if getattr(c, "step_limit", True) else 0.0
-        prm[_solve.P_RGUARD] = m.divergence_guard
-        prm[_solve.P_MIDTOL] = MIDPOINT_ENERGY_TOL
-        self._prm = prm
+        prm = _solve.Params(
+            EA=m.EA, EI1=m.EI1, EI2=m.EI2, GJ=m.GJ, dt=m.dt, damping=m.damping, newton_tol=m.newton_tol,
+            newton_dtol=m.newton_dtol, newton_max_iter=float(m.newton_max_iter),
+            accept_unconverged=1.0 if m.accept_unconverged else 0.0,
+            midpoint=0.0 if m.integrator == "backward_euler" else 1.0,
+            line_search={"none": 0.0, "backtrack": 1.0, "auto": 2.0}[m.line_search], radius=m.radius,
+            contact_k=c.stiffness, contact_delta=c.delta, friction=c.friction, friction_nu=c.friction_velocity_tol,
+            friction_on=1.0 if np.any(m.obstacles.effective_friction(c.friction) > 0) else 0.0,
+            contact_margin=c.margin, n_obstacles=float(m.obstacles.count if getattr(c, "enabled", True) else 0),
+            planar_sign=m.planar_sign, plane_y=m.plane_y, retry_levels=5.0, max_strain=0.9,
+            max_penetration=4.0 * c.delta if mp is None else float(mp),
+            step_limit=1.0 if getattr(c, "step_limit", True) else 0.0, divergence_guard=m.divergence_guard,
+            midpoint_energy_tol=MIDPOINT_ENERGY_TOL)
+        self._prm = _solve.Params(*(float(v) for v in prm))  # all float64: one numba signature
         self._arr = tuple(np.array(a) for a in (m.rest_edge_length, m.voronoi_length, m.dof_mass, m.dof_fixed,
                                                 m.dof_gravity))
         # per-Simulator obstacle poses (static meshes/BVHs shared with the model); tasks edit them through
