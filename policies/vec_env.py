@@ -28,7 +28,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .tasks import TASK_SPECS, gym_task_id
-from .tasks.base import BatchedTask
+from .tasks.base import BatchedTask, check_field_value
 from .tasks.env import action_space, observation_space
 
 __all__ = ["BatchedVecEnv", "SB3VecEnvAdapter", "make_vec_env", "vector_entry_point", "check_overrides"]
@@ -122,37 +122,14 @@ def make_vec_env(task: str, num_envs: int, *, seed: int | None = None, config: A
 
 
 def check_overrides(cfg: Any, overrides: dict[str, Any]) -> None:
-    """Refuse config overrides that are unknown fields or of the wrong type (ValueError naming the field):
-    a float field takes a finite real number (not a str or bool), an int field an integer (2.5 is refused,
-    never truncated), a bool field a bool, a str field a str (or None where the default is None)."""
+    """Refuse config overrides that are unknown fields or of the wrong kind (ValueError naming the field;
+    the rules are :func:`policies.tasks.base.check_field_value`, checked against the field's current value)."""
     name = type(cfg).__name__
     fields = {f.name for f in dataclasses.fields(cfg)}
-    limits = {"substeps": (1, 1000), "newton_max_iter": (1, 10_000), "timeout_steps": (0, 10 ** 9)}
     for k, v in overrides.items():
         if k not in fields:
             raise ValueError(f"make_vec_env: {name} has no field {k!r} (fields: {sorted(fields)})")
-        cur = getattr(cfg, k)
-        got = f"{type(v).__name__} {v!r}"
-        if isinstance(cur, bool):
-            ok = isinstance(v, (bool, np.bool_))
-            want = "true/false"
-        elif isinstance(cur, int):
-            ok = isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
-            want = "an integer"
-        elif isinstance(cur, float):
-            ok = (isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
-                  and bool(np.isfinite(v)))
-            want = "a finite number"
-        elif isinstance(cur, str) or (cur is None and k == "scene"):
-            ok = isinstance(v, str) or (v is None and k == "scene")
-            want = "a string"
-        else:
-            continue  # arrays / nested settings: checked by the task itself
-        if not ok:
-            raise ValueError(f"make_vec_env: {name}.{k}: expected {want}, got {got}")
-        lo, hi = limits.get(k, (None, None))
-        if lo is not None and not lo <= v <= hi:
-            raise ValueError(f"make_vec_env: {name}.{k}: must be within [{lo}, {hi}], got {v!r}")
+        check_field_value(f"make_vec_env: {name}", k, getattr(cfg, k), v)
 
 
 def vector_entry_point(task_id: str, num_envs: int = 1, **kwargs: Any) -> BatchedVecEnv:

@@ -18,6 +18,7 @@ seed, which equals ``SeedSequence(seed, spawn_key=(i,))``; a single env reset wi
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -29,7 +30,35 @@ from policies.control import STATE_NODES, ActionConverter, ControlConfig, Smooth
 
 from .rewards import FAILURE_REWARD
 
-__all__ = ["TaskConfig", "BatchedTask", "child_generator", "spawn_generators"]
+__all__ = ["TaskConfig", "BatchedTask", "child_generator", "spawn_generators", "check_field_value"]
+
+# Ranges of the integer settings every task shares (a huge substeps count would run for ever).
+FIELD_LIMITS = {"substeps": (1, 1000), "newton_max_iter": (1, 10_000), "timeout_steps": (0, 10 ** 9)}
+
+
+def check_field_value(owner: str, key: str, like: Any, value: Any) -> None:
+    """Raise ValueError naming ``owner.key`` unless ``value`` has the kind of ``like`` (the field's default or
+    current value): float -> a finite real number (not str/bool), int -> an integer, bool -> a bool, str -> a
+    str (``scene`` may also be None). Other kinds (arrays, nested settings) are left to the task."""
+    got = f"{type(value).__name__} {value!r}"
+    if isinstance(like, bool):
+        ok, want = isinstance(value, (bool, np.bool_)), "true/false"
+    elif isinstance(like, int):
+        ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+        want = "an integer"
+    elif isinstance(like, float):
+        ok = (isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+              and bool(np.isfinite(value)))
+        want = "a finite number"
+    elif isinstance(like, str) or (like is None and key == "scene"):
+        ok, want = isinstance(value, str) or (value is None and key == "scene"), "a string"
+    else:
+        return
+    if not ok:
+        raise ValueError(f"{owner}.{key}: expected {want}, got {got}")
+    lo, hi = FIELD_LIMITS.get(key, (None, None))
+    if lo is not None and not lo <= value <= hi:
+        raise ValueError(f"{owner}.{key}: must be within [{lo}, {hi}], got {value!r}")
 
 OBS_LIMIT = 1e6  # observations are clipped to +-OBS_LIMIT and NaN -> 0 (sanitising, O5)
 
@@ -42,8 +71,10 @@ class TaskConfig:
     per sim step (accepted unconverged); mode: "3d" or "2d" simulator mode; timeout_steps: episode
     truncation counter (episode = timeout_steps + 1 control steps); smoothing: spatial mapping of the
     action converter ("intended" default, "reference" = the paper's shifted mapping, "none");
-    scene: scene file path relative to the repo root (used if it exists, else the scene is built in
-    code; the task's sim settings above override the file's [sim] values).
+    scene: scene file path relative to the repo root (the task's sim settings above override the
+    file's [sim] values; a missing file is a SceneError).
+    Every field is checked on construction (:func:`check_field_value`): a float field takes a finite real
+    number, an int field an integer (2.5 is refused, never truncated), a bool field a bool, a str field a str.
     """
 
     dt: float = 0.05
@@ -57,6 +88,9 @@ class TaskConfig:
 
     def __post_init__(self) -> None:
         name = type(self).__name__
+        for f in dataclasses.fields(self):
+            if f.default is not dataclasses.MISSING:
+                check_field_value(name, f.name, f.default, getattr(self, f.name))
         if self.mode not in ("3d", "2d"):
             raise ValueError(f"{name}.mode must be '3d' or '2d', got {self.mode!r}")
         if not (math.isfinite(self.dt) and self.dt > 0):

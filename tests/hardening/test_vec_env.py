@@ -65,3 +65,17 @@ def test_reset_mask_takes_integer_indices_too():
     assert env.core.step_count.tolist() == [0, 0, 0]
     with pytest.raises(ValueError, match="reset_mask"):
         env.reset(options={"reset_mask": [0, True]})
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"dt": "0.05"}, r"FollowTargetConfig\.dt: expected a finite number"),
+    ({"substeps": 2.5}, r"\.substeps: expected an integer"),
+    ({"newton_max_iter": 0}, r"\.newton_max_iter: must be within"),
+    ({"timeout_steps": True}, r"\.timeout_steps: expected an integer"),
+    ({"smoothing": 3}, r"\.smoothing: expected a string"),
+])
+def test_task_config_built_directly_checks_its_fields(kw, match):
+    from policies.tasks.follow_target import FollowTargetConfig
+
+    with pytest.raises(ValueError, match=match):
+        FollowTargetConfig(**kw)
