@@ -483,8 +483,8 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
             pos0[k, 1] = py
             pos0[k, 2] = xs[2 * k + 1] - prm.dt * us[2 * k + 1]
         contact_report(e, cd, pos, pos0, prm.dt, prm.radius, prm.contact_k, prm.contact_delta, prm.friction, prm.friction_nu,
-                       prm.friction_on > 0, crep[0], crep[1], crep[2], crep[3], crep[4], crep[5], crep[6], crep[7],
-                       crep[8], crep[9])
+                       prm.friction_on > 0, crep.count, crep.edge, crep.obstacle, crep.rod_point, crep.obstacle_point,
+                       crep.normal, crep.normal_force, crep.friction_force, crep.gap, crep.max_penetration)
     return ok
 
 

@@ -535,8 +535,8 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
                 pos[k, a] = xs[4 * k + a]
                 pos0[k, a] = xs[4 * k + a] - prm.dt * us[4 * k + a]  # step start (friction velocity)
         contact_report(e, cd, pos, pos0, prm.dt, prm.radius, prm.contact_k, prm.contact_delta, prm.friction, prm.friction_nu,
-                       prm.friction_on > 0, crep[0], crep[1], crep[2], crep[3], crep[4], crep[5], crep[6], crep[7],
-                       crep[8], crep[9])
+                       prm.friction_on > 0, crep.count, crep.edge, crep.obstacle, crep.rod_point, crep.obstacle_point,
+                       crep.normal, crep.normal_force, crep.friction_force, crep.gap, crep.max_penetration)
     return ok
 
 
@@ -544,7 +544,7 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
 def step_kernel_3d(dof, vel, d1s, ts, bs, times, failed, kappa_bar, tau_bar, rest_len, vor_len, mass, fixed,
                    grav, prm, cd, crep, fo, io):
     """Advance all non-failed envs by prm.dt. dof/vel (B, 4N) views of State.dof; outputs fo (B, F_COLS),
-    io (B, I_COLS) and the contact report arrays crep."""
+    io (B, I_COLS) and the contact rows crep (a ContactReport)."""
     B = dof.shape[0]
     N = dof.shape[1] // 4
     nch = (B + _CHUNK - 1) // _CHUNK

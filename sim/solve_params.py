@@ -19,6 +19,13 @@ Params = namedtuple("Params", [
     "contact_margin", "n_obstacles", "planar_sign", "plane_y", "retry_levels", "max_strain", "max_penetration",
     "step_limit", "divergence_guard", "midpoint_energy_tol",
 ])
+# the per-env contact rows the step kernels write for StepStats (leading axis B; C = report capacity):
+# count (B,), edge/obstacle (B, C) int64, rod_point/obstacle_point/normal/friction_force (B, C, 3),
+# normal_force/gap (B, C), max_penetration (B,)
+ContactReport = namedtuple("ContactReport", [
+    "count", "edge", "obstacle", "rod_point", "obstacle_point", "normal", "normal_force", "friction_force", "gap",
+    "max_penetration",
+])
 # columns of the float / int per-env outputs
 F_RES, F_RES0, F_ES, F_EB, F_ET, F_EC, F_EK, F_EG, F_PEN = range(9)
 F_COLS = 9

@@ -53,9 +53,11 @@ class Simulator:
         self.obstacles = m.obstacles.for_envs(B, n_nodes=m.node_count, rod_radius=m.radius)
         self._cd = self.obstacles.kernel_data()
         C = int(self.obstacles.report_capacity)
-        self._crep = (np.zeros(B, np.int64), np.zeros((B, C), np.int64), np.zeros((B, C), np.int64),
-                      np.zeros((B, C, 3)), np.zeros((B, C, 3)), np.zeros((B, C, 3)), np.zeros((B, C)),
-                      np.zeros((B, C, 3)), np.zeros((B, C)), np.zeros(B))
+        self._crep = _solve.ContactReport(
+            count=np.zeros(B, np.int64), edge=np.zeros((B, C), np.int64), obstacle=np.zeros((B, C), np.int64),
+            rod_point=np.zeros((B, C, 3)), obstacle_point=np.zeros((B, C, 3)), normal=np.zeros((B, C, 3)),
+            normal_force=np.zeros((B, C)), friction_force=np.zeros((B, C, 3)), gap=np.zeros((B, C)),
+            max_penetration=np.zeros(B))
         self._fo = np.zeros((B, _solve.F_COLS))
         self._io = np.zeros((B, _solve.I_COLS), np.int64)
 
@@ -161,10 +163,11 @@ class Simulator:
             converged=io[:, s.I_CONV].astype(bool), substeps=io[:, s.I_SUB].copy(), failed=io[:, s.I_FAIL].astype(bool),
             energy_stretch=fo[:, s.F_ES].copy(), energy_bend=fo[:, s.F_EB].copy(), energy_twist=fo[:, s.F_ET].copy(),
             energy_contact=fo[:, s.F_EC].copy(), energy_kinetic=fo[:, s.F_EK].copy(),
-            energy_gravity=fo[:, s.F_EG].copy(), max_penetration=cr[9].copy(), contact_count=cr[0].copy(),
-            contact_edge=cr[1].copy(), contact_obstacle=cr[2].copy(), contact_rod_point=cr[3].copy(),
-            contact_obstacle_point=cr[4].copy(), contact_normal=cr[5].copy(), contact_normal_force=cr[6].copy(),
-            contact_friction_force=cr[7].copy(), contact_gap=cr[8].copy())
+            energy_gravity=fo[:, s.F_EG].copy(), max_penetration=cr.max_penetration.copy(),
+            contact_count=cr.count.copy(), contact_edge=cr.edge.copy(), contact_obstacle=cr.obstacle.copy(),
+            contact_rod_point=cr.rod_point.copy(), contact_obstacle_point=cr.obstacle_point.copy(),
+            contact_normal=cr.normal.copy(), contact_normal_force=cr.normal_force.copy(),
+            contact_friction_force=cr.friction_force.copy(), contact_gap=cr.gap.copy())
 
     # ------------------------------------------------------------------ frames
     def material_frames(self, state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
