@@ -1,8 +1,8 @@
 """Glue between a batched task core (``policies.tasks.base.BatchedTask``) and a :class:`Recorder`.
 
-:class:`TaskProbe` wraps the core's ``step``/``reset`` and its simulator's ``step`` (instance
-attributes only; :meth:`TaskProbe.detach` restores them) so every env's frames are recorded with the
-full simulator state *before* the vector env auto-resets finished envs:
+:class:`TaskProbe` is a :class:`~policies.tasks.base.StepObserver` of the core (``core.add_observer``;
+:meth:`TaskProbe.detach` removes it), so every env's frames are recorded with the full simulator state
+*before* the vector env auto-resets finished envs:
 
 * after ``core.reset(mask)``: for each reset env, end its open episode (``complete=False``), begin a
   new one if that env's quota is not used up, and log the reset frame (control_step 0);
@@ -21,7 +21,6 @@ split ``policies.evaluate`` uses). Attach it before the env's first ``reset``::
 from __future__ import annotations
 
 import contextlib
-import time
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
@@ -210,11 +209,9 @@ class TaskProbe:
         self.quota = np.array([self.episodes // B + (i < self.episodes % B) for i in range(B)], np.int64)
         self.begun = np.zeros(B, np.int64)
         self._cut = np.zeros(B, bool)
-        self._sub = 0
         self._last_stats = None
         self._wall = 0.0
-        self._orig_step, self._orig_reset, self._orig_sim_step = core.step, core.reset, core.sim.step
-        core.step, core.reset, core.sim.step = self._step, self._reset, self._sim_step
+        core.add_observer(self)
         cfg = getattr(core, "config", None)
         self.substeps = int(getattr(cfg, "substeps", 1))
         self.dt = float(getattr(getattr(core, "model", None) or core.sim.model, "dt", getattr(cfg, "dt", 0.05)))
@@ -230,15 +227,13 @@ class TaskProbe:
         return self
 
     def detach(self, *, end_open: bool = False) -> None:
-        """Restore the core's methods; with ``end_open`` end this env's open episodes (``complete=False``)."""
+        """Stop observing the core; with ``end_open`` end this env's open episodes (``complete=False``)."""
         if self.core is not None:
             if end_open:
                 for e in range(self.core.envs):
                     if self.rec.is_open(e):
                         self.rec.end_episode(env=e, complete=False)
-            for name in ("step", "reset"):
-                self.core.__dict__.pop(name, None)
-            self.core.sim.__dict__.pop("step", None)
+            self.core.remove_observer(self)
             self.core = None
 
     @property
@@ -254,12 +249,9 @@ class TaskProbe:
         self._cut[:] = False
         return m
 
-    # ------------------------------------------------------------------ wrapped methods
-    def _reset(self, mask=None):
-        obs = self._orig_reset(mask)
-        B = self.core.envs
-        m = np.ones(B, bool) if mask is None else np.asarray(mask, bool)
-        for e in np.flatnonzero(m):
+    # ------------------------------------------------------------------ StepObserver
+    def on_reset(self, core, mask: np.ndarray) -> None:
+        for e in np.flatnonzero(mask):
             if self.rec.is_open(int(e)):
                 self.rec.end_episode(env=int(e), complete=False)
             if self.begun[e] < self.quota[e]:
@@ -267,38 +259,30 @@ class TaskProbe:
                 meta = {**self.meta, "env_episode": int(self.begun[e] - 1)}
                 if "seed" in meta and "env_seed_index" not in meta:
                     meta["env_seed_index"] = int(e)      # env e of a batch seeded `seed` (SeedSequence child e)
-                self.rec.begin_episode(meta, task_static_scene(self.core, int(e)), env=int(e))
-        rec_envs = [int(e) for e in np.flatnonzero(m) if self.rec.is_open(int(e))]
+                self.rec.begin_episode(meta, task_static_scene(core, int(e)), env=int(e))
+        rec_envs = [int(e) for e in np.flatnonzero(mask) if self.rec.is_open(int(e))]
         if rec_envs:
             self._log(rec_envs, stats=None, control=True, reward=None, info=None)
-        return obs
 
-    def _sim_step(self, state, ctrl):
-        stats = self._orig_sim_step(state, ctrl)
+    def on_sim_step(self, core, substep: int, stats) -> None:
         self._last_stats = stats
-        self._sub += 1
-        if self.per_sim_step and self._sub < self.substeps:
-            envs = [e for e in range(self.core.envs) if self.rec.is_open(e)]
+        if self.per_sim_step and substep + 1 < self.substeps:
+            envs = [e for e in range(core.envs) if self.rec.is_open(e)]
             if envs:
                 self._log(envs, stats=stats, control=False, reward=None, info=None)
-        return stats
 
-    def _step(self, action):
-        self._sub = 0
-        t0 = time.perf_counter()
-        obs, reward, term, trunc, info = self._orig_step(action)
-        self._wall = time.perf_counter() - t0
-        envs = [e for e in range(self.core.envs) if self.rec.is_open(e)]
+    def on_step(self, core, reward, terminated, truncated, info) -> None:
+        self._wall = core.last_step_seconds
+        envs = [e for e in range(core.envs) if self.rec.is_open(e)]
         if envs:
             self._log(envs, stats=self._last_stats, control=True, reward=reward, info=info)
-        done = np.asarray(term, bool) | np.asarray(trunc, bool)
+        done = np.asarray(terminated, bool) | np.asarray(truncated, bool)
         for e in envs:
             if done[e]:
                 self.rec.end_episode(env=e, complete=True)
-            elif self.max_steps is not None and self.core.step_count[e] >= self.max_steps:
+            elif self.max_steps is not None and core.step_count[e] >= self.max_steps:
                 self.rec.end_episode(env=e, complete=False)
                 self._cut[e] = True
-        return obs, reward, term, trunc, info
 
     # ------------------------------------------------------------------ one frame per env
     def _log(self, envs: list[int], *, stats, control: bool, reward, info) -> None:

@@ -20,9 +20,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar, Literal, Protocol
 
 import numpy as np
 
@@ -30,7 +31,7 @@ from policies.control import STATE_NODES, ActionConverter, ControlConfig, Smooth
 
 from .rewards import FAILURE_REWARD
 
-__all__ = ["TaskConfig", "BatchedTask", "child_generator", "spawn_generators", "check_field_value"]
+__all__ = ["TaskConfig", "BatchedTask", "StepObserver", "child_generator", "spawn_generators", "check_field_value"]
 
 # Ranges of the integer settings every task shares (a huge substeps count would run for ever).
 FIELD_LIMITS = {"substeps": (1, 1000), "newton_max_iter": (1, 10_000), "timeout_steps": (0, 10 ** 9)}
@@ -114,11 +115,27 @@ def spawn_generators(seed: int | None, count: int) -> list[np.random.Generator]:
     return [np.random.Generator(np.random.PCG64(s)) for s in np.random.SeedSequence(seed).spawn(count)]
 
 
+class StepObserver(Protocol):
+    """Something that watches a task core (e.g. the recording probe): registered with
+    :meth:`BatchedTask.add_observer`, called after the core's own work, never changing it."""
+
+    def on_reset(self, core: "BatchedTask", mask: np.ndarray) -> None:
+        """After ``core.reset``: ``mask`` (B,) bool are the envs just reset."""
+
+    def on_sim_step(self, core: "BatchedTask", substep: int, stats: Any) -> None:
+        """After sim step ``substep`` (0 .. substeps-1) of a control step, with its ``StepStats``."""
+
+    def on_step(self, core: "BatchedTask", reward: np.ndarray, terminated: np.ndarray, truncated: np.ndarray,
+                info: dict[str, Any]) -> None:
+        """After ``core.step`` (``core.last_step_seconds`` holds its wall time)."""
+
+
 class BatchedTask:
     """Base class of the batched task cores. Subclasses set ``obs_fields``/``control`` and the hooks.
 
     Attributes: ``envs`` B; ``sim``, ``state``, ``ctrl``; ``converter``; ``rngs`` (B generators);
-    ``step_count`` (B,) int; ``obs_dim``; ``action_dim``.
+    ``step_count`` (B,) int; ``obs_dim``; ``action_dim``; ``observers`` (:class:`StepObserver`, see
+    :meth:`add_observer`); ``last_step_seconds`` (wall time of the last control step).
     Hooks: ``_reset_task(idx)``, ``_post_step()``, ``_fields() -> dict name -> (B, n)``,
     ``_reward(fields) -> (reward (B,), terms dict, extra info dict)``.
     """
@@ -148,6 +165,8 @@ class BatchedTask:
         arith = all(b - a == step for a, b in zip(st, st[1:]))
         self._nodes = slice(st[0], st[-1] + 1, step) if arith else np.asarray(st)   # basic slice -> views
         self._all = np.ones(B, dtype=bool)
+        self.observers: list[StepObserver] = []
+        self.last_step_seconds = 0.0
 
     # ---------------------------------------------------------------- config
     def _control_config(self) -> ControlConfig:
@@ -167,6 +186,16 @@ class BatchedTask:
                 raise ValueError(f"seed must be an int, None or a list of {self.envs} ints, got {seed!r}")
             self.rngs = [child_generator(int(s), 0) for s in seeds]
 
+    # ---------------------------------------------------------------- observers
+    def add_observer(self, observer: StepObserver) -> None:
+        """Call ``observer`` after every reset, sim step and control step (see :class:`StepObserver`)."""
+        if observer not in self.observers:
+            self.observers.append(observer)
+
+    def remove_observer(self, observer: StepObserver) -> None:
+        if observer in self.observers:
+            self.observers.remove(observer)
+
     # ---------------------------------------------------------------- episode
     def reset(self, mask: np.ndarray | None = None) -> np.ndarray:
         """Reset the envs in ``mask`` ((B,) bool, all if None); returns observations (B, obs_dim) of ALL envs."""
@@ -179,7 +208,10 @@ class BatchedTask:
             self.converter.reset(m)
             self.step_count[m] = 0
             self._reset_task(idx)           # after the sim reset, so re-placed obstacles are not undone
-        return self.observe()
+        obs = self.observe()
+        for o in self.observers:
+            o.on_reset(self, m)
+        return obs
 
     def step(self, action) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """One control step of all B envs. action (B, action_dim) in [-1, 1].
@@ -187,6 +219,7 @@ class BatchedTask:
         Returns obs (B, obs_dim) float32, reward (B,) float64, terminated (B,), truncated (B,) bool,
         info dict of (B,) arrays.
         """
+        t0 = time.perf_counter()
         inc = self.converter.convert(action)
         B = self.envs
         failed = np.zeros(B, dtype=bool)
@@ -196,6 +229,8 @@ class BatchedTask:
         for k in range(self.config.substeps):
             self.converter.apply(self.ctrl, inc, k)
             stats = self.sim.step(self.state, self.ctrl)
+            for o in self.observers:
+                o.on_sim_step(self, k, stats)
             failed |= np.asarray(stats.failed, dtype=bool)
             iters += np.asarray(stats.newton_iters)
             unconv += ~np.asarray(stats.converged, dtype=bool)
@@ -223,6 +258,9 @@ class BatchedTask:
         info["unconverged_steps"] = unconv
         info["retried_steps"] = retries
         info["episode_step"] = self.step_count.copy()
+        self.last_step_seconds = time.perf_counter() - t0
+        for o in self.observers:
+            o.on_step(self, reward, terminated, truncated, info)
         return obs, reward, terminated, truncated, info
 
     # ---------------------------------------------------------------- observation

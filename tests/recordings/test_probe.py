@@ -44,20 +44,26 @@ def test_probe_records_what_the_core_had(task, tmp_path, fake_task_sim, verify):
         snaps.append(np.asarray(core.state.node_pos).copy())
         if getattr(core, "fences", None) is not None:
             fences.append(core.fences.copy())
-        orig = core.__dict__["step"]           # the probe's wrapper: snapshot before the auto-reset
+        from policies.recording.probe import task_target
 
-        def spy(action):
-            res = orig(action)
-            snaps.append(np.asarray(core.state.node_pos).copy())
-            rewards.append(np.asarray(res[1]).copy())
-            from policies.recording.probe import task_target
-            targets.append(task_target(core)[0].copy())
-            return res
+        class Spy:                             # a second observer: snapshot before the auto-reset
+            def on_reset(self, core, mask):
+                pass
 
-        core.step = spy
+            def on_sim_step(self, core, substep, stats):
+                pass
+
+            def on_step(self, core, reward, terminated, truncated, info):
+                snaps.append(np.asarray(core.state.node_pos).copy())
+                rewards.append(np.asarray(reward).copy())
+                targets.append(task_target(core)[0].copy())
+
+        spy = Spy()
+        core.add_observer(spy)
         while not probe.done:
             venv.step(rng.uniform(-1, 1, size=(B, core.action_dim)).astype(np.float32))
         probe.detach()
+        assert core.observers == [spy]                                # detach removes the probe only
     venv.close()
     verify(out)
     eps = read_recording(out)
