@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-__all__ = ["MeshError", "load_mesh_triangles", "build_bvh", "bvh_any_overlap", "LEAF_SIZE"]
+__all__ = ["MeshError", "load_mesh_triangles", "build_bvh", "bvh_any_overlap", "cylinder_triangles", "LEAF_SIZE"]
 
 LEAF_SIZE = 4
 
@@ -191,3 +191,18 @@ def bvh_any_overlap(root, node_lo, node_hi, node_child, node_range, tri, qlo, qh
             stack[sp + 1] = node_child[nd, 1]
             sp += 2
     return False
+
+
+def cylinder_triangles(length: float, radius: float, segments: int = 48) -> np.ndarray:
+    """Closed prism of ``segments`` sides approximating a flat-ended cylinder of ``radius`` [m] along local z,
+    from z = -length/2 to +length/2 -> triangles (T, 3, 3), counter-clockwise seen from outside."""
+    a = np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False)
+    ring = np.stack([radius * np.cos(a), radius * np.sin(a), np.zeros(segments)], axis=1)
+    lo = ring + [0.0, 0.0, -0.5 * length]
+    hi = ring + [0.0, 0.0, 0.5 * length]
+    nxt = np.roll(np.arange(segments), -1)
+    c_lo = np.broadcast_to([0.0, 0.0, -0.5 * length], (segments, 3))
+    c_hi = np.broadcast_to([0.0, 0.0, 0.5 * length], (segments, 3))
+    tris = [np.stack([lo, lo[nxt], hi[nxt]], 1), np.stack([lo, hi[nxt], hi], 1),   # side
+            np.stack([c_hi, hi, hi[nxt]], 1), np.stack([c_lo, lo[nxt], lo], 1)]   # caps
+    return np.ascontiguousarray(np.concatenate(tris), dtype=np.float64)

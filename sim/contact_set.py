@@ -13,17 +13,19 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .contact_mesh import build_bvh, load_mesh_triangles
+from .contact_mesh import build_bvh, cylinder_triangles, load_mesh_triangles
 from .obstacles import (
     KIND_CODES,
     BoxSpec,
     CapsuleSpec,
+    CylinderSpec,
     MeshSpec,
     ObstacleSpec,
     PlaneSpec,
     SphereSpec,
     quat_to_matrix,
 )
+from .rotations import quat_z_to
 
 __all__ = ["ObstacleSet", "ContactData"]
 
@@ -59,10 +61,15 @@ class ObstacleSet:
         for i, s in enumerate(self.specs):
             if isinstance(s, BoxSpec):
                 self.half[i] = s.half_extents
-            elif isinstance(s, MeshSpec):
-                key = (s.path or s.file, s.scale)
+            elif isinstance(s, (MeshSpec, CylinderSpec)):
+                if isinstance(s, CylinderSpec):  # a closed 48-sided prism along local z, centred at the origin
+                    length = float(np.linalg.norm(np.subtract(s.end, s.start)))
+                    key = ("cylinder", length, float(s.radius))
+                else:
+                    key = (s.path or s.file, s.scale)
                 if key not in seen:
-                    t, l_, h_, c_, r_ = build_bvh(load_mesh_triangles(s.path or s.file, s.scale))
+                    t, l_, h_, c_, r_ = build_bvh(cylinder_triangles(key[1], key[2]) if isinstance(s, CylinderSpec)
+                                                  else load_mesh_triangles(s.path or s.file, s.scale))
                     c_ = np.where(c_ >= 0, c_ + nnode, -1)
                     r_ = r_.copy()
                     r_[:, 0] += ntri
@@ -98,6 +105,9 @@ class ObstacleSet:
                 self._la0[i], self._lb0[i], self._rad0[i] = s.start, s.end, s.radius
             elif isinstance(s, (BoxSpec, MeshSpec)):
                 self._pos0[i], self._quat0[i] = s.position, s.orientation
+            elif isinstance(s, CylinderSpec):  # the prism's frame: centre at the axis midpoint, z along the axis
+                a, b = np.asarray(s.start, np.float64), np.asarray(s.end, np.float64)
+                self._pos0[i], self._quat0[i] = 0.5 * (a + b), quat_z_to(b - a)
         self._n_nodes = 0
         self._rod_radius = 0.0
         self._kd: ContactData | None = None

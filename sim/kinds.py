@@ -9,4 +9,5 @@ SPHERE = 1
 CAPSULE = 2
 BOX = 3
 MESH = 4
-KIND_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "box": BOX, "mesh": MESH}
+# a flat-ended cylinder is contacted as a mesh (a closed 48-sided prism, sim/contact_mesh.py)
+KIND_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "box": BOX, "mesh": MESH, "cylinder": MESH}

@@ -3,6 +3,7 @@
 Scene keys (SI units; every obstacle may carry ``name = "..."``)::
 
     [[obstacle]] type = "capsule"  start [m], end [m], radius [m]
+    [[obstacle]] type = "cylinder" start [m], end [m], radius [m] (flat ends; contacted as a 48-sided prism)
     [[obstacle]] type = "sphere"   center [m], radius [m]
     [[obstacle]] type = "plane"    point [m], normal (normalised here; contact side = +normal)
     [[obstacle]] type = "box"      position [m], orientation (quaternion w,x,y,z; default identity),
@@ -36,7 +37,7 @@ from .rotations import quat_to_matrix  # noqa: F401  (re-exported: sim.obstacles
 from .tomlio import SceneError, check_unknown, format_value, take_bool, take_float, take_str, take_vec3
 from .validate import unit_vector
 
-__all__ = ["ObstacleSpec", "PlaneSpec", "SphereSpec", "CapsuleSpec", "BoxSpec", "MeshSpec", "ContactSpec",
+__all__ = ["ObstacleSpec", "PlaneSpec", "SphereSpec", "CapsuleSpec", "CylinderSpec", "BoxSpec", "MeshSpec", "ContactSpec",
            "ObstacleSet", "parse_obstacles", "parse_contact", "dump_obstacles", "dump_contact", "KIND_CODES"]
 
 Vec3 = tuple[float, float, float]
@@ -81,6 +82,19 @@ class CapsuleSpec(ObstacleSpec):
     name: str = ""
     friction: float | None = None  # Coulomb μ of this obstacle; None = the [contact] friction
     type = "capsule"
+
+
+@dataclass(frozen=True)
+class CylinderSpec(ObstacleSpec):
+    """Flat-ended cylinder: axis segment ``start``-``end`` [m], ``radius`` [m]; contacted as a closed 48-sided
+    prism (radial error 0.21 % of the radius), its pose set like a mesh's."""
+
+    start: Vec3
+    end: Vec3
+    radius: float
+    name: str = ""
+    friction: float | None = None  # Coulomb μ of this obstacle; None = the [contact] friction
+    type = "cylinder"
 
 
 @dataclass(frozen=True)
@@ -142,6 +156,7 @@ _KEYS = {
     "plane": {"point", "normal"},
     "sphere": {"center", "radius"},
     "capsule": {"start", "end", "radius"},
+    "cylinder": {"start", "end", "radius"},
     "box": {"position", "orientation", "half_extents"},
     "mesh": {"file", "scale", "position", "orientation"},
 }
@@ -185,6 +200,12 @@ def _parse_shape(t: Mapping[str, Any], i: int, scene_path: str | None) -> Obstac
         a = take_vec3(t, "start", p, scene_path)
         b = take_vec3(t, "end", p, scene_path)
         return CapsuleSpec(start=a, end=b, radius=take_float(t, "radius", p, scene_path, positive=True), name=name)
+    if typ == "cylinder":
+        a = take_vec3(t, "start", p, scene_path)
+        b = take_vec3(t, "end", p, scene_path)
+        if not float(np.linalg.norm(np.subtract(b, a))) > 0.0:
+            raise SceneError(f"{where}end: must differ from start (the cylinder's axis), got {list(b)}")
+        return CylinderSpec(start=a, end=b, radius=take_float(t, "radius", p, scene_path, positive=True), name=name)
     if typ == "box":
         h = take_vec3(t, "half_extents", p, scene_path)
         if min(h) <= 0:

@@ -180,6 +180,10 @@ def _check_obstacle(c: _Checker, i: int, ob: Any) -> None:
         c.vec(p + "start", ob.start, "obstacle.coordinates")
         c.vec(p + "end", ob.end, "obstacle.coordinates")
         c.num(p + "radius", ob.radius, "obstacle.radius", positive=True)
+    elif typ == "cylinder":
+        c.vec(p + "start", ob.start, "obstacle.coordinates")
+        c.vec(p + "end", ob.end, "obstacle.coordinates")
+        c.num(p + "radius", ob.radius, "obstacle.radius", positive=True)
     elif typ == "box":
         c.vec(p + "position", ob.position, "obstacle.coordinates")
         c.vec(p + "half_extents", ob.half_extents, "obstacle.half_extents")
