@@ -1,0 +1,300 @@
+"""Export a recorded episode: a standalone HTML player and a PNG picture of one frame.
+
+``rodlab export RECORDING.rrd --episode K --html OUT.html [--png OUT.png --frame N]``
+
+* HTML: one self-contained file (data and script inline, nothing fetched) that opens from ``file://`` with no
+  server: the rod moving over a timeline with play/pause, speed, orbit/zoom and view presets
+  (:mod:`workbench.export_page`). Positions are stored as little-endian float32 (as in the recording, see
+  docs/architecture.md); episodes longer than ``max_frames`` are decimated evenly (first and last frame kept).
+* PNG: the same default view of one frame, drawn with matplotlib (no browser needed).
+
+Files are written atomically (:mod:`sim.atomicio`) and only to the paths given.
+"""
+from __future__ import annotations
+
+import argparse
+import base64
+import html
+import json
+import math
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from policies.recording.schema import EpisodeData, RecordingError
+from sim import atomicio
+
+from .export_page import PAGE
+
+__all__ = ["ExportError", "load_episode", "pack_episode", "episode_html", "unpack_html", "export_html",
+           "export_png", "main"]
+
+DEFAULT_MAX_FRAMES = 5000
+MAX_MESH_EDGES = 50_000
+SERIES = ("tip_error", "reward", "contact/max_normal_force")
+META_KEYS = ("task", "policy", "seed", "episode", "env", "scene", "control_dt", "dt", "substeps", "complete",
+             "return", "created_utc", "rodlab_version", "git_commit")
+_DATA_RE = re.compile(r'<script type="application/json" id="rodlab-data">(.*?)</script>', re.S)
+
+
+class ExportError(ValueError):
+    """Bad export request (episode or frame out of range, unusable output path)."""
+
+
+def load_episode(recording: str | Path, episode: int) -> EpisodeData:
+    """Episode ``episode`` (0-based, in the order ``rodlab inspect`` lists them) of a .rrd file."""
+    from policies.recording.reader import read_recording
+
+    eps = read_recording(recording)
+    if not isinstance(episode, (int, np.integer)) or not 0 <= int(episode) < len(eps):
+        raise ExportError(f"{recording}: episode {episode} out of range: the file has {len(eps)} "
+                          f"episode{'s' if len(eps) != 1 else ''} (0..{len(eps) - 1})")
+    ep = eps[int(episode)]
+    if ep.steps == 0:
+        raise ExportError(f"{recording}: episode {episode} has no frames")
+    return ep
+
+
+def _b64(a: np.ndarray) -> str:
+    return base64.b64encode(np.ascontiguousarray(a, dtype="<f4").tobytes()).decode("ascii")
+
+
+def _num(v: Any) -> Any:
+    if isinstance(v, (float, np.floating)):
+        return float(v) if math.isfinite(v) else None
+    if isinstance(v, (bool, int, str)):
+        return v
+    if isinstance(v, (np.integer, np.bool_)):
+        return v.item()
+    return str(v)
+
+
+def _mesh_edges(faces: np.ndarray) -> np.ndarray:
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    e = np.unique(np.sort(e, axis=1), axis=0)
+    return e[:MAX_MESH_EDGES]
+
+
+def _obstacles(sc: Any) -> dict[str, Any]:
+    out: dict[str, Any] = {"capsules": [], "spheres": [], "boxes": [], "meshes": []}
+    if sc.capsules is not None:
+        for ab, r in zip(np.asarray(sc.capsules, float), np.asarray(sc.capsule_radii, float)):
+            out["capsules"].append([*map(float, ab.reshape(6)), float(r)])
+    if sc.sphere_centers is not None:
+        for c, r in zip(np.asarray(sc.sphere_centers, float), np.asarray(sc.sphere_radii, float)):
+            out["spheres"].append([*map(float, c), float(r)])
+    if sc.box_centers is not None:
+        n = len(sc.box_centers)
+        quats = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)) if sc.box_quats is None else np.asarray(sc.box_quats, float)
+        for c, h, q in zip(np.asarray(sc.box_centers, float), np.asarray(sc.box_half_sizes, float), quats):
+            out["boxes"].append([*map(float, c), *map(float, h), *map(float, q)])
+    for v, f in sc.meshes:
+        out["meshes"].append({"v": _b64(np.asarray(v).reshape(-1, 3)),
+                              "e": _mesh_edges(np.asarray(f, np.int64).reshape(-1, 3)).reshape(-1).tolist()})
+    return out
+
+
+def frame_indices(n_frames: int, max_frames: int) -> np.ndarray:
+    """Frames kept in an export: all of them, or ``max_frames`` evenly spaced ones (first and last kept)."""
+    if max_frames < 2:
+        raise ExportError(f"max_frames must be >= 2 (got {max_frames})")
+    if n_frames <= max_frames:
+        return np.arange(n_frames)
+    return np.unique(np.round(np.linspace(0, n_frames - 1, max_frames)).astype(np.int64))
+
+
+def pack_episode(ep: EpisodeData, *, max_frames: int = DEFAULT_MAX_FRAMES, title: str = "") -> dict[str, Any]:
+    """The JSON payload of an export: float32 positions (S, N, 3) in base64, times, target, a few scalar
+    series and the static obstacles."""
+    pos = np.asarray(ep.positions, np.float32)
+    if pos.ndim != 3 or pos.shape[2] != 3 or pos.shape[0] == 0:
+        raise ExportError(f"episode positions have shape {pos.shape}, expected (frames, nodes, 3)")
+    if not np.isfinite(pos).all():
+        raise ExportError("episode positions contain NaN/inf: nothing sensible to draw")
+    idx = frame_indices(pos.shape[0], max_frames)
+    t = np.asarray(ep.sim_time, np.float64)[idx]
+    series = {}
+    for name in SERIES:
+        s = ep.scalars.get(name)
+        if s is not None and np.isfinite(s).any():
+            series[name] = [_num(x) for x in np.asarray(s, np.float64)[idx]]
+    tg = None if ep.target_pos is None else np.asarray(ep.target_pos, np.float32)[idx]
+    m = ep.meta
+    return {
+        "version": 1,
+        "title": title or f"{m.get('task', 'episode')}  ep {m.get('episode', '?')}  ({m.get('policy', '')})",
+        "meta": {k: _num(m[k]) for k in META_KEYS if k in m},
+        "n_frames": int(len(idx)), "n_nodes": int(pos.shape[1]), "frame_index": idx.tolist(),
+        "positions": _b64(pos[idx]),
+        "time": [float(x) for x in t],
+        "target": None if tg is None else _b64(tg),
+        "series": series,
+        "rod_radius": float(ep.scene.rod_radius), "planar": bool(ep.scene.planar),
+        "obstacles": _obstacles(ep.scene),
+    }
+
+
+def episode_html(ep: EpisodeData, *, max_frames: int = DEFAULT_MAX_FRAMES, title: str = "") -> str:
+    """The standalone HTML page of an episode (a string)."""
+    data = pack_episode(ep, max_frames=max_frames, title=title)
+    # JSON inside <script>: escape '<', '>' and '&' so no recorded string can close the element
+    blob = json.dumps(data, separators=(",", ":"), allow_nan=False)
+    blob = blob.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+    return PAGE.replace("__TITLE__", html.escape(data["title"])).replace("__DATA__", blob)
+
+
+def unpack_html(text: str) -> dict[str, Any]:
+    """Read the payload back from an exported page; ``positions`` and ``target`` as numpy arrays."""
+    mt = _DATA_RE.search(text)
+    if mt is None:
+        raise ExportError("not a rodlab episode export (no embedded data)")
+    d = json.loads(mt.group(1))
+    pos = np.frombuffer(base64.b64decode(d["positions"]), "<f4")
+    d["positions"] = pos.reshape(d["n_frames"], d["n_nodes"], 3)
+    if d["target"] is not None:
+        d["target"] = np.frombuffer(base64.b64decode(d["target"]), "<f4").reshape(d["n_frames"], 3)
+    return d
+
+
+def _check_out(out: str | Path, suffix: str) -> Path:
+    p = Path(out)
+    if p.suffix.lower() != suffix:
+        raise ExportError(f"{p}: the output file name must end in {suffix}")
+    if p.is_dir():
+        raise ExportError(f"{p}: is a folder")
+    if not p.parent.is_dir():
+        raise ExportError(f"{p}: folder {p.parent} does not exist")
+    return p
+
+
+def export_html(ep: EpisodeData, out: str | Path, *, max_frames: int = DEFAULT_MAX_FRAMES, title: str = "") -> Path:
+    """Write the standalone HTML page of ``ep`` to ``out`` (atomically); returns the path."""
+    p = _check_out(out, ".html")
+    return atomicio.write_text(p, episode_html(ep, max_frames=max_frames, title=title), mkdir=False)
+
+
+def _view_basis(planar: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Screen right/up vectors of the page's default view (iso, or front for planar tasks)."""
+    az, el = (math.radians(-90), 0.0) if planar else (math.radians(-60), math.radians(22))
+    e = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    r = np.array([-math.sin(az), math.cos(az), 0.0])
+    return r, np.cross(e, r)
+
+
+def export_png(ep: EpisodeData, frame: int, out: str | Path, *, width: int = 960, height: int = 720) -> Path:
+    """Write a PNG of frame ``frame`` of ``ep`` (the HTML page's default view) to ``out`` atomically."""
+    import matplotlib
+    matplotlib.use("Agg", force=False)
+    from matplotlib.figure import Figure
+
+    if not isinstance(frame, (int, np.integer)) or not 0 <= int(frame) < ep.steps:
+        raise ExportError(f"frame {frame} out of range: the episode has {ep.steps} frames (0..{ep.steps - 1})")
+    p = _check_out(out, ".png")
+    pos = np.asarray(ep.positions, np.float64)
+    if not np.isfinite(pos[frame]).all():
+        raise ExportError(f"frame {frame}: positions contain NaN/inf")
+    r, u = _view_basis(bool(ep.scene.planar))
+
+    def xy(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        a = np.asarray(a, np.float64).reshape(-1, 3)
+        return a @ r, a @ u
+
+    fig = Figure(figsize=(width / 100, height / 100), dpi=100)
+    ax = fig.add_axes((0, 0, 1, 1))
+    ax.set_aspect("equal")
+    ax.axis("off")
+    allp = pos[np.isfinite(pos).all(axis=2)]
+    X, Y = xy(allp)
+    span = max(float(np.ptp(X)), float(np.ptp(Y)), 0.1) * 0.6 + 2 * ep.scene.rod_radius
+    cx, cy = 0.5 * (X.min() + X.max()), 0.5 * (Y.min() + Y.max())
+    ax.set_xlim(cx - span * width / height, cx + span * width / height)
+    ax.set_ylim(cy - span, cy + span)
+    pts_per_m = height / 100 * 72 / (2 * span)
+    sc = ep.scene
+    grey = (0.43, 0.45, 0.51, 0.45)
+    from matplotlib.patches import Circle
+    if sc.capsules is not None:
+        for ab, rad in zip(sc.capsules, sc.capsule_radii):
+            x, y = xy(ab)
+            if math.hypot(x[1] - x[0], y[1] - y[0]) < 0.5 * rad:  # seen end-on: a disc
+                ax.add_patch(Circle((x[0], y[0]), rad, color=grey))
+            else:
+                ax.plot(x, y, color=grey, lw=max(1.0, 2 * rad * pts_per_m), solid_capstyle="round")
+    if sc.sphere_centers is not None:
+        for c, rad in zip(sc.sphere_centers, sc.sphere_radii):
+            x, y = xy(c)
+            ax.add_patch(Circle((x[0], y[0]), rad, color=grey))
+    for b in _obstacles(sc)["boxes"]:
+        c, h, q = np.array(b[:3]), np.array(b[3:6]), np.array(b[6:10])
+        from scipy.spatial.transform import Rotation
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
+        cs = c + Rotation.from_quat(q).apply(corners)
+        for i in range(8):
+            for bit in (1, 2, 4):
+                j = i ^ bit
+                if i < j:
+                    ax.plot(*xy(cs[[i, j]]), color=(0.27, 0.29, 0.35), lw=1)
+    for v, f in sc.meshes:
+        v = np.asarray(v).reshape(-1, 3)
+        for i, j in _mesh_edges(np.asarray(f, np.int64).reshape(-1, 3))[:5000]:
+            ax.plot(*xy(v[[i, j]]), color=(0.27, 0.29, 0.35), lw=0.5)
+    tip = pos[: frame + 1, -1]
+    ax.plot(*xy(tip), color=(0.9, 0.55, 0.12, 0.6), lw=1.2)
+    rx, ry = xy(pos[frame])
+    n = len(rx)
+    for k in range(n - 1):
+        t = k / max(1, n - 2)
+        col = tuple((np.array([24, 54, 140]) + t * (np.array([60, 190, 210]) - np.array([24, 54, 140]))) / 255)
+        ax.plot(rx[k:k + 2], ry[k:k + 2], color=col, lw=max(3.0, 2 * sc.rod_radius * pts_per_m),
+                solid_capstyle="round")
+    ax.plot(rx[:1], ry[:1], "s", color="#111", ms=6)
+    if ep.target_pos is not None and np.isfinite(ep.target_pos[frame]).all():
+        tx, ty = xy(ep.target_pos[frame])
+        ax.plot(tx, ty, marker="+", ms=14, mew=2, color="#d62728", zorder=5)
+        ax.plot(tx, ty, marker="o", ms=12, mfc="none", mew=2, color="#d62728", zorder=5)
+    m = ep.meta
+    ax.text(0.01, 0.99, f"{m.get('task', '')}  ep {m.get('episode', '?')}\nframe {frame + 1}/{ep.steps}  "
+            f"t = {float(ep.sim_time[frame]):.3f} s", transform=ax.transAxes, va="top", fontsize=10)
+    return atomicio.write_via_path(p, lambda tmp: fig.savefig(tmp, format="png", dpi=100), mkdir=False)
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(
+        prog="rodlab export",
+        description="Export a recorded episode: a standalone HTML player (opens from file://, no server) "
+                    "and/or a PNG of one frame.")
+    ap.add_argument("recording", help="recording .rrd")
+    ap.add_argument("--episode", type=int, default=0, help="episode index, 0-based as `rodlab inspect` lists "
+                    "them (default 0)")
+    ap.add_argument("--html", help="write the standalone HTML player here (.html)")
+    ap.add_argument("--png", help="write a PNG of one frame here (.png)")
+    ap.add_argument("--frame", type=int, default=None, help="frame of the PNG, 0-based (default: last frame)")
+    ap.add_argument("--max-frames", type=int, default=DEFAULT_MAX_FRAMES,
+                    help=f"decimate longer episodes to this many frames in the HTML (default {DEFAULT_MAX_FRAMES})")
+    a = ap.parse_args(argv)
+    if not a.html and not a.png:
+        ap.error("nothing to do: give --html OUT.html and/or --png OUT.png")
+    if a.frame is not None and not a.png:
+        ap.error("--frame applies to --png")
+    try:
+        for out, suf in ((a.html, ".html"), (a.png, ".png")):
+            if out:
+                _check_out(out, suf)
+        ep = load_episode(a.recording, a.episode)
+        if a.html:
+            p = export_html(ep, a.html, max_frames=a.max_frames)
+            print(f"wrote {p} ({p.stat().st_size / 1024:.0f} KiB, {min(ep.steps, a.max_frames)} frames)")
+        if a.png:
+            frame = ep.steps - 1 if a.frame is None else a.frame
+            p = export_png(ep, frame, a.png)
+            print(f"wrote {p} (frame {frame})")
+    except (RecordingError, ExportError) as exc:
+        print(f"rodlab export: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"rodlab export: cannot write: {exc}", file=sys.stderr)
+        return 2
+    return 0
