@@ -138,8 +138,8 @@ def image_diff_fraction(a: bytes, b: bytes, *, level: float = 30.0) -> float:
 
 
 def expand_folder(page, folder: str, probe: str) -> None:
-    """Open a GUI folder unless ``probe`` (a button name, or a CSS selector starting with '.') inside
-    it is already visible."""
+    """Open a GUI tab or folder named ``folder`` unless ``probe`` (a button name, or a CSS selector starting with
+    '.') inside it is already visible."""
     btn = page.locator(probe) if probe.startswith(".") else page.get_by_role("button", name=probe)
     if btn.count() and btn.first.is_visible():
         return

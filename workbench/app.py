@@ -9,6 +9,7 @@ sim thread (``runner.SimThread``) and redraws the scene (``view_scene.SceneView`
 """
 from __future__ import annotations
 
+import threading
 import time
 from pathlib import Path
 
@@ -63,6 +64,8 @@ class WorkbenchApp:
         self.panels = [self.controls]
         self._build_optional_panels()
         self._last_gui = 0.0
+        self._gui_late = False
+        self._planar = False
         wb.on_scene_changed.append(self._scene_changed)
         self._scene_changed()
 
@@ -126,14 +129,25 @@ class WorkbenchApp:
     def _scene_changed(self) -> None:
         if self.wb.mode == "replay":
             return
-        self.view.sync_obstacles(self.wb.obstacles, self._on_gizmo)
+        planar = bool(getattr(self.wb.policy, "planar", False))
+        self.controls.set_planar(planar)
+        if planar != self._planar:  # a 2-D task opens facing its plane; back to the oblique view after it
+            self._planar = planar
+            self.view.set_camera("front" if planar else "iso")
+        self.sync_obstacle_view()
         self.request_render()
+
+    def sync_obstacle_view(self) -> None:
+        """Redraw the live obstacles: clickable, the gizmo on the one selected in the Obstacles tab."""
+        self.view.sync_obstacles(self.wb.obstacles, self._on_gizmo, on_select=self.obstacles.select,
+                                 selected=self.obstacles.selected_index())
 
     def _on_gizmo(self, index: int, position, wxyz) -> None:
         pose = finite_pose(position, wxyz)
         if pose is None or not 0 <= index < len(self.wb.obstacles):  # not finite / far away: ignored
             return
         self.wb.set_obstacle_pose(index, *pose)
+        self.obstacles.show_pose(index)
         self.request_render()
 
     def _render(self, fr: Frame) -> None:
@@ -141,7 +155,13 @@ class WorkbenchApp:
         now = time.perf_counter()
         if now - self._last_gui > 0.2:
             self._last_gui = now
+            self._gui_late = False
             for p in self.panels:
                 upd = getattr(p, "update_status", None)
                 if upd is not None:
                     upd()
+        elif not self._gui_late:  # readouts skipped: one more redraw soon, so a paused page is not left stale
+            self._gui_late = True
+            t = threading.Timer(0.25, self.request_render)
+            t.daemon = True
+            t.start()

@@ -275,6 +275,25 @@ class Workbench:
             edits = [e for i, e in enumerate(self.obstacles) if i != index]
             self._replace_spec(obst.spec_with(self.live.base_spec, edits))
 
+    def resize_obstacle(self, index: int, size) -> None:
+        """New size of obstacle ``index`` (rebuilds the model, keeps the rod state). ``size`` (3,) [m]: sphere radius;
+        capsule radius, length; box half sizes; mesh scale [-] (first value)."""
+        import dataclasses
+
+        with self.lock:
+            v = np.asarray(size, dtype=np.float64).reshape(3)
+            e = dataclasses.replace(self.obstacles[index])
+            if e.kind == "sphere":
+                e.radius = float(v[0])
+            elif e.kind == "capsule":
+                e.radius, e.length = float(v[0]), float(v[1])
+            elif e.kind == "box":
+                e.half_extents = v.copy()
+            elif e.kind == "mesh":
+                e.scale, e.mesh_scale3 = float(v[0]), None
+            edits = [e if i == index else o for i, o in enumerate(self.obstacles)]
+            self._replace_spec(obst.spec_with(self.live.base_spec, edits))
+
     def set_obstacle_pose(self, index: int, position, wxyz) -> None:
         """Move/rotate obstacle ``index``; contact follows at the next step (no rebuild)."""
         with self.lock:

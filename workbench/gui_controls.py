@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from workbench.teleop import CONTROL_NODES, KAPPA_LIMIT, TWIST_LIMIT
+from workbench.view_scene import ARROW_MODES, CAMERAS
 
 if TYPE_CHECKING:
     from workbench.app import WorkbenchApp
@@ -13,9 +14,20 @@ if TYPE_CHECKING:
 COMP_LABELS = ("κ1", "κ2", "τ")
 
 
+TABS = ("Run", "Teleop", "Obstacles", "Policy", "Recordings", "Plots", "Display")
+
+
 def slider_label(k: int, comp: int) -> str:
     """Label of the teleop slider for control point k (0..4) and component comp (0..2)."""
-    return f"{COMP_LABELS[comp]} n{CONTROL_NODES[k]}"
+    return f"{COMP_LABELS[comp]} at node {CONTROL_NODES[k]} [rad]"
+
+
+def slider_hint(k: int, comp: int) -> str:
+    what = ("bend about the first material axis (in-plane bend in 2-D tasks)", "bend about the second material axis",
+            "twist about the centreline")[comp]
+    return (f"{what} given to the nodes around node {CONTROL_NODES[k]}. Absolute mode: the integrated natural "
+            f"{'twist' if comp == 2 else 'curvature'} of that region [rad] (docs/tasks.md §2.3-2.4). Delta mode: "
+            "the action in [-1, 1] added once per control step")
 
 
 class ControlsPanel:
@@ -25,33 +37,46 @@ class ControlsPanel:
         wb = app.wb
         self.status = gui.add_markdown("starting…")
         self.msg = gui.add_markdown("")
-        with gui.add_folder("Run"):
-            self.playing = gui.add_checkbox("Playing", initial_value=wb.playing)
-            self.step_btn = gui.add_button("Step")
-            self.reset_btn = gui.add_button("Reset")
-            self.gravity = gui.add_checkbox("Gravity", initial_value=True)
-            self.speed = gui.add_slider("Speed (× real time)", min=0.1, max=4.0, step=0.1, initial_value=1.0)
-        with gui.add_folder("Display", expand_by_default=False):
-            self.color_by = gui.add_dropdown("Colour by", ("curvature", "strain", "none"),
-                                             initial_value="curvature")
-            self.frames = gui.add_checkbox("Material frames", initial_value=False)
-            self.contacts = gui.add_checkbox("Contacts", initial_value=True)
-            self.force_scale = gui.add_slider("Force arrow m/N", min=0.0005, max=0.05, step=0.0005,
-                                              initial_value=0.005)
-        with gui.add_folder("Teleop"):
-            self.mode = gui.add_dropdown("Teleop mode", ("absolute", "delta"), initial_value="absolute")
+        group = gui.add_tab_group()
+        app.tabs = {name: group.add_tab(name) for name in TABS}
+        with app.tabs["Run"]:
+            self.playing = gui.add_checkbox("Playing", initial_value=wb.playing, hint="run the simulation (space)")
+            self.step_btn = gui.add_button("Step", hint="pause and advance one sim step")
+            self.reset_btn = gui.add_button("Reset", hint="fresh rod (a new episode while a policy runs)")
+            self.gravity = gui.add_checkbox("Gravity", initial_value=True,
+                                            hint="gravity on/off (teleop only: a task keeps its own)")
+            self.speed = gui.add_slider("Speed [× real time]", min=0.1, max=4.0, step=0.1, initial_value=1.0,
+                                        hint="simulated seconds per wall-clock second")
+        with app.tabs["Display"]:
+            self.color_by = gui.add_dropdown("Colour by", ("curvature", "strain", "none"), initial_value="curvature",
+                                             hint="rod colour: integrated curvature magnitude or axial strain")
+            self.frames = gui.add_checkbox("Material frames", initial_value=False,
+                                           hint="the material frame (m1, m2, tangent) of every edge")
+            self.contacts = gui.add_checkbox("Contacts", initial_value=True, hint="contact points and forces")
+            self.arrows = gui.add_dropdown("Force arrows", ARROW_MODES, initial_value="log",
+                                           hint="contact arrow length: log (small and large forces both readable), "
+                                                "auto (largest force = 25 cm) or linear (the m/N below); each "
+                                                "arrow's force in N is written at its tip")
+            self.force_scale = gui.add_slider("Force arrow [m/N]", min=0.0005, max=0.05, step=0.0005,
+                                              initial_value=0.005, hint="arrow length per newton (linear arrows)")
+            self.camera = gui.add_button_group("Camera", ("front", "side", "top", "iso"),
+                                               hint="view presets: front looks along +y at the x-z plane")
+        with app.tabs["Teleop"]:
+            self.mode = gui.add_dropdown("Teleop mode", ("absolute", "delta"), initial_value="absolute",
+                                         hint="absolute: sliders are the natural curvature; delta: actions as a "
+                                              "policy sends them")
             self.sliders: list[list] = []
             for k in range(5):
                 row = []
                 for c in range(3):
                     lim = TWIST_LIMIT if c == 2 else KAPPA_LIMIT
                     s = gui.add_slider(slider_label(k, c), min=-round(lim, 2), max=round(lim, 2),
-                                       step=0.01, initial_value=0.0)
+                                       step=0.01, initial_value=0.0, hint=slider_hint(k, c))
                     row.append(s)
                 self.sliders.append(row)
-            self.zero_btn = gui.add_button("Zero sliders")
+            self.zero_btn = gui.add_button("Zero sliders", hint="every slider back to 0")
         self._syncing = False
-        for h in (self.speed, self.color_by, self.force_scale, self.mode, *(s for row in self.sliders for s in row)):
+        for h in (self.speed, self.color_by, self.arrows, self.force_scale, self.mode, *(s for row in self.sliders for s in row)):
             app.checks.track(h)
         self._wire()
 
@@ -105,6 +130,13 @@ class ControlsPanel:
             app.view.overlays.contacts = self.contacts.value
             app.request_render()
 
+        @self.arrows.on_update
+        def _(_e) -> None:
+            if not ok.option(self.arrows, self._say):
+                return
+            app.view.overlays.arrows = self.arrows.value
+            app.request_render()
+
         @self.force_scale.on_update
         def _(_e) -> None:
             if not ok.number(self.force_scale, self._say):
@@ -129,6 +161,11 @@ class ControlsPanel:
 
                 s.on_update(_cb)
 
+        @self.camera.on_click
+        def _(_e) -> None:
+            if self.camera.value in CAMERAS:
+                app.view.set_camera(self.camera.value)
+
         @self.zero_btn.on_click
         def _(_e) -> None:
             with wb.lock:
@@ -136,6 +173,13 @@ class ControlsPanel:
                     for c in range(3):
                         wb.set_teleop_value(k, c, 0.0)
             self.sync_sliders()
+
+    def set_planar(self, planar: bool) -> None:
+        """2-D tasks: only the in-plane (κ1) sliders are shown."""
+        for row in self.sliders:
+            for c in (1, 2):
+                if row[c].visible == planar:
+                    row[c].visible = not planar
 
     def set_quiet(self, handle, value) -> None:
         """Set a GUI value without running our own callback logic."""
@@ -187,6 +231,9 @@ class ControlsPanel:
         lines = [head,
                  f"real-time factor **{th.rtf:.2f}** · step {th.step_ms:.1f} ms · {th.fps:.0f} frames/s",
                  f"tip ({tip[0]:+.3f}, {tip[1]:+.3f}, {tip[2]:+.3f}) m"]
+        if fr is not None and len(fr.contact_points):
+            total = float(np.linalg.norm(fr.contact_forces, axis=1).sum())
+            lines.append(f"contacts {len(fr.contact_points)} · total contact force **{total:.3g} N**")
         if fr is not None and fr.scalars:
             keys = [k for k in ("reward", "tip_error", "newton_iters", "contact_force") if k in fr.scalars]
             lines.append(" · ".join(f"{k} {fr.scalars[k]:.3g}" for k in keys))

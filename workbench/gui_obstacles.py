@@ -8,6 +8,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from sim.atomicio import write_bytes
 from workbench import obstacles as obst
 from workbench.files import FileAccessError, page_error
@@ -23,19 +25,33 @@ class ObstaclesPanel:
     def __init__(self, app: "WorkbenchApp"):
         self.app = app
         gui = app.server.gui
-        with gui.add_folder("Obstacles", expand_by_default=False):
-            self.kind = gui.add_dropdown("Shape", ("sphere", "capsule", "box"), initial_value="sphere")
-            self.add_btn = gui.add_button("Add obstacle")
+        with app.tabs["Obstacles"]:
+            self.kind = gui.add_dropdown("Shape", ("sphere", "capsule", "box"), initial_value="sphere",
+                                         hint="shape of the next obstacle")
+            self.add_btn = gui.add_button("Add obstacle", hint="add one; drag its gizmo to move it")
             meshes = obst.mesh_catalogue() or [NO_MESH]
-            self.mesh = gui.add_dropdown("Mesh file", meshes, initial_value=meshes[0])
-            self.add_mesh_btn = gui.add_button("Add mesh")
-            self.upload = gui.add_upload_button("Upload mesh", mime_type="*/*")
-            self.selected = gui.add_dropdown("Selected", self._names(), initial_value=self._names()[0])
-            self.delete_btn = gui.add_button("Delete obstacle")
-            self.path = gui.add_text("Scene file", initial_value=app.files.default_save_name(app.wb.scene_path))
-            self.save_btn = gui.add_button("Save scene")
-            self.load_btn = gui.add_button("Load scene")
+            self.mesh = gui.add_dropdown("Mesh file", meshes, initial_value=meshes[0], hint="meshes in assets/meshes")
+            self.add_mesh_btn = gui.add_button("Add mesh", hint="add the chosen mesh as an obstacle")
+            self.upload = gui.add_upload_button("Upload mesh", mime_type="*/*",
+                                                hint="a mesh file from this computer (size-limited)")
+            self.selected = gui.add_dropdown("Selected", self._names(), initial_value=self._names()[0],
+                                             hint="the obstacle with the gizmo (a click on an obstacle selects it); "
+                                                  "Delete and the fields below act on it")
+            self.position = gui.add_vector3("Position [m]", initial_value=(0.0, 0.0, 0.0), step=0.01,
+                                            hint="centre of the selected obstacle (world x, y, z)")
+            self.size = gui.add_vector3("Size [m]", initial_value=(0.08, 0.4, 0.08), step=0.005,
+                                        min=(0.005, 0.005, 0.005), max=(2.0, 2.0, 2.0),
+                                        hint="sphere: radius; capsule: radius, length; box: half sizes x, y, z; "
+                                             "mesh: scale [-] (first value)")
+            self.delete_btn = gui.add_button("Delete obstacle", hint="remove the selected obstacle")
+            self.path = gui.add_text("Scene file", initial_value=app.files.default_save_name(app.wb.scene_path),
+                                     hint="name in the scenes folder")
+            self.save_btn = gui.add_button("Save scene", hint="write the scene with its obstacles (TOML)")
+            self.load_btn = gui.add_button("Load scene", hint="open that scene file (the rod is reset)")
             self.msg = gui.add_markdown("")
+            self.warning = gui.add_markdown("")
+        self._syncing = False
+        self._checked: tuple | None = None
         for h in (self.kind, self.mesh, self.selected):
             app.checks.track(h)
         cap_uploads(app.server, app.files.max_upload_bytes,
@@ -53,6 +69,81 @@ class ObstaclesPanel:
         self.selected.options = names
         self.selected.value = names[-1]
         self.app.checks.accept(self.selected)
+        self._show_fields()
+
+    # ------------------------------------------------------------------ selection (page <-> 3-D view)
+    def selected_index(self) -> int | None:
+        v = str(self.selected.value)
+        if not self.app.wb.obstacles or ":" not in v:
+            return None
+        i = int(v.split(":")[0])
+        return i if 0 <= i < len(self.app.wb.obstacles) else None
+
+    def select(self, index: int) -> None:
+        """Select obstacle ``index`` (a click in the 3-D view, or the dropdown): gizmo, dropdown and fields follow."""
+        names = self._names()
+        if not self.app.wb.obstacles or not 0 <= index < len(names):
+            return
+        if self.selected.value != names[index]:
+            self.selected.value = names[index]  # runs the dropdown's callback, which moves the gizmo
+            self.app.checks.accept(self.selected)
+        elif self.app.view.selected != index:
+            self.app.view.select(index)
+            self._show_fields()
+
+    def show_pose(self, index: int) -> None:
+        """The Position field follows a gizmo drag of the selected obstacle."""
+        if index == self.selected_index():
+            self._show_fields()
+
+    def _show_fields(self) -> None:
+        i = self.selected_index()
+        if i is None:
+            return
+        e = self.app.wb.obstacles[i]
+        size = {"sphere": (e.radius, e.radius, e.radius), "capsule": (e.radius, e.length, e.radius),
+                "box": tuple(e.half_extents), "mesh": (e.scale, e.scale, e.scale)}.get(e.kind, (0.1, 0.1, 0.1))
+        self._syncing = True
+        try:
+            self.position.value = tuple(round(float(v), 4) for v in e.position)
+            self.size.value = tuple(round(float(min(max(v, 0.005), 2.0)), 4) for v in size)
+        finally:
+            self._syncing = False
+
+    def _vector(self, handle, lo: float, hi: float) -> np.ndarray | None:
+        try:
+            v = np.asarray(handle.value, dtype=np.float64).reshape(3)
+        except (TypeError, ValueError):
+            v = np.full(3, np.nan)
+        if not (np.all(np.isfinite(v)) and np.all(v >= lo) and np.all(v <= hi)):
+            self._say(f"⚠ {handle.label}: three finite numbers in [{lo}, {hi}]")
+            self._show_fields()  # the page shows the obstacle's values again
+            return None
+        return v
+
+    def _new_edit(self, edit: "obst.ObstacleEdit") -> "obst.ObstacleEdit":
+        """``edit`` moved to where it overlaps neither the rod nor another obstacle."""
+        wb = self.app.wb
+        with wb.lock:
+            nodes, r = np.asarray(wb.live.state.node_pos[0], np.float64), float(wb.live.rod_radius)
+            edit.position = obst.free_position(edit, nodes, r, wb.obstacles)
+        return edit
+
+    def update_status(self) -> None:
+        """Warn when an obstacle lies on the rod's rest shape (checked again after every edit)."""
+        wb = self.app.wb
+        if wb.mode != "teleop":
+            return
+        key = tuple((e.kind, *np.round(e.position, 4), *np.round(e.wxyz, 4), e.radius, e.length,
+                     *np.round(e.half_extents, 4), e.scale, e.mesh) for e in wb.obstacles)
+        if key == self._checked:
+            return
+        self._checked = key
+        try:
+            text = obst.rest_overlaps(wb.live.base_spec, list(wb.obstacles))
+        except Exception as exc:  # noqa: BLE001 - the check is advice: say why it could not run
+            text = f"overlap check failed: {page_error(exc)}"
+        self.warning.content = f"⚠ {text}" if text else ""
 
     def _say(self, text: str) -> None:
         self.msg.content = text
@@ -112,20 +203,44 @@ class ObstaclesPanel:
 
         @self.selected.on_update
         def _(_e) -> None:
-            ok.option(self.selected, self._say)
+            if ok.option(self.selected, self._say):
+                self.app.view.select(self.selected_index())
+                self._show_fields()
+
+        @self.position.on_update
+        def _(_e) -> None:
+            i = self.selected_index()
+            if self._syncing or i is None:
+                return
+            p = self._vector(self.position, -10.0, 10.0)
+            if p is not None:
+                e = wb.obstacles[i]
+                wb.set_obstacle_pose(i, p, e.wxyz)
+                self.app.view.move_obstacle(i, p, e.wxyz)
+                self.app.request_render()
+
+        @self.size.on_update
+        def _(_e) -> None:
+            i = self.selected_index()
+            if self._syncing or i is None:
+                return
+            v = self._vector(self.size, 0.005, 2.0)
+            if v is not None:
+                self._guard(lambda: wb.resize_obstacle(i, v), "resized")
+                self.select(i)
 
         @self.add_btn.on_click
         def _(_e) -> None:
             if ok.option(self.kind, self._say):
-                self._guard(lambda: wb.add_obstacle(obst.default_edit(self.kind.value)), "added")
+                self._guard(lambda: wb.add_obstacle(self._new_edit(obst.default_edit(self.kind.value))), "added")
 
         @self.add_mesh_btn.on_click
         def _(_e) -> None:
             if not ok.option(self.mesh, self._say) or self.mesh.value == NO_MESH:
                 return
             path = obst.MESH_DIR / self.mesh.value
-            self._guard(lambda: wb.add_obstacle(obst.ObstacleEdit(
-                kind="mesh", mesh=str(path), position=(0.45, 0.0, 0.6), name=path.stem)), "mesh added")
+            self._guard(lambda: wb.add_obstacle(self._new_edit(obst.ObstacleEdit(
+                kind="mesh", mesh=str(path), position=(0.45, 0.0, 0.6), name=path.stem))), "mesh added")
 
         @self.upload.on_upload
         def _(_e) -> None:

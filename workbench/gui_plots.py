@@ -22,8 +22,7 @@ LIVE_WINDOW = 400  # frames shown in the live plots
 class PlotsPanel:
     def __init__(self, app: "WorkbenchApp", container=None):
         self.app = app
-        gui = app.server.gui
-        self.folder = container if container is not None else gui.add_folder("Plots", expand_by_default=False)
+        self.folder = container if container is not None else app.tabs["Plots"]
         self.handles: dict[str, object] = {}
         self._sig: dict[str, tuple] = {}
         self._range: dict[str, tuple[float, float]] = {}

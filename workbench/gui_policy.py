@@ -22,19 +22,25 @@ class PolicyPanel:
             tasks = task_names()
         except Exception as exc:  # noqa: BLE001 - policies not importable: the panel says why
             tasks, self._why = [], str(exc)
-        with gui.add_folder("Policy", expand_by_default=False):
+        with app.tabs["Policy"]:
             self.task = gui.add_dropdown("Task", tasks or ["(unavailable)"],
-                                         initial_value=(tasks or ["(unavailable)"])[0])
-            self.policy = gui.add_dropdown("Policy file", self._policies(), initial_value=self._policies()[0])
-            self.load_btn = gui.add_button("Run policy")
-            self.take_btn = gui.add_button("Take over")
-            self.stop_btn = gui.add_button("Stop policy")
+                                         initial_value=(tasks or ["(unavailable)"])[0],
+                                         hint="task (docs/tasks.md): its scene, targets, reward and episode length")
+            self.policy = gui.add_dropdown("Policy file", self._policies(), initial_value=self._policies()[0],
+                                           hint="a shipped policy of this task (policies/pretrained), or zero/random "
+                                                "actions")
+            self.load_btn = gui.add_button("Run policy", hint="start the chosen task with the chosen policy")
+            self.take_btn = gui.add_button("Take over", hint="drive the task by hand with the Teleop sliders; "
+                                                             "press again to hand back to the policy")
+            self.stop_btn = gui.add_button("Stop policy", hint="back to teleop on the scene opened before")
             self.reward = gui.add_markdown("")
-        with gui.add_folder("Rewind", expand_by_default=False):
-            self.rewind = gui.add_slider("Rewind to frame", min=0, max=1, step=1, initial_value=0)
-            self.rewind_btn = gui.add_button("Rewind")
-        with gui.add_folder("Record", expand_by_default=False):
-            self.rec_btn = gui.add_button("Start recording")
+        with app.tabs["Run"], gui.add_folder("Rewind"):
+            self.rewind = gui.add_slider("Rewind to frame", min=0, max=1, step=1, initial_value=0,
+                                         hint="an earlier frame of this session (the frames after it are dropped)")
+            self.rewind_btn = gui.add_button("Rewind", hint="go back to that frame and pause")
+        with app.tabs["Run"], gui.add_folder("Record"):
+            self.rec_btn = gui.add_button("Start recording", hint="write the following frames to an .rrd file in "
+                                                                  "the recordings folder")
             self.rec_msg = gui.add_markdown("")
         for h in (self.task, self.policy, self.rewind):
             app.checks.track(h)

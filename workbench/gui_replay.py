@@ -18,15 +18,18 @@ class ReplayPanel:
     def __init__(self, app: "WorkbenchApp"):
         self.app = app
         gui = app.server.gui
-        with gui.add_folder("Recordings", expand_by_default=False):
+        with app.tabs["Recordings"]:
             files = self._files()
-            self.file = gui.add_dropdown("Recording", files, initial_value=files[0])
-            self.open_btn = gui.add_button("Open recording")
-            self.episode = gui.add_dropdown("Episode", ["0"], initial_value="0")
-            self.timeline = gui.add_slider("Timeline", min=0, max=1, step=1, initial_value=0)
-            self.play = gui.add_checkbox("Play recording", initial_value=False)
-            self.speed = gui.add_dropdown("Replay speed", ("0.25", "0.5", "1", "2", "4"), initial_value="1")
-            self.close_btn = gui.add_button("Close recording")
+            self.file = gui.add_dropdown("Recording", files, initial_value=files[0],
+                                         hint=".rrd files in the recordings folder")
+            self.open_btn = gui.add_button("Open recording", hint="show the recording (the live session pauses)")
+            self.episode = gui.add_dropdown("Episode", ["0"], initial_value="0", hint="episode of the recording")
+            self.timeline = gui.add_slider("Timeline", min=0, max=1, step=1, initial_value=0,
+                                           hint="frame of the episode (the plots' cursor follows it)")
+            self.play = gui.add_checkbox("Play recording", initial_value=False, hint="play from this frame")
+            self.speed = gui.add_dropdown("Replay speed [×]", ("0.25", "0.5", "1", "2", "4"), initial_value="1",
+                                          hint="times the recorded time")
+            self.close_btn = gui.add_button("Close recording", hint="back to the live session")
             self.msg = gui.add_markdown("")
         self._scrubbing = False
         for h in (self.file, self.episode, self.timeline, self.speed):
@@ -141,7 +144,7 @@ class ReplayPanel:
             wb.close_replay()
             self.play.value = False
             self.msg.content = ""
-            app.view.sync_obstacles(wb.obstacles, app._on_gizmo)
+            app.sync_obstacle_view()
             app.request_render()
 
     def _plot(self, force: bool = False) -> None:

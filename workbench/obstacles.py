@@ -71,6 +71,48 @@ def default_edit(kind: str, *, position=(0.45, 0.0, 0.6)) -> ObstacleEdit:
     return ObstacleEdit(kind=kind, position=np.asarray(position, dtype=np.float64), name=kind)
 
 
+def bounding_radius(e: ObstacleEdit) -> float:
+    """Radius of a sphere about ``e.position`` that holds the obstacle [m]."""
+    if e.kind == "sphere":
+        return float(e.radius)
+    if e.kind == "capsule":
+        return float(e.radius + 0.5 * e.length)
+    if e.kind == "box":
+        return float(np.linalg.norm(e.half_extents))
+    try:
+        v, _f = mesh_for_edit(e)
+        return float(np.max(np.linalg.norm(np.asarray(v, np.float64), axis=1)))
+    except Exception:  # noqa: BLE001 - unreadable mesh: a generous guess
+        return 0.3
+
+
+def free_position(e: ObstacleEdit, rod_nodes: np.ndarray, rod_radius: float, others: list[ObstacleEdit], *,
+                  near=(0.45, 0.0, 0.6), clearance: float = 0.03) -> np.ndarray:
+    """A centre for ``e`` whose bounding sphere keeps ``clearance`` from the rod (its nodes, ``rod_radius``) and from
+    the other obstacles' bounding spheres: the free point of a grid around the rod nearest to ``near`` (``near``
+    itself when nothing is free)."""
+    r = bounding_radius(e)
+    ax = np.arange(-1.2, 1.21, 0.1)
+    g = np.stack(np.meshgrid(ax, ax, np.arange(0.1, 1.41, 0.1), indexing="ij"), -1).reshape(-1, 3)
+    g = g[np.argsort(np.linalg.norm(g - np.asarray(near), axis=1), kind="stable")]
+    x = np.asarray(rod_nodes, np.float64).reshape(-1, 3)
+    d_rod = np.min(np.linalg.norm(g[:, None, :] - x[None, :, :], axis=2), axis=1)
+    ok = d_rod > r + rod_radius + clearance
+    for o in others:
+        ok &= np.linalg.norm(g - np.asarray(o.position), axis=1) > r + bounding_radius(o) + clearance
+    return g[np.argmax(ok)].copy() if ok.any() else np.asarray(near, np.float64).copy()
+
+
+def rest_overlaps(spec, edits: list[ObstacleEdit]) -> str:
+    """Warning line when the rod's rest shape lies inside an obstacle ('' when not; sim.scene_check)."""
+    from sim import build_model
+    from sim.scene_check import overlap_warning, rod_obstacle_overlaps
+
+    if not edits:
+        return ""
+    return overlap_warning(rod_obstacle_overlaps(build_model(spec_with(spec, edits))), "scene")
+
+
 # ---------------------------------------------------------------------- spec translation
 def edits_from_spec(spec) -> list[ObstacleEdit]:
     """Fresh editable copies of the obstacles of ``spec`` (same order as the simulator's)."""

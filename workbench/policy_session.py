@@ -166,6 +166,12 @@ class PolicySession:
         self.scalars = sc
         return dict(sc)
 
+    @property
+    def planar(self) -> bool:
+        """A 2-D task: one in-plane bending component per control point, no twist (docs/tasks.md §2.2)."""
+        cfg = self.core.converter.cfg
+        return cfg.n_components == 1 and not cfg.has_twist
+
     # ------------------------------------------------------------------ hand control
     def accumulated(self) -> tuple[np.ndarray, np.ndarray]:
         """(K (5, 2), T (5,)) the converter's accumulated curvature/twist per control point."""

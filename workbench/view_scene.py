@@ -16,6 +16,34 @@ from workbench.obstacles import ObstacleEdit, mesh_for_edit
 ColorBy = Literal["curvature", "strain", "none"]
 ROD_COLOR = np.array([230, 120, 40], dtype=np.uint8)
 GIZMO_SCALE = 0.25  # [m] size of the obstacle transform gizmos
+OBSTACLE_OPACITY = 0.55  # see-through: contact points and arrows inside an obstacle stay visible
+ARROW_MAX = 0.25  # [m] longest contact arrow ("log" / "auto")
+ARROW_F0 = 1.0  # [N] force scale of the "log" arrows: length ∝ log(1 + |f| / ARROW_F0)
+ARROW_MODES = ("log", "auto", "linear")
+N_FORCE_LABELS = 6  # force labels drawn (the largest contacts)
+
+
+def arrow_vectors(forces: np.ndarray, mode: str, scale: float) -> np.ndarray:
+    """Contact arrow vectors [m] for forces [N] (K, 3): "linear" = ``scale`` m/N; "auto" = the largest force is
+    ``ARROW_MAX`` long; "log" = ``ARROW_MAX · log(1 + |f|/F0) / log(1 + max|f|/F0)`` (small forces stay visible,
+    large ones stay on screen). Directions are the forces'."""
+    f = np.asarray(forces, np.float64).reshape(-1, 3)
+    if mode == "linear" or len(f) == 0:
+        return scale * f
+    mag = np.linalg.norm(f, axis=1)
+    top = float(mag.max())
+    if top <= 0.0:
+        return np.zeros_like(f)
+    unit = f / np.maximum(mag, 1e-300)[:, None]
+    if mode == "auto":
+        length = ARROW_MAX * mag / top
+    else:
+        length = ARROW_MAX * np.log1p(mag / ARROW_F0) / np.log1p(top / ARROW_F0)
+    return unit * length[:, None]
+LOOK_AT = (0.1, 0.0, 0.45)
+#: camera presets (position, look-at) [m]; "front" faces the x-z plane of the 2-D tasks
+CAMERAS = {"front": ((0.1, -2.2, 0.45), LOOK_AT), "side": ((2.2, 0.0, 0.45), LOOK_AT),
+           "top": ((0.1, -0.01, 2.6), (0.1, 0.0, 0.45)), "iso": ((1.45, -1.45, 1.05), LOOK_AT)}
 
 
 @dataclasses.dataclass
@@ -27,7 +55,8 @@ class Overlays:
     strain_max: float = 2e-3
     frames: bool = False
     contacts: bool = True
-    force_scale: float = 0.005  # arrow length per newton [m/N]
+    force_scale: float = 0.005  # arrow length per newton [m/N] ("linear" arrows)
+    arrows: str = "log"  # contact arrow length: "log", "auto" (largest force = ARROW_MAX) or "linear"
 
 
 class SceneView:
@@ -40,8 +69,7 @@ class SceneView:
         sc.set_up_direction("+z")
         if not env_map:
             sc.configure_environment_map(hdri=None)
-        server.initial_camera.position = (1.45, -1.45, 1.05)
-        server.initial_camera.look_at = (0.1, 0.0, 0.45)
+        server.initial_camera.position, server.initial_camera.look_at = CAMERAS["iso"]
         sc.add_grid("/ground", width=4.0, height=4.0, cell_size=0.1, section_size=0.5, plane="xy")
         sc.add_light_directional("/sun", intensity=1.5, wxyz=(0.88, 0.28, 0.28, 0.25))
         sc.add_light_hemisphere("/sky", sky_color=(255, 255, 255), ground_color=(120, 120, 120), intensity=1.2)
@@ -67,10 +95,16 @@ class SceneView:
         self.contact_points = sc.add_point_cloud(
             "/contacts/points", points=np.zeros((1, 3)), colors=(240, 30, 200), point_size=0.03,
             point_shape="circle", visible=False)
+        self.force_labels = [sc.add_label(f"/contacts/label_{j}", "", visible=False, depth_test=False,
+                                          anchor="bottom-left") for j in range(N_FORCE_LABELS)]
         self.target = sc.add_icosphere("/target", radius=0.03, color=(40, 200, 60), visible=False)
         self.target_frame = sc.add_frame("/target/frame", axes_length=0.1, axes_radius=0.006,
                                          visible=False)
         self.obstacle_nodes: list[tuple] = []
+        self._gizmo = None
+        self._edits: list[ObstacleEdit] = []
+        self._on_move = None
+        self.selected: int | None = None
         self.last_frame: Frame | None = None
 
     # ------------------------------------------------------------------ per frame
@@ -111,13 +145,28 @@ class SceneView:
             k = len(fr.contact_points)
             if ov.contacts and k > 0:
                 p = fr.contact_points
-                self.contact_arrows.points = np.stack([p, p + ov.force_scale * fr.contact_forces], 1)
+                vec = arrow_vectors(fr.contact_forces, ov.arrows, ov.force_scale)
+                self.contact_arrows.points = np.stack([p, p + vec], 1)
                 self.contact_points.points = p
                 self.contact_arrows.visible = True
                 self.contact_points.visible = True
+                mag = np.linalg.norm(fr.contact_forces, axis=1)
+                top = np.argsort(-mag)[:N_FORCE_LABELS]
+                for j, lab in enumerate(self.force_labels):
+                    if j < len(top):
+                        i = top[j]
+                        lab.text = f"{mag[i]:.3g} N"
+                        lab.position = tuple(p[i] + vec[i])
+                        if not lab.visible:
+                            lab.visible = True
+                    elif lab.visible:
+                        lab.visible = False
             elif self.contact_arrows.visible:
                 self.contact_arrows.visible = False
                 self.contact_points.visible = False
+                for lab in self.force_labels:
+                    if lab.visible:
+                        lab.visible = False
             if len(fr.targets):
                 self.target.position = fr.targets[0]
                 if not self.target.visible:
@@ -131,23 +180,32 @@ class SceneView:
                 self.target.visible = False
         self.last_frame = fr
 
+    def set_camera(self, preset: str) -> None:
+        """Move every page's camera (and the start view of pages opened later) to a preset of ``CAMERAS``."""
+        pos, look = CAMERAS[preset]
+        self.server.initial_camera.position, self.server.initial_camera.look_at = pos, look
+        for client in self.server.get_clients().values():
+            with client.atomic():
+                client.camera.position = pos
+                client.camera.look_at = look
+
     # ------------------------------------------------------------------ obstacles
     def sync_obstacles(self, edits: list[ObstacleEdit],
-                       on_move: Callable[[int, np.ndarray, np.ndarray], None] | None) -> None:
-        """Recreate the obstacle nodes: one transform gizmo + mesh per obstacle (``on_move`` called
-        on browser drags), or fixed display-only meshes when ``on_move`` is None (replay)."""
+                       on_move: Callable[[int, np.ndarray, np.ndarray], None] | None,
+                       on_select: Callable[[int], None] | None = None, selected: int | None = None) -> None:
+        """Recreate the obstacle nodes. With ``on_move`` (editing) a click on an obstacle calls ``on_select`` and the
+        one selected obstacle carries a transform gizmo (``on_move`` called on browser drags); without it (replay)
+        the obstacles are display-only."""
         for parent, mesh in self.obstacle_nodes:
             mesh.remove()
             parent.remove()
         self.obstacle_nodes = []
+        self._edits = edits
+        self._on_move = on_move
         sc = self.server.scene
         for i, ed in enumerate(edits):
             name = f"/obstacles/{i}"
-            if on_move is not None:
-                parent = sc.add_transform_controls(name, scale=GIZMO_SCALE, position=tuple(ed.position),
-                                                   wxyz=tuple(ed.wxyz), depth_test=False)
-            else:
-                parent = sc.add_frame(name, show_axes=False, position=tuple(ed.position), wxyz=tuple(ed.wxyz))
+            parent = sc.add_frame(name, show_axes=False, position=tuple(ed.position), wxyz=tuple(ed.wxyz))
             try:
                 verts, faces = mesh_for_edit(ed)
             except Exception:  # noqa: BLE001 - unreadable mesh: draw a marker instead
@@ -156,13 +214,45 @@ class SceneView:
             if ed.kind == "plane":
                 mesh = sc.add_mesh_simple(f"{name}/mesh", verts, faces, color=(150, 165, 190), opacity=0.25)
             else:
-                mesh = sc.add_mesh_simple(f"{name}/mesh", verts, faces, color=(110, 130, 170), opacity=0.85)
-            if on_move is not None:
-                def _cb(event, i=i, gizmo=parent) -> None:
-                    on_move(i, np.asarray(gizmo.position), np.asarray(gizmo.wxyz))
-
-                parent.on_update(_cb)
+                mesh = sc.add_mesh_simple(f"{name}/mesh", verts, faces, color=(110, 130, 170), opacity=OBSTACLE_OPACITY)
+            if on_move is not None and on_select is not None:
+                mesh.on_click(lambda _e, i=i: on_select(i))
             self.obstacle_nodes.append((parent, mesh))
+        self.select(selected)
+
+    def select(self, index: int | None) -> None:
+        """Put the transform gizmo on obstacle ``index`` (None or a display-only scene: no gizmo)."""
+        if self._gizmo is not None:
+            self._gizmo.remove()
+            self._gizmo = None
+        ok = index is not None and 0 <= index < len(self.obstacle_nodes) and self._on_move is not None
+        if not ok:
+            self.selected = None
+            return
+        ed, on_move = self._edits[index], self._on_move
+        parent = self.obstacle_nodes[index][0]
+        g = self.server.scene.add_transform_controls("/obstacle_gizmo", scale=GIZMO_SCALE, position=tuple(ed.position),
+                                                     wxyz=tuple(ed.wxyz), depth_test=False)
+
+        def _cb(_event, i=index) -> None:
+            pos, q = np.asarray(g.position), np.asarray(g.wxyz)
+            if np.all(np.isfinite(pos)) and np.all(np.isfinite(q)):
+                parent.position, parent.wxyz = tuple(pos), tuple(q)
+            on_move(i, pos, q)
+
+        g.on_update(_cb)
+        self._gizmo, self.selected = g, index
+
+    def move_obstacle(self, index: int, position, wxyz) -> None:
+        """Show obstacle ``index`` at a pose set from the server (numeric fields): its mesh and its gizmo."""
+        if 0 <= index < len(self.obstacle_nodes):
+            parent = self.obstacle_nodes[index][0]
+            parent.position, parent.wxyz = tuple(position), tuple(wxyz)
+            if self._gizmo is not None and self.selected == index:
+                self._gizmo.position, self._gizmo.wxyz = tuple(position), tuple(wxyz)
 
     def gizmo(self, index: int):
-        return self.obstacle_nodes[index][0]
+        """The transform gizmo, which sits on obstacle ``index`` only when that one is selected."""
+        if self.selected != index or self._gizmo is None:
+            raise KeyError(f"obstacle {index} is not selected (selected: {self.selected})")
+        return self._gizmo

@@ -62,7 +62,7 @@ def wb_page(shared):
     wb.set_teleop_mode("absolute")
     wb.reset()
     wb.set_playing(True)
-    app.view.sync_obstacles(wb.obstacles, app._on_gizmo)
+    app.sync_obstacle_view()
     app.controls.sync_sliders()
     app.request_render()
     return app, page

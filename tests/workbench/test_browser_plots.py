@@ -86,6 +86,7 @@ def test_replay_plots_every_series_with_timeline_cursor(wb_page):
         return xs[0] if xs else None
 
     wait_for(lambda: cursor_x() == pytest.approx(0.0), what="cursor at the first frame")
+    expand_folder(page, "Recordings", "Open recording")
     th = slider_thumb(page, "Timeline")
     th.focus()
     th.press("End")

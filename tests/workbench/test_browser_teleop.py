@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tools.browser import canvas_variance, slider_thumb, wait_for
+from tools.browser import canvas_variance, expand_folder, slider_thumb, wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -22,14 +22,15 @@ def test_teleop_slider_moves_tip(wb_page, shots_dir):
     wb = app.wb
     wait_for(lambda: wb.frame_index > 3, what="sim running")
     tip0 = wb.tip.copy()
-    th = slider_thumb(page, "κ1 n10")
+    expand_folder(page, "Teleop", "Zero sliders")
+    th = slider_thumb(page, "κ1 at node 10 [rad]")
     th.focus()
     th.press("End")  # slider to its maximum (+2)
     wait_for(lambda: wb.teleop.values[2, 0] == pytest.approx(2.0), what="slider value on the server")
     # the rod bends: the tip moves sideways by more than 10 cm and drops
     wait_for(lambda: np.hypot(*(wb.tip - tip0)[:2]) > 0.1, timeout=20, what="tip to move")
     assert wb.tip[2] < tip0[2] - 0.01
-    th = slider_thumb(page, "κ2 n18")
+    th = slider_thumb(page, "κ2 at node 18 [rad]")
     th.focus()
     th.press("Home")
     wait_for(lambda: wb.teleop.values[4, 1] == pytest.approx(-2.0), what="second slider")
