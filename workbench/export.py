@@ -30,7 +30,7 @@ from sim import atomicio
 from .export_page import PAGE
 
 __all__ = ["ExportError", "load_episode", "pack_episode", "episode_html", "unpack_html", "export_html",
-           "export_png", "main"]
+           "export_png", "export_to_folder", "main"]
 
 DEFAULT_MAX_FRAMES = 5000
 MAX_MESH_EDGES = 50_000
@@ -259,6 +259,20 @@ def export_png(ep: EpisodeData, frame: int, out: str | Path, *, width: int = 960
     ax.text(0.01, 0.99, f"{m.get('task', '')}  ep {m.get('episode', '?')}\nframe {frame + 1}/{ep.steps}  "
             f"t = {float(ep.sim_time[frame]):.3f} s", transform=ax.transAxes, va="top", fontsize=10)
     return atomicio.write_via_path(p, lambda tmp: fig.savefig(tmp, format="png", dpi=100), mkdir=False)
+
+
+def export_to_folder(ep: EpisodeData, folder: str | Path, stem: str, *, frame: int | None = None) -> Path:
+    """For the workbench's export buttons: write ``<folder>/<stem>.html`` (the player), or with ``frame``
+    ``<folder>/<stem>_f<frame>.png``; ``stem`` is a plain file name (no folders), so nothing is written
+    outside ``folder``."""
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,100}", stem or "") or ".." in stem:
+        raise ExportError(f"{stem!r}: use a plain file name (letters, digits, '_', '-', '.')")
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ExportError(f"{folder}: no such folder")
+    if frame is None:
+        return export_html(ep, folder / f"{stem}.html")
+    return export_png(ep, frame, folder / f"{stem}_f{int(frame)}.png")
 
 
 def main(argv: list[str]) -> int:

@@ -71,6 +71,23 @@ def test_cli_writes_html_and_png_atomically(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ep.html", "ep.png"]  # no temporary left
 
 
+@pytest.mark.parametrize("rec", sorted(EXAMPLES.glob("*.rrd")), ids=lambda p: p.stem)
+def test_every_example_recording_exports(rec, tmp_path):
+    ep = X.load_episode(rec, 0)
+    html = X.export_to_folder(ep, tmp_path, rec.stem)
+    png = X.export_to_folder(ep, tmp_path, rec.stem, frame=ep.steps - 1)
+    assert html == tmp_path / f"{rec.stem}.html" and png == tmp_path / f"{rec.stem}_f{ep.steps - 1}.png"
+    d = X.unpack_html(html.read_text())
+    np.testing.assert_array_equal(d["positions"], ep.positions)
+    assert d["planar"] == ep.scene.planar and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("stem", ["../evil", "a/b", "", ".hidden"])
+def test_export_to_folder_refuses_paths_outside_the_folder(episode, tmp_path, stem):
+    with pytest.raises(X.ExportError, match="plain file name"):
+        X.export_to_folder(episode, tmp_path, stem)
+
+
 def _umask() -> int:
     old = os.umask(0o022)
     os.umask(old)
@@ -104,6 +121,44 @@ def test_cli_missing_and_corrupt_recording(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "rodlab export:" in err and "Traceback" not in err
     assert not out.exists()
+
+
+def _shapes_episode():
+    """A small synthetic episode with every obstacle kind (sphere, rotated box, mesh, capsule)."""
+    from policies.recording.schema import EpisodeData, StaticScene
+
+    s, n = 5, 11
+    x = np.linspace(0, 1, n)
+    pos = np.zeros((s, n, 3), np.float32)
+    for k in range(s):
+        pos[k, :, 0], pos[k, :, 2] = x, 0.3 * k / s * x ** 2
+    verts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float) * 0.2 + [0.5, 0.3, 0.2]
+    faces = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
+    scene = StaticScene(sphere_centers=np.array([[0.5, 0.0, 0.4]]), sphere_radii=np.array([0.1]),
+                        box_centers=np.array([[0.8, 0.0, 0.0]]), box_half_sizes=np.array([[0.1, 0.2, 0.05]]),
+                        box_quats=np.array([[0.0, 0.0, np.sin(0.3), np.cos(0.3)]]), meshes=((verts, faces),),
+                        capsules=np.array([[[0.2, -0.3, 0.1], [0.2, 0.3, 0.1]]]), capsule_radii=np.array([0.05]))
+    return EpisodeData(meta={"task": "shapes"}, scene=scene, control_step=np.arange(s),
+                       sim_time=np.arange(s) * 0.1, positions=pos)
+
+
+def test_every_obstacle_kind_is_packed_and_drawn_in_the_png(tmp_path):
+    ep = _shapes_episode()
+    d = X.unpack_html(X.episode_html(ep))
+    ob = d["obstacles"]
+    assert [len(ob[k]) for k in ("capsules", "spheres", "boxes", "meshes")] == [1, 1, 1, 1]
+    assert sorted(map(tuple, np.reshape(ob["meshes"][0]["e"], (-1, 2)))) == \
+        [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
+    assert d["target"] is None and d["series"] == {}
+    png = X.export_png(ep, 4, tmp_path / "s.png")
+    assert png.stat().st_size > 1000
+
+
+def test_nan_positions_are_refused():
+    ep = _shapes_episode()
+    ep.positions[2, 3, 1] = np.nan
+    with pytest.raises(X.ExportError, match="NaN"):
+        X.episode_html(ep)
 
 
 def _rod_pixels(png: bytes) -> np.ndarray:
@@ -154,3 +209,22 @@ def test_html_opens_from_file_offline_and_rod_moves(browser, tmp_path):
         ctx.close()
     assert errors == []
     assert requests and all(u.startswith("file://") for u in requests), requests
+
+
+@pytest.mark.browser
+def test_html_with_every_obstacle_kind_renders_without_script_errors(browser, tmp_path):
+    out = X.export_html(_shapes_episode(), tmp_path / "shapes.html")
+    page = browser.new_page(viewport={"width": 700, "height": 500})
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    try:
+        page.goto(out.as_uri())
+        page.wait_for_selector("body[data-ready='1']", timeout=20000)
+        for view in ("top", "side", "front", "iso"):
+            page.locator(f"#v-{view}").click()
+        page.keyboard.press("ArrowRight")
+        assert page.locator("body").get_attribute("data-frame") == "1"
+        assert _rod_pixels(page.locator("#cv").screenshot()).sum() > 200
+    finally:
+        page.close()
+    assert errors == []
