@@ -1,12 +1,13 @@
 """Export a recorded episode: a standalone HTML player and a PNG picture of one frame.
 
-``rodlab export RECORDING.rrd --episode K --html OUT.html [--png OUT.png --frame N]``
+``rodlab export RECORDING.rrd --episode K --html OUT.html [--png OUT.png --frame N] [--gif OUT.gif]``
 
 * HTML: one self-contained file (data and script inline, nothing fetched) that opens from ``file://`` with no
   server: the rod moving over a timeline with play/pause, speed, orbit/zoom and view presets
   (:mod:`workbench.export_page`). Positions are stored as little-endian float32 (as in the recording, see
   docs/architecture.md); episodes longer than ``max_frames`` are decimated evenly (first and last frame kept).
-* PNG: the same default view of one frame, drawn with matplotlib (no browser needed).
+* PNG / GIF: the same default view of one frame / of the whole episode, drawn with matplotlib (no browser
+  needed; :mod:`workbench.export_image`).
 
 Files are written atomically (:mod:`sim.atomicio`) and only to the paths given.
 """
@@ -30,7 +31,7 @@ from sim import atomicio
 from .export_page import PAGE
 
 __all__ = ["ExportError", "load_episode", "pack_episode", "episode_html", "unpack_html", "export_html",
-           "export_png", "export_to_folder", "main"]
+           "export_to_folder", "main"]
 
 DEFAULT_MAX_FRAMES = 5000
 MAX_MESH_EDGES = 50_000
@@ -176,91 +177,6 @@ def export_html(ep: EpisodeData, out: str | Path, *, max_frames: int = DEFAULT_M
     return atomicio.write_text(p, episode_html(ep, max_frames=max_frames, title=title), mkdir=False)
 
 
-def _view_basis(planar: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Screen right/up vectors of the page's default view (iso, or front for planar tasks)."""
-    az, el = (math.radians(-90), 0.0) if planar else (math.radians(-60), math.radians(22))
-    e = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
-    r = np.array([-math.sin(az), math.cos(az), 0.0])
-    return r, np.cross(e, r)
-
-
-def export_png(ep: EpisodeData, frame: int, out: str | Path, *, width: int = 960, height: int = 720) -> Path:
-    """Write a PNG of frame ``frame`` of ``ep`` (the HTML page's default view) to ``out`` atomically."""
-    import matplotlib
-    matplotlib.use("Agg", force=False)
-    from matplotlib.figure import Figure
-
-    if not isinstance(frame, (int, np.integer)) or not 0 <= int(frame) < ep.steps:
-        raise ExportError(f"frame {frame} out of range: the episode has {ep.steps} frames (0..{ep.steps - 1})")
-    p = _check_out(out, ".png")
-    pos = np.asarray(ep.positions, np.float64)
-    if not np.isfinite(pos[frame]).all():
-        raise ExportError(f"frame {frame}: positions contain NaN/inf")
-    r, u = _view_basis(bool(ep.scene.planar))
-
-    def xy(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        a = np.asarray(a, np.float64).reshape(-1, 3)
-        return a @ r, a @ u
-
-    fig = Figure(figsize=(width / 100, height / 100), dpi=100)
-    ax = fig.add_axes((0, 0, 1, 1))
-    ax.set_aspect("equal")
-    ax.axis("off")
-    allp = pos[np.isfinite(pos).all(axis=2)]
-    X, Y = xy(allp)
-    span = max(float(np.ptp(X)), float(np.ptp(Y)), 0.1) * 0.6 + 2 * ep.scene.rod_radius
-    cx, cy = 0.5 * (X.min() + X.max()), 0.5 * (Y.min() + Y.max())
-    ax.set_xlim(cx - span * width / height, cx + span * width / height)
-    ax.set_ylim(cy - span, cy + span)
-    pts_per_m = height / 100 * 72 / (2 * span)
-    sc = ep.scene
-    grey = (0.43, 0.45, 0.51, 0.45)
-    from matplotlib.patches import Circle
-    if sc.capsules is not None:
-        for ab, rad in zip(sc.capsules, sc.capsule_radii):
-            x, y = xy(ab)
-            if math.hypot(x[1] - x[0], y[1] - y[0]) < 0.5 * rad:  # seen end-on: a disc
-                ax.add_patch(Circle((x[0], y[0]), rad, color=grey))
-            else:
-                ax.plot(x, y, color=grey, lw=max(1.0, 2 * rad * pts_per_m), solid_capstyle="round")
-    if sc.sphere_centers is not None:
-        for c, rad in zip(sc.sphere_centers, sc.sphere_radii):
-            x, y = xy(c)
-            ax.add_patch(Circle((x[0], y[0]), rad, color=grey))
-    for b in _obstacles(sc)["boxes"]:
-        c, h, q = np.array(b[:3]), np.array(b[3:6]), np.array(b[6:10])
-        from scipy.spatial.transform import Rotation
-        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
-        cs = c + Rotation.from_quat(q).apply(corners)
-        for i in range(8):
-            for bit in (1, 2, 4):
-                j = i ^ bit
-                if i < j:
-                    ax.plot(*xy(cs[[i, j]]), color=(0.27, 0.29, 0.35), lw=1)
-    for v, f in sc.meshes:
-        v = np.asarray(v).reshape(-1, 3)
-        for i, j in _mesh_edges(np.asarray(f, np.int64).reshape(-1, 3))[:5000]:
-            ax.plot(*xy(v[[i, j]]), color=(0.27, 0.29, 0.35), lw=0.5)
-    tip = pos[: frame + 1, -1]
-    ax.plot(*xy(tip), color=(0.9, 0.55, 0.12, 0.6), lw=1.2)
-    rx, ry = xy(pos[frame])
-    n = len(rx)
-    for k in range(n - 1):
-        t = k / max(1, n - 2)
-        col = tuple((np.array([24, 54, 140]) + t * (np.array([60, 190, 210]) - np.array([24, 54, 140]))) / 255)
-        ax.plot(rx[k:k + 2], ry[k:k + 2], color=col, lw=max(3.0, 2 * sc.rod_radius * pts_per_m),
-                solid_capstyle="round")
-    ax.plot(rx[:1], ry[:1], "s", color="#111", ms=6)
-    if ep.target_pos is not None and np.isfinite(ep.target_pos[frame]).all():
-        tx, ty = xy(ep.target_pos[frame])
-        ax.plot(tx, ty, marker="+", ms=14, mew=2, color="#d62728", zorder=5)
-        ax.plot(tx, ty, marker="o", ms=12, mfc="none", mew=2, color="#d62728", zorder=5)
-    m = ep.meta
-    ax.text(0.01, 0.99, f"{m.get('task', '')}  ep {m.get('episode', '?')}\nframe {frame + 1}/{ep.steps}  "
-            f"t = {float(ep.sim_time[frame]):.3f} s", transform=ax.transAxes, va="top", fontsize=10)
-    return atomicio.write_via_path(p, lambda tmp: fig.savefig(tmp, format="png", dpi=100), mkdir=False)
-
-
 def export_to_folder(ep: EpisodeData, folder: str | Path, stem: str, *, frame: int | None = None) -> Path:
     """For the workbench's export buttons: write ``<folder>/<stem>.html`` (the player), or with ``frame``
     ``<folder>/<stem>_f<frame>.png``; ``stem`` is a plain file name (no folders), so nothing is written
@@ -272,6 +188,8 @@ def export_to_folder(ep: EpisodeData, folder: str | Path, stem: str, *, frame: i
         raise ExportError(f"{folder}: no such folder")
     if frame is None:
         return export_html(ep, folder / f"{stem}.html")
+    from .export_image import export_png
+
     return export_png(ep, frame, folder / f"{stem}_f{int(frame)}.png")
 
 
@@ -285,26 +203,34 @@ def main(argv: list[str]) -> int:
                     "them (default 0)")
     ap.add_argument("--html", help="write the standalone HTML player here (.html)")
     ap.add_argument("--png", help="write a PNG of one frame here (.png)")
+    ap.add_argument("--gif", help="write an animated GIF of the episode here (.gif)")
+    ap.add_argument("--speed", type=float, default=1.0, help="GIF playback speed relative to simulated time "
+                    "(default 1)")
     ap.add_argument("--frame", type=int, default=None, help="frame of the PNG, 0-based (default: last frame)")
     ap.add_argument("--max-frames", type=int, default=DEFAULT_MAX_FRAMES,
                     help=f"decimate longer episodes to this many frames in the HTML (default {DEFAULT_MAX_FRAMES})")
     a = ap.parse_args(argv)
-    if not a.html and not a.png:
-        ap.error("nothing to do: give --html OUT.html and/or --png OUT.png")
+    if not a.html and not a.png and not a.gif:
+        ap.error("nothing to do: give --html OUT.html, --png OUT.png and/or --gif OUT.gif")
     if a.frame is not None and not a.png:
         ap.error("--frame applies to --png")
     try:
-        for out, suf in ((a.html, ".html"), (a.png, ".png")):
+        for out, suf in ((a.html, ".html"), (a.png, ".png"), (a.gif, ".gif")):
             if out:
                 _check_out(out, suf)
         ep = load_episode(a.recording, a.episode)
         if a.html:
             p = export_html(ep, a.html, max_frames=a.max_frames)
             print(f"wrote {p} ({p.stat().st_size / 1024:.0f} KiB, {min(ep.steps, a.max_frames)} frames)")
+        if a.png or a.gif:
+            from .export_image import export_gif, export_png
         if a.png:
             frame = ep.steps - 1 if a.frame is None else a.frame
             p = export_png(ep, frame, a.png)
             print(f"wrote {p} (frame {frame})")
+        if a.gif:
+            p = export_gif(ep, a.gif, speed=a.speed)
+            print(f"wrote {p} ({p.stat().st_size / 1024:.0f} KiB)")
     except (RecordingError, ExportError) as exc:
         print(f"rodlab export: {exc}", file=sys.stderr)
         return 2

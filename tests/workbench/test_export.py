@@ -15,6 +15,7 @@ import pytest
 from rodlab_cli import main as rodlab
 from tools.browser import wait_for
 from workbench import export as X
+from workbench.export_image import export_gif, export_png
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "recordings" / "examples"
@@ -99,11 +100,12 @@ def _umask() -> int:
     (["--episode", "-1"], "episode -1 out of range"),
     (["--png", "{out}/x.png", "--frame", "52"], "frame 52 out of range: the episode has 52 frames"),
     (["--html", "{out}/x.txt"], "must end in .html"),
+    (["--gif", "{out}/x.png"], "must end in .gif"),
     (["--html", "{out}/no/such/x.html"], "does not exist"),
 ])
 def test_cli_bad_requests_are_clear_errors(tmp_path, capsys, args, msg):
     args = [a.replace("{out}", str(tmp_path)) for a in args]
-    if "--html" not in args and "--png" not in args:
+    if not {"--html", "--png", "--gif"} & set(args):
         args += ["--html", str(tmp_path / "x.html")]
     assert rodlab(["export", str(REC), *args]) == 2
     err = capsys.readouterr().err
@@ -150,8 +152,25 @@ def test_every_obstacle_kind_is_packed_and_drawn_in_the_png(tmp_path):
     assert sorted(map(tuple, np.reshape(ob["meshes"][0]["e"], (-1, 2)))) == \
         [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
     assert d["target"] is None and d["series"] == {}
-    png = X.export_png(ep, 4, tmp_path / "s.png")
+    png = export_png(ep, 4, tmp_path / "s.png")
     assert png.stat().st_size > 1000
+
+
+def test_gif_has_every_frame_and_the_rod_moves(episode, tmp_path):
+    from PIL import Image
+
+    out = export_gif(episode, tmp_path / "ep.gif", width=320, height=240, speed=2.0)
+    with Image.open(out) as im:
+        assert im.n_frames == episode.steps
+        im.seek(0)
+        first = _rod_pixels_rgb(np.asarray(im.convert("RGB")))
+        assert im.info["duration"] == 250  # 0.5 s control step at 2x
+        im.seek(im.n_frames - 1)
+        last = _rod_pixels_rgb(np.asarray(im.convert("RGB")))
+    assert first.sum() > 100 and last.sum() > 100
+    assert (first ^ last).sum() > 0.3 * max(first.sum(), last.sum())
+    with pytest.raises(X.ExportError, match="speed must be a positive number"):
+        export_gif(episode, tmp_path / "x.gif", speed=0.0)
 
 
 def test_nan_positions_are_refused():
@@ -165,7 +184,11 @@ def _rod_pixels(png: bytes) -> np.ndarray:
     """Mask of the rod's blue pixels in a screenshot (the rod is the only saturated blue drawn)."""
     from PIL import Image
 
-    a = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+    return _rod_pixels_rgb(np.asarray(Image.open(io.BytesIO(png)).convert("RGB")))
+
+
+def _rod_pixels_rgb(a: np.ndarray) -> np.ndarray:
+    a = a.astype(int)
     r, b = a[..., 0], a[..., 2]
     return (b - r > 60) & (b > 120)
 
