@@ -37,6 +37,7 @@ class Frame:
     m1: np.ndarray | None = None
     m2: np.ndarray | None = None
     node_curvature: np.ndarray | None = None
+    kappa_bar: np.ndarray | None = None  # (N, 2) commanded (natural) integrated curvature, live sessions only
     edge_strain: np.ndarray | None = None
     contact_points: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
     contact_forces: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))

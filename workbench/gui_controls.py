@@ -5,6 +5,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from workbench.coloring import QUANTITIES, colorbar_html
 from workbench.teleop import CONTROL_NODES, KAPPA_LIMIT, TWIST_LIMIT
 from workbench.view_scene import ARROW_MODES, CAMERAS
 
@@ -40,7 +41,7 @@ class ControlsPanel:
         group = gui.add_tab_group()
         app.tabs = {name: group.add_tab(name) for name in TABS}
         with app.tabs["Run"]:
-            self.playing = gui.add_checkbox("Playing", initial_value=wb.playing, hint="run the simulation (space)")
+            self.playing = gui.add_checkbox("Playing", initial_value=wb.playing, hint="run the simulation")
             self.step_btn = gui.add_button("Step", hint="pause and advance one sim step")
             self.reset_btn = gui.add_button("Reset", hint="fresh rod (a new episode while a policy runs)")
             self.gravity = gui.add_checkbox("Gravity", initial_value=True,
@@ -48,8 +49,15 @@ class ControlsPanel:
             self.speed = gui.add_slider("Speed [× real time]", min=0.1, max=4.0, step=0.1, initial_value=1.0,
                                         hint="simulated seconds per wall-clock second")
         with app.tabs["Display"]:
-            self.color_by = gui.add_dropdown("Colour by", ("curvature", "strain", "none"), initial_value="curvature",
-                                             hint="rod colour: integrated curvature magnitude or axial strain")
+            self.color_by = gui.add_dropdown("Colour by", QUANTITIES, initial_value="curvature",
+                                             hint="rod colour: |κ| curvature, signed material curvatures κ1/κ2, twist, "
+                                                  "axial strain, or commanded − actual curvature (integrated values, "
+                                                  "docs/physics.md §1.4)")
+            self.color_range = gui.add_dropdown("Colour range", ("auto", "fixed"), initial_value="auto",
+                                                hint="auto: the largest value in the frame; fixed: the value below")
+            self.color_max = gui.add_number("Fixed range max", initial_value=0.5, min=1e-6, max=100.0, step=0.01,
+                                            hint="largest |value| of the colour map when the range is fixed")
+            self.colorbar = gui.add_html("")
             self.frames = gui.add_checkbox("Material frames", initial_value=False,
                                            hint="the material frame (m1, m2, tangent) of every edge")
             self.contacts = gui.add_checkbox("Contacts", initial_value=True, hint="contact points and forces")
@@ -76,7 +84,7 @@ class ControlsPanel:
                 self.sliders.append(row)
             self.zero_btn = gui.add_button("Zero sliders", hint="every slider back to 0")
         self._syncing = False
-        for h in (self.speed, self.color_by, self.arrows, self.force_scale, self.mode, *(s for row in self.sliders for s in row)):
+        for h in (self.speed, self.color_by, self.color_range, self.color_max, self.arrows, self.force_scale, self.mode, *(s for row in self.sliders for s in row)):
             app.checks.track(h)
         self._wire()
 
@@ -118,6 +126,15 @@ class ControlsPanel:
             if not ok.option(self.color_by, self._say):
                 return
             app.view.overlays.color_by = self.color_by.value
+            app.request_render()
+
+        @self.color_range.on_update
+        @self.color_max.on_update
+        def _(_e) -> None:
+            if not (ok.option(self.color_range, self._say) and ok.number(self.color_max, self._say, 1e-6, 100.0)):
+                return
+            fixed = self.color_range.value == "fixed"
+            app.view.overlays.color_fixed = float(self.color_max.value) if fixed else None
             app.request_render()
 
         @self.frames.on_update
@@ -237,6 +254,9 @@ class ControlsPanel:
         if fr is not None and fr.scalars:
             keys = [k for k in ("reward", "tip_error", "newton_iters", "contact_force") if k in fr.scalars]
             lines.append(" · ".join(f"{k} {fr.scalars[k]:.3g}" for k in keys))
+        bar = colorbar_html(*app.view.color_range)
+        if self.colorbar.content != bar:
+            self.colorbar.content = bar
         if th.error is not None:
             lines.append(f"⚠ error: {th.error}")
         self.status.content = "  \n".join(lines)

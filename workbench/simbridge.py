@@ -167,7 +167,9 @@ class LiveSim:
             pass
         cp, cf, cn, cfn = contacts_from_stats(self.last_stats)
         sc = {**self.step_scalars(), **(scalars or {})}
+        kb = getattr(self.ctrl, "kappa_bar", None)
         return Frame(node_pos=x.copy(), rod_radius=self.rod_radius, m1=m1, m2=m2,
+                     kappa_bar=None if kb is None else np.asarray(kb[0], dtype=np.float64).copy(),
                      node_curvature=integrated_curvature(x), edge_strain=edge_strain(x, self.rest_length),
                      contact_points=cp, contact_forces=cf, contact_normals=cn, contact_normal_force=cfn,
                      targets=np.zeros((0, 3)) if targets is None else np.asarray(targets).reshape(-1, 3),

@@ -4,16 +4,16 @@ obstacles with transform gizmos, ground grid. Batched primitives; one ``server.a
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable, Literal
+from typing import Callable
 
 import numpy as np
 import trimesh
 import viser
 
-from workbench.frame import Frame, colormap, quat_from_matrix, quat_z_to
+from workbench import coloring
+from workbench.frame import Frame, quat_from_matrix, quat_z_to
 from workbench.obstacles import ObstacleEdit, mesh_for_edit
 
-ColorBy = Literal["curvature", "strain", "none"]
 ROD_COLOR = np.array([230, 120, 40], dtype=np.uint8)
 GIZMO_SCALE = 0.25  # [m] size of the obstacle transform gizmos
 OBSTACLE_OPACITY = 0.55  # see-through: contact points and arrows inside an obstacle stay visible
@@ -50,9 +50,8 @@ CAMERAS = {"front": ((0.1, -2.2, 0.45), LOOK_AT), "side": ((2.2, 0.0, 0.45), LOO
 class Overlays:
     """Display toggles (GUI-controlled)."""
 
-    color_by: ColorBy = "curvature"
-    curvature_max: float = 0.3  # integrated curvature mapped to full red [-]
-    strain_max: float = 2e-3
+    color_by: str = "curvature"  # one of workbench.coloring.QUANTITIES
+    color_fixed: float | None = None  # colour range max (None = auto: the frame's largest |value|)
     frames: bool = False
     contacts: bool = True
     force_scale: float = 0.005  # arrow length per newton [m/N] ("linear" arrows)
@@ -105,6 +104,7 @@ class SceneView:
         self._edits: list[ObstacleEdit] = []
         self._on_move = None
         self.selected: int | None = None
+        self.color_range: tuple[str, float, float] = ("none", 0.0, 1.0)  # what the rod's colours mean now
         self.last_frame: Frame | None = None
 
     # ------------------------------------------------------------------ per frame
@@ -116,16 +116,16 @@ class SceneView:
         t = e / np.maximum(length, 1e-12)[:, None]
         r = fr.rod_radius
         ov = self.overlays
-        if ov.color_by == "curvature" and fr.node_curvature is not None:
-            node_c = colormap(fr.node_curvature, ov.curvature_max)
-            edge_c = colormap(0.5 * (fr.node_curvature[:-1] + fr.node_curvature[1:]), ov.curvature_max)
-        elif ov.color_by == "strain" and fr.edge_strain is not None:
-            edge_c = colormap(np.abs(fr.edge_strain), ov.strain_max)
-            s = np.abs(fr.edge_strain)
-            node_c = colormap(np.concatenate([[s[0]], 0.5 * (s[:-1] + s[1:]), [s[-1]]]), ov.strain_max)
+        vals = coloring.node_values(fr, ov.color_by)
+        if vals is not None:
+            lo, hi = coloring.value_range(vals, ov.color_by, ov.color_fixed)
+            node_c = coloring.colors(vals, lo, hi, ov.color_by)
+            edge_c = coloring.colors(0.5 * (vals[:-1] + vals[1:]), lo, hi, ov.color_by)
+            self.color_range = (ov.color_by, lo, hi)
         else:
             edge_c = np.tile(ROD_COLOR, (len(e), 1))
             node_c = np.tile(ROD_COLOR, (len(x), 1))
+            self.color_range = ("none", 0.0, 1.0)
         with self.server.atomic():
             self.rod_edges.batched_positions = 0.5 * (x[:-1] + x[1:])
             self.rod_edges.batched_wxyzs = quat_z_to(t)

@@ -19,6 +19,7 @@ from sim import load_scene
 from tests.security.hostile_client import HostileClient
 from tests.security.payloads import rodlab_zip, sb3_zip
 from tools.browser import wait_for
+from workbench.coloring import QUANTITIES
 
 REPO = Path(__file__).resolve().parents[2]
 DEFAULT = REPO / "assets" / "scenes" / "default.toml"
@@ -174,7 +175,7 @@ def test_a_client_can_change_values_only(env):
     clear(c.msg)
     client.set(c.color_by, "evil")
     said(c.msg, "not one of the listed options")
-    assert c.color_by._impl.update_cb and tuple(c.color_by.options) == ("curvature", "strain", "none")
+    assert c.color_by._impl.update_cb and tuple(c.color_by.options) == QUANTITIES
 
 
 def test_policy_path_from_the_page_is_never_loaded(env, tmp_path):
