@@ -32,8 +32,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-from policies.sac import _atomic_write_bytes
+from sim.atomicio import write_bytes
 
 REPLAY_KEYS = ("observations", "next_observations", "actions", "rewards", "dones", "timeouts")
 
@@ -106,7 +105,7 @@ def save_checkpoint(model, run_dir: Path, *, wall_s: float, save_buffer: bool, e
     state.update(extra or {})
     for p in new.iterdir():
         os.chmod(p, 0o644 & ~_umask())
-    _atomic_write_bytes(new / "state.json", json.dumps(state, indent=1).encode())
+    write_bytes(new / "state.json", json.dumps(state, indent=1).encode())
     _fsync_dir(new)
     if old.exists():
         shutil.rmtree(old)

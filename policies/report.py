@@ -227,16 +227,15 @@ def plot(rows: list[dict], out_png: Path) -> Path:
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
-    out_png.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out_png.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=90)
+    from sim.atomicio import write_via_path
+
+    write_via_path(out_png, lambda tmp: fig.savefig(tmp, format="png", dpi=90))
     plt.close(fig)
-    tmp.replace(out_png)
     return out_png
 
 
 def report(sweep_dir: str | Path, out_dir: str | Path | None = None) -> dict:
-    from policies.sac import _atomic_write_bytes
+    from sim.atomicio import write_bytes
 
     sweep_dir = Path(sweep_dir)
     if not sweep_dir.is_dir():
@@ -249,8 +248,8 @@ def report(sweep_dir: str | Path, out_dir: str | Path | None = None) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     png = plot(rows, out / "fig2.png")
     md = markdown(rows)
-    _atomic_write_bytes(out / "report.md", md.encode())
-    _atomic_write_bytes(out / "report.json", json.dumps({"groups": rows}, indent=1).encode())
+    write_bytes(out / "report.md", md.encode())
+    write_bytes(out / "report.json", json.dumps({"groups": rows}, indent=1).encode())
     return {"png": str(png), "markdown": str(out / "report.md"), "json": str(out / "report.json"), "table": md,
             "groups": rows}
 

@@ -35,6 +35,7 @@ import numpy as np
 import torch as th
 import torch.nn.functional as F
 from gymnasium import spaces
+from sim.atomicio import write_bytes
 from stable_baselines3 import SAC
 from stable_baselines3.common.torch_layers import create_mlp
 from stable_baselines3.common.utils import polyak_update
@@ -193,12 +194,6 @@ class RodSAC(SAC):
 
 
 # --------------------------------------------------------------------------------------- policy files
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
-    from sim.atomicio import write_bytes
-
-    write_bytes(path, data)
-
-
 def save_policy(model: SAC, path: str | os.PathLike, *, task: str | None, extra: dict | None = None) -> Path:
     """Write the policy only (actor + critics, no optimizer/replay buffer) to ``path`` (.zip), atomically.
 
@@ -227,7 +222,7 @@ def save_policy(model: SAC, path: str | os.PathLike, *, task: str | None, extra:
         zf.writestr("meta.json", json.dumps(meta, indent=1))
         zf.writestr("policy.pt", buf.getvalue())
     path = Path(path)
-    _atomic_write_bytes(path, zbuf.getvalue())
+    write_bytes(path, zbuf.getvalue())
     return path
 
 

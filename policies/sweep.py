@@ -189,9 +189,9 @@ def is_done(trial: Trial) -> bool:
 
 
 def _write_json(path: Path, data: dict) -> None:
-    from policies.sac import _atomic_write_bytes
+    from sim.atomicio import write_bytes
 
-    _atomic_write_bytes(path, json.dumps(data, indent=1).encode())
+    write_bytes(path, json.dumps(data, indent=1).encode())
 
 
 # ------------------------------------------------------------------------------------ one trial (child process)

@@ -40,10 +40,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from sim.atomicio import write_bytes
 
 from policies.checkpoint import find_checkpoint, read_state, resume_seed
 from policies.checkpoint import save_checkpoint as _save_checkpoint
-from policies.sac import PolicyLoadError, _atomic_write_bytes, save_policy
+from policies.sac import PolicyLoadError, save_policy
 from policies.train_monitor import monitor_callback
 
 
@@ -364,7 +365,7 @@ def train(args: Args, *, resume: bool = False) -> Path:
                "target_entropy": float(model.target_entropy), "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
         if init_info is not None:
             cfg["init_from"] = init_info
-        _atomic_write_bytes(run_dir / "config.json", json.dumps(cfg, indent=1).encode())
+        write_bytes(run_dir / "config.json", json.dumps(cfg, indent=1).encode())
     model.set_logger(configure(str(run_dir / "tb"), ["tensorboard"]))
 
     stop_flag = {"stop": False}
@@ -398,7 +399,7 @@ def train(args: Args, *, resume: bool = False) -> Path:
         save_policy(model, run_dir / "policy.zip", task=args.task,
                     extra={"training": summary, "log_ent_coef": _log_ent_coef(model)})
         side = {"task": args.task, "config": args.to_json(), "git_commit": git_commit(), "training": summary}
-        _atomic_write_bytes(run_dir / "policy.json", json.dumps(side, indent=1).encode())
+        write_bytes(run_dir / "policy.json", json.dumps(side, indent=1).encode())
         env.close()
     return run_dir
 

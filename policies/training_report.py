@@ -75,19 +75,18 @@ def plot_training_curves(run_dirs: list[str | Path], out_png: str | Path, *, tit
     axes[0, 1].legend(fontsize=8, loc="lower right")
     fig.suptitle(title or "SAC training")
     fig.tight_layout()
-    out = Path(out_png)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=100)
+    from sim.atomicio import write_via_path
+
+    out = write_via_path(out_png, lambda tmp: fig.savefig(tmp, format="png", dpi=100))
     plt.close(fig)
-    tmp.replace(out)
     return out
 
 
 def ship(run_dir: str | Path, name: str, *, episodes: int = 50, seed: int = 100, num_envs: int | None = None) -> dict:
     """Copy the run's policy into policies/pretrained/<name>.zip and write <name>.json (with evaluation)."""
+    from sim.atomicio import write_bytes
+
     from policies.evaluate import evaluate
-    from policies.sac import _atomic_write_bytes
 
     run_dir = Path(run_dir)
     src = run_dir / "policy.zip"
@@ -107,7 +106,7 @@ def ship(run_dir: str | Path, name: str, *, episodes: int = 50, seed: int = 100,
         "paper_table_ii_dismech": PAPER_TABLE_II.get(ev["task"]),
         "eval_command": f"rodlab eval policies/pretrained/{name}.zip --episodes {episodes} --seed {seed} --json",
     }
-    _atomic_write_bytes(PRETRAINED / f"{name}.json", json.dumps(out, indent=1).encode())
+    write_bytes(PRETRAINED / f"{name}.json", json.dumps(out, indent=1).encode())
     return out
 
 
