@@ -1,4 +1,4 @@
-"""Issue 18, Python API: NaN state never stays in the state or StepStats, dtypes/None give errors naming the
+"""Hardening, Python API: NaN state never stays in the state or StepStats, dtypes/None give errors naming the
 field, reset_envs takes integer indices (sim/validate.py; docs/conventions.md "Input bounds")."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Issue 18, outputs of `rodlab eval --record` and `rodlab train --run-dir`: a read-only, file-as-parent or
+"""Hardening, outputs of `rodlab eval --record` and `rodlab train --run-dir`: a read-only, file-as-parent or
 folder path is refused with a clear error before any work; eval shows a progress bar with ETA on request."""
 from __future__ import annotations
 

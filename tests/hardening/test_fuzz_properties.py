@@ -1,4 +1,4 @@
-"""Issue 18, property-based fuzz (hypothesis; bounded, derandomised): over scene documents, control arrays,
+"""Hardening, property-based fuzz (hypothesis; bounded, derandomised): over scene documents, control arrays,
 env overrides/actions and CLI arguments, every input is either refused with a SceneError/ValueError (or CLI exit
 status 2) naming the key / field, or runs with no NaN in the state, observations or statistics and keeps every
 accepted value as given. The case functions are benchmarks/fuzz.py's (`rodlab bench fuzz` for long runs)."""

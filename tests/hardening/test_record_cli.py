@@ -1,4 +1,4 @@
-"""Issue 18, recordings: `rodlab record` refuses bad --max-steps, unwritable --out (before any episode) and a
+"""Hardening, recordings: `rodlab record` refuses bad --max-steps, unwritable --out (before any episode) and a
 policy of another task with a clear error; SIGTERM/SIGKILL leave no hidden part folder behind (a real
 subprocess is killed); `rodlab inspect` on a truncated .rrd gives a clear error; progress bar on request."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Issue 18, scene values: every bad scene file or value gets a SceneError naming the file and the key
+"""Hardening, scene values: every bad scene file or value gets a SceneError naming the file and the key
 (sim/validate.py, docs/conventions.md "Input bounds"); huge finite directions are normalised exactly."""
 from __future__ import annotations
 

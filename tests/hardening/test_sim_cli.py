@@ -1,4 +1,4 @@
-"""Issue 18, `rodlab sim`: unwritable --out refused before the simulation, --duration inf refused, progress bar
+"""Hardening, `rodlab sim`: unwritable --out refused before the simulation, --duration inf refused, progress bar
 on request, and a warning when the rod starts inside an obstacle (sim/scene_check.py)."""
 from __future__ import annotations
 

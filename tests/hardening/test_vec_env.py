@@ -1,4 +1,4 @@
-"""Issue 18, make_vec_env: wrong override types and missing scene files give clear errors; the paper's arm
+"""Hardening, make_vec_env: wrong override types and missing scene files give clear errors; the paper's arm
 comes from the shipped scene file only (no scene built in code)."""
 from __future__ import annotations
 
