@@ -56,8 +56,12 @@ def main(argv: list[str] | None = None) -> int:
             app.controls.sliders[2][0].value = -1.2
             app.controls.sliders[3][1].value = 0.6
             app.controls.frames.value = True
+            app.controls.color_by.value = "κ1"
+            expand_folder(page, "Teleop", "Zero sliders")
             wait_for(lambda: wb.frame_index > 60, timeout=120, what="rod to settle")
             _shot(page, out / "workbench_teleop.png")
+            expand_folder(page, "Display", "top")
+            _shot(page, out / "workbench_display.png")
             app.controls.frames.value = False
             expand_folder(page, "Obstacles", "Add obstacle")
             _shot(page, out / "workbench_obstacles.png")

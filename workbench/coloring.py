@@ -4,7 +4,7 @@ Quantities (per node, integrated values as in docs/physics.md §1.4, dimensionle
 and κ2 (``sim.curvature.material_curvature``), the twist between neighbouring edges (the angle of m1 about the
 tangent after parallel transport), the axial stretch of the edges (ε = |e|/|ē| − 1), the curvature magnitude |κ|,
 and the commanded − actual curvature |κ̄ − κ| (natural curvature set by teleop or a policy, minus the rod's own).
-Signed quantities use a blue–white–red map centred on 0, magnitudes a blue–green–red ramp from 0.
+Signed quantities use a blue–grey–red map centred on 0, magnitudes a blue–green–red ramp from 0.
 """
 from __future__ import annotations
 
@@ -83,7 +83,7 @@ def colors(values: np.ndarray, lo: float, hi: float, quantity: str) -> np.ndarra
     if quantity not in SIGNED:
         return colormap(v - lo, hi - lo)
     s = np.clip(v / max(hi, 1e-12), -1.0, 1.0)[:, None]
-    white = np.array([0.93, 0.93, 0.93])
+    white = np.array([0.72, 0.72, 0.72])  # a grey centre: 0 stays visible against the light background
     red, blue = np.array([0.80, 0.15, 0.12]), np.array([0.15, 0.35, 0.80])
     c = np.where(s >= 0, white + s * (red - white), white - s * (blue - white))
     return (c * 255).astype(np.uint8)
@@ -94,7 +94,7 @@ def colorbar_html(quantity: str, lo: float, hi: float) -> str:
     if quantity == "none":
         return ""
     if quantity in SIGNED:
-        grad = "rgb(38,89,204), rgb(237,237,237), rgb(204,38,31)"
+        grad = "rgb(38,89,204), rgb(184,184,184), rgb(204,38,31)"
     else:
         grad = ", ".join(f"rgb({r},{g},{b})" for r, g, b in colormap(np.linspace(0, 1, 5), 1.0))
     mid = 0.5 * (lo + hi)

@@ -19,6 +19,14 @@ if TYPE_CHECKING:
 LIVE_WINDOW = 400  # frames shown in the live plots
 
 
+def _x_range(p: Plot) -> tuple[float, float]:
+    """x range of a plot: its data, with 10 % room on the right for live data arriving before the next rescale."""
+    x = p.data[0]
+    x0, x1 = (float(x[0]), float(x[-1])) if len(x) else (0.0, 1.0)
+    span = max(x1 - x0, 1e-6)
+    return x0, x1 + 0.1 * span
+
+
 class PlotsPanel:
     def __init__(self, app: "WorkbenchApp", container=None):
         self.app = app
@@ -26,6 +34,7 @@ class PlotsPanel:
         self.handles: dict[str, object] = {}
         self._sig: dict[str, tuple] = {}
         self._range: dict[str, tuple[float, float]] = {}
+        self._xrange: dict[str, tuple[float, float]] = {}
         self._replay_key: tuple | None = None
         self.shown: list[Plot] = []  # what the page shows now (tests read it)
 
@@ -43,10 +52,12 @@ class PlotsPanel:
             if h is None:
                 self._create(p, i)
                 continue
-            lo, hi = self._range[p.key]
-            if p.y[0] < lo or p.y[1] > hi or (hi - lo) > 4.0 * (p.y[1] - p.y[0]):
-                self._range[p.key] = p.y
-                h.scales = self._scales(p.y)
+            (lo, hi), (x0, x1) = self._range[p.key], self._xrange[p.key]
+            xr = _x_range(p)
+            if (p.y[0] < lo or p.y[1] > hi or (hi - lo) > 4.0 * (p.y[1] - p.y[0])
+                    or xr[0] > x0 + 0.1 * (x1 - x0) or xr[0] < x0 or float(p.data[0][-1]) > x1):
+                self._range[p.key], self._xrange[p.key] = p.y, xr
+                h.scales = self._scales(p.y, xr)
             h.data = p.data
         self.shown = plots
 
@@ -54,11 +65,14 @@ class PlotsPanel:
         self.handles.pop(key).remove()
         self._sig.pop(key, None)
         self._range.pop(key, None)
+        self._xrange.pop(key, None)
 
     @staticmethod
-    def _scales(y: tuple[float, float]) -> dict:
-        # a fixed y range: uPlot's own range is NaN when a series starts with NaN (see workbench.plots)
-        return {"x": {"time": False}, "y": {"auto": False, "range": [float(y[0]), float(y[1])]}}
+    def _scales(y: tuple[float, float], x: tuple[float, float]) -> dict:
+        # fixed ranges: uPlot's own y range is NaN when a series starts with NaN (see workbench.plots), and viser's
+        # wrapper does not move an automatic x range along with live data
+        return {"x": {"time": False, "auto": False, "range": [float(x[0]), float(x[1])]},
+                "y": {"auto": False, "range": [float(y[0]), float(y[1])]}}
 
     def _create(self, p: Plot, order: int) -> None:
         series = [uplot.Series(label=p.labels[0])]
@@ -69,10 +83,10 @@ class PlotsPanel:
             series.append(s)
         with self.folder:
             self.handles[p.key] = self.app.server.gui.add_uplot(
-                data=p.data, series=tuple(series), scales=self._scales(p.y), title=p.title, aspect=2.2,
-                order=1000.0 + order)
+                data=p.data, series=tuple(series), scales=self._scales(p.y, _x_range(p)), title=p.title,
+                aspect=2.2, order=1000.0 + order)
         self._sig[p.key] = (p.signature, order)
-        self._range[p.key] = p.y
+        self._range[p.key], self._xrange[p.key] = p.y, _x_range(p)
 
     # ------------------------------------------------------------------ sources
     def show_replay(self, session, *, force: bool = False) -> None:

@@ -60,6 +60,15 @@ def test_select_by_click_dropdown_and_typed_pose(wb_page):
     assert np.allclose(view.gizmo(1).position, b.position)
     # type a position and a size for the selected obstacle
     pos = _row_inputs(page, "Position [m]")
+
+    def shown_x() -> float:
+        try:
+            return float(pos.nth(0).input_value())
+        except ValueError:
+            return float("nan")
+
+    # the fields show the selected obstacle before typing (else the page's update could overwrite the typed value)
+    wait_for(lambda: abs(shown_x() - b.position[0]) < 1e-3, what="position field of obstacle 1")
     pos.nth(0).fill("0.7")
     pos.nth(0).press("Enter")
     wait_for(lambda: wb.obstacles[1].position[0] == pytest.approx(0.7), what="typed x")

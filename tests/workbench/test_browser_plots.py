@@ -14,7 +14,7 @@ pytestmark = pytest.mark.browser
 
 CHARTS_JS = """() => Object.values(window.__viserTestpoints?.uplots ?? {}).map(({chart}) => ({
     title: chart.root.querySelector('.u-title')?.textContent ?? '',
-    ymin: chart.scales.y.min, ymax: chart.scales.y.max,
+    ymin: chart.scales.y.min, ymax: chart.scales.y.max, xmin: chart.scales.x.min, xmax: chart.scales.x.max,
     labels: chart.series.map(s => String(s.label)),
     data: chart.data.map(col => Array.from(col, v => (Number.isFinite(v) ? v : null))),
 }))"""
@@ -117,3 +117,13 @@ def test_live_plots_split_at_episode_reset(wb_page):
         return bool(i_cur and i_prev) and max(i_prev) < min(i_cur)
 
     wait_for(split_ok, timeout=30, what="reward plot split into the two episodes in the page")
+
+    def newest_shown(title: str) -> bool:  # the x axis moves along with the live data
+        c = _charts(page).get(title)
+        xs = c["data"][0] if c else []
+        return bool(xs) and c["xmin"] <= xs[0] + 1e-9 and c["xmax"] >= xs[-1] - 1e-9
+
+    x_last = max(_charts(page)["tip error [m]"]["data"][0])
+    wait_for(lambda: max(_charts(page)["tip error [m]"]["data"][0]) > x_last + 1.0, timeout=60, what="a second more")
+    for title in ("tip error [m]", "reward and its terms"):
+        wait_for(lambda: newest_shown(title), timeout=15, what=f"{title}: newest samples inside the x axis")
