@@ -21,6 +21,6 @@ from __future__ import annotations
 from .solve_2d import step_kernel_2d
 from .solve_3d import step_kernel_3d
 from .solve_params import *  # noqa: F403  (re-exported: Params, F_*/I_* output columns)
-from .solve_params import F_COLS, I_COLS, ContactReport, Params
+from .solve_params import F_COLS, I_COLS, ContactReport, Params, params_record
 
-__all__ = ["step_kernel_3d", "step_kernel_2d", "Params", "ContactReport", "F_COLS", "I_COLS"]
+__all__ = ["step_kernel_3d", "step_kernel_2d", "Params", "params_record", "ContactReport", "F_COLS", "I_COLS"]

@@ -489,13 +489,14 @@ def _env_step_2d(e, xs, us, d1s, ts, bs, kb, rest_len, vor_len, mass, fixed, gra
 
 
 @njit(parallel=True, **_OPT)
-def step_kernel_2d(dof, vel, d1s, ts, bs, times, failed, kappa_bar, rest_len, vor_len, mass, fixed, grav, prm,
+def step_kernel_2d(dof, vel, d1s, ts, bs, times, failed, kappa_bar, rest_len, vor_len, mass, fixed, grav, prm_arr,
                    cd, crep, fo, io):
     """2-D analogue of step_kernel_3d; dof/vel (B, 2N) views of State.dof ([x, z] per node)."""
     B = dof.shape[0]
     N = dof.shape[1] // 2
     nch = (B + _CHUNK - 1) // _CHUNK
     for chunk in prange(nch):  # workspaces once per chunk of envs (see step_kernel_3d)
+        prm = prm_arr[0]  # the parameters record, by reference
         w = _alloc_2d(N)
         sw = _alloc_env_2d(N)
         for e in range(chunk * _CHUNK, min(B, chunk * _CHUNK + _CHUNK)):

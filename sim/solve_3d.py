@@ -542,13 +542,14 @@ def _env_step_3d(e, xs, us, d1s, ts, bs, kb, tb, rest_len, vor_len, mass, fixed,
 
 @njit(parallel=True, **_OPT)
 def step_kernel_3d(dof, vel, d1s, ts, bs, times, failed, kappa_bar, tau_bar, rest_len, vor_len, mass, fixed,
-                   grav, prm, cd, crep, fo, io):
+                   grav, prm_arr, cd, crep, fo, io):
     """Advance all non-failed envs by prm.dt. dof/vel (B, 4N) views of State.dof; outputs fo (B, F_COLS),
     io (B, I_COLS) and the contact rows crep (a ContactReport)."""
     B = dof.shape[0]
     N = dof.shape[1] // 4
     nch = (B + _CHUNK - 1) // _CHUNK
     for chunk in prange(nch):  # workspaces are allocated once per chunk of envs, not per env-step
+        prm = prm_arr[0]  # the parameters record, by reference
         w = _alloc_3d(N)
         sw = _alloc_env_3d(N)
         for e in range(chunk * _CHUNK, min(B, chunk * _CHUNK + _CHUNK)):

@@ -7,9 +7,10 @@ from __future__ import annotations
 
 from collections import namedtuple
 
+import numpy as np
 from numba import njit
 
-# The solver's scalar parameters by name: a numba namedtuple of float64 (flags 0.0/1.0; line_search 0 none,
+# The solver's scalar parameters by name: a namedtuple of float64 (flags 0.0/1.0; line_search 0 none,
 # 1 backtrack, 2 auto), built once by the Simulator from the Model. Units: EA [N], EI1/EI2/GJ [N m²], dt [s],
 # damping [1/s], newton_dtol [m/s], radius/contact_delta/contact_margin/max_penetration/plane_y [m],
 # contact_k [N/m], friction_nu [m/s]; the rest dimensionless.
@@ -19,6 +20,20 @@ Params = namedtuple("Params", [
     "contact_margin", "n_obstacles", "planar_sign", "plane_y", "retry_levels", "max_strain", "max_penetration",
     "step_limit", "divergence_guard", "midpoint_energy_tol",
 ])
+# The kernels receive the parameters as one record of this structured dtype (same names, read as prm.EA ...):
+# numba passes a record by reference, where a namedtuple of 28 floats is copied into every call.
+PARAMS_DTYPE = np.dtype([(name, np.float64) for name in Params._fields])
+
+
+def params_record(p: Params) -> np.ndarray:
+    """The kernels' form of ``p``: a one-element array of float64 records with the fields of :class:`Params`
+    (the kernels read ``prm = prm_arr[0]`` once per chunk of envs)."""
+    arr = np.zeros(1, dtype=PARAMS_DTYPE)
+    for name, v in zip(Params._fields, p):
+        arr[0][name] = float(v)
+    return arr
+
+
 # the per-env contact rows the step kernels write for StepStats (leading axis B; C = report capacity):
 # count (B,), edge/obstacle (B, C) int64, rod_point/obstacle_point/normal/friction_force (B, C, 3),
 # normal_force/gap (B, C), max_penetration (B,)

@@ -45,7 +45,7 @@ class Simulator:
             max_penetration=4.0 * c.delta if mp is None else float(mp),
             step_limit=1.0 if getattr(c, "step_limit", True) else 0.0, divergence_guard=m.divergence_guard,
             midpoint_energy_tol=MIDPOINT_ENERGY_TOL)
-        self._prm = _solve.Params(*(float(v) for v in prm))  # all float64: one numba signature
+        self._prm = _solve.params_record(prm)  # one float64 record (passed by reference in the kernels)
         self._arr = tuple(np.array(a) for a in (m.rest_edge_length, m.voronoi_length, m.dof_mass, m.dof_fixed,
                                                 m.dof_gravity))
         # per-Simulator obstacle poses (static meshes/BVHs shared with the model); tasks edit them through
