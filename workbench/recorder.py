@@ -12,18 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.rotations import quat_to_matrix
 from workbench.frame import Frame
 from workbench.obstacles import ObstacleEdit, mesh_for_edit
 
 SCALAR_NAMES = {"reward": "reward", "tip_error": "tip_error", "ori_error": "ori_error", "newton_iters": "solver/newton_iters",
                 "contact_force": "contact/max_normal_force", "max_penetration": "contact/max_penetration"}
-
-
-def _rot(wxyz) -> np.ndarray:
-    w, x, y, z = np.asarray(wxyz, dtype=np.float64) / np.linalg.norm(wxyz)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
 def static_scene(edits: list[ObstacleEdit], rod_radius: float, *, planar: bool = False):
@@ -32,7 +26,7 @@ def static_scene(edits: list[ObstacleEdit], rod_radius: float, *, planar: bool =
 
     caps, crad, sc, sr, bc, bh, bq, meshes = [], [], [], [], [], [], [], []
     for e in edits:
-        R = _rot(e.wxyz)
+        R = quat_to_matrix(np.asarray(e.wxyz, dtype=np.float64))
         if e.kind == "capsule":
             ax = R[:, 2] * 0.5 * e.length
             caps.append([e.position - ax, e.position + ax])
