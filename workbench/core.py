@@ -277,7 +277,7 @@ class Workbench:
 
     def resize_obstacle(self, index: int, size) -> None:
         """New size of obstacle ``index`` (rebuilds the model, keeps the rod state). ``size`` (3,) [m]: sphere radius;
-        capsule radius, length; box half sizes; mesh scale [-] (first value)."""
+        capsule/cylinder radius, length; box half sizes; mesh scale [-] (first value)."""
         import dataclasses
 
         with self.lock:
@@ -285,7 +285,7 @@ class Workbench:
             e = dataclasses.replace(self.obstacles[index])
             if e.kind == "sphere":
                 e.radius = float(v[0])
-            elif e.kind == "capsule":
+            elif e.kind in ("capsule", "cylinder"):
                 e.radius, e.length = float(v[0]), float(v[1])
             elif e.kind == "box":
                 e.half_extents = v.copy()

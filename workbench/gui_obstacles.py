@@ -26,7 +26,7 @@ class ObstaclesPanel:
         self.app = app
         gui = app.server.gui
         with app.tabs["Obstacles"]:
-            self.kind = gui.add_dropdown("Shape", ("sphere", "capsule", "box"), initial_value="sphere",
+            self.kind = gui.add_dropdown("Shape", ("sphere", "capsule", "cylinder", "box"), initial_value="sphere",
                                          hint="shape of the next obstacle")
             self.add_btn = gui.add_button("Add obstacle", hint="add one; drag its gizmo to move it")
             meshes = obst.mesh_catalogue() or [NO_MESH]
@@ -102,6 +102,7 @@ class ObstaclesPanel:
             return
         e = self.app.wb.obstacles[i]
         size = {"sphere": (e.radius, e.radius, e.radius), "capsule": (e.radius, e.length, e.radius),
+                "cylinder": (e.radius, e.length, e.radius),
                 "box": tuple(e.half_extents), "mesh": (e.scale, e.scale, e.scale)}.get(e.kind, (0.1, 0.1, 0.1))
         self._syncing = True
         try:

@@ -14,8 +14,8 @@ import numpy as np
 
 from sim.rotations import quat_to_matrix
 
-ObstacleKind = Literal["sphere", "capsule", "box", "mesh", "plane"]
-KINDS: tuple[str, ...] = ("sphere", "capsule", "box", "mesh", "plane")
+ObstacleKind = Literal["sphere", "capsule", "cylinder", "box", "mesh", "plane"]
+KINDS: tuple[str, ...] = ("sphere", "capsule", "cylinder", "box", "mesh", "plane")
 PLANE_DRAW_SIZE = 2.4  # [m] side of the square drawn for a plane
 MESH_DIR = Path(__file__).resolve().parent.parent / "assets" / "meshes"
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".glb", ".gltf", ".off")
@@ -26,9 +26,9 @@ class ObstacleEdit:
     """One obstacle as the workbench edits it.
 
     Attributes:
-        kind: sphere | capsule | box | mesh.
+        kind: sphere | capsule | cylinder | box | mesh | plane.
         position: (3,) centre [m]; wxyz: (4,) orientation (unit quaternion, scalar first).
-        radius: sphere/capsule radius [m]; length: capsule axis length (local z) [m].
+        radius: sphere/capsule/cylinder radius [m]; length: capsule/cylinder axis length (local z) [m].
         half_extents: (3,) box half sizes [m]; mesh: mesh file path; scale: mesh scale [-].
         name: label shown in the page; mesh_data: (vertices, faces) of a recorded mesh (display only).
     """
@@ -77,6 +77,8 @@ def bounding_radius(e: ObstacleEdit) -> float:
         return float(e.radius)
     if e.kind == "capsule":
         return float(e.radius + 0.5 * e.length)
+    if e.kind == "cylinder":
+        return float(np.hypot(e.radius, 0.5 * e.length))
     if e.kind == "box":
         return float(np.linalg.norm(e.half_extents))
     try:
@@ -174,6 +176,10 @@ def _edit_from_obstacle_spec(o) -> ObstacleEdit:
         a, b = np.asarray(o.start, float), np.asarray(o.end, float)
         e = ObstacleEdit(kind="capsule", position=0.5 * (a + b), wxyz=_z_to(b - a), radius=float(o.radius),
                          length=float(np.linalg.norm(b - a)), name=name)
+    elif kind == "cylinder":
+        a, b = np.asarray(o.start, float), np.asarray(o.end, float)
+        e = ObstacleEdit(kind="cylinder", position=0.5 * (a + b), wxyz=_z_to(b - a), radius=float(o.radius),
+                         length=float(np.linalg.norm(b - a)), name=name)
     elif kind == "box":
         e = ObstacleEdit(kind="box", position=o.position, wxyz=o.orientation, half_extents=o.half_extents,
                          name=name)
@@ -204,11 +210,11 @@ def _obstacle_spec_from_edit(e: ObstacleEdit):
     name = e.name or ""
     if e.kind == "sphere":
         return so.SphereSpec(center=p, radius=float(e.radius), name=name)
-    if e.kind == "capsule":
+    if e.kind in ("capsule", "cylinder"):
         ax = R[:, 2] * 0.5 * e.length
-        return so.CapsuleSpec(start=tuple(float(v) for v in e.position - ax),
-                              end=tuple(float(v) for v in e.position + ax), radius=float(e.radius),
-                              name=name)
+        cls = so.CapsuleSpec if e.kind == "capsule" else so.CylinderSpec
+        return cls(start=tuple(float(v) for v in e.position - ax), end=tuple(float(v) for v in e.position + ax),
+                   radius=float(e.radius), name=name)
     if e.kind == "box":
         return so.BoxSpec(position=p, half_extents=tuple(float(v) for v in e.half_extents), orientation=q,
                           name=name)
@@ -230,8 +236,9 @@ def _unchanged(e: ObstacleEdit, orig: ObstacleEdit) -> bool:
 def sim_pose(e: ObstacleEdit) -> tuple[np.ndarray, np.ndarray]:
     """(position (3,), wxyz (4,)) for ``ObstacleSet.set_pose``: the rigid motion taking the obstacle
     from its spec placement to the edited one. Capsule/sphere/plane specs are in their local frame
-    (initial pose identity); box/mesh poses are the obstacle's own pose."""
-    if e.kind in ("box", "mesh"):
+    (initial pose identity); box/mesh/cylinder poses are the obstacle's own pose (a cylinder's frame: centre
+    at the axis midpoint, z along the axis)."""
+    if e.kind in ("box", "mesh", "cylinder"):
         return e.position.copy(), e.wxyz / np.linalg.norm(e.wxyz)
     R_e = _rotm(e.wxyz)
     if e.base_position is None:  # not from the built model: it was created at its current pose
@@ -256,6 +263,8 @@ def mesh_for_edit(e: ObstacleEdit) -> tuple[np.ndarray, np.ndarray]:
         m = trimesh.creation.icosphere(subdivisions=3, radius=e.radius)
     elif e.kind == "capsule":
         m = trimesh.creation.capsule(height=e.length, radius=e.radius, count=[24, 12])
+    elif e.kind == "cylinder":
+        m = trimesh.creation.cylinder(radius=e.radius, height=e.length, sections=48)
     elif e.kind == "box":
         m = trimesh.creation.box(extents=2.0 * e.half_extents)
     elif e.kind == "plane":
