@@ -30,6 +30,11 @@ class ReplayPanel:
             self.speed = gui.add_dropdown("Replay speed [×]", ("0.25", "0.5", "1", "2", "4"), initial_value="1",
                                           hint="times the recorded time")
             self.close_btn = gui.add_button("Close recording", hint="back to the live session")
+            self.export_html_btn = gui.add_button(
+                "Export HTML", hint="write a standalone player of this episode (opens from file://, no server) "
+                                    "into the recordings folder")
+            self.export_png_btn = gui.add_button("Export PNG", hint="write a picture of this frame into the "
+                                                                    "recordings folder")
             self.msg = gui.add_markdown("")
         self._scrubbing = False
         for h in (self.file, self.episode, self.timeline, self.speed):
@@ -139,6 +144,14 @@ class ReplayPanel:
             if ok.option(self.speed, self._say) and wb.replay is not None:
                 wb.replay.speed = float(self.speed.value)
 
+        @self.export_html_btn.on_click
+        def _(_e) -> None:
+            self.export(png=False)
+
+        @self.export_png_btn.on_click
+        def _(_e) -> None:
+            self.export(png=True)
+
         @self.close_btn.on_click
         def _(_e) -> None:
             wb.close_replay()
@@ -146,6 +159,24 @@ class ReplayPanel:
             self.msg.content = ""
             app.sync_obstacle_view()
             app.request_render()
+
+    def export(self, *, png: bool) -> Path | None:
+        """Write the open episode as a standalone HTML player (or the current frame as a PNG) into the
+        recordings folder, named after the recording and episode; the message line says where."""
+        from workbench.export import ExportError, export_to_folder
+
+        rs = self.app.wb.replay
+        if rs is None:
+            self._say("open a recording first")
+            return None
+        stem = f"{rs.path.stem if rs.path else 'episode'}_ep{rs.episode_index}"
+        try:
+            out = export_to_folder(rs.ep, self.app.files.recordings, stem, frame=rs.index if png else None)
+        except (ExportError, OSError) as exc:
+            self._say(f"export failed: {exc}")
+            return None
+        self._say(f"exported {out.name} to the recordings folder")
+        return out
 
     def _plot(self, force: bool = False) -> None:
         plots, s = getattr(self.app, "plots", None), self.app.wb.replay

@@ -66,3 +66,33 @@ def test_unreadable_recording_is_a_clear_error(tmp_path):
     bad.write_bytes(b"not a recording")
     with pytest.raises(Exception, match="bad.rrd"):
         ReplaySession.open(bad)
+
+
+def test_recordings_tab_exports_the_open_episode_into_the_recordings_folder(tmp_path):
+    """The Recordings tab's Export HTML / Export PNG buttons write the open episode (player page) and the
+    current frame (picture) into the recordings folder, named after the recording and episode."""
+    import shutil
+    from pathlib import Path
+
+    from tests.workbench.conftest import make_app
+    from workbench.export import unpack_html
+
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    src = Path(__file__).resolve().parents[2] / "recordings" / "examples" / "ik4d.rrd"
+    shutil.copy(src, rec / "ik.rrd")
+    app = make_app(recordings_dir=rec)
+    try:
+        panel = app.replay
+        assert panel.export(png=False) is None and "open a recording first" in panel.msg.content
+        panel.file.value = "ik.rrd"
+        assert panel.open_listed() is not None
+        app.wb.replay.seek(3)
+        html = panel.export(png=False)
+        png = panel.export(png=True)
+        assert html == rec / "ik_ep0.html" and png == rec / "ik_ep0_f3.png"
+        assert "exported ik_ep0_f3.png" in panel.msg.content
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        np.testing.assert_array_equal(unpack_html(html.read_text())["positions"], app.wb.replay.ep.positions)
+    finally:
+        app.stop()
