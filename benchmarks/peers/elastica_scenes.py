@@ -1,27 +1,9 @@
-"""PyElastica (explicit Cosserat rod) versions of the benchmark scenes (the arm: policies/elastica/rods.py).
+"""PyElastica (explicit Cosserat rod) versions of the benchmark scenes: a static and a dynamic cantilever and
+the paper's arm, for the accuracy and throughput comparisons.
 
-PyElastica is an optional peer (``pip install rodlab[peers]``); importing this module without it
-raises an ``ImportError`` that says so.  Written against the installed PyElastica API (1.0: damping
-through ``AnalyticalLinearDamper``, clamps through ``OneEndFixedBC``, rigid ``Cylinder`` +
-``RodCylinderContact``).  The settings follow docs/tasks.md §1.6 (the paper's Elastica variant):
-
-* position Verlet, ``dt`` = 2e-4 s for the arm;
-* base clamp ``OneEndFixedBC``: position of node 0 and the director of element 0 fixed
-  (DisMech instead locks nodes 0 *and* 1 and θ⁰; the effective root differs by up to one edge);
-* the PyElastica 0.2.4 internal damping ``nu`` (force ``ν v l`` per node, torque ``ν ω l`` per
-  element) is reproduced exactly with ``AnalyticalLinearDamper``'s physical protocol
-  (translational constant ``ν l_node``, rotational constant ``ν l_elem``);
-* frame mapping: the arm is built in Elastica coordinates whose x and y are swapped relative to the
-  world, rod direction +z, normal +x in Elastica coordinates (+y world); all positions read back are
-  swapped again, so Elastica's director d1 is world +y and d2 world +x;
-* actuation: a DisMech integrated curvature increment ``(Δκ̄1, Δκ̄2)`` at interior node ``n`` and a
-  twist increment ``Δm̄`` become ``rest_kappa[:, n-1] += (Δκ̄1, -Δκ̄2, -Δm̄) / l_n`` (``l_n`` the
-  Voronoi length).
-
-Arrays handed in and out are node-major and in world coordinates: ``(R, N, 3)`` [m] for ``R`` rods of
-``N`` nodes.  One :class:`ElasticaRods` simulator can hold several identical rods (several envs in one
-PyElastica simulator, which is how throughput is measured).
-"""
+The rods themselves (settings, damping, clamp, frame mapping, actuation) are
+:mod:`policies.elastica.rods`, shared with the task back-end and documented there and in docs/tasks.md §1.6;
+PyElastica is an optional peer (``pip install rodlab[peers]``)."""
 from __future__ import annotations
 
 import numpy as np

@@ -10,25 +10,7 @@ import pytest
 from sim import Simulator, build_model, load_scene
 from sim.scene import SceneError
 from sim.validate import BOUNDS, bounds_table
-
-ARM = """
-[sim]
-dt = 0.05
-gravity = [0.0, 0.0, -9.8]
-newton_tol = 1e-3
-newton_max_iter = 2
-accept_unconverged = true
-
-[rod]
-nodes = 21
-length = 1.0
-radius = 0.05
-density = 1000.0
-youngs_modulus = 1e7
-poisson_ratio = 0.5
-start = [0.0, 0.0, 0.0]
-direction = [0.0, 0.0, 1.0]
-"""
+from tests.unit.test_scene import ARM  # the paper arm as a scene document (one copy for both suites)
 
 
 def _scene(tmp_path, text, name="s.toml"):
