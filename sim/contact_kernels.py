@@ -316,6 +316,22 @@ def _scratch(cd, e):
     return scf[e, 0:64], scf[e, 64:70], scf[e, 70:73], cd.scratch_m[e, 0], cd.scratch_i[e]
 
 
+@njit(cache=True, inline="always")
+def _report_row(e, rc, j, o, rod_point, base, scale, n, ff, normal_force, gap, out_edge, out_obstacle,
+                out_rod_point, out_obstacle_point, out_normal, out_normal_force, out_friction_force, out_gap):
+    """Write contact row ``rc`` of env ``e``: edge ``j`` against obstacle ``o``, rod point ``rod_point``, obstacle
+    surface point ``base + scale n``, normal ``n``, friction force ``ff``, normal force and gap."""
+    out_edge[e, rc] = j
+    out_obstacle[e, rc] = o
+    for i in range(3):
+        out_rod_point[e, rc, i] = rod_point[i]
+        out_obstacle_point[e, rc, i] = base[i] + scale * n[i]
+        out_normal[e, rc, i] = n[i]
+        out_friction_force[e, rc, i] = ff[i]
+    out_normal_force[e, rc] = normal_force
+    out_gap[e, rc] = gap
+
+
 @njit(cache=True)
 def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemble, grad, hess, report,
                   out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
@@ -371,15 +387,9 @@ def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemb
             if report:
                 maxpen = max(maxpen, -gap)
                 if rc < cap:
-                    out_edge[e, rc] = j
-                    out_obstacle[e, rc] = o
-                    for i in range(3):
-                        out_rod_point[e, rc, i] = xk[i]
-                        out_obstacle_point[e, rc, i] = xk[i] - (gap + r) * n[i]
-                        out_normal[e, rc, i] = n[i]
-                        out_friction_force[e, rc, i] = ff[i]
-                    out_normal_force[e, rc] = -dE
-                    out_gap[e, rc] = gap
+                    _report_row(e, rc, j, o, xk, xk, -(gap + r), n, ff, -dE, gap, out_edge, out_obstacle,
+                                out_rod_point, out_obstacle_point, out_normal, out_normal_force, out_friction_force,
+                                out_gap)
                     rc += 1
             continue
         a = _row3(x, j)
@@ -423,15 +433,9 @@ def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemb
                     if report:
                         maxpen = max(maxpen, -gap)
                         if rc < cap:
-                            out_edge[e, rc] = j
-                            out_obstacle[e, rc] = o
-                            for i in range(3):
-                                out_rod_point[e, rc, i] = xk[i]
-                                out_obstacle_point[e, rc, i] = xk[i] - (gap + r) * n[i]
-                                out_normal[e, rc, i] = n[i]
-                                out_friction_force[e, rc, i] = ff[i]
-                            out_normal_force[e, rc] = -dE
-                            out_gap[e, rc] = gap
+                            _report_row(e, rc, j, o, xk, xk, -(gap + r), n, ff, -dE, gap, out_edge, out_obstacle,
+                                        out_rod_point, out_obstacle_point, out_normal, out_normal_force, out_friction_force,
+                                        out_gap)
                             rc += 1
                 continue
         gap, s, q = _eval_edge(cd, e, o, a, b, r, r + delta, g6, H6, nhat, ws, stack)
@@ -476,15 +480,9 @@ def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemb
                 xr = vlerp(a, b, s)
                 # q is the closest point of a sphere's centre / a capsule's axis: step out to its surface
                 ro = rad[e, o] if (kind[o] == SPHERE or kind[o] == CAPSULE) else 0.0
-                out_edge[e, rc] = j
-                out_obstacle[e, rc] = o
-                for i in range(3):
-                    out_rod_point[e, rc, i] = xr[i]
-                    out_obstacle_point[e, rc, i] = q[i] + ro * n[i]
-                    out_normal[e, rc, i] = n[i]
-                    out_friction_force[e, rc, i] = ff[i]
-                out_normal_force[e, rc] = -dE
-                out_gap[e, rc] = gap
+                _report_row(e, rc, j, o, xr, q, ro, n, ff, -dE, gap, out_edge, out_obstacle,
+                            out_rod_point, out_obstacle_point, out_normal, out_normal_force, out_friction_force,
+                            out_gap)
                 rc += 1
     if report:
         out_count[e] = rc
