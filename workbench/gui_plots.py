@@ -2,7 +2,8 @@
 
 Live: every scalar of the last ``LIVE_WINDOW`` frames (reward and its terms, tip/orientation error, contact force,
 Newton iterations, ...), the episode before the last reset dashed, never joined to the current one. Replay: every
-scalar recorded in the episode, with a vertical cursor at the timeline position.
+scalar recorded in the episode, with a vertical cursor at the timeline position. First plot: the curvature along the
+rod, commanded against actual per component (``workbench.rod_curves``), of the live rod or of the replayed frame.
 """
 from __future__ import annotations
 
@@ -11,7 +12,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from viser import uplot
 
-from workbench.plots import Plot, layout, live_series
+from workbench.plots import Plot, curvature_plot, layout, live_series
+from workbench.rod_curves import live_curves, replay_curves
 
 if TYPE_CHECKING:
     from workbench.app import WorkbenchApp
@@ -24,7 +26,7 @@ def _x_range(p: Plot) -> tuple[float, float]:
     x = p.data[0]
     x0, x1 = (float(x[0]), float(x[-1])) if len(x) else (0.0, 1.0)
     span = max(x1 - x0, 1e-6)
-    return x0, x1 + 0.1 * span
+    return x0, x1 + (0.1 * span if p.x_room else 0.0)
 
 
 class PlotsPanel:
@@ -98,17 +100,21 @@ class PlotsPanel:
         ep = session.ep
         t = np.asarray(ep.sim_time, dtype=np.float64)
         vals = {name: np.asarray(v, dtype=np.float64) for name, v in ep.scalars.items()}
-        self.show(layout(t, vals, cursor=float(t[session.index]) if len(t) else None))
+        curv = curvature_plot(replay_curves(ep, session.index)) if session.length else None
+        self.show(([curv] if curv is not None else []) + layout(t, vals, cursor=float(t[session.index]) if len(t) else None))
 
     def update_live(self) -> None:
         wb = self.app.wb
         with wb.lock:
             items = wb.history._items[-LIVE_WINDOW:]
             dt = float(wb.live.dt)
+        curv = curvature_plot(live_curves(wb) or {})
+        head = [curv] if curv is not None else []
         if len(items) < 2:
+            self.show(head)
             return
         x, episode, vals = live_series(items, dt)
-        self.show(layout(x, vals, episode=episode, x_label="session time [s]"))
+        self.show(head + layout(x, vals, episode=episode, x_label="session time [s]"))
 
     def update_status(self) -> None:
         wb = self.app.wb

@@ -94,6 +94,7 @@ class Plot:
     dashed: tuple[bool, ...]
     data: tuple[np.ndarray, ...]
     y: tuple[float, float]
+    x_room: bool = True  # 10 % room on the right of the x range (live time series grow to the right)
 
     @property
     def signature(self) -> tuple:
@@ -179,3 +180,29 @@ def live_series(items, dt: float) -> tuple[np.ndarray, np.ndarray, dict[str, np.
         if name is not None:
             vals[name] = np.array([it.scalars.get(k, np.nan) for it in items], dtype=np.float64)
     return x, episode_numbers(t), vals
+
+
+CURVATURE_KEY = "curvature_along_rod"
+
+
+def curvature_plot(curves: dict) -> Plot | None:
+    """The curvature-along-the-rod plot: per component (``workbench.rod_curves.curves``) the commanded (natural)
+    value dashed and the actual value solid, in the component's colour, against the node index."""
+    cols, labels, colors, dashed = [], ["node"], ["#000000"], [False]
+    n = 0
+    for j, (name, (cmd, act)) in enumerate(curves.items()):
+        for kind, v, dash in (("actual", act, False), ("commanded", cmd, True)):
+            if v is None:
+                continue
+            v = np.asarray(v, np.float64)
+            n = len(v)
+            labels.append(f"{name} {kind}")
+            colors.append(COLORS[j % len(COLORS)])
+            dashed.append(dash)
+            cols.append(v)
+    if not cols:
+        return None
+    x = np.arange(n, dtype=np.float64)
+    lo, hi = y_range(cols)
+    return Plot(key=CURVATURE_KEY, title="curvature along the rod [rad] (dashed: commanded)", labels=tuple(labels),
+                colors=tuple(colors), dashed=tuple(dashed), data=(x, *cols), y=(lo, hi), x_room=False)
