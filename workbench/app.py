@@ -59,6 +59,8 @@ class WorkbenchApp:
             raise RuntimeError("viser changed: GUI updates from the page could not be restricted to values")
         self.server.gui.configure_theme(control_width="large", show_share_button=False)
         self.view = SceneView(self.server, wb.live.n_nodes, env_map=env_map)
+        self.render_hooks: list = []  # called with each drawn frame after the view (ghost of a compared episode)
+        self.status_note = ""  # a line appended to the status (video progress)
         self.thread = SimThread(wb, self._render, speed=speed)
         self.controls = ControlsPanel(self)
         self.panels = [self.controls]
@@ -73,13 +75,15 @@ class WorkbenchApp:
         from workbench.gui_obstacles import ObstaclesPanel
         from workbench.gui_plots import PlotsPanel
         from workbench.gui_policy import PolicyPanel
+        from workbench.gui_render import RenderPanel
         from workbench.gui_replay import ReplayPanel
 
         self.obstacles = ObstaclesPanel(self)
         self.policy = PolicyPanel(self)
         self.replay = ReplayPanel(self)
         self.plots = PlotsPanel(self)
-        self.panels += [self.obstacles, self.policy, self.replay, self.plots]
+        self.pictures = RenderPanel(self)
+        self.panels += [self.obstacles, self.policy, self.replay, self.plots, self.pictures]
 
     @property
     def port(self) -> int:
@@ -152,6 +156,8 @@ class WorkbenchApp:
 
     def _render(self, fr: Frame) -> None:
         self.view.render(fr)
+        for hook in self.render_hooks:
+            hook(fr)
         now = time.perf_counter()
         if now - self._last_gui > 0.2:
             self._last_gui = now

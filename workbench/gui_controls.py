@@ -259,4 +259,6 @@ class ControlsPanel:
             self.colorbar.content = bar
         if th.error is not None:
             lines.append(f"⚠ error: {th.error}")
+        if getattr(app, "status_note", ""):
+            lines.append(app.status_note)
         self.status.content = "  \n".join(lines)

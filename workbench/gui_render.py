@@ -1,0 +1,114 @@
+"""GUI: a screenshot of the 3-D view and a video of the open replay, grabbed from the page that asked
+(``workbench.render_export``), written into the recordings folder. Progress and ETA show in the status line."""
+from __future__ import annotations
+
+import threading
+from typing import TYPE_CHECKING
+
+from workbench.render_export import MAX_VIDEO_FRAMES, RenderError, has_mp4_writer, record_replay, screenshot
+
+if TYPE_CHECKING:
+    from workbench.app import WorkbenchApp
+
+
+class RenderPanel:
+    def __init__(self, app: "WorkbenchApp"):
+        self.app = app
+        gui = app.server.gui
+        kind = "MP4" if has_mp4_writer() else "animated GIF (no ffmpeg writer installed)"
+        with app.tabs["Recordings"], gui.add_folder("Picture / video of the view"):
+            self.shot_btn = gui.add_button("Screenshot", hint="save this page's 3-D view as a PNG in the recordings "
+                                                              "folder")
+            self.video_btn = gui.add_button("Record video", hint=f"play the open recording frame by frame (at most "
+                                                                 f"{MAX_VIDEO_FRAMES} frames) and save the view as "
+                                                                 f"an {kind} in the recordings folder")
+            self.cancel_btn = gui.add_button("Cancel video", hint="stop the video being recorded", visible=False)
+            self.msg = gui.add_markdown("")
+        self.thread: threading.Thread | None = None
+        self._cancel = threading.Event()
+        self.last_path = None
+        self.last_error: str | None = None
+        self._wire()
+
+    def _client(self, event):
+        c = getattr(event, "client", None)
+        if c is not None:
+            return c
+        clients = self.app.server.get_clients()
+        if not clients:
+            raise RenderError("no page is connected")
+        return clients[max(clients)]
+
+    def _say(self, text: str) -> None:
+        self.msg.content = text
+
+    def _wire(self) -> None:
+        @self.shot_btn.on_click
+        def _(event) -> None:
+            self.take_screenshot(self._client(event))
+
+        @self.video_btn.on_click
+        def _(event) -> None:
+            self.start_video(self._client(event))
+
+        @self.cancel_btn.on_click
+        def _(_e) -> None:
+            self._cancel.set()
+
+    def take_screenshot(self, client):
+        try:
+            out = screenshot(client, self.app.files.recordings)
+        except (RenderError, OSError, TimeoutError) as exc:
+            self._say(f"⚠ screenshot failed: {exc}")
+            return None
+        self.last_path = out
+        self._say(f"saved {out.name} to the recordings folder")
+        return out
+
+    def start_video(self, client) -> threading.Thread | None:
+        """Record the open replay in a background thread (one at a time)."""
+        rs = self.app.wb.replay
+        if rs is None or self.app.wb.mode != "replay":
+            self._say("open a recording first (Recordings tab)")
+            return None
+        if self.thread is not None and self.thread.is_alive():
+            self._say("a video is being recorded")
+            return None
+        self._cancel.clear()
+        self.last_error = None
+        self.thread = threading.Thread(target=self._record, args=(client, rs), name="rodlab-video", daemon=True)
+        self.thread.start()
+        return self.thread
+
+    def _record(self, client, rs) -> None:
+        app, wb = self.app, self.app.wb
+        start, rs.playing = rs.index, False
+        stem = f"{rs.path.stem if rs.path else 'episode'}_ep{rs.episode_index}"
+
+        def draw(i: int) -> float:
+            with wb.lock:
+                rs.seek(i)
+                fr = rs.frame()
+            app._render(fr)
+            return fr.time
+
+        def progress(text: str) -> None:
+            app.status_note = f"recording video · {text}"
+            self._say(app.status_note)
+
+        self.cancel_btn.visible = True
+        try:
+            out = record_replay(client, draw, rs.length, app.files.recordings, stem, speed=rs.speed,
+                                progress=progress, cancelled=self._cancel.is_set)
+        except (RenderError, OSError, TimeoutError, ValueError) as exc:
+            self.last_error = str(exc)
+            self._say(f"⚠ video not written: {exc}")
+        else:
+            self.last_path = out
+            self._say(f"saved {out.name} to the recordings folder")
+        finally:
+            app.status_note = ""
+            self.cancel_btn.visible = False
+            with wb.lock:
+                rs.seek(start)
+            app.request_render()
