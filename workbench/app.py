@@ -20,6 +20,7 @@ from workbench.gui_controls import ControlsPanel
 from workbench.gui_guard import GuiGuard, finite_pose, only_value_updates
 from workbench.handshake import Guard, start_viser
 from workbench.runner import SimThread
+from workbench.view_rod import scene_info
 from workbench.view_scene import SceneView
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -139,6 +140,7 @@ class WorkbenchApp:
             self._planar = planar
             self.view.set_camera("front" if planar else "iso")
         self.sync_obstacle_view()
+        self.view.set_rod_scene(*scene_info(self.wb), self.wb.live.rod_radius)
         self.request_render()
 
     def sync_obstacle_view(self) -> None:

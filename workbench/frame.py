@@ -11,7 +11,7 @@ import numpy as np
 
 from sim.curvature import curvature_binormal
 from sim.rotations import matrix_to_quat as quat_from_matrix  # noqa: F401  (re-exported)
-from sim.rotations import quat_z_to  # noqa: F401  (re-exported)
+from sim.rotations import quat_to_matrix, quat_z_to  # noqa: F401  (re-exported)
 
 
 @dataclasses.dataclass
@@ -51,6 +51,27 @@ class Frame:
     @property
     def tip(self) -> np.ndarray:
         return self.node_pos[-1]
+
+
+def quat_from_rpy_deg(rpy) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of roll, pitch, yaw [deg]: R = Rz(yaw) · Ry(pitch) · Rx(roll) (rotations about
+    the fixed world x, then y, then z)."""
+    r, p, y = np.radians(np.asarray(rpy, np.float64).reshape(3)) / 2.0
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return np.array([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+                     cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
+
+
+def rpy_deg_from_quat(wxyz) -> np.ndarray:
+    """(roll, pitch, yaw) [deg] of a quaternion (w, x, y, z), inverse of :func:`quat_from_rpy_deg`; pitch in
+    [-90, 90], roll and yaw in (-180, 180] (at pitch ±90° roll is 0 and yaw carries the rest)."""
+    R = quat_to_matrix(np.asarray(wxyz, np.float64).reshape(4))
+    pitch = np.arcsin(np.clip(-R[2, 0], -1.0, 1.0))
+    if abs(R[2, 0]) < 1.0 - 1e-9:
+        roll, yaw = np.arctan2(R[2, 1], R[2, 2]), np.arctan2(R[1, 0], R[0, 0])
+    else:  # gimbal lock
+        roll, yaw = 0.0, np.arctan2(-R[0, 1], R[1, 1])
+    return np.degrees(np.array([roll, pitch, yaw]))
 
 
 def integrated_curvature(node_pos: np.ndarray) -> np.ndarray:

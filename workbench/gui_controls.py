@@ -15,6 +15,8 @@ if TYPE_CHECKING:
 COMP_LABELS = ("κ1", "κ2", "τ")
 
 
+KEYS_HELP = ("Keys: **space** play / pause · **→** one step (pauses) · **r** reset "
+             "(not while typing in a field)")
 TABS = ("Run", "Teleop", "Obstacles", "Policy", "Recordings", "Plots", "Display")
 
 
@@ -48,6 +50,7 @@ class ControlsPanel:
                                             hint="gravity on/off (teleop only: a task keeps its own)")
             self.speed = gui.add_slider("Speed [× real time]", min=0.1, max=4.0, step=0.1, initial_value=1.0,
                                         hint="simulated seconds per wall-clock second")
+            self.keys_help = gui.add_markdown(KEYS_HELP)
         with app.tabs["Display"]:
             self.color_by = gui.add_dropdown("Colour by", QUANTITIES, initial_value="curvature",
                                              hint="rod colour: |κ| curvature, signed material curvatures κ1/κ2, twist, "
@@ -67,8 +70,23 @@ class ControlsPanel:
                                                 "arrow's force in N is written at its tip")
             self.force_scale = gui.add_slider("Force arrow [m/N]", min=0.0005, max=0.05, step=0.0005,
                                               initial_value=0.005, hint="arrow length per newton (linear arrows)")
+            self.control_points = gui.add_checkbox("Control points", initial_value=True,
+                                                   hint="yellow beads on the nodes whose natural curvature the "
+                                                        "sliders or the policy command (docs/tasks.md §2.1)")
+            self.rest_shape = gui.add_checkbox("Rest shape", initial_value=True,
+                                               hint="faint tube: the rod's rest configuration (no commanded "
+                                                    "curvature, no load)")
+            self.trail = gui.add_checkbox("Tip trail", initial_value=True,
+                                          hint="the tip's path over the last 2 s of simulated time (cleared on "
+                                               "reset)")
+            self.tip_frame = gui.add_checkbox("Tip frame", initial_value=True,
+                                              hint="the tip's material frame (m1 red, m2 green, tangent blue); in "
+                                                   "the IK task beside the target's frame")
             self.camera = gui.add_button_group("Camera", ("front", "side", "top", "iso"),
                                                hint="view presets: front looks along +y at the x-z plane")
+            self.follow = gui.add_checkbox("Follow tip", initial_value=False,
+                                           hint="the camera looks at the tip every frame, keeping its distance "
+                                                "and direction (orbit and zoom still work)")
         with app.tabs["Teleop"]:
             self.mode = gui.add_dropdown("Teleop mode", ("absolute", "delta"), initial_value="absolute",
                                          hint="absolute: sliders are the natural curvature; delta: actions as a "
@@ -146,6 +164,16 @@ class ControlsPanel:
         def _(_e) -> None:
             app.view.overlays.contacts = self.contacts.value
             app.request_render()
+
+        def _toggle(handle, attr: str) -> None:
+            @handle.on_update
+            def _(_e) -> None:
+                setattr(app.view.overlays, attr, bool(handle.value))
+                app.request_render()
+
+        for handle, attr in ((self.control_points, "control_points"), (self.rest_shape, "rest_shape"),
+                             (self.trail, "trail"), (self.tip_frame, "tip_frame"), (self.follow, "follow_tip")):
+            _toggle(handle, attr)
 
         @self.arrows.on_update
         def _(_e) -> None:

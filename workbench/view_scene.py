@@ -1,5 +1,6 @@
-"""The 3D scene of the workbench (viser): rod tube, material frames, contacts, targets,
-obstacles with transform gizmos, ground grid. Batched primitives; one ``server.atomic()`` per frame.
+"""The 3D scene of the workbench (viser): rod (``workbench.view_rod``: smooth tube, control points, rest shape, tip
+trail, tip frame), material frames, contacts, targets, obstacles with transform gizmos, ground grid, camera presets
+and "follow tip". One ``server.atomic()`` per frame.
 """
 from __future__ import annotations
 
@@ -11,8 +12,9 @@ import trimesh
 import viser
 
 from workbench import coloring
-from workbench.frame import Frame, quat_from_matrix, quat_z_to
+from workbench.frame import Frame, quat_from_matrix
 from workbench.obstacles import ObstacleEdit, mesh_for_edit
+from workbench.view_rod import RodView
 
 ROD_COLOR = np.array([230, 120, 40], dtype=np.uint8)
 GIZMO_SCALE = 0.25  # [m] size of the obstacle transform gizmos
@@ -56,6 +58,11 @@ class Overlays:
     contacts: bool = True
     force_scale: float = 0.005  # arrow length per newton [m/N] ("linear" arrows)
     arrows: str = "log"  # contact arrow length: "log", "auto" (largest force = ARROW_MAX) or "linear"
+    control_points: bool = True  # mark the nodes where the natural curvature is commanded
+    rest_shape: bool = True  # faint tube of the rest configuration
+    trail: bool = True  # the tip's path over the last ``view_rod.TRAIL_SECONDS``
+    tip_frame: bool = True  # the tip's material frame (m1, m2, t) (shown with the IK target's frame)
+    follow_tip: bool = False  # the camera's look-at follows the tip (its offset kept)
 
 
 class SceneView:
@@ -74,17 +81,8 @@ class SceneView:
         sc.add_light_hemisphere("/sky", sky_color=(255, 255, 255), ground_color=(120, 120, 120), intensity=1.2)
         self.n_nodes = n_nodes
         n_e = n_nodes - 1
-        cyl = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=20)
-        sph = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
         ident = np.tile([1.0, 0.0, 0.0, 0.0], (n_e, 1))
-        self.rod_edges = sc.add_batched_meshes_simple(
-            "/rod/edges", cyl.vertices, cyl.faces, batched_wxyzs=ident,
-            batched_positions=np.zeros((n_e, 3)), batched_scales=np.ones((n_e, 3)) * 1e-3,
-            batched_colors=np.tile(ROD_COLOR, (n_e, 1)), lod="off")
-        self.rod_nodes = sc.add_batched_meshes_simple(
-            "/rod/nodes", sph.vertices, sph.faces, batched_wxyzs=np.tile([1.0, 0, 0, 0], (n_nodes, 1)),
-            batched_positions=np.zeros((n_nodes, 3)), batched_scales=np.ones(n_nodes) * 1e-3,
-            batched_colors=np.tile(ROD_COLOR, (n_nodes, 1)), lod="off")
+        self.rod = RodView(server, n_nodes)
         self.frames = sc.add_batched_axes(
             "/rod/frames", batched_wxyzs=ident, batched_positions=np.zeros((n_e, 3)),
             axes_length=0.12, axes_radius=0.006, visible=False)
@@ -114,27 +112,17 @@ class SceneView:
         e = np.diff(x, axis=0)
         length = np.linalg.norm(e, axis=1)
         t = e / np.maximum(length, 1e-12)[:, None]
-        r = fr.rod_radius
         ov = self.overlays
         vals = coloring.node_values(fr, ov.color_by)
         if vals is not None:
             lo, hi = coloring.value_range(vals, ov.color_by, ov.color_fixed)
             node_c = coloring.colors(vals, lo, hi, ov.color_by)
-            edge_c = coloring.colors(0.5 * (vals[:-1] + vals[1:]), lo, hi, ov.color_by)
             self.color_range = (ov.color_by, lo, hi)
         else:
-            edge_c = np.tile(ROD_COLOR, (len(e), 1))
             node_c = np.tile(ROD_COLOR, (len(x), 1))
             self.color_range = ("none", 0.0, 1.0)
         with self.server.atomic():
-            self.rod_edges.batched_positions = 0.5 * (x[:-1] + x[1:])
-            self.rod_edges.batched_wxyzs = quat_z_to(t)
-            self.rod_edges.batched_scales = np.stack([np.full_like(length, r), np.full_like(length, r),
-                                                      length], 1)
-            self.rod_edges.batched_colors = edge_c
-            self.rod_nodes.batched_positions = x
-            self.rod_nodes.batched_scales = np.full(len(x), r)
-            self.rod_nodes.batched_colors = node_c
+            self.rod.render(fr, node_c, ov)
             if ov.frames and fr.m1 is not None and fr.m2 is not None:
                 R = np.stack([fr.m1, fr.m2, t], axis=-1)
                 self.frames.batched_positions = 0.5 * (x[:-1] + x[1:])
@@ -179,6 +167,26 @@ class SceneView:
             elif self.target.visible:
                 self.target.visible = False
         self.last_frame = fr
+        if ov.follow_tip:
+            self.follow(fr.tip)
+
+    def follow(self, tip) -> None:
+        """Every page's camera looks at ``tip``, keeping its offset from the look-at point."""
+        tip = np.asarray(tip, np.float64)
+        if not np.all(np.isfinite(tip)):
+            return
+        for client in self.server.get_clients().values():
+            cam = client.camera
+            try:
+                delta = tip - np.asarray(cam.look_at)
+                if float(np.abs(delta).max()) > 1e-6:
+                    cam.position = np.asarray(cam.position) + delta  # viser moves the look-at point with it
+            except (AssertionError, ValueError):  # the page has not reported its camera yet
+                continue
+
+    def set_rod_scene(self, rest_nodes, control_nodes, radius: float) -> None:
+        """Rest shape and control points of the live rod (``view_rod.scene_info``)."""
+        self.rod.set_scene(rest_nodes, control_nodes, radius)
 
     def set_camera(self, preset: str) -> None:
         """Move every page's camera (and the start view of pages opened later) to a preset of ``CAMERAS``."""

@@ -1,0 +1,200 @@
+"""The rod in the 3-D view: smooth tube, control points, faint rest shape, tip trail, tip frame.
+
+The tube is ONE mesh for the whole rod (``workbench.tube``: per-vertex normals and colours), shown as a GLB asset,
+the only viser node with per-vertex colours. The page drops a GLB while it parses a new one, so two GLB nodes take
+turns: each frame's mesh goes into the hidden one, which is shown at the next frame (or after ``SWAP_DELAY`` when
+no frame follows), once the page has had time to parse it. The view lags the simulation by one frame at most.
+"""
+from __future__ import annotations
+
+import collections
+import threading
+
+import numpy as np
+import trimesh
+
+from workbench.frame import Frame, quat_from_matrix
+from workbench.tube import SIDES, glb_bytes, tube_mesh
+
+SWAP_DELAY = 0.08  # [s] a tube sent this long ago is shown even if no newer frame comes
+TRAIL_SECONDS = 2.0  # [s] of simulated time kept in the tip trail
+REST_OPACITY = 0.18
+CONTROL_COLOR = (250, 210, 30)
+TRAIL_COLOR = (90, 60, 200)
+
+
+class DoubleBufferedGlb:
+    """Two GLB nodes under ``name`` showing one mesh: the newest bytes go to the hidden node, which is shown at the
+    next :meth:`put` or after ``SWAP_DELAY``."""
+
+    def __init__(self, server, name: str, first: bytes):
+        self.server = server
+        sc = server.scene
+        self.nodes = [sc.add_glb(f"{name}/a", first, visible=True), sc.add_glb(f"{name}/b", first, visible=False)]
+        self.front = 0
+        self.pending = False
+        self.shown = True  # the overlay's own visibility
+        self._lock = threading.Lock()
+        self._timer: threading.Timer | None = None
+
+    def _swap(self) -> None:
+        back = 1 - self.front
+        self.nodes[back].visible = self.shown
+        self.nodes[self.front].visible = False
+        self.front = back
+        self.pending = False
+
+    def put(self, data: bytes) -> None:
+        with self._lock:
+            if self.pending:
+                self._swap()
+            self.nodes[1 - self.front].glb_data = data
+            self.pending = True
+            if self._timer is None or not self._timer.is_alive():
+                self._timer = threading.Timer(SWAP_DELAY, self.flush)
+                self._timer.daemon = True
+                self._timer.start()
+
+    def flush(self) -> None:
+        """Show the newest bytes now (the page has had ``SWAP_DELAY`` to parse them)."""
+        with self.server.atomic(), self._lock:
+            if self.pending:
+                self._swap()
+
+    def set_visible(self, on: bool) -> None:
+        with self._lock:
+            self.shown = bool(on)
+            if self.nodes[self.front].visible != self.shown:
+                self.nodes[self.front].visible = self.shown
+
+    @property
+    def visible_node(self):
+        return self.nodes[self.front]
+
+
+class RodView:
+    """Scene nodes of one rod (under ``name``)."""
+
+    def __init__(self, server, n_nodes: int, *, name: str = "/rod", sides: int = SIDES):
+        self.server = server
+        self.sides = sides
+        sc = server.scene
+        x0 = np.stack([np.zeros(n_nodes), np.zeros(n_nodes), np.linspace(0.0, 1e-3, n_nodes)], 1)
+        self.tube = DoubleBufferedGlb(server, f"{name}/tube", glb_bytes(tube_mesh(x0, 1e-4, sides=sides)))
+        self.last_mesh = None  # the TubeMesh of the last frame (tests)
+        sph = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+        self._sphere = sph
+        self._name = name
+        self.control_nodes: tuple[int, ...] = ()
+        self.controls = None
+        self.rest = None
+        self.rest_nodes: np.ndarray | None = None
+        self.trail = sc.add_line_segments(f"{name}/trail", np.zeros((1, 2, 3)), TRAIL_COLOR, thickness=2.5,
+                                          thickness_units="screen", visible=False)
+        self.trail_points: collections.deque = collections.deque()
+        self.tip_frame = sc.add_frame(f"{name}/tip_frame", axes_length=0.1, axes_radius=0.006, visible=False)
+
+    # ------------------------------------------------------------------ per scene
+    def set_scene(self, rest_nodes: np.ndarray | None, control_nodes, radius: float) -> None:
+        """The rest shape (N, 3) [m] (drawn as a faint tube) and the control nodes (marked on the rod)."""
+        sc = self.server.scene
+        if self.rest is not None:
+            self.rest.remove()
+            self.rest = None
+        self.rest_nodes = None if rest_nodes is None else np.asarray(rest_nodes, np.float64)
+        if self.rest_nodes is not None:
+            m = tube_mesh(self.rest_nodes, radius, sides=self.sides)
+            self.rest = sc.add_mesh_simple(f"{self._name}/rest", m.vertices, m.faces, color=(150, 150, 160),
+                                           opacity=REST_OPACITY, cast_shadow=False, receive_shadow=False,
+                                           visible=False)
+        cn = tuple(int(c) for c in control_nodes)
+        if cn != self.control_nodes or self.controls is None:
+            if self.controls is not None:
+                self.controls.remove()
+            k = max(len(cn), 1)
+            self.controls = sc.add_batched_meshes_simple(
+                f"{self._name}/control_points", self._sphere.vertices, self._sphere.faces,
+                batched_wxyzs=np.tile([1.0, 0.0, 0.0, 0.0], (k, 1)), batched_positions=np.zeros((k, 3)),
+                batched_scales=np.full(k, 1e-4), batched_colors=np.tile(CONTROL_COLOR, (k, 1)), lod="off",
+                visible=False)
+            self.control_nodes = cn
+        self.clear_trail()
+
+    def clear_trail(self) -> None:
+        self.trail_points.clear()
+
+    # ------------------------------------------------------------------ per frame
+    def render(self, fr: Frame, colors: np.ndarray, ov) -> None:
+        """Update every rod node for frame ``fr`` (call inside ``server.atomic()``); ``ov``: the view's
+        ``Overlays`` (rest_shape, control_points, trail, tip_frame)."""
+        x = np.asarray(fr.node_pos, np.float64)
+        r = float(fr.rod_radius)
+        m1 = fr.m1 if fr.m1 is not None and len(fr.m1) == len(x) - 1 else None
+        mesh = tube_mesh(x, r, m1=m1, colors=colors, sides=self.sides)
+        self.last_mesh = mesh
+        self.tube.put(glb_bytes(mesh))
+        if self.rest is not None:
+            show = bool(ov.rest_shape) and self.rest_nodes is not None and len(self.rest_nodes) == len(x)
+            if self.rest.visible != show:
+                self.rest.visible = show
+        cn = [c for c in self.control_nodes if 0 <= c < len(x)]
+        show_c = bool(ov.control_points) and bool(cn) and len(cn) == len(self.control_nodes)
+        if show_c:
+            self.controls.batched_positions = x[cn]
+            self.controls.batched_scales = np.full(len(cn), 1.45 * r)
+        if self.controls is not None and self.controls.visible != show_c:
+            self.controls.visible = show_c
+        self._trail(fr, bool(ov.trail))
+        self._tip_frame(fr, x, m1, bool(ov.tip_frame))
+
+    def _trail(self, fr: Frame, on: bool) -> None:
+        pts = self.trail_points
+        t = float(fr.time)
+        if pts and t < pts[-1][0]:  # time went back: a reset, a rewind or another episode
+            pts.clear()
+        if not pts or t > pts[-1][0]:
+            pts.append((t, np.asarray(fr.node_pos[-1], np.float64).copy()))
+        while pts and pts[0][0] < t - TRAIL_SECONDS:
+            pts.popleft()
+        show = on and len(pts) >= 2
+        if show:
+            p = np.stack([q for _, q in pts])
+            self.trail.points = np.stack([p[:-1], p[1:]], 1)
+        if self.trail.visible != show:
+            self.trail.visible = show
+
+    def _tip_frame(self, fr: Frame, x: np.ndarray, m1, on: bool) -> None:
+        show = on and m1 is not None and fr.m2 is not None
+        if show:
+            t = x[-1] - x[-2]
+            t = t / max(float(np.linalg.norm(t)), 1e-300)
+            R = np.stack([np.asarray(m1[-1], np.float64), np.asarray(fr.m2[-1], np.float64), t], axis=-1)
+            self.tip_frame.position = tuple(x[-1])
+            self.tip_frame.wxyz = tuple(quat_from_matrix(R))
+        if self.tip_frame.visible != show:
+            self.tip_frame.visible = show
+
+    def trail_positions(self) -> np.ndarray:
+        """(K, 3) tip positions in the trail (oldest first)."""
+        return np.stack([q for _, q in self.trail_points]) if self.trail_points else np.zeros((0, 3))
+
+
+def scene_info(wb) -> tuple[np.ndarray | None, tuple[int, ...]]:
+    """(rest node positions (N, 3), control nodes) of the live rod of a ``Workbench``: the simulator's reset
+    configuration, and the control points of the task's action converter (teleop: ``workbench.teleop``)."""
+    from workbench.teleop import CONTROL_NODES
+
+    rest = None
+    try:
+        with wb.lock:
+            rest = np.asarray(wb.live.sim.reset().node_pos[0], np.float64).copy()
+    except Exception:  # noqa: BLE001 - the rest shape is an optional overlay
+        rest = None
+    nodes = CONTROL_NODES
+    pol = getattr(wb, "policy", None)
+    try:
+        if pol is not None:
+            nodes = tuple(int(c) for c in pol.core.converter.cfg.control_points)
+    except AttributeError:
+        pass
+    return rest, tuple(nodes)
