@@ -15,6 +15,7 @@ Rules (a request failing one gets ``403 Forbidden``):
   with its own name in ``Host``);
 * any bind: an ``Origin`` header, when present, must be the page's own origin ``http://<Host>`` (browsers
   always send ``Origin`` on cross-site WebSocket handshakes, so other web pages cannot connect);
+* the page (``/``) gets the keyboard-shortcut script of ``workbench.keys`` (static text, no endpoint);
 * non-loopback bind: the page and the WebSocket need ``?token=<per-launch random token>`` (the page keeps
   its query string when it opens the WebSocket); the client bundle's static files need no token (they
   are viser's public JavaScript/CSS and hold no state).
@@ -134,6 +135,22 @@ def check_bindable(host: str, port: int) -> None:
                     "(use an address of this machine, e.g. 127.0.0.1)")
 
 
+def page_with_keys(request, response):
+    """viser's page with the keyboard-shortcut script of ``workbench.keys`` added (any other response unchanged)."""
+    if response is None or getattr(response, "status_code", None) != 200:
+        return response
+    if urlsplit(request.path).path not in ("", "/", "/index.html"):
+        return response
+    from workbench.keys import with_keys
+
+    headers = response.headers
+    body = with_keys(response.body, (headers.get("Content-Encoding") or "").lower() == "gzip")
+    new_headers = type(headers)(headers)
+    del new_headers["Content-Length"]
+    new_headers["Content-Length"] = str(len(body))
+    return dataclasses.replace(response, headers=new_headers, body=body)
+
+
 def start_viser(host: str, port: int, guard: Guard):
     """``viser.ViserServer(host, port)`` with ``guard`` checking every request (see module docstring)."""
     import viser
@@ -152,7 +169,8 @@ def start_viser(host: str, port: int, guard: Guard):
                     refused = guard.process_request(connection, request)
                     if refused is not None:
                         return refused
-                    return inner(connection, request) if inner is not None else None
+                    response = inner(connection, request) if inner is not None else None
+                    return page_with_keys(request, response)
 
                 used.append(True)
                 super().__init__(handler, *args, process_request=checked, **kwargs)
