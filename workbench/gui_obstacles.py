@@ -13,6 +13,7 @@ import numpy as np
 from sim.atomicio import write_bytes
 from workbench import obstacles as obst
 from workbench.files import FileAccessError, page_error
+from workbench.frame import quat_from_rpy_deg, rpy_deg_from_quat
 from workbench.gui_guard import cap_uploads
 
 if TYPE_CHECKING:
@@ -39,6 +40,10 @@ class ObstaclesPanel:
                                                   "Delete and the fields below act on it")
             self.position = gui.add_vector3("Position [m]", initial_value=(0.0, 0.0, 0.0), step=0.01,
                                             hint="centre of the selected obstacle (world x, y, z)")
+            self.rotation = gui.add_vector3("Rotation [deg]", initial_value=(0.0, 0.0, 0.0), step=1.0,
+                                            min=(-180.0, -180.0, -180.0), max=(180.0, 180.0, 180.0),
+                                            hint="roll, pitch, yaw of the selected obstacle: rotations about the "
+                                                 "world x, then y, then z axis (R = Rz(yaw)·Ry(pitch)·Rx(roll))")
             self.size = gui.add_vector3("Size [m]", initial_value=(0.08, 0.4, 0.08), step=0.005,
                                         min=(0.005, 0.005, 0.005), max=(2.0, 2.0, 2.0),
                                         hint="sphere: radius; capsule: radius, length; box: half sizes x, y, z; "
@@ -107,6 +112,7 @@ class ObstaclesPanel:
         self._syncing = True
         try:
             self.position.value = tuple(round(float(v), 4) for v in e.position)
+            self.rotation.value = tuple(round(float(v), 3) for v in rpy_deg_from_quat(e.wxyz))
             self.size.value = tuple(round(float(min(max(v, 0.005), 2.0)), 4) for v in size)
         finally:
             self._syncing = False
@@ -218,6 +224,19 @@ class ObstaclesPanel:
                 e = wb.obstacles[i]
                 wb.set_obstacle_pose(i, p, e.wxyz)
                 self.app.view.move_obstacle(i, p, e.wxyz)
+                self.app.request_render()
+
+        @self.rotation.on_update
+        def _(_e) -> None:
+            i = self.selected_index()
+            if self._syncing or i is None:
+                return
+            rpy = self._vector(self.rotation, -180.0, 180.0)
+            if rpy is not None:
+                e = wb.obstacles[i]
+                q = quat_from_rpy_deg(rpy)
+                wb.set_obstacle_pose(i, e.position, q)
+                self.app.view.move_obstacle(i, e.position, q)
                 self.app.request_render()
 
         @self.size.on_update
