@@ -73,6 +73,7 @@ class WorkbenchApp:
         self._scene_changed()
 
     def _build_optional_panels(self) -> None:
+        from workbench.gui_grid import GridPanel
         from workbench.gui_obstacles import ObstaclesPanel
         from workbench.gui_plots import PlotsPanel
         from workbench.gui_policy import PolicyPanel
@@ -84,7 +85,8 @@ class WorkbenchApp:
         self.replay = ReplayPanel(self)
         self.plots = PlotsPanel(self)
         self.pictures = RenderPanel(self)
-        self.panels += [self.obstacles, self.policy, self.replay, self.plots, self.pictures]
+        self.grid = GridPanel(self)
+        self.panels += [self.obstacles, self.policy, self.replay, self.plots, self.pictures, self.grid]
 
     @property
     def port(self) -> int:

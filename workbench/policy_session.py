@@ -55,6 +55,33 @@ def _task_id(task: str) -> str:
     return gym_task_id(task)
 
 
+def load_for(policy: str | Path, core, task: str):
+    """The policy driving ``core``: "zero" / "random", or the policy loaded from a zip (its observation and action
+    sizes must fit the task's; ``PolicyLoadError`` otherwise)."""
+    if str(policy) in ("zero", "random"):
+        return str(policy)
+    from policies.evaluate import PolicyLoadError
+    from policies.sac import load_policy
+
+    pol, _meta = load_policy(policy)
+    shape = tuple(pol.observation_space.shape), tuple(pol.action_space.shape)
+    if shape != ((core.obs_dim,), (core.action_dim,)):
+        raise PolicyLoadError(f"{policy} does not fit task {task!r}: policy obs/action {shape}, "
+                              f"task ({core.obs_dim},)/({core.action_dim},)")
+    return pol
+
+
+def act(policy, obs: np.ndarray, action_dim: int, rng: np.random.Generator, deterministic: bool = True) -> np.ndarray:
+    """Actions (B, action_dim) in [-1, 1] for observations (B, obs_dim) of ``policy`` (``load_for``)."""
+    B = len(obs)
+    if isinstance(policy, str):
+        if policy == "random":
+            return rng.uniform(-1, 1, (B, action_dim)).astype(np.float32)
+        return np.zeros((B, action_dim), np.float32)
+    a, _ = policy.predict(obs, deterministic=deterministic)
+    return np.asarray(a, np.float32).reshape(B, -1)
+
+
 class PolicySession:
     """One task (B = 1) plus a policy.
 
@@ -74,17 +101,7 @@ class PolicySession:
         self.deterministic = deterministic
         self.name = Path(policy).stem if str(policy) not in ("zero", "random") else str(policy)
         self._rng = np.random.default_rng(seed)
-        if str(policy) in ("zero", "random"):
-            self.policy = str(policy)
-        else:
-            from policies.evaluate import PolicyLoadError
-            from policies.sac import load_policy
-
-            self.policy, _meta = load_policy(policy)
-            shape = tuple(self.policy.observation_space.shape), tuple(self.policy.action_space.shape)
-            if shape != ((self.core.obs_dim,), (self.core.action_dim,)):
-                raise PolicyLoadError(f"{policy} does not fit task {self.task!r}: policy obs/action {shape}, "
-                                      f"task ({self.core.obs_dim},)/({self.core.action_dim},)")
+        self.policy = load_for(policy, self.core, self.task)
         self.substeps = int(self.core.config.substeps)
         self.obstacles_version = 0  # bumped when the task re-places its obstacles (new episode, rewind)
         self._start_episode()
@@ -109,12 +126,7 @@ class PolicySession:
 
     # ------------------------------------------------------------------ stepping
     def _action(self) -> np.ndarray:
-        if isinstance(self.policy, str):
-            if self.policy == "random":
-                return self._rng.uniform(-1, 1, (1, self.core.action_dim)).astype(np.float32)
-            return np.zeros((1, self.core.action_dim), np.float32)
-        a, _ = self.policy.predict(self.obs, deterministic=self.deterministic)
-        return np.asarray(a, np.float32).reshape(1, -1)
+        return act(self.policy, self.obs, self.core.action_dim, self._rng, self.deterministic)
 
     def before_sim_step(self, live, *, hand=None) -> None:
         core = self.core

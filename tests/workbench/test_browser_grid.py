@@ -1,0 +1,85 @@
+"""Real browser: the Grid of envs runs N envs of a task under a policy, each in its own cell (N rods drawn in the
+page, each with its own target), and a click on one rod focuses that env (colour, camera, readouts)."""
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+
+from tools.browser import canvas_png, expand_folder, newest_client, project, wait_for
+from workbench.grid import GridSession, cell_offsets
+
+pytestmark = pytest.mark.browser
+
+
+def test_cell_offsets_do_not_overlap():
+    off = cell_offsets(16, 2.0)
+    d = np.linalg.norm(off[:, None] - off[None], axis=-1) + np.eye(16) * 1e9
+    assert off.shape == (16, 3) and d.min() == pytest.approx(2.0)
+    with pytest.raises(ValueError, match="number of envs"):
+        GridSession("follow_target", "zero", 0)
+
+
+def _rgb(png: bytes) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=int)
+
+
+def _near(img: np.ndarray, uv, pred, r: int = 5) -> bool:
+    u, v = int(round(uv[0])), int(round(uv[1]))
+    patch = img[max(v - r, 0):v + r + 1, max(u - r, 0):u + r + 1]
+    return bool(pred(patch).any())
+
+
+def _orange(p):
+    return (p[..., 0] > 120) & (p[..., 0] - p[..., 2] > 70)
+
+
+def _blue(p):
+    return (p[..., 2] > 120) & (p[..., 2] - p[..., 0] > 70)
+
+
+def test_grid_shows_n_rods_and_click_focuses(wb_page):
+    app, page = wb_page
+    n = 4
+    expand_folder(page, "Policy", "Run grid")
+    app.policy.task.value = "follow_target"
+    app.grid.envs.value = n
+    page.get_by_role("button", name="Run grid").click()
+    try:
+        wait_for(lambda: app.grid.runner is not None and app.grid.runner.frames >= 3, timeout=120, what="grid running")
+        s, view = app.grid.session, app.grid.view
+        assert s.n == n and s.positions().shape == (n, s.n_nodes, 3)
+        tg = s.targets()
+        assert tg is not None and len({tuple(np.round(t - o, 6)) for t, o in zip(tg, s.offsets)}) == n  # own targets
+        cam = newest_client(app).camera
+        want_pos, want_look = view.cell_camera(None)
+        wait_for(lambda: np.allclose(cam.look_at, want_look, atol=1e-3), what="camera on the whole grid")
+        box = page.locator("canvas").first.bounding_box()
+        with app.grid.runner.lock:  # hold the envs still while the page is read
+            view.render()
+            mid = s.positions()[:, s.n_nodes // 2]
+            uv = project(cam, mid, box["width"], box["height"])
+            img = _rgb(canvas_png(page))
+            wait_for(lambda: all(_near(_rgb(canvas_png(page)), uv[e], _blue if e == 0 else _orange)
+                                 for e in range(n)), timeout=30, what="every env's rod drawn in its cell")
+        # click env 3's rod: it is focused (blue), the camera moves to its cell, its readouts show
+        k = n - 1
+        for _ in range(3):  # a software-GL page may not have drawn the last frame at the first click
+            with app.grid.runner.lock:
+                uvk = project(cam, s.positions()[k, s.n_nodes // 2][None], box["width"], box["height"])[0]
+                page.mouse.click(uvk[0] + box["x"], uvk[1] + box["y"])
+            try:
+                wait_for(lambda: view.focus == k, timeout=10, what="click focuses env 3")
+                break
+            except TimeoutError:
+                continue
+        assert view.focus == k and int(app.grid.focus.value) == k
+        wait_for(lambda: np.allclose(cam.look_at, view.cell_camera(k)[1], atol=1e-3), what="camera on env 3")
+        wait_for(lambda: f"env {k} ·" in app.grid.msg.content, what="env 3's readouts")
+        assert img.std() > 5
+    finally:
+        app.grid.stop()
+    assert app.grid.session is None

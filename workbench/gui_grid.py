@@ -1,0 +1,189 @@
+"""GUI: a grid of N parallel envs of the chosen task under the chosen policy (Policy tab, "Grid of envs"), stepped
+in their own thread (``workbench.grid``) and drawn vectorised (``workbench.grid_view``). A click on a rod (or the
+Focus env slider) moves the camera to that env and shows its readouts. The live session pauses meanwhile."""
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from workbench.files import page_error
+from workbench.grid import MAX_ENVS, GridSession
+from workbench.grid_view import GridView
+
+if TYPE_CHECKING:
+    from workbench.app import WorkbenchApp
+
+
+class GridRunner:
+    """Steps a grid session at (at most) real time and redraws it at most ``max_fps`` times a second."""
+
+    def __init__(self, session: GridSession, view: GridView, *, max_fps: float = 30.0, speed: float = 1.0):
+        self.s, self.view = session, view
+        self.max_fps, self.speed = max_fps, speed
+        self.lock = threading.Lock()
+        self.error: BaseException | None = None
+        self.frames = 0  # redraws pushed to the page
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, name="rodlab-grid", daemon=True)
+
+    def start(self) -> "GridRunner":
+        self._thread.start()
+        return self
+
+    def stop(self, timeout: float = 10.0) -> None:
+        self._stop.set()
+        if self._thread.is_alive() and threading.current_thread() is not self._thread:
+            self._thread.join(timeout)
+
+    @property
+    def alive(self) -> bool:
+        return self._thread.is_alive()
+
+    def _loop(self) -> None:
+        last = 0.0
+        next_t = time.perf_counter()
+        while not self._stop.is_set():
+            try:
+                with self.lock:
+                    self.s.step()
+                now = time.perf_counter()
+                if now - last >= 1.0 / self.max_fps:
+                    last = now
+                    with self.lock:
+                        self.view.render()
+                    self.frames += 1
+                if self.speed != float("inf"):
+                    next_t = max(next_t + self.s.control_dt / self.speed, time.perf_counter() - 0.25)
+                    self._stop.wait(max(0.0, next_t - time.perf_counter()))
+            except Exception as exc:  # noqa: BLE001 - shown in the page; the grid stops
+                self.error = exc
+                return
+
+
+class GridPanel:
+    def __init__(self, app: "WorkbenchApp"):
+        self.app = app
+        gui = app.server.gui
+        with app.tabs["Policy"], gui.add_folder("Grid of envs"):
+            self.envs = gui.add_slider("Envs", min=1, max=MAX_ENVS, step=1, initial_value=16,
+                                       hint=f"how many parallel envs of the task (at most {MAX_ENVS}), each in its "
+                                            "own cell with its own target and obstacles")
+            self.run_btn = gui.add_button("Run grid", hint="run the envs under the Task and Policy file chosen "
+                                                           "above (the live session pauses)")
+            self.focus = gui.add_slider("Focus env", min=0, max=MAX_ENVS - 1, step=1, initial_value=0,
+                                        hint="the env whose readouts are shown; clicking a rod in the view also "
+                                             "focuses it and moves the camera there")
+            self.whole_btn = gui.add_button("Whole grid", hint="camera on all the cells")
+            self.stop_btn = gui.add_button("Stop grid", hint="remove the grid (the live session stays paused)")
+            self.msg = gui.add_markdown("")
+        self.session: GridSession | None = None
+        self.view: GridView | None = None
+        self.runner: GridRunner | None = None
+        self._syncing = False
+        for h in (self.envs, self.focus):
+            app.checks.track(h)
+        self._wire()
+
+    def _say(self, text: str) -> None:
+        self.msg.content = text
+
+    def _wire(self) -> None:
+        ok = self.app.checks
+
+        @self.run_btn.on_click
+        def _(_e) -> None:
+            if ok.number(self.envs, self._say, 1, MAX_ENVS):
+                self.start_listed()
+
+        @self.stop_btn.on_click
+        def _(_e) -> None:
+            self.stop()
+
+        @self.whole_btn.on_click
+        def _(_e) -> None:
+            if self.view is not None:
+                self.view.look_at(None)
+
+        @self.focus.on_update
+        def _(_e) -> None:
+            if self._syncing or self.session is None:
+                return
+            if ok.number(self.focus, self._say, 0, self.session.n - 1):
+                self.set_focus(int(self.focus.value))
+
+    def start_listed(self) -> None:
+        """Start the grid with the Policy tab's Task and Policy file (listed options only)."""
+        pol = self.app.policy
+        task, policy = pol.task.value, pol.policy.value
+        if task not in tuple(pol.task.options) or policy not in pol._policies():
+            self._say("choose a task and a policy from the lists")
+            return
+        from workbench.gui_policy import NO_POLICY
+        from workbench.policy_session import PRETRAINED
+
+        try:
+            self.start(task, policy if policy in NO_POLICY else str(PRETRAINED / Path(policy).name),
+                       int(self.envs.value))
+        except Exception as exc:  # noqa: BLE001 - a policy that does not fit, a task that fails to build
+            self._say(f"⚠ {page_error(exc)}")
+
+    def start(self, task: str, policy: str, n: int, *, speed: float = 1.0, max_fps: float = 30.0) -> GridSession:
+        """Run ``n`` envs of ``task`` under ``policy`` (trusted callers; the page uses :meth:`start_listed`)."""
+        self.stop()
+        self._say(f"building {n} envs of {task} …")
+        session = GridSession(task, policy, n)
+        app = self.app
+        app.wb.set_playing(False)
+        app.controls.set_quiet(app.controls.playing, False)
+        self.session = session
+        self.view = GridView(app.server, session, on_focus=self.set_focus)
+        self.view.render()
+        self._syncing = True
+        try:
+            self.focus.max = max(n - 1, 1)
+            self.focus.value = 0
+        finally:
+            self._syncing = False
+        app.checks.accept(self.focus)
+        self.view.look_at(None)
+        self.runner = GridRunner(session, self.view, max_fps=max_fps, speed=speed).start()
+        self.update_status()
+        return session
+
+    def set_focus(self, env: int) -> None:
+        """Focus env ``env``: its colour, the camera on its cell, its readouts below."""
+        if self.session is None or not 0 <= int(env) < self.session.n:
+            return
+        self.view.set_focus(int(env))
+        if int(self.focus.value) != int(env):
+            self._syncing = True
+            try:
+                self.focus.value = int(env)
+            finally:
+                self._syncing = False
+            self.app.checks.accept(self.focus)
+        self.update_status()
+
+    def stop(self) -> None:
+        if self.runner is not None:
+            self.runner.stop()
+            self.runner = None
+        if self.view is not None:
+            self.view.remove()
+            self.view = None
+        if self.session is not None:
+            self.session.core.close()
+            self.session = None
+            self._say("grid stopped")
+
+    def update_status(self) -> None:
+        s, r = self.session, self.runner
+        if s is None or r is None:
+            return
+        if r.error is not None:
+            self._say(f"⚠ grid stopped: {r.error}")
+            return
+        e = int(self.view.focus)
+        self._say(f"**{s.task}** · {s.name} · {s.n} envs · control step {s.steps}  \n{s.readout(e)}")
