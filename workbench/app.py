@@ -73,6 +73,7 @@ class WorkbenchApp:
         self._scene_changed()
 
     def _build_optional_panels(self) -> None:
+        from workbench.gui_compare import ComparePanel
         from workbench.gui_grid import GridPanel
         from workbench.gui_obstacles import ObstaclesPanel
         from workbench.gui_plots import PlotsPanel
@@ -86,7 +87,8 @@ class WorkbenchApp:
         self.plots = PlotsPanel(self)
         self.pictures = RenderPanel(self)
         self.grid = GridPanel(self)
-        self.panels += [self.obstacles, self.policy, self.replay, self.plots, self.pictures, self.grid]
+        self.compare = ComparePanel(self)
+        self.panels += [self.obstacles, self.policy, self.replay, self.plots, self.pictures, self.grid, self.compare]
 
     @property
     def port(self) -> int:

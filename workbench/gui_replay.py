@@ -53,6 +53,8 @@ class ReplayPanel:
         if self.file.value not in files:
             self.file.value = files[0]
         self.app.checks.accept(self.file)
+        if getattr(self.app, "compare", None) is not None:
+            self.app.compare.refresh_list()
 
     def _say(self, text: str) -> None:
         self.msg.content = text

@@ -1,0 +1,104 @@
+"""GUI: Compare (Recordings tab): a second recorded episode drawn as a translucent ghost over the open recording
+or over the live session (a running policy), stepping on the same timeline (``workbench.compare``)."""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from workbench.compare import Ghost, GhostView
+from workbench.files import FileAccessError, page_error
+from workbench.replay import read_episodes
+
+if TYPE_CHECKING:
+    from workbench.app import WorkbenchApp
+
+
+class ComparePanel:
+    def __init__(self, app: "WorkbenchApp"):
+        self.app = app
+        gui = app.server.gui
+        files = app.replay._files()
+        with app.tabs["Recordings"], gui.add_folder("Compare (ghost)"):
+            self.file = gui.add_dropdown("Ghost recording", files, initial_value=files[0],
+                                         hint="a second recording, drawn translucent over the shown episode or the "
+                                              "live session at the same simulated time")
+            self.episode = gui.add_dropdown("Ghost episode", ["0"], initial_value="0",
+                                            hint="episode of the ghost recording")
+            self.show_btn = gui.add_button("Show ghost", hint="overlay the chosen episode (blue, translucent)")
+            self.hide_btn = gui.add_button("Remove ghost", hint="remove the overlay")
+            self.msg = gui.add_markdown("")
+        self._episodes: list = []
+        self._path = None
+        self.view: GhostView | None = None
+        for h in (self.file, self.episode):
+            app.checks.track(h)
+        self._wire()
+
+    def _say(self, text: str) -> None:
+        self.msg.content = text
+
+    def refresh_list(self) -> None:
+        files = self.app.replay._files()
+        self.file.options = files
+        if self.file.value not in files:
+            self.file.value = files[0]
+        self.app.checks.accept(self.file)
+
+    def _wire(self) -> None:
+        ok = self.app.checks
+
+        @self.file.on_update
+        def _(_e) -> None:
+            if ok.option(self.file, self._say):
+                self._episodes, self._path = [], None
+
+        @self.show_btn.on_click
+        def _(_e) -> None:
+            if ok.option(self.file, self._say) and ok.option(self.episode, self._say):
+                self.show_listed()
+
+        @self.hide_btn.on_click
+        def _(_e) -> None:
+            self.hide()
+
+    def show_listed(self) -> Ghost | None:
+        """Overlay the chosen episode of the chosen recording (a listed name inside the recordings folder)."""
+        path = None
+        try:
+            path = self.app.files.recording(self.file.value)
+            if path != self._path:
+                self._episodes, self._path = read_episodes(path), path
+                self.episode.options = [str(i) for i in range(len(self._episodes))] or ["0"]
+                if self.episode.value not in self.episode.options:
+                    self.episode.value = "0"
+                self.app.checks.accept(self.episode)
+            if not self._episodes:
+                raise ValueError(f"{path.name}: no episodes in this recording")
+            return self.show(self._episodes[int(self.episode.value)], label=f"{path.name} ep {self.episode.value}")
+        except (FileAccessError, OSError, ValueError, IndexError) as exc:
+            self._say(f"⚠ {page_error(exc, path)}")
+            return None
+
+    def show(self, ep, *, label: str = "") -> Ghost:
+        """Overlay ``ep`` (an ``EpisodeData``; trusted callers and :meth:`show_listed`)."""
+        self.hide()
+        ghost = Ghost(ep, label=label)
+        self.view = GhostView(self.app.server, ghost)
+        self.app.render_hooks.append(self._draw)
+        fr = self.app.view.last_frame
+        self.view.draw(fr.time if fr is not None else 0.0)
+        self._say(f"ghost: `{label}` · {len(ghost.t)} frames · blue, translucent")
+        self.app.request_render()
+        return ghost
+
+    def _draw(self, fr) -> None:
+        v = self.view
+        if v is not None:
+            v.draw(fr.time)
+
+    def hide(self) -> None:
+        if self._draw in self.app.render_hooks:
+            self.app.render_hooks.remove(self._draw)
+        if self.view is not None:
+            self.view.remove()
+            self.view = None
+            self._say("")
