@@ -79,6 +79,7 @@ def test_browser_ghost_over_replay_steps_together(wb_page):
     assert app.compare.view is None and not app.render_hooks
 
 
+@pytest.mark.browser
 def test_ghost_follows_live_time(wb_page):
     app, _page = wb_page
     from workbench.replay import read_episodes
