@@ -91,3 +91,41 @@ class GhostView:
     def remove(self) -> None:
         for h in (self.rod, self.joints, self.target):
             h.remove()
+
+
+class PolicyEpisode:
+    """One episode of a task run headless under a policy, every sim step kept (what :class:`Ghost` needs of an
+    ``EpisodeData``: ``positions``, ``sim_time``, ``target_pos``, ``scene.rod_radius``)."""
+
+    def __init__(self, positions, sim_time, target_pos, rod_radius: float, meta: dict):
+        self.positions = np.asarray(positions, np.float64)
+        self.sim_time = np.asarray(sim_time, np.float64)
+        self.target_pos = None if target_pos is None else np.asarray(target_pos, np.float64)
+        self.scene = type("Scene", (), {"rod_radius": float(rod_radius)})()
+        self.meta = meta
+
+
+def policy_episode(task: str, policy: str, *, seed: int = 0, max_sim_steps: int = 5000) -> PolicyEpisode:
+    """The first episode of ``task`` (seed ``seed``: the same target and obstacles as a live session started with
+    that seed) under ``policy``, stepped sim step by sim step as the workbench steps it (``PolicySession``)."""
+    from workbench.policy_session import PolicySession
+
+    s = PolicySession(task, policy, seed=seed)
+    core = s.core
+
+    def snap():
+        tg = s.targets()
+        return (np.asarray(core.state.node_pos[0], np.float64).copy(), float(np.asarray(core.state.time)[0]),
+                None if tg is None else tg[0].copy())
+
+    frames = [snap()]
+    for _ in range(int(max_sim_steps)):
+        s.before_sim_step(None)
+        core.sim.step(core.state, core.ctrl)
+        s.after_sim_step(None)
+        frames.append(snap())
+        if s.done:
+            break
+    pos, t, tg = zip(*frames)
+    return PolicyEpisode(np.stack(pos), np.array(t), None if tg[0] is None else np.stack(tg),
+                         float(core.model.radius), {"task": s.task, "policy": s.name})

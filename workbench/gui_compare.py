@@ -1,10 +1,12 @@
 """GUI: Compare (Recordings tab): a second recorded episode drawn as a translucent ghost over the open recording
-or over the live session (a running policy), stepping on the same timeline (``workbench.compare``)."""
+or over the live session (a running policy), stepping on the same timeline (``workbench.compare``); or a second
+policy on the running task's scene: its episode is computed headless with the live session's seed and the live
+episode restarts, so both start from the same target and obstacles."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from workbench.compare import Ghost, GhostView
+from workbench.compare import Ghost, GhostView, policy_episode
 from workbench.files import FileAccessError, page_error
 from workbench.replay import read_episodes
 
@@ -24,12 +26,18 @@ class ComparePanel:
             self.episode = gui.add_dropdown("Ghost episode", ["0"], initial_value="0",
                                             hint="episode of the ghost recording")
             self.show_btn = gui.add_button("Show ghost", hint="overlay the chosen episode (blue, translucent)")
+            pols = self._policies()
+            self.policy = gui.add_dropdown("Ghost policy", pols, initial_value=pols[0],
+                                           hint="a second policy for the running task (Policy tab)")
+            self.policy_btn = gui.add_button("Ghost of a policy", hint="run the chosen policy on the running task's "
+                                                                       "first episode and overlay it; the live "
+                                                                       "episode restarts on the same scene")
             self.hide_btn = gui.add_button("Remove ghost", hint="remove the overlay")
             self.msg = gui.add_markdown("")
         self._episodes: list = []
         self._path = None
         self.view: GhostView | None = None
-        for h in (self.file, self.episode):
+        for h in (self.file, self.episode, self.policy):
             app.checks.track(h)
         self._wire()
 
@@ -56,6 +64,11 @@ class ComparePanel:
             if ok.option(self.file, self._say) and ok.option(self.episode, self._say):
                 self.show_listed()
 
+        @self.policy_btn.on_click
+        def _(_e) -> None:
+            if ok.option(self.policy, self._say):
+                self.show_policy(self.policy.value)
+
         @self.hide_btn.on_click
         def _(_e) -> None:
             self.hide()
@@ -77,6 +90,40 @@ class ComparePanel:
         except (FileAccessError, OSError, ValueError, IndexError) as exc:
             self._say(f"⚠ {page_error(exc, path)}")
             return None
+
+    @staticmethod
+    def _policies() -> list[str]:
+        from workbench.gui_policy import NO_POLICY
+        from workbench.policy_session import shipped_policies
+
+        try:
+            files = [p.name for p in shipped_policies()]
+        except Exception:  # noqa: BLE001 - policies not importable: zero/random only
+            files = []
+        return files + list(NO_POLICY)
+
+    def show_policy(self, name: str) -> Ghost | None:
+        """Overlay policy ``name`` (a listed file of policies/pretrained, or zero/random) on the running task: its
+        first episode with the live session's seed; the live session restarts that episode with its own policy."""
+        from workbench.gui_policy import NO_POLICY
+        from workbench.policy_session import PRETRAINED
+
+        live = self.app.wb.policy
+        if live is None:
+            self._say("run a policy first (Policy tab): the ghost runs on its task")
+            return None
+        if name not in self._policies():
+            self._say("choose a policy from the list")
+            return None
+        path = name if name in NO_POLICY else str(PRETRAINED / name)
+        self._say(f"running {name} on {live.task} …")
+        try:
+            ep = policy_episode(live.task, path, seed=live.seed)
+        except Exception as exc:  # noqa: BLE001 - a policy that does not fit the task
+            self._say(f"⚠ {page_error(exc)}")
+            return None
+        self.app.policy.start_task(live.task, live.source)  # the live episode again from its start
+        return self.show(ep, label=f"{name} on {live.task}")
 
     def show(self, ep, *, label: str = "") -> Ghost:
         """Overlay ``ep`` (an ``EpisodeData``; trusted callers and :meth:`show_listed`)."""

@@ -101,6 +101,7 @@ class PolicySession:
         self.deterministic = deterministic
         self.name = Path(policy).stem if str(policy) not in ("zero", "random") else str(policy)
         self._rng = np.random.default_rng(seed)
+        self.source, self.seed = str(policy), seed  # what was loaded (a restart on the same scene reuses both)
         self.policy = load_for(policy, self.core, self.task)
         self.substeps = int(self.core.config.substeps)
         self.obstacles_version = 0  # bumped when the task re-places its obstacles (new episode, rewind)

@@ -92,3 +92,31 @@ def test_ghost_follows_live_time(wb_page):
                  what="ghost at the live session's time")
     finally:
         app.compare.hide()
+
+
+@pytest.mark.browser
+def test_policy_ghost_on_the_same_scene(wb_page):
+    app, page = wb_page
+    wb = app.wb
+    app.policy.start_task("follow_target", "zero")
+    wait_for(lambda: wb.frame_index > 30, timeout=60, what="live episode running")
+    expand_folder(page, "Recordings", "Ghost of a policy")
+    app.compare.policy.value = "random"
+    page.get_by_role("button", name="Ghost of a policy").click()
+    try:
+        wait_for(lambda: app.compare.view is not None, timeout=60, what="policy ghost shown")
+        g = app.compare.view.g
+        assert wb.policy.name == "zero" and g.ep.meta["policy"] == "random"
+        wait_for(lambda: wb.frame_index > 20, timeout=30, what="live episode restarted and running")
+        with wb.lock:
+            wb.set_playing(False)
+        wait_for(lambda: abs(g.t[g.index] - app.view.last_frame.time) < 1e-9, timeout=10, what="ghost at live time")
+        with wb.lock:
+            t_live, target_live = app.view.last_frame.time, wb.policy.targets()[0]
+            x_live = wb.live.frame().node_pos
+        i = g.index_at(t_live)
+        np.testing.assert_allclose(g.target(i), target_live, atol=1e-9)  # the same scene (target path)
+        assert np.abs(g.positions(i) - x_live).max() > 1e-3  # another policy: another motion
+    finally:
+        app.compare.hide()
+        wb.set_playing(True)
