@@ -181,7 +181,7 @@ def run_scene_case(doc: dict, *, steps: int = 3) -> tuple[str, str]:
                 and model.EI1 > 0 and model.GJ > 0 and math.isfinite(model.EA + model.EI1 + model.GJ)):
             return "silent_wrong", "zero or non-finite mass / stiffness"
         sim = Simulator(model, envs=2)
-        q = sim.obstacles.orientation
+        q = sim.reset().obstacles.orientation
         if not (np.isfinite(q).all() and np.allclose(np.linalg.norm(q, axis=-1), 1.0)):
             return "silent_wrong", "obstacle orientation not a unit quaternion"
         bad = _finite_run(sim, steps)

@@ -2,7 +2,7 @@
 
 numba's ``cache=True`` only checks the source file of the cached function itself, so a change in a callee
 defined in another module (an energy, ``frames.py``, ``contact_kernels.py``) would leave the fused kernels in
-``solve_3d.py``/``solve_2d.py`` stale. :func:`invalidate_if_sources_changed` hashes all kernel sources and, when the hash differs
+``kernel.py``/``newton.py`` stale. :func:`invalidate_if_sources_changed` hashes all kernel sources and, when the hash differs
 from the stamp written last time, deletes the cached ``*.nbi``/``*.nbc`` files of those modules.
 """
 from __future__ import annotations
@@ -12,8 +12,8 @@ import os
 from pathlib import Path
 
 _HERE = Path(__file__).resolve().parent
-_SOURCES = ["frames.py", "banded.py", "solve.py", "solve_params.py", "solve_3d.py", "solve_2d.py", "contact_kernels.py",
-            "geometry_distance.py", "kinds.py", "energies/stretch.py", "energies/bend_twist.py", "energies/planar.py"]
+_SOURCES = ["frames.py", "banded.py", "solve.py", "solve_params.py", "solve_3d.py", "solve_2d.py", "newton.py",
+            "kernel.py", "contact_kernels.py", "geometry_distance.py", "kinds.py", "energies/stretch.py", "energies/bend_twist.py", "energies/planar.py"]
 
 
 def _cache_dirs() -> list[Path]:

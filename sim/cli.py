@@ -82,7 +82,7 @@ def sim_main(argv: list[str] | None = None) -> int:
     frames: dict[str, list] = {"time": [], "node_pos": [], "edge_theta": [], "newton_iters": [], "converged": [],
                                "max_penetration": [], "contact_count": [], "contact_force": []}
     crow = ("contact_edge", "contact_obstacle", "contact_rod_point", "contact_normal", "contact_normal_force",
-            "contact_friction_force", "contact_gap") if sim.obstacles.count else ()
+            "contact_friction_force", "contact_gap") if sim.model.obstacles.count else ()
     for name in crow:
         frames[name] = []
     it_sum, it_max = 0, 0

@@ -1,9 +1,12 @@
 """ObstacleSet: the runtime (per-env) obstacle arrays handed to :mod:`sim.contact_kernels`.
 
-Static data (kinds, box half extents, mesh triangles + BVH in each mesh's local frame) is built once.
-Per-env data (pose, capsule end points, radius, active flag) changes in place through
-:meth:`ObstacleSet.set_pose`, :meth:`ObstacleSet.set_capsules` and :meth:`ObstacleSet.set_active`;
-derived world arrays (centres, axes, rotations, AABBs) are refreshed only for what changed.
+Static data (kinds, box half extents, mesh triangles + BVH in each mesh's local frame) is built once and shared,
+read-only, by every copy. Per-env data (pose, capsule end points, radius, active flag) is part of the
+:class:`sim.State` (``state.obstacles``) and changes in place through :meth:`ObstacleSet.set_pose`,
+:meth:`ObstacleSet.set_capsules` and :meth:`ObstacleSet.set_active`; derived world arrays (centres, axes,
+rotations, AABBs) are refreshed only for what changed. :meth:`ObstacleSet.copy` copies the per-env arrays.
+The kernels' per-env work space (candidate lists) is a :class:`ContactScratch` owned by the Simulator;
+:func:`contact_data` joins poses and scratch into the :class:`ContactData` the kernels read.
 """
 from __future__ import annotations
 
@@ -27,7 +30,7 @@ from .obstacles import (
 )
 from .rotations import quat_z_to
 
-__all__ = ["ObstacleSet", "ContactData"]
+__all__ = ["ObstacleSet", "ContactData", "ContactScratch", "contact_scratch", "contact_data"]
 
 REPORT_CAPACITY = 64
 
@@ -36,6 +39,29 @@ ContactData = namedtuple("ContactData", [
     "node_range", "cand", "cand_count", "params", "active", "box", "iter_flag", "scratch_f", "scratch_m",
     "scratch_i", "friction"])
 ContactData.__doc__ = "Arrays read by :mod:`sim.contact_kernels` (fields documented there); a numba namedtuple."
+# the kernels' per-env work space: candidate pairs, their count, [rod radius, ...], first-iteration flag, scratch
+ContactScratch = namedtuple("ContactScratch", ["cand", "cand_count", "params", "iter_flag", "scratch_f",
+                                               "scratch_m", "scratch_i"])
+_PER_ENV = ("position", "orientation", "local_a", "local_b", "radius", "active", "p0", "p1", "rot", "box")
+
+
+def contact_scratch(envs: int, n_nodes: int, count: int, rod_radius: float) -> ContactScratch:
+    """Work space of the contact kernels for ``envs`` envs of a rod of ``n_nodes`` nodes and ``count`` obstacles
+    (rod radius [m] inflates the broad phase)."""
+    B = int(envs)
+    return ContactScratch(
+        cand=np.zeros((B, max(int(n_nodes) * int(count), 1), 2), dtype=np.int64),
+        cand_count=np.zeros(B, dtype=np.int64), params=np.array([float(rod_radius), 0.0, 0.0, 0.0]),
+        iter_flag=np.ones(B, dtype=np.int64), scratch_f=np.zeros((B, 128)), scratch_m=np.zeros((B, 2, 6, 6)),
+        scratch_i=np.zeros((B, 128), dtype=np.int64))
+
+
+def contact_data(obs: "ObstacleSet", scratch: ContactScratch) -> ContactData:
+    """The kernels' view of the poses in ``obs`` (a state's obstacles) with the work space ``scratch``."""
+    return ContactData(obs.kind, obs.p0, obs.p1, obs.rot, obs.radius, obs.half, obs.mesh_root, obs.tri, obs.node_lo,
+                       obs.node_hi, obs.node_child, obs.node_range, scratch.cand, scratch.cand_count, scratch.params,
+                       obs.active, obs.box, scratch.iter_flag, scratch.scratch_f, scratch.scratch_m, scratch.scratch_i,
+                       obs.friction)
 
 
 class ObstacleSet:
@@ -112,6 +138,18 @@ class ObstacleSet:
         self._rod_radius = 0.0
         self._kd: ContactData | None = None
         self._alloc(envs)
+
+    def copy(self) -> "ObstacleSet":
+        """A copy with its own per-env arrays (poses, capsules, active flags, world arrays); the static data
+        (kinds, meshes, BVHs) is shared."""
+        new = copy.copy(self)
+        new._kd = None
+        for name in _PER_ENV:
+            setattr(new, name, getattr(self, name).copy())
+        return new
+
+    def __deepcopy__(self, memo) -> "ObstacleSet":  # snapshots copy poses, never the shared meshes
+        return self.copy()
 
     @classmethod
     def from_specs(cls, specs: Sequence[ObstacleSpec], *, envs: int = 1) -> "ObstacleSet":
@@ -297,12 +335,5 @@ class ObstacleSet:
         rr = float(rod_radius) if rod_radius is not None else self._rod_radius
         if self._kd is None or n != self._n_nodes or rr != self._rod_radius:
             self._n_nodes, self._rod_radius = n, rr
-            B, M = self.envs, self.count
-            cand = np.zeros((B, max(n * M, 1), 2), dtype=np.int64)
-            params = np.array([rr, 0.0, 0.0, 0.0])
-            self._kd = ContactData(self.kind, self.p0, self.p1, self.rot, self.radius, self.half, self.mesh_root, self.tri,
-                        self.node_lo, self.node_hi, self.node_child, self.node_range, cand,
-                        np.zeros(B, dtype=np.int64), params, self.active, self.box,
-                        np.ones(B, dtype=np.int64), np.zeros((B, 128)), np.zeros((B, 2, 6, 6)),
-                        np.zeros((B, 128), dtype=np.int64), self.friction)
+            self._kd = contact_data(self, contact_scratch(self.envs, n, self.count, rr))
         return self._kd

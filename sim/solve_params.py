@@ -1,7 +1,8 @@
 """The solver's named parameters (:class:`Params`, read as ``prm``), per-env output columns, numba options and
 the small decisions both step kernels share (symmetric Jacobian? how badly does a retry level trip the guards?).
 
-Shared by :mod:`sim.solve_3d`, :mod:`sim.solve_2d` and the :class:`sim.Simulator` that builds ``prm``.
+Shared by :mod:`sim.newton` (the step), :mod:`sim.solve_3d`, :mod:`sim.solve_2d` (the element assembly) and the
+:class:`sim.Simulator` that builds ``prm``.
 """
 from __future__ import annotations
 
@@ -10,15 +11,16 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-# The solver's scalar parameters by name: a namedtuple of float64 (flags 0.0/1.0; line_search 0 none,
-# 1 backtrack, 2 auto), built once by the Simulator from the Model. Units: EA [N], EI1/EI2/GJ [N m²], dt [s],
+# The solver's scalar parameters by name: a namedtuple of float64 (flags 0.0/1.0, planar 1.0 for the 2-D model;
+# line_search 0 none, 1 backtrack, 2 auto), built once by the Simulator from the Model. Units: EA [N],
+# EI1/EI2/GJ [N m²], dt [s],
 # damping [1/s], newton_dtol [m/s], radius/contact_delta/contact_margin/max_penetration/plane_y [m],
 # contact_k [N/m], friction_nu [m/s]; the rest dimensionless.
 Params = namedtuple("Params", [
     "EA", "EI1", "EI2", "GJ", "dt", "damping", "newton_tol", "newton_dtol", "newton_max_iter", "accept_unconverged",
     "midpoint", "line_search", "radius", "contact_k", "contact_delta", "friction", "friction_nu", "friction_on",
     "contact_margin", "n_obstacles", "planar_sign", "plane_y", "retry_levels", "max_strain", "max_penetration",
-    "step_limit", "divergence_guard", "midpoint_energy_tol",
+    "step_limit", "divergence_guard", "midpoint_energy_tol", "planar",
 ])
 # The kernels receive the parameters as one record of this structured dtype (same names, read as prm.EA ...):
 # numba passes a record by reference, where a namedtuple of 28 floats is copied into every call.
@@ -41,11 +43,35 @@ ContactReport = namedtuple("ContactReport", [
     "count", "edge", "obstacle", "rod_point", "obstacle_point", "normal", "normal_force", "friction_force", "gap",
     "max_penetration",
 ])
-# columns of the float / int per-env outputs
-F_RES, F_RES0, F_ES, F_EB, F_ET, F_EC, F_EK, F_EG, F_PEN = range(9)
-F_COLS = 9
-I_ITERS, I_CONV, I_SUB, I_FAIL = range(4)
-I_COLS = 4
+# what the step kernel writes per env for StepStats (all (B,)): the last and first residual ‖f‖ of the step,
+# the energies [J] at its end, Newton iterations (total over sub-steps), sub-steps per step of the level
+# accepted (1 = no retry), whether every sub-step converged, whether the env failed in this step
+StepOutput = namedtuple("StepOutput", [
+    "residual", "residual0", "energy_stretch", "energy_bend", "energy_twist", "energy_contact", "energy_kinetic",
+    "energy_gravity", "newton_iters", "substeps", "converged", "failed",
+])
+# the rod's constant per-edge / per-node / per-DOF arrays (docs/physics.md §1.2): rest edge lengths (N-1,),
+# Voronoi lengths (N,), DOF masses, fixed-DOF flags and gravity forces (n,) of one env
+RodData = namedtuple("RodData", ["rest_len", "vor_len", "mass", "fixed", "grav"])
+# the batched state the kernel advances in place (leading axis B): DOFs and their velocities (B, n), the stored
+# reference frames (B, N-1, 3) and reference twist (B, N), time (B,), failed flags (B,)
+StateArrays = namedtuple("StateArrays", ["dof", "vel", "ref_d1", "tangent", "ref_twist", "time", "failed"])
+# the per-env natural curvature (B, N, 2) and twist (B, N) the step reads (twist unused in 2-D)
+ControlArrays = namedtuple("ControlArrays", ["kappa_bar", "tau_bar"])
+# One thread's scratch for a step (sim.newton.alloc_workspace): Newton iterate x, residual f, update dx, line
+# search trial xt, banded Jacobian ab; node positions pos/pos0 (N, 3); frame scratch t, d1, d2 (N-1, 3), elen
+# (N-1,), beta (N,); element gradients/Hessians g4/H4 (2-D stretch), g6/H6 (3-D stretch, 2-D bend), g11/H11/wk
+# (3-D bend-twist); contact gradient cg (N, 3) and per-edge Hessians ch (N-1, 6, 6); material directors mf
+# (N-1, 6); the (sub)step start state sub_* and the guard fallback state fb_* (DOFs, velocities, frames). Every
+# entry is written before it is read, so nothing carries over from one env to the next.
+Workspace = namedtuple("Workspace", [
+    "x", "f", "dx", "xt", "ab", "pos", "pos0", "t", "d1", "d2", "elen", "beta", "g4", "H4", "g6", "H6", "g11",
+    "H11", "wk", "cg", "ch", "mf", "sub_x", "sub_v", "sub_d1", "sub_t", "sub_beta", "fb_x", "fb_v", "fb_d1",
+    "fb_t", "fb_beta",
+])
+
+# (sub)step status codes of sim.newton
+OK, NON_FINITE, RESIDUAL_GROWTH, BAD_PIVOT, UNCONVERGED, STRAIN, MIDPOINT_GAINED = range(7)
 
 # envs per workspace allocation in the step kernels' parallel loop
 _CHUNK = 8

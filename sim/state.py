@@ -2,8 +2,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .contact_set import ObstacleSet
 
 __all__ = ["State", "Control", "StepStats"]
 
@@ -21,6 +25,11 @@ class State:
     time           (B,) [s]
     failed         (B,) bool, env failed irrecoverably and is frozen until reset
     plane_y        2-D only: y of the motion plane [m] (used by node_pos)
+    obstacles      the obstacles' per-env poses and geometry (:class:`sim.contact_set.ObstacleSet`, envs B),
+                   edited in place (``state.obstacles.set_pose`` / ``set_capsules`` / ``set_active``); None
+                   only for a state built by hand for a scene without obstacles
+
+    ``copy()`` is a full snapshot (obstacles included); ``node_pos``/``node_vel``/``edge_theta`` are new arrays.
     """
 
     dof: np.ndarray
@@ -31,6 +40,7 @@ class State:
     time: np.ndarray
     failed: np.ndarray
     plane_y: float = 0.0
+    obstacles: "ObstacleSet | None" = None
 
     @property
     def env_count(self) -> int:
@@ -42,7 +52,7 @@ class State:
 
     def _xyz(self, a: np.ndarray, fill: float) -> np.ndarray:
         if not self.is_2d:
-            return a[..., :3]
+            return a[..., :3].copy()
         out = np.empty(a.shape[:-1] + (3,))
         out[..., 0] = a[..., 0]
         out[..., 1] = fill
@@ -51,7 +61,7 @@ class State:
 
     @property
     def node_pos(self) -> np.ndarray:
-        """(B, N, 3) node positions [m] (a view in 3-D, a copy in 2-D)."""
+        """(B, N, 3) node positions [m] (a new array; the state is changed through ``dof``)."""
         return self._xyz(self.dof, self.plane_y)
 
     @property
@@ -64,11 +74,12 @@ class State:
         """(B, N-1) twist angles θ [rad] (zeros in 2-D)."""
         if self.is_2d:
             return np.zeros(self.dof.shape[:2])[:, :-1]
-        return self.dof[:, :-1, 3]
+        return self.dof[:, :-1, 3].copy()
 
     def copy(self) -> "State":
         return State(self.dof.copy(), self.dof_vel.copy(), self.edge_ref_d1.copy(), self.edge_tangent.copy(),
-                     self.node_ref_twist.copy(), self.time.copy(), self.failed.copy(), self.plane_y)
+                     self.node_ref_twist.copy(), self.time.copy(), self.failed.copy(), self.plane_y,
+                     None if self.obstacles is None else self.obstacles.copy())
 
 
 @dataclass(eq=False)

@@ -1,4 +1,6 @@
-"""Simulator: reset(), step(), control helpers. ``step`` is a short recipe: validate -> fused kernel -> stats."""
+"""Simulator: reset(), step(), control helpers. ``step`` is a short pipeline: check the inputs → the batched
+kernel (per env: predict → Newton (frames, assemble, solve, line search) → contact refresh → accept/retry →
+integrate → commit; :mod:`sim.newton`, :mod:`sim.kernel`) → StepStats."""
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -7,6 +9,7 @@ import numpy as np
 
 from . import solve as _solve
 from . import validate as _validate
+from .contact_set import contact_data, contact_scratch
 from .model import Model
 from .state import Control, State, StepStats
 
@@ -21,7 +24,9 @@ IndexLike = int | Sequence[int] | np.ndarray | slice | None
 class Simulator:
     """Batched implicit DER simulator for ``envs`` copies of ``model``.
 
-    ``step(state, ctrl)`` advances ``state`` in place by ``model.dt`` and returns :class:`StepStats`.
+    ``step(state, ctrl)`` advances ``state`` in place by ``model.dt`` and returns :class:`StepStats`. The
+    Simulator holds only constants and work space; everything per env (obstacle poses included) is in the
+    :class:`State`.
     """
 
     def __init__(self, model: Model, envs: int = 1) -> None:
@@ -44,22 +49,25 @@ class Simulator:
             planar_sign=m.planar_sign, plane_y=m.plane_y, retry_levels=5.0, max_strain=0.9,
             max_penetration=4.0 * c.delta if mp is None else float(mp),
             step_limit=1.0 if getattr(c, "step_limit", True) else 0.0, divergence_guard=m.divergence_guard,
-            midpoint_energy_tol=MIDPOINT_ENERGY_TOL)
+            midpoint_energy_tol=MIDPOINT_ENERGY_TOL, planar=1.0 if m.mode == "2d" else 0.0)
         self._prm = _solve.params_record(prm)  # one float64 record (passed by reference in the kernels)
-        self._arr = tuple(np.array(a) for a in (m.rest_edge_length, m.voronoi_length, m.dof_mass, m.dof_fixed,
-                                                m.dof_gravity))
-        # per-Simulator obstacle poses (static meshes/BVHs shared with the model); tasks edit them through
-        # self.obstacles.set_pose / set_capsules, in place
-        self.obstacles = m.obstacles.for_envs(B, n_nodes=m.node_count, rod_radius=m.radius)
-        self._cd = self.obstacles.kernel_data()
-        C = int(self.obstacles.report_capacity)
+        self._rod = _solve.RodData(rest_len=np.array(m.rest_edge_length), vor_len=np.array(m.voronoi_length),
+                                   mass=np.array(m.dof_mass), fixed=np.array(m.dof_fixed),
+                                   grav=np.array(m.dof_gravity))
+        # work space of the contact kernels (candidate lists); the poses themselves are in State.obstacles
+        self._scratch = contact_scratch(B, m.node_count, m.obstacles.count, m.radius)
+        self._no_obstacles = m.obstacles.for_envs(B) if m.obstacles.count == 0 else None
+        C = int(m.obstacles.report_capacity)
         self._crep = _solve.ContactReport(
             count=np.zeros(B, np.int64), edge=np.zeros((B, C), np.int64), obstacle=np.zeros((B, C), np.int64),
             rod_point=np.zeros((B, C, 3)), obstacle_point=np.zeros((B, C, 3)), normal=np.zeros((B, C, 3)),
             normal_force=np.zeros((B, C)), friction_force=np.zeros((B, C, 3)), gap=np.zeros((B, C)),
             max_penetration=np.zeros(B))
-        self._fo = np.zeros((B, _solve.F_COLS))
-        self._io = np.zeros((B, _solve.I_COLS), np.int64)
+        f, i = (lambda: np.zeros(B)), (lambda: np.zeros(B, np.int64))
+        self._out = _solve.StepOutput(
+            residual=f(), residual0=f(), energy_stretch=f(), energy_bend=f(), energy_twist=f(), energy_contact=f(),
+            energy_kinetic=f(), energy_gravity=f(), newton_iters=i(), substeps=i(), converged=np.zeros(B, bool),
+            failed=np.zeros(B, bool))
 
     # ------------------------------------------------------------------ state / control construction
     def _rest_dof(self) -> np.ndarray:
@@ -81,7 +89,7 @@ class Simulator:
                      edge_ref_d1=np.broadcast_to(m.rest_ref_d1, (B, m.node_count - 1, 3)).copy(),
                      edge_tangent=np.broadcast_to(m.rest_tangent, (B, m.node_count - 1, 3)).copy(),
                      node_ref_twist=np.zeros((B, m.node_count)), time=np.zeros(B), failed=np.zeros(B, bool),
-                     plane_y=m.plane_y if m.mode == "2d" else 0.0)
+                     plane_y=m.plane_y if m.mode == "2d" else 0.0, obstacles=m.obstacles.for_envs(B))
 
     def _rest_control_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         m = self.model
@@ -98,12 +106,14 @@ class Simulator:
                        tau_bar=np.broadcast_to(tb, (B,) + tb.shape).copy())
 
     def reset_envs(self, state: State, ctrl: Control | None, mask: np.ndarray) -> None:
-        """Reset the envs selected by ``mask`` to rest (state and, if given, control): a (B,) boolean mask, or
-        integer env indices (list/tuple/int array/int); see :func:`sim.validate.env_mask`."""
+        """Reset the envs selected by ``mask`` to rest (state, the obstacles' spec poses and, if given, control):
+        a (B,) boolean mask, or integer env indices (list/tuple/int array/int); see :func:`sim.validate.env_mask`."""
         mask = _validate.env_mask(mask, self.envs)
         fresh = self.reset()
         for name in ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time", "failed"):
             getattr(state, name)[mask] = getattr(fresh, name)[mask]
+        if state.obstacles is not None and state.obstacles.count:
+            state.obstacles.reset_envs(mask)
         if ctrl is not None:
             kb, tb = self._rest_control_arrays()
             ctrl.kappa_bar[mask] = kb
@@ -134,20 +144,14 @@ class Simulator:
     def step(self, state: State, ctrl: Control) -> StepStats:
         """Advance every non-failed env of ``state`` by ``model.dt`` (in place) under ``ctrl``."""
         self._check(state, ctrl)
-        kb = np.ascontiguousarray(ctrl.kappa_bar, dtype=np.float64)
-        tb = np.ascontiguousarray(ctrl.tau_bar, dtype=np.float64)
-        B = self.envs
-        q = state.dof.reshape(B, -1)
-        v = state.dof_vel.reshape(B, -1)
-        rl, vl, ms, fx, gr = self._arr
-        if self.model.mode == "3d":
-            _solve.step_kernel_3d(q, v, state.edge_ref_d1, state.edge_tangent, state.node_ref_twist, state.time,
-                                  state.failed, kb, tb, rl, vl, ms, fx, gr, self._prm, self._cd, self._crep,
-                                  self._fo, self._io)
-        else:
-            _solve.step_kernel_2d(q, v, state.edge_ref_d1, state.edge_tangent, state.node_ref_twist, state.time,
-                                  state.failed, kb, rl, vl, ms, fx, gr, self._prm, self._cd, self._crep,
-                                  self._fo, self._io)
+        obstacles = self._no_obstacles if state.obstacles is None else state.obstacles
+        _solve.step_kernel(
+            _solve.StateArrays(dof=state.dof.reshape(self.envs, -1), vel=state.dof_vel.reshape(self.envs, -1),
+                               ref_d1=state.edge_ref_d1, tangent=state.edge_tangent, ref_twist=state.node_ref_twist,
+                               time=state.time, failed=state.failed),
+            _solve.ControlArrays(kappa_bar=np.ascontiguousarray(ctrl.kappa_bar, dtype=np.float64),
+                                 tau_bar=np.ascontiguousarray(ctrl.tau_bar, dtype=np.float64)),
+            self._rod, self._prm, contact_data(obstacles, self._scratch), self._crep, self._out)
         return self._checked_stats(state)
 
     def _checked_stats(self, state: State) -> StepStats:
@@ -156,18 +160,18 @@ class Simulator:
         return stats
 
     def _stats(self) -> StepStats:
-        fo, io, cr = self._fo, self._io, self._crep
-        s = _solve
+        o, cr = self._out, self._crep
         return StepStats(
-            newton_iters=io[:, s.I_ITERS].copy(), residual=fo[:, s.F_RES].copy(), residual0=fo[:, s.F_RES0].copy(),
-            converged=io[:, s.I_CONV].astype(bool), substeps=io[:, s.I_SUB].copy(), failed=io[:, s.I_FAIL].astype(bool),
-            energy_stretch=fo[:, s.F_ES].copy(), energy_bend=fo[:, s.F_EB].copy(), energy_twist=fo[:, s.F_ET].copy(),
-            energy_contact=fo[:, s.F_EC].copy(), energy_kinetic=fo[:, s.F_EK].copy(),
-            energy_gravity=fo[:, s.F_EG].copy(), max_penetration=cr.max_penetration.copy(),
-            contact_count=cr.count.copy(), contact_edge=cr.edge.copy(), contact_obstacle=cr.obstacle.copy(),
-            contact_rod_point=cr.rod_point.copy(), contact_obstacle_point=cr.obstacle_point.copy(),
-            contact_normal=cr.normal.copy(), contact_normal_force=cr.normal_force.copy(),
-            contact_friction_force=cr.friction_force.copy(), contact_gap=cr.gap.copy())
+            newton_iters=o.newton_iters.copy(), residual=o.residual.copy(), residual0=o.residual0.copy(),
+            converged=o.converged.copy(), substeps=o.substeps.copy(), failed=o.failed.copy(),
+            energy_stretch=o.energy_stretch.copy(), energy_bend=o.energy_bend.copy(),
+            energy_twist=o.energy_twist.copy(), energy_contact=o.energy_contact.copy(),
+            energy_kinetic=o.energy_kinetic.copy(), energy_gravity=o.energy_gravity.copy(),
+            max_penetration=cr.max_penetration.copy(), contact_count=cr.count.copy(), contact_edge=cr.edge.copy(),
+            contact_obstacle=cr.obstacle.copy(), contact_rod_point=cr.rod_point.copy(),
+            contact_obstacle_point=cr.obstacle_point.copy(), contact_normal=cr.normal.copy(),
+            contact_normal_force=cr.normal_force.copy(), contact_friction_force=cr.friction_force.copy(),
+            contact_gap=cr.gap.copy())
 
     # ------------------------------------------------------------------ frames
     def material_frames(self, state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

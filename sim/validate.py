@@ -245,6 +245,14 @@ def check_step_inputs(sim: Any, state: Any, ctrl: Any) -> None:
             "node_ref_twist": (B, N), "time": (B,), "failed": (B,)}
     for name, shp in want.items():
         _array(state, "state", name, shp, np.bool_ if name == "failed" else np.float64, writable=True)
+    obs, M = getattr(state, "obstacles", None), sim.model.obstacles.count
+    if obs is None:
+        if M:
+            raise ValueError(f"step: state.obstacles: missing (the scene has {M} obstacles); build the state with "
+                             "Simulator.reset()")
+    elif getattr(obs, "count", None) != M or getattr(obs, "envs", None) != B:
+        raise ValueError(f"step: state.obstacles: expected the scene's {M} obstacles for {B} envs, got "
+                         f"{getattr(obs, 'count', '?')} obstacles for {getattr(obs, 'envs', '?')} envs")
     for name, shp in (("kappa_bar", (B, N, 2)), ("tau_bar", (B, N))):
         a = _array(ctrl, "ctrl", name, shp, np.float64, writable=False)
         if not np.isfinite(a).all():

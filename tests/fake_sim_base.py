@@ -13,14 +13,25 @@ import numpy as np
 from sim.state import State
 
 
-def make_state(dof, theta, tangent) -> State:
+class FakeObstacles:
+    """``state.obstacles`` of a fake state: capsules re-placed through it land on the fake simulator."""
+
+    def __init__(self, sim):
+        self.sim = sim
+
+    def copy(self) -> "FakeObstacles":
+        return self
+
+
+def make_state(dof, theta, tangent, obstacles=None) -> State:
     """A real :class:`sim.state.State` for the fakes (so they cannot drift from the State API): twist angles
     ``theta`` (B, N-1) go into the θ slots of a 3-D ``dof`` (B, N, 4); 2-D states have none."""
     B, N = dof.shape[:2]
     if dof.shape[-1] == 4:
         dof[:, :-1, 3] = theta
     return State(dof=dof, dof_vel=np.zeros_like(dof), edge_ref_d1=ref_d1(tangent), edge_tangent=tangent.copy(),
-                 node_ref_twist=np.zeros((B, N)), time=np.zeros(B), failed=np.zeros(B, bool))
+                 node_ref_twist=np.zeros((B, N)), time=np.zeros(B), failed=np.zeros(B, bool),
+                 obstacles=obstacles)
 
 
 def ref_d1(t):
@@ -79,7 +90,8 @@ class FakeSimBase:
         return c * d1 + s * d2, -s * d1 + c * d2, t.copy()
 
 
-def fake_set_env_capsules(sim, idx, ends, radius):
+def fake_set_env_capsules(state, idx, ends, radius):
+    sim = state.obstacles.sim
     if sim.capsules is None:
         sim.capsules = np.zeros((sim.envs,) + ends.shape[1:])
     sim.capsules[idx] = ends

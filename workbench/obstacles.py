@@ -250,9 +250,8 @@ def sim_pose(e: ObstacleEdit) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _obstacle_set(live):
-    """The live simulator's own (per-env) obstacle set: ``Simulator.obstacles``."""
-    oset = getattr(live.sim, "obstacles", None)
-    return oset if oset is not None else getattr(live.model, "obstacles", None)
+    """The live state's (per-env) obstacle poses: ``State.obstacles``."""
+    return getattr(live.state, "obstacles", None)
 
 
 def mesh_for_edit(e: ObstacleEdit) -> tuple[np.ndarray, np.ndarray]:

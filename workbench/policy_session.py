@@ -250,10 +250,4 @@ class PolicySession:
         version = self.obstacles_version
         for k, v in snap["own"].items():
             setattr(self, k, v)
-        fences = getattr(self.core, "fences", None)
-        if fences is not None:  # put the snapshot's fence back into the simulator
-            from policies.tasks.scenes import set_env_capsules
-
-            set_env_capsules(self.core.sim, np.array([0]), np.asarray(fences[:1], dtype=np.float64),
-                             float(self.core.config.fence.radius))
         self.obstacles_version = version + 1

@@ -84,8 +84,10 @@ class LiveSim:
         x0 = np.asarray(self.state.node_pos[0], dtype=np.float64)
         self.rest_length = np.linalg.norm(np.diff(x0, axis=0), axis=1)
         if old_state is not None:
+            obstacles = self.state.obstacles  # the new scene's obstacles, not the old state's
             assign_struct(self.state, old_state)
             assign_struct(self.ctrl, old_ctrl)
+            self.state.obstacles = obstacles
         self.last_stats = None
         self.step_time = 0.0
 
@@ -121,6 +123,7 @@ class LiveSim:
             self.last_stats = None
             return
         new = self.sim.reset()
+        new.obstacles = self.state.obstacles  # obstacles the user placed stay where they are
         assign_struct(self.state, new)
         assign_struct(self.ctrl, self.sim.make_control())
         self.last_stats = None
@@ -153,8 +156,13 @@ class LiveSim:
         return copy_struct(self.state), copy_struct(self.ctrl)
 
     def restore(self, snap: tuple) -> None:
+        """Back to a snapshot. A task's obstacles (re-placed per episode) come back with its state; obstacles the
+        user placed in teleop are scene edits and stay where they are."""
+        keep = self.state.obstacles if self.owner is None else None
         assign_struct(self.state, snap[0])
         assign_struct(self.ctrl, snap[1])
+        if keep is not None:
+            self.state.obstacles = keep
 
     # ---------------------------------------------------------------- drawing
     def frame(self, *, targets: np.ndarray | None = None, scalars: dict | None = None) -> Frame:

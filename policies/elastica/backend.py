@@ -3,7 +3,7 @@
 ``make_elastica_core(task, envs, seed)`` builds the task's ordinary batched core (targets, obstacles, action
 converter, observations and rewards stay exactly the task's code) and replaces its simulator by
 :class:`ElasticaSimulator`, which offers the part of the ``sim.Simulator`` interface a task uses
-(``reset``/``make_control``/``reset_envs``/``step``/``material_frames``/``obstacles.set_capsules``).
+(``reset``/``make_control``/``reset_envs``/``step``/``material_frames``; the state's ``obstacles.set_capsules``).
 
 Per control step the task core calls ``step`` ``substeps`` times (2 for the arm tasks, 10 for the obstacle
 tasks, each after adding 1/substeps of the control step's natural-curvature increment to the control); every
@@ -88,7 +88,8 @@ class ElasticaSimulator:
         D = 2 if self.planar else 4
         self.state = SimpleNamespace(dof=np.zeros((B, N, D)), dof_vel=np.zeros((B, N, D)),
                                      failed=np.zeros(B, dtype=bool), edge_tangent=np.zeros((B, N - 1, 3)),
-                                     edge_ref_d1=np.zeros((B, N - 1, 3)), edge_theta=np.zeros((B, N - 1)))
+                                     edge_ref_d1=np.zeros((B, N - 1, 3)), edge_theta=np.zeros((B, N - 1)),
+                                     obstacles=self.obstacles)
         self._sync(self.state)
         return self.state
 

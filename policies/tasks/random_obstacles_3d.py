@@ -59,7 +59,7 @@ class RandomObstacles3DCore(BatchedTask):
 
         for i in idx:
             self.fences[i] = self.sampler.sample(self.rngs[i])
-        set_env_capsules(self.sim, idx, self.fences[idx].astype(np.float64), float(self.config.fence.radius))
+        set_env_capsules(self.state, idx, self.fences[idx].astype(np.float64), float(self.config.fence.radius))
 
     def _fields(self) -> dict[str, np.ndarray]:
         f = self.node_fields()

@@ -71,7 +71,8 @@ def make_simulator(config: Any, *, envs: int, task: Any = None):
     return Simulator(model, envs=envs), model
 
 
-def set_env_capsules(sim, idx: np.ndarray, ends: np.ndarray, radius: float) -> None:
-    """Move the capsule obstacles of envs ``idx`` to ``ends`` (len(idx), M, 2, 3) [m] (in place)."""
+def set_env_capsules(state, idx: np.ndarray, ends: np.ndarray, radius: float) -> None:
+    """Move the capsule obstacles of envs ``idx`` of ``state`` (their poses are part of the state) to ``ends``
+    (len(idx), M, 2, 3) [m] (in place)."""
     ends = np.asarray(ends, dtype=np.float64)
-    sim.obstacles.set_capsules(np.asarray(idx, dtype=np.int64), ends[:, :, 0], ends[:, :, 1], radius)
+    state.obstacles.set_capsules(np.asarray(idx, dtype=np.int64), ends[:, :, 0], ends[:, :, 1], radius)

@@ -194,4 +194,4 @@ def test_contact_rows_and_energy_reported():
 def test_no_obstacles_no_contact_work():
     sim, st, ctrl = make()
     s = sim.step(st, ctrl)
-    assert sim.obstacles.count == 0 and s.contact_count[0] == 0 and s.energy_contact[0] == 0.0
+    assert sim.model.obstacles.count == 0 and s.contact_count[0] == 0 and s.energy_contact[0] == 0.0

@@ -105,7 +105,7 @@ def test_per_obstacle_friction_overrides_contact_default():
     rod = dict(ROD, start=list((R + 4e-3) * n), direction=[0.0, 1.0, 0.0])
     plane = dict(type="plane", point=[0, 0, 0], normal=list(n), friction=0.1)
     sim, st, ctrl = make(rod, [plane], dict(friction=0.5))
-    assert sim.obstacles.effective_friction(0.5).tolist() == [0.1]
+    assert sim.model.obstacles.effective_friction(0.5).tolist() == [0.1]
     for _ in range(100):
         sim.step(st, ctrl)
     v = float(np.mean(st.node_vel[0] @ up))

@@ -27,7 +27,7 @@ def capsule_sim():
     x = np.zeros((21, 3))
     x[:, 0] = np.linspace(0.0, 1.0, 21)
     x[:, 2] = 0.5
-    return sim._cd, x
+    return sim.reset().obstacles.kernel_data(n_nodes=21, rod_radius=R_ROD), x
 
 
 def gap(cd, x):

@@ -137,7 +137,7 @@ def test_fences_reach_the_simulator_and_start_contact_free():
     obs, _ = venv.reset()
     for _ in range(2):                                   # every step ends an episode -> autoreset re-samples
         fences = obs[:, 10:58].reshape(3, 8, 2, 3)
-        ob = venv.core.sim.obstacles
+        ob = venv.core.state.obstacles
         np.testing.assert_allclose(ob.p0, fences[:, :, 0], atol=1e-6)
         np.testing.assert_allclose(ob.p1, fences[:, :, 1], atol=1e-6)
         assert np.allclose(ob.radius, 0.03)

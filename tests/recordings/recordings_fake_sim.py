@@ -11,7 +11,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from tests.fake_sim_base import FakeSimBase, fake_set_env_capsules, make_state, ref_d1
+from tests.fake_sim_base import FakeObstacles, FakeSimBase, fake_set_env_capsules, make_state, ref_d1
 
 __all__ = ["FakeSim", "fake_make_simulator", "fake_set_env_capsules"]
 
@@ -27,7 +27,7 @@ class FakeSim(FakeSimBase):
     def reset(self):
         x, t, th = self._rest()
         dof = self._dof(x)
-        return make_state(dof, th, t)
+        return make_state(dof, th, t, FakeObstacles(self))
 
     def reset_envs(self, state, ctrl, mask):
         self._reset_fields(state, ctrl, mask, ("dof", "dof_vel", "edge_tangent", "edge_ref_d1", "failed",

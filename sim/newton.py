@@ -1,0 +1,384 @@
+"""The implicit step, shared by the 3-D and the planar rod: Newton loop, (sub)step, retry/guard ladder and the
+batched kernel (docs/physics.md §3.4).
+
+One call of :func:`sim.kernel.step_kernel` advances every non-failed env by one step ``dt`` (``prange`` over chunks of envs;
+env e only reads and writes row e, so a batch gives the same bits as envs alone). The mode (``prm.planar``)
+selects the element functions: :mod:`sim.solve_3d` (4N unknowns) or :mod:`sim.solve_2d` (2N unknowns); all
+the rest is written once. A (sub)step of size h runs these stages:
+
+    predict     guess x = x0 + 0.01·u·h on free DOFs; contact candidates over the predicted motion
+    newton      repeat: frames (time-parallel transport) + assemble residual f and banded Jacobian J
+                (constrained DOFs: identity rows/columns, zero residual) → force test ‖f‖ ≤ tol·‖f0‖ →
+                banded solve (LDLᵀ when J is symmetric, else LU; pivots checked) → tunnelling limit →
+                line search (``backtrack``: every step; ``auto``: only after an update raised ‖f‖ with contact
+                candidates) → displacement test max|Δx|/h < dtol on free position DOFs
+    refresh     candidates over the motion actually taken; new pairs → solve again
+    accept      unconverged at max_iter only if allowed
+    integrate   backward Euler u = (x − x0)/h, or implicit midpoint (solve over h/2, x = 2x½ − x0,
+                u = 2u½ − u0); end frames; |strain| ≤ max_strain; finite; a midpoint step that gained energy is
+                redone by backward Euler
+    commit      the sub-step start state becomes the new state; end-of-sub-step penetration
+
+Failure (non-finite, residual growth > 1e6, bad pivot, |strain| too large, or unconverged when accept_unconverged
+is false) → retry the step with 2, 4, 8, 16 sub-steps, else the env is restored and flagged failed. Penetration
+guard (obstacle scenes): a finite level whose deepest end-of-sub-step penetration exceeds max(max_penetration,
+p0 + max_penetration/4) (p0 = penetration at the step start) is retried with more sub-steps; the finest level is
+accepted however deep, and if that level diverges the least-penetrating finite coarser result is kept. Divergence
+guard (divergence_guard > 0): an accepted unconverged (sub)step whose residual grew by more than divergence_guard
+is retried the same way; both guards share one fallback, scored by max(pen/limit, growth/divergence_guard).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .banded import band_ldl_solve, band_lu_solve
+from .contact_kernels import (
+    contact_accumulate,
+    contact_broadphase,
+    contact_min_gap,
+    contact_refresh,
+    contact_step_limit,
+)
+from .frames import update_frames
+from .solve_2d import KL_2D, assemble_2d, energies_2d
+from .solve_3d import KL_3D, assemble_3d, energies_3d
+from .solve_params import (
+    _OPT,
+    BAD_PIVOT,
+    MIDPOINT_GAINED,
+    NON_FINITE,
+    OK,
+    RESIDUAL_GROWTH,
+    STRAIN,
+    UNCONVERGED,
+    jacobian_symmetric,
+    lazy_line_search,
+    midpoint_gained_energy,
+    newton_dtol,
+)
+
+__all__ = ["newton", "substep", "substep_with", "mech_energy"]
+
+
+# ------------------------------------------------------------------------------------- the mode's element functions
+@njit(inline="always", **_OPT)
+def _assemble(planar, e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
+    """Frames at x, residual w.f and (with_jac) Jacobian w.ab; returns (‖f‖, Es, Eb, Et, Ec)."""
+    if planar:
+        return assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym)
+    return assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym)
+
+
+@njit(inline="always", **_OPT)
+def _energies(planar, xs, d1s, ts, bs, kb, tb, rod, prm, w):
+    """(E_stretch, E_bend, E_twist) [J] of a state with its stored frames."""
+    if planar:
+        return energies_2d(xs, kb, rod, prm, w)
+    return energies_3d(xs, d1s, ts, bs, kb, tb, rod, prm, w)
+
+
+@njit(inline="always", **_OPT)
+def _positions(planar, x, pos, py):
+    """pos (N, 3) = the node positions of DOFs x (2-D: in the plane y = py)."""
+    if planar:
+        for k in range(pos.shape[0]):
+            pos[k, 0] = x[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = x[2 * k + 1]
+    else:
+        for k in range(pos.shape[0]):
+            for a in range(3):
+                pos[k, a] = x[4 * k + a]
+
+
+@njit(inline="always", **_OPT)
+def _predicted_positions(planar, x, u, s, pos, py):
+    """pos (N, 3) = the node positions of x + s·u."""
+    if planar:
+        for k in range(pos.shape[0]):
+            pos[k, 0] = x[2 * k] + s * u[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = x[2 * k + 1] + s * u[2 * k + 1]
+    else:
+        for k in range(pos.shape[0]):
+            for a in range(3):
+                pos[k, a] = x[4 * k + a] + s * u[4 * k + a]
+
+
+@njit(inline="always", **_OPT)
+def _node_motion(planar, dx, out):
+    """out (N, 3) = the node displacements of the update x ← x − dx."""
+    if planar:
+        for k in range(out.shape[0]):
+            out[k, 0] = -dx[2 * k]
+            out[k, 1] = 0.0
+            out[k, 2] = -dx[2 * k + 1]
+    else:
+        for k in range(out.shape[0]):
+            for a in range(3):
+                out[k, a] = -dx[4 * k + a]
+
+
+# ------------------------------------------------------------------------------------------------ Newton's stages
+@njit(inline="always", **_OPT)
+def _predict(x, x0, u, fixed, hs):
+    """Initial guess x = x0 + 0.01·u·hs on free DOFs."""
+    for k in range(x.shape[0]):
+        x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
+
+
+@njit(inline="always", **_OPT)
+def _linear_solve(w, n, kl, sym):
+    """dx = J⁻¹ f (banded, in place in w.dx); False on a bad pivot."""
+    dx = w.dx
+    for k in range(n):
+        dx[k] = w.f[k]
+    return (band_ldl_solve(w.ab, n, kl, dx) if sym else band_lu_solve(w.ab, n, kl, dx)) == 0
+
+
+@njit(inline="always", **_OPT)
+def _limit_update(planar, e, cd, prm, w):
+    """Shorten dx so that no update carries a rod edge through an obstacle (w.pos: the nodes at x)."""
+    _node_motion(planar, w.dx, w.cg)
+    tcap = contact_step_limit(e, cd, w.pos, w.cg, prm.radius, prm.contact_delta)
+    if tcap < 1.0:
+        for k in range(w.x.shape[0]):
+            w.dx[k] *= tcap
+
+
+@njit(**_OPT)
+def _backtrack(planar, e, hs, rp, kb, tb, rod, prm, cd, w, sym):
+    """Lazy line search: the last full update raised ‖f‖ above rp; step back along it (halving) until ‖f‖ ≤ rp
+    or 4 halvings, then re-assemble with the Jacobian. Returns the new ‖f‖."""
+    x, dx = w.x, w.dx
+    alpha = 1.0
+    for trial in range(4):
+        alpha *= 0.5
+        for k in range(x.shape[0]):
+            x[k] += alpha * dx[k]  # x = x_prev - alpha dx
+        rt = _assemble(planar, e, x, hs, kb, tb, rod, prm, cd, w, False, sym)[0]
+        if rt <= rp:
+            break
+    return _assemble(planar, e, x, hs, kb, tb, rod, prm, cd, w, True, sym)[0]
+
+
+@njit(**_OPT)
+def _line_search(planar, e, hs, r, kb, tb, rod, prm, cd, w, sym):
+    """Backtracking line search on ‖f‖: x ← x − α·dx with α = 1, ½, … (5 tries; the last is taken anyway)."""
+    x, xt, dx = w.x, w.xt, w.dx
+    n = x.shape[0]
+    alpha = 1.0
+    for trial in range(5):
+        for k in range(n):
+            xt[k] = x[k] - alpha * dx[k]
+        rt = _assemble(planar, e, xt, hs, kb, tb, rod, prm, cd, w, False, sym)[0]
+        if (np.isfinite(rt) and rt <= r) or trial == 4:
+            break
+        alpha *= 0.5
+    for k in range(n):
+        x[k] = xt[k]
+
+
+@njit(inline="always", **_OPT)
+def _max_position_update(dx, fixed, dpn):
+    """max |dx| over the free position DOFs (not the twist angles)."""
+    dmax = 0.0
+    for k in range(fixed.shape[0]):
+        if not fixed[k] and not (dpn == 4 and (k & 3) == 3):
+            dmax = max(dmax, abs(dx[k]))
+    return dmax
+
+
+@njit(**_OPT)
+def newton(e, hs, kb, tb, rod, prm, cd, w):
+    """Newton iterations of one (sub)step of size hs from the sub-step start (w.sub_*), iterate in w.x.
+
+    Returns (status, iterations, converged, ‖f‖ last, ‖f0‖); status OK (converged, or unconverged at the
+    iteration cap), NON_FINITE, RESIDUAL_GROWTH or BAD_PIVOT."""
+    planar = prm.planar != 0
+    x, dx, fixed = w.x, w.dx, rod.fixed
+    n = x.shape[0]
+    kl = KL_2D if planar else KL_3D
+    dpn = 2 if planar else 4
+    maxit = int(prm.newton_max_iter)
+    tol = prm.newton_tol
+    dtol = newton_dtol(prm, cd, e)
+    sym = jacobian_symmetric(prm)
+    lazy = lazy_line_search(prm, cd, e)
+    limit = prm.step_limit > 0 and prm.n_obstacles > 0 and cd.cand_count[e] > 0
+    _predict(x, w.sub_x, w.sub_v, fixed, hs)
+    r0 = 0.0
+    r = 0.0
+    rp = 0.0
+    conv = False
+    it = 0
+    while it < maxit:
+        r = _assemble(planar, e, x, hs, kb, tb, rod, prm, cd, w, True, sym)[0]
+        if lazy and it > 0 and not r <= rp:
+            r = _backtrack(planar, e, hs, rp, kb, tb, rod, prm, cd, w, sym)
+        if not np.isfinite(r):
+            return NON_FINITE, it, False, r, r0
+        if it == 0:
+            r0 = r
+        elif r > 1e6 * r0:
+            return RESIDUAL_GROWTH, it, False, r, r0
+        if r <= tol * r0 and (it > 0 or r == 0.0):
+            conv = True
+            break
+        rp = r
+        if not _linear_solve(w, n, kl, sym):
+            return BAD_PIVOT, it, False, r, r0
+        if limit:
+            _limit_update(planar, e, cd, prm, w)
+        if prm.line_search == 1:
+            _line_search(planar, e, hs, r, kb, tb, rod, prm, cd, w, sym)
+        else:
+            for k in range(n):
+                x[k] -= dx[k]
+        it += 1
+        dmax = _max_position_update(dx, fixed, dpn)
+        if not np.isfinite(dmax):
+            return NON_FINITE, it, False, r, r0
+        if dmax / hs < dtol:
+            conv = True
+            break
+    return OK, it, conv, r, r0
+
+
+# ------------------------------------------------------------------------------------------------ one (sub)step
+@njit(**_OPT)
+def mech_energy(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, w, pos, pos0, h):
+    """(E_total, E_total − E_gravity) [J] of a state whose frames (d1s, ts, bs) are at xs; contact energy over
+    the current candidates (friction off), ``pos`` the node positions of xs."""
+    es, eb, et = _energies(prm.planar != 0, xs, d1s, ts, bs, kb, tb, rod, prm, w)
+    ek = 0.0
+    eg = 0.0
+    for k in range(xs.shape[0]):
+        if not rod.fixed[k]:
+            ek += 0.5 * rod.mass[k] * us[k] * us[k]
+        eg -= rod.grav[k] * xs[k]
+    ec = 0.0
+    if prm.n_obstacles > 0 and cd.cand_count[e] > 0:
+        ec = contact_accumulate(e, cd, pos, pos0, h, prm.radius, prm.contact_k, prm.contact_delta, prm.friction,
+                                prm.friction_nu, False, w.cg, w.ch)
+    e_in = es + eb + et + ek + ec
+    return e_in + eg, e_in
+
+
+@njit(inline="always", **_OPT)
+def _integrate(w, fixed, h, hs, midpoint):
+    """The new velocity into w.dx (and, for the midpoint rule, the end position into w.x)."""
+    x, x0, u, dx = w.x, w.sub_x, w.sub_v, w.dx
+    if not midpoint:
+        for k in range(x.shape[0]):
+            dx[k] = (x[k] - x0[k]) / h
+    else:
+        for k in range(x.shape[0]):
+            uh = (x[k] - x0[k]) / hs
+            x[k] = 2.0 * x[k] - x0[k]
+            dx[k] = 2.0 * uh - u[k]
+            if fixed[k]:
+                dx[k] = 0.0
+
+
+@njit(inline="always", **_OPT)
+def _strain_ok(pos, rest_len, max_strain):
+    """|edge strain| ≤ max_strain on every edge (node positions pos)."""
+    for j in range(rest_len.shape[0]):
+        ex = pos[j + 1, 0] - pos[j, 0]
+        ey = pos[j + 1, 1] - pos[j, 1]
+        ez = pos[j + 1, 2] - pos[j, 2]
+        if not abs(math.sqrt(ex * ex + ey * ey + ez * ez) / rest_len[j] - 1.0) <= max_strain:
+            return False
+    return True
+
+
+@njit(**_OPT)
+def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
+    """One (sub)step of size h from w.sub_* by implicit midpoint (``midpoint``) or backward Euler; on success
+    w.sub_* hold the new state.
+
+    Returns (status, iterations, converged, ‖f‖ last, ‖f0‖, max penetration [m] at the end of the sub-step,
+    max penetration [m] at its start (only if want_pen0)); penetrations are 0 without contact candidates.
+    Status MIDPOINT_GAINED: a midpoint step gained energy (nothing committed)."""
+    planar = prm.planar != 0
+    py = prm.plane_y
+    contact = prm.n_obstacles > 0
+    x, dx, pos, pos0 = w.x, w.dx, w.pos, w.pos0
+    x0, u = w.sub_x, w.sub_v
+    hs = 0.5 * h if midpoint else h
+    # predict: contact candidates over the predicted motion x0 → x0 + hs·u
+    pen0 = 0.0
+    if contact:
+        _positions(planar, x0, pos0, py)
+        _predicted_positions(planar, x0, u, hs, pos, py)
+        contact_broadphase(e, cd, pos0, pos, prm.contact_margin)
+        if want_pen0 and cd.cand_count[e] > 0:
+            pen0 = -contact_min_gap(e, cd, pos0, prm.radius)
+    # newton
+    st, it, conv, r, r0 = newton(e, hs, kb, tb, rod, prm, cd, w)
+    if st != OK:
+        return st, it, False, r, r0, 0.0, pen0
+    # refresh: the solve can carry the rod onto pairs the predicted-motion list missed (a control change moves it
+    # far from x0 + h u); refresh the list over the motion actually taken and, if it gained pairs, solve again.
+    # Backward Euler ends where the solve ended: the refreshed list then covers the whole sub-step motion.
+    list_covers_step = False
+    if contact:
+        _positions(planar, x, pos, py)
+        list_covers_step = not midpoint
+        if contact_refresh(e, cd, pos0, pos, prm.contact_margin):
+            list_covers_step = False
+            st, it2, conv, r, r0 = newton(e, hs, kb, tb, rod, prm, cd, w)
+            it += it2
+            if st != OK:
+                return st, it, False, r, r0, 0.0, pen0
+    # accept
+    if not conv and prm.accept_unconverged == 0:
+        return UNCONVERGED, it, False, r, r0, 0.0, pen0
+    # integrate; end frames and checks
+    _integrate(w, rod.fixed, h, hs, midpoint)
+    _positions(planar, x, pos, py)
+    if not planar:
+        update_frames(pos, w.sub_d1, w.sub_t, w.sub_beta, w.t, w.d1, w.d2, w.elen, w.beta)
+    if not _strain_ok(pos, rod.rest_len, prm.max_strain):
+        return STRAIN, it, conv, r, r0, 0.0, pen0
+    for k in range(x.shape[0]):
+        if not (np.isfinite(x[k]) and np.isfinite(dx[k])):
+            return NON_FINITE, it, conv, r, r0, 0.0, pen0
+    if midpoint and prm.midpoint_energy_tol > 0:  # energy at the start (frames sub_*) and at the end (t, d1, beta)
+        _positions(planar, x0, pos0, py)
+        e0, s0 = mech_energy(e, x0, u, w.sub_d1, w.sub_t, w.sub_beta, kb, tb, rod, prm, cd, w, pos0, pos0, h)
+        e1, s1 = mech_energy(e, x, dx, w.d1, w.t, w.beta, kb, tb, rod, prm, cd, w, pos, pos0, h)
+        if midpoint_gained_energy(e0, s0, e1, s1, prm.midpoint_energy_tol):
+            return MIDPOINT_GAINED, it, conv, r, r0, 0.0, pen0
+    # commit
+    if not planar:
+        for i in range(w.beta.shape[0]):
+            if not np.isfinite(w.beta[i]):
+                return NON_FINITE, it, conv, r, r0, 0.0, pen0
+        w.sub_d1[:, :] = w.d1
+        w.sub_t[:, :] = w.t
+        w.sub_beta[:] = w.beta
+    x0[:] = x
+    u[:] = dx[:x.shape[0]]
+    pen = 0.0
+    if contact:  # pos: end of sub-step, pos0: its start; the list must cover the whole sub-step motion
+        if not list_covers_step:
+            contact_broadphase(e, cd, pos0, pos, prm.contact_margin)
+        if cd.cand_count[e] > 0:
+            pen = -contact_min_gap(e, cd, pos, prm.radius)
+    return OK, it, conv, r, r0, pen, pen0
+
+
+@njit(**_OPT)
+def substep(e, h, kb, tb, rod, prm, cd, w, want_pen0):
+    """One (sub)step with the scene's integrator; a midpoint step that gains energy (see
+    :func:`sim.solve_params.midpoint_gained_energy`) is redone by backward Euler."""
+    st, it, conv, r, r0, pen, pen0 = substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, prm.midpoint != 0)
+    if st == MIDPOINT_GAINED:
+        st, it2, conv, r, r0, pen, pen0 = substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, False)
+        it += it2
+    return st, it, conv, r, r0, pen, pen0
