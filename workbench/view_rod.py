@@ -141,7 +141,7 @@ class RodView:
         show_c = bool(ov.control_points) and bool(cn) and len(cn) == len(self.control_nodes)
         if show_c:
             self.controls.batched_positions = x[cn]
-            self.controls.batched_scales = np.full(len(cn), 1.45 * r)
+            self.controls.batched_scales = np.full(len(cn), 1.3 * r)
         if self.controls is not None and self.controls.visible != show_c:
             self.controls.visible = show_c
         self._trail(fr, bool(ov.trail))
