@@ -102,6 +102,7 @@ def test_tube_colours_and_no_missing_frames(wb_page):
         assert _reddish(_patch(img, uv[probe], r=3)), "the tube was missing from a frame"
     assert sum(h.visible for h in view.rod.tube.nodes) == 1
     view.overlays.control_points = True
+    app.controls.color_by.value = "curvature"
 
 
 def test_display_toggles(wb_page):

@@ -1,0 +1,76 @@
+"""Real browser: "Follow tip" keeps the page's camera looking at the rod's tip (its distance and direction kept) as
+the tip moves; off again, the camera stays where it is."""
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+
+from tools.browser import canvas_png, expand_folder, newest_client, wait_for
+
+pytestmark = pytest.mark.browser
+
+
+def _centre(png: bytes) -> np.ndarray:
+    from PIL import Image
+
+    img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=int)
+    h, w = img.shape[:2]
+    return img[h // 2 - 2:h // 2 + 3, w // 2 - 2:w // 2 + 3].reshape(-1, 3)
+
+
+def _tip(app) -> np.ndarray:
+    return np.asarray(app.view.last_frame.node_pos[-1], np.float64)
+
+
+def _pause(app) -> None:
+    wb = app.wb
+    wb.set_playing(False)
+    app.controls.set_quiet(app.controls.playing, False)
+    app.request_render()
+    wait_for(lambda: app.view.last_frame.time == pytest.approx(float(np.asarray(wb.live.state.time)[0])),
+             what="the paused frame drawn")
+
+
+def test_follow_tip(wb_page):
+    app, page = wb_page
+    wb, view = app.wb, app.view
+    view.overlays.color_by = "none"  # the rod in its plain orange
+    cam = newest_client(app).camera
+    expand_folder(page, "Display", "top")
+    page.get_by_role("button", name="iso", exact=True).click()
+    wait_for(lambda: view.overlays.follow_tip is False, what="follow off at the start")
+    offset0 = np.asarray(cam.position) - np.asarray(cam.look_at)
+    page.get_by_label("Follow tip").click()
+    wait_for(lambda: view.overlays.follow_tip, what="follow on")
+    try:
+        for k, value in ((2, 1.4), (3, -1.8)):  # move the tip twice
+            wb.set_playing(True)
+            wb.set_teleop_value(k, 0, value)
+            f = wb.frame_index
+            wait_for(lambda f=f: wb.frame_index > f + 40, timeout=60, what="the tip to move")
+            _pause(app)
+            tip = _tip(app)
+            wait_for(lambda tip=tip: np.allclose(cam.look_at, tip, atol=1e-6), what="look-at on the tip")
+            np.testing.assert_allclose(np.asarray(cam.position) - np.asarray(cam.look_at), offset0, atol=1e-6)
+
+            def orange_centre() -> bool:  # the page really looks at the tip: the rod's end is in the middle
+                p = _centre(canvas_png(page))
+                return bool(np.median(p[:, 0] - p[:, 2]) > 60 and np.median(p[:, 0]) > 120)
+
+            wait_for(orange_centre, timeout=30, interval=0.5, what="the tip in the middle of the view")
+        page.get_by_label("Follow tip").click()
+        wait_for(lambda: not view.overlays.follow_tip, what="follow off")
+        look = np.asarray(cam.look_at).copy()
+        wb.set_playing(True)
+        wb.set_teleop_value(2, 0, -1.0)
+        f = wb.frame_index
+        wait_for(lambda: wb.frame_index > f + 40, timeout=60, what="the tip to move again")
+        _pause(app)
+        assert np.linalg.norm(_tip(app) - look) > 1e-3
+        np.testing.assert_allclose(cam.look_at, look, atol=1e-9)  # the camera stayed
+    finally:
+        view.overlays.follow_tip = False
+        view.overlays.color_by = "curvature"
+        app.controls.follow.value = False
