@@ -6,9 +6,11 @@ spheres/capsules, 0 for boxes and meshes); planes act per node with ``g = n.(x_k
 ``E(g) = k softplus(-K1 g)^2 / K1^2`` (K1 = 15/delta, one stable formula); gradient ``E' grad Delta``,
 Hessian ``E'' grad Delta grad Delta^T + E' hess Delta`` over the edge's two nodes (6 DOFs).
 
-Box faces: an edge whose two nodes both lie over the same face of a box acts per node like a plane (weights
-1/2 at nodes shared by two edges, 1 at the rod's ends) instead of through its closest point, which jumps
-between the edge's ends as a rod lying on the face tilts.
+Flat faces: an edge whose two nodes both lie over the same face of a box, or over one flat region of a mesh
+(both nodes' closest mesh points inside triangles, seen along the same direction and in one plane: one face,
+or coplanar triangles), acts per node like a plane (weights 1/2 at nodes shared
+by two edges, 1 at the rod's ends) instead of through its closest point, which jumps between the edge's ends as
+a rod lying on the face tilts.
 
 Ownership (docs/physics.md §4.7 artefact 1): a pair whose closest rod point is the edge's end node is left
 to the next edge; a pair at the start node is skipped when the previous edge of the same obstacle is
@@ -45,6 +47,7 @@ from .geometry_distance import (
     dist_derivs,
     vdot,
     vlerp,
+    vmul,
     vsub,
 )
 from .kinds import BOX, CAPSULE, MESH, PLANE, SPHERE
@@ -305,6 +308,45 @@ def _box_face(cd, e, o, a, b):
 
 
 @njit(cache=True)
+def _mesh_face(cd, e, o, a, b, reach, stack):
+    """The flat mesh region under both end points of segment (a, b): each node's closest mesh point within
+    ``reach`` lies inside a triangle, both are seen along one common unit direction n (obstacle -> node, world
+    frame) and lie in one plane normal to n (one face, or coplanar triangles). Returns (found, n, d_a, d_b) with
+    the nodes' distances [m]."""
+    z = (0.0, 0.0, 0.0)
+    P = (cd.p0[e, o, 0], cd.p0[e, o, 1], cd.p0[e, o, 2])
+    Rm = cd.rot[e, o]
+    al = _to_local(P, Rm, a)
+    bl = _to_local(P, Rm, b)
+    root = cd.mesh_root[o]
+    da, _, fa, qa, _, _, _ = _mesh_closest(al, al, root, cd.node_lo, cd.node_hi, cd.node_child, cd.node_range,
+                                           cd.tri, reach, stack)
+    if not (0.0 < da < reach and fa == 2):  # fa == 2: the closest point is inside a triangle
+        return False, z, 0.0, 0.0
+    db, _, fb, qb, _, _, _ = _mesh_closest(bl, bl, root, cd.node_lo, cd.node_hi, cd.node_child, cd.node_range,
+                                           cd.tri, reach, stack)
+    if not (0.0 < db < reach and fb == 2):
+        return False, z, 0.0, 0.0
+    ua = vmul(1.0 / da, vsub(al, qa))
+    ub = vmul(1.0 / db, vsub(bl, qb))
+    if vdot(ua, ub) < 1.0 - 1e-9 or abs(vdot(ua, vsub(qb, qa))) > 1e-9:
+        return False, z, 0.0, 0.0
+    return True, _rot(Rm, ua), da, db
+
+
+@njit(cache=True)
+def _flat_face(cd, e, o, a, b, reach, stack):
+    """(found, unit normal n (world), d_a, d_b): the box face or flat mesh region under both nodes of the edge
+    (a, b) and the nodes' distances to it [m]; see :func:`_box_face`, :func:`_mesh_face`."""
+    if cd.kind[o] == BOX:
+        fi, sg, da, db = _box_face(cd, e, o, a, b)
+        if fi < 0:
+            return False, (0.0, 0.0, 0.0), 0.0, 0.0
+        return True, (sg * cd.rot[e, o, 0, fi], sg * cd.rot[e, o, 1, fi], sg * cd.rot[e, o, 2, fi]), da, db
+    return _mesh_face(cd, e, o, a, b, reach, stack)
+
+
+@njit(cache=True)
 def _row3(x, k):
     return (x[k, 0], x[k, 1], x[k, 2])
 
@@ -394,13 +436,12 @@ def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemb
             continue
         a = _row3(x, j)
         b = _row3(x, j + 1)
-        if kind[o] == BOX:
-            fi, sg, da, db = _box_face(cd, e, o, a, b)
-            if fi >= 0:
-                # both nodes over one face: the segment's closest point would jump between its ends as the edge
-                # tilts; act per node instead, like a plane (weight 1/2 at a node shared with the next or
+        if kind[o] == BOX or kind[o] == MESH:
+            face, n, da, db = _flat_face(cd, e, o, a, b, r + delta, stack)
+            if face:
+                # both nodes over one flat face: the segment's closest point would jump between its ends as the
+                # edge tilts; act per node instead, like a plane (weight 1/2 at a node shared with the next or
                 # previous edge, 1 at the rod's ends), which is smooth as the rod slides across the face
-                n = (sg * rot[e, o, 0, fi], sg * rot[e, o, 1, fi], sg * rot[e, o, 2, fi])
                 prev_j = j
                 prev_o = o
                 prev_gap = db - r
