@@ -333,7 +333,8 @@ class Workbench:
                     "task": self.policy.task if self.policy is not None else "",
                     "scene": str(self.scene_path or ""), "source": "workbench"}
             self.recorder = SessionRecorder(path, meta=meta, obstacles=lambda: self.obstacles,
-                                            rod_radius=self.live.rod_radius)
+                                            rod_radius=self.live.rod_radius,
+                                            planar=getattr(self.live.model, "mode", "3d") == "2d")
             return self.recorder.path
 
     def stop_recording(self) -> Path | None:

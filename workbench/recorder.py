@@ -58,9 +58,10 @@ class SessionRecorder:
         path: output .rrd (default recordings/workbench-<UTC time>.rrd).
         meta: episode metadata (task, policy, scene, ...).
         obstacles: callable returning the current obstacle list (for each episode's static scene).
+        planar: a 2-D rod (the episode is marked planar and its one in-plane natural curvature is logged).
     """
 
-    def __init__(self, path: str | Path, *, meta: dict, obstacles, rod_radius: float):
+    def __init__(self, path: str | Path, *, meta: dict, obstacles, rod_radius: float, planar: bool = False):
         from policies.recording import Recorder
 
         self.path = Path(path)
@@ -68,6 +69,7 @@ class SessionRecorder:
         self.meta = dict(meta)
         self._obstacles = obstacles
         self.rod_radius = rod_radius
+        self.planar = bool(planar)
         self.frames = 0
         self._t_last = -np.inf
         self._step = 0
@@ -87,7 +89,8 @@ class SessionRecorder:
         if self._open and fr.time < self._t_last:
             self.new_episode()
         if not self._open:
-            self.rec.begin_episode(self.meta, static_scene(self._obstacles(), self.rod_radius))
+            self.rec.begin_episode(self.meta, static_scene(self._obstacles(), self.rod_radius,
+                                                             planar=self.planar))
             self._open = True
             self._step = 0
         kw = {}
@@ -96,6 +99,8 @@ class SessionRecorder:
         if fr.contact_normals is not None and fr.contact_normal_force is not None and len(fr.contact_points):
             kw.update(contact_points=fr.contact_points, contact_normals=fr.contact_normals,
                       contact_normal_force=fr.contact_normal_force)
+        if fr.kappa_bar is not None:  # the commanded (natural) curvature: replays plot it against the actual
+            kw["kappa_bar"] = fr.kappa_bar[:, :1] if self.planar else fr.kappa_bar
         if len(fr.targets):
             kw["target_pos"] = fr.targets[0]
         scalars = {}

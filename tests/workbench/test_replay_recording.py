@@ -33,6 +33,10 @@ def test_recorded_session_replays_the_same_rod(tmp_path):
     # the recorded newton iterations come back as a plot series
     t, v = s.series("solver/newton_iters")
     assert len(t) == len(tips) and np.all(v >= 1)
+    # the commanded natural curvature is recorded (the curvature plot shows it against the actual)
+    kb = np.asarray(s.ep.kappa_bar[-1], np.float64)
+    np.testing.assert_allclose(kb, wb.live.ctrl.kappa_bar[0], atol=1e-6)
+    assert np.abs(kb).max() > 0.0
 
 
 def test_rewind_while_recording_starts_a_new_episode(tmp_path):
