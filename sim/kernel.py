@@ -134,9 +134,10 @@ def _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
                                 prm.friction_nu, prm.friction_on > 0, w.cg, w.ch)
     ek = 0.0
     eg = 0.0
+    grav = rod.grav[min(e, rod.grav.shape[0] - 1)]  # external forces: (1, n) shared or (B, n) per env
     for k in range(xs.shape[0]):
         ek += 0.5 * rod.mass[k] * us[k] * us[k] * (0.0 if rod.fixed[k] else 1.0)
-        eg -= rod.grav[k] * xs[k]
+        eg -= grav[k] * xs[k]
     out.energy_stretch[e] = es
     out.energy_bend[e] = eb
     out.energy_twist[e] = et

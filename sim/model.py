@@ -7,11 +7,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
+from .boundary import fixed_dofs, load_arrays, motion_arrays
 from .curvature import material_curvature
 from .frames import initial_reference_frames
 from .obstacles import ObstacleSet
@@ -66,6 +67,12 @@ class Model:
     plane_y: float                   # 2-D: the y of the motion plane [m]
     locked_edges: tuple[int, ...]
     obstacles: ObstacleSet
+    # point loads and prescribed motion (sim.boundary, docs/physics.md §3.1, §3.6): per load / moving fix, its
+    # per-DOF force [N, N m] or rate [m/s, rad/s] (K, ndof) and its time window [start, stop) (K, 2) [s]
+    load_force: np.ndarray = field(default_factory=lambda: _ro(np.zeros((0, 0))))
+    load_window: np.ndarray = field(default_factory=lambda: _ro(np.zeros((0, 2))))
+    motion_rate: np.ndarray = field(default_factory=lambda: _ro(np.zeros((0, 0))))
+    motion_window: np.ndarray = field(default_factory=lambda: _ro(np.zeros((0, 2))))
 
     @property
     def edge_count(self) -> int:
@@ -141,7 +148,9 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
             fixed[j, :] = True
             fixed[j + 1, :] = True
         grav = mass[:, None] * g[None, [0, 2]]
-    del ndn
+    fixed_dofs(spec, fixed)
+    lf, lw = load_arrays(spec, N, ndn)
+    mr, mw = motion_arrays(spec, N, ndn)
     return Model(
         spec=spec, mode=sim.mode, node_count=N, dt=sim.dt, gravity=_ro(g), damping=sim.damping,
         integrator=sim.integrator, line_search=sim.line_search, newton_tol=sim.newton_tol,
@@ -152,5 +161,6 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         rest_kappa_bar=_ro(kbar), rest_tau_bar=_ro(np.zeros(N)), dof_mass=_ro(dmass.ravel()),
         dof_fixed=_ro(fixed.ravel()), dof_gravity=_ro(grav.ravel()), planar_component=pc, planar_sign=ps,
         plane_y=float(rod.start[1]), locked_edges=tuple(sorted(locked)),
-        obstacles=ObstacleSet.from_specs(spec.obstacles),
+        obstacles=ObstacleSet.from_specs(spec.obstacles), load_force=_ro(lf), load_window=_ro(lw),
+        motion_rate=_ro(mr), motion_window=_ro(mw),
     )

@@ -256,10 +256,11 @@ def mech_energy(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, w, pos, pos0, h):
     es, eb, et = _energies(prm.planar != 0, xs, d1s, ts, bs, kb, tb, rod, prm, w)
     ek = 0.0
     eg = 0.0
+    grav = rod.grav[min(e, rod.grav.shape[0] - 1)]  # external forces: (1, n) shared or (B, n) per env
     for k in range(xs.shape[0]):
         if not rod.fixed[k]:
             ek += 0.5 * rod.mass[k] * us[k] * us[k]
-        eg -= rod.grav[k] * xs[k]
+        eg -= grav[k] * xs[k]
     ec = 0.0
     if prm.n_obstacles > 0 and cd.cand_count[e] > 0:
         ec = contact_accumulate(e, cd, pos, pos0, h, prm.radius, prm.contact_k, prm.contact_delta, prm.friction,

@@ -15,6 +15,7 @@ Keys (SI units)::
            start [m] (3-vector), direction (3-vector, normalised here), clamp ("first_edge"|"none",
            default "first_edge")
     [[obstacle]], [contact]   parsed by ``sim.obstacles`` (see there)
+    [[load]], [[fix]]         point loads, constrained nodes/edges and prescribed motion: ``sim.boundary``
 """
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from . import boundary as _bc
 from . import obstacles as _obs
 from .tomlio import (
     SceneError,
@@ -86,6 +88,8 @@ class SceneSpec:
     obstacles: tuple = ()
     contact: Any = field(default_factory=_obs.ContactSpec)
     path: str | None = None
+    loads: tuple = ()   # of sim.boundary.LoadSpec
+    fixes: tuple = ()   # of sim.boundary.FixSpec
 
 
 _SIM_KEYS = {"dt", "gravity", "damping", "newton_tol", "newton_max_iter", "accept_unconverged", "mode",
@@ -109,8 +113,8 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
     """Validate a parsed TOML document into a SceneSpec (raises SceneError naming file/key/problem)."""
     where = path or "<scene>"
     for k in doc:
-        if k not in ("sim", "rod", "obstacle", "contact"):
-            raise SceneError(f"{where}: {k}: unknown table (allowed: sim, rod, obstacle, contact)")
+        if k not in ("sim", "rod", "obstacle", "contact", "load", "fix"):
+            raise SceneError(f"{where}: {k}: unknown table (allowed: sim, rod, obstacle, contact, load, fix)")
     s = _table(doc, "sim", path)
     r = _table(doc, "rod", path)
     assert s is not None and r is not None
@@ -163,7 +167,8 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
         raise SceneError(f"{where}: obstacle: expected an array of tables [[obstacle]]")
     obstacles = _obs.parse_obstacles(obs_tables, path)
     contact = _obs.parse_contact(_table(doc, "contact", path, required=False), path)
-    spec = SceneSpec(sim=sim, rod=rod, obstacles=tuple(obstacles), contact=contact, path=path)
+    spec = SceneSpec(sim=sim, rod=rod, obstacles=tuple(obstacles), contact=contact, path=path,
+                     loads=_bc.parse_loads(doc.get("load", []), path), fixes=_bc.parse_fixes(doc.get("fix", []), path))
     check_scene(spec, where)  # every number finite and within the physical bounds (sim/validate.py)
     return spec
 
@@ -205,6 +210,9 @@ def scene_to_toml(spec: SceneSpec, *, base_dir: str | os.PathLike | None = None)
     if extra:
         lines += [""] + list(extra)
     lines += [""] + list(_obs.dump_contact(spec.contact))
+    for extra in (_bc.dump_fixes(spec.fixes), _bc.dump_loads(spec.loads)):
+        if extra:
+            lines += [""] + extra
     return "\n".join(lines) + "\n"
 
 

@@ -26,7 +26,8 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
     unused). Returns (‖f‖, Es, Eb, 0, Ec)."""
     x0, u, f, ab = w.sub_x, w.sub_v, w.f, w.ab
     g4, H4, g6, H6 = w.g4, w.H4, w.g6, w.H6
-    rest_len, vor_len, mass, fixed, grav = rod.rest_len, rod.vor_len, rod.mass, rod.fixed, rod.grav
+    rest_len, vor_len, mass, fixed = rod.rest_len, rod.vor_len, rod.mass, rod.fixed
+    grav = rod.grav[min(e, rod.grav.shape[0] - 1)]  # external forces of env e (RodData)
     n = x.shape[0]
     N = n // 2
     kl = KL_2D

@@ -30,7 +30,8 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
     x0, u, f, ab, pos = w.sub_x, w.sub_v, w.f, w.ab, w.pos
     t, d1, d2, beta = w.t, w.d1, w.d2, w.beta
     g6, H6, g11, H11, mf = w.g6, w.H6, w.g11, w.H11, w.mf
-    rest_len, vor_len, mass, fixed, grav = rod.rest_len, rod.vor_len, rod.mass, rod.fixed, rod.grav
+    rest_len, vor_len, mass, fixed = rod.rest_len, rod.vor_len, rod.mass, rod.fixed
+    grav = rod.grav[min(e, rod.grav.shape[0] - 1)]  # external forces of env e (RodData)
     n = x.shape[0]
     N = n // 4
     kl = KL_3D

@@ -51,7 +51,8 @@ StepOutput = namedtuple("StepOutput", [
     "energy_gravity", "newton_iters", "substeps", "converged", "failed",
 ])
 # the rod's constant per-edge / per-node / per-DOF arrays (docs/physics.md §1.2): rest edge lengths (N-1,),
-# Voronoi lengths (N,), DOF masses, fixed-DOF flags and gravity forces (n,) of one env
+# Voronoi lengths (N,), DOF masses, fixed-DOF flags (n,) of one env, and the external forces grav (gravity plus
+# point loads): (1, n) shared by all envs, or (B, n) per env when time-windowed loads act (row min(e, rows - 1))
 RodData = namedtuple("RodData", ["rest_len", "vor_len", "mass", "fixed", "grav"])
 # the batched state the kernel advances in place (leading axis B): DOFs and their velocities (B, n), the stored
 # reference frames (B, N-1, 3) and reference twist (B, N), time (B,), failed flags (B,)

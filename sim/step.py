@@ -9,6 +9,7 @@ import numpy as np
 
 from . import solve as _solve
 from . import validate as _validate
+from .boundary import window_fraction
 from .contact_set import contact_data, contact_scratch
 from .model import Model
 from .state import Control, State, StepStats
@@ -53,7 +54,11 @@ class Simulator:
         self._prm = _solve.params_record(prm)  # one float64 record (passed by reference in the kernels)
         self._rod = _solve.RodData(rest_len=np.array(m.rest_edge_length), vor_len=np.array(m.voronoi_length),
                                    mass=np.array(m.dof_mass), fixed=np.array(m.dof_fixed),
-                                   grav=np.array(m.dof_gravity))
+                                   grav=np.array(m.dof_gravity)[None, :])
+        # point loads (sim.boundary): per-env external forces only when a scene has loads; prescribed motion
+        self._loads = m.load_force.shape[0] > 0
+        self._motion = m.motion_rate.shape[0] > 0
+        self._moving_dofs = np.flatnonzero(np.any(m.motion_rate != 0.0, axis=0)) if self._motion else None
         # work space of the contact kernels (candidate lists); the poses themselves are in State.obstacles
         self._scratch = contact_scratch(B, m.node_count, m.obstacles.count, m.radius)
         self._no_obstacles = m.obstacles.for_envs(B) if m.obstacles.count == 0 else None
@@ -145,14 +150,38 @@ class Simulator:
         """Advance every non-failed env of ``state`` by ``model.dt`` (in place) under ``ctrl``."""
         self._check(state, ctrl)
         obstacles = self._no_obstacles if state.obstacles is None else state.obstacles
+        rod = self._rod
+        if self._loads:
+            rod = rod._replace(grav=self._external_forces(state.time))
+        moved = self._prescribe(state) if self._motion else None
         _solve.step_kernel(
             _solve.StateArrays(dof=state.dof.reshape(self.envs, -1), vel=state.dof_vel.reshape(self.envs, -1),
                                ref_d1=state.edge_ref_d1, tangent=state.edge_tangent, ref_twist=state.node_ref_twist,
                                time=state.time, failed=state.failed),
             _solve.ControlArrays(kappa_bar=np.ascontiguousarray(ctrl.kappa_bar, dtype=np.float64),
                                  tau_bar=np.ascontiguousarray(ctrl.tau_bar, dtype=np.float64)),
-            self._rod, self._prm, contact_data(obstacles, self._scratch), self._crep, self._out)
+            rod, self._prm, contact_data(obstacles, self._scratch), self._crep, self._out)
+        if moved is not None:  # the moved DOFs' velocities: their prescribed rates over the step
+            ok = ~state.failed
+            vel = state.dof_vel.reshape(self.envs, -1)
+            sel = self._moving_dofs
+            vel[np.ix_(ok, sel)] = moved[np.ix_(ok, sel)] / self.model.dt
         return self._checked_stats(state)
+
+    def _external_forces(self, time: np.ndarray) -> np.ndarray:
+        """(B, n) gravity plus the point loads, each weighted by the fraction of the env's step in its window."""
+        m = self.model
+        frac = window_fraction(time, m.dt, m.load_window)
+        return np.ascontiguousarray(self._rod.grav + frac @ m.load_force)
+
+    def _prescribe(self, state: State) -> np.ndarray:
+        """Move the prescribed DOFs of every non-failed env to their values at the step end (the kernel keeps
+        constrained DOFs where the State holds them); returns the (B, n) displacement."""
+        m = self.model
+        disp = (window_fraction(state.time, m.dt, m.motion_window) * m.dt) @ m.motion_rate
+        disp[state.failed] = 0.0
+        state.dof.reshape(self.envs, -1)[...] += disp
+        return disp
 
     def _checked_stats(self, state: State) -> StepStats:
         stats = self._stats()

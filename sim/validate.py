@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from .boundary import check_boundary
 from .tomlio import SceneError
 
 __all__ = ["BOUNDS", "check_scene", "check_step_inputs", "quarantine_nonfinite", "env_mask", "unit_vector",
@@ -40,6 +41,12 @@ BOUNDS: dict[str, tuple[float, float, str]] = {
     "rod.density": (1e-3, 1e6, "kg/m^3"),
     "rod.youngs_modulus": (1.0, 1e13, "Pa"),
     "rod.start": (-1e6, 1e6, "m"),
+    "load.force": (-1e9, 1e9, "N"),
+    "load.torque": (-1e9, 1e9, "N m"),
+    "load.start": (0.0, 1e9, "s"),
+    "fix.velocity": (-1e3, 1e3, "m/s"),
+    "fix.twist_rate": (-1e4, 1e4, "rad/s"),
+    "fix.start": (0.0, 1e9, "s"),
     "obstacle.coordinates": (-1e6, 1e6, "m"),
     "obstacle.radius": (1e-6, 1e4, "m"),
     "obstacle.half_extents": (1e-6, 1e4, "m"),
@@ -165,6 +172,7 @@ def check_scene(spec: Any, where: str | None = None) -> None:
     for i, ob in enumerate(getattr(spec, "obstacles", ()) or ()):
         _check_obstacle(c, i, ob)
     _check_contact(c, spec.contact)
+    check_boundary(c, spec)
 
 
 def _check_obstacle(c: _Checker, i: int, ob: Any) -> None:

@@ -1,0 +1,164 @@
+"""[[load]] and [[fix]] tables (sim.boundary): parsing, errors naming the key, dump round trip, constrained DOFs,
+per-env load windows and prescribed motion through the Simulator."""
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+
+import numpy as np
+import pytest
+
+from sim import Simulator, build_model, dump_scene, load_scene, parse_scene
+from sim.boundary import FixSpec, LoadSpec
+from sim.scene import SceneError, scene_to_toml
+from tests.unit._rodspec import make_spec
+
+BASE = """
+[sim]
+dt = 0.01
+gravity = [0.0, 0.0, 0.0]
+newton_tol = 1e-8
+newton_max_iter = 30
+accept_unconverged = false
+[rod]
+nodes = 11
+length = 1.0
+radius = 0.02
+density = 1000.0
+youngs_modulus = 1e6
+poisson_ratio = 0.5
+start = [0.0, 0.0, 0.0]
+direction = [1.0, 0.0, 0.0]
+clamp = "none"
+"""
+
+
+def _scene(extra: str):
+    return parse_scene(tomllib.loads(BASE + extra), "s.toml")
+
+
+def test_load_and_fix_tables_parse_and_constrain_dofs():
+    spec = _scene("""
+[[fix]]
+nodes = [0, -1]
+axes = "xz"
+twist_edges = [0]
+[[load]]
+node = -1
+force = [0.0, 0.0, -2.0]
+torque = 0.5
+start = 0.1
+stop = 0.3
+""")
+    assert spec.fixes == (FixSpec(nodes=(0, -1), axes="xz", twist_edges=(0,)),)
+    assert spec.loads == (LoadSpec(node=-1, force=(0.0, 0.0, -2.0), torque=0.5, start=0.1, stop=0.3),)
+    m = build_model(spec)
+    fixed = m.dof_fixed.reshape(11, 4)
+    assert fixed[0].tolist() == [True, False, True, True] and fixed[10].tolist() == [True, False, True, True]
+    assert not fixed[1:10, :3].any()
+    F = m.load_force.reshape(1, 11, 4)
+    assert F[0, 10, 2] == -2.0 and F[0, 9, 3] == 0.5 and np.count_nonzero(F) == 2  # torque on the last edge
+    assert m.load_window.tolist() == [[0.1, 0.3]]
+
+
+@pytest.mark.parametrize("extra, key", [
+    ("[[load]]\nnode = 11\nforce = [1.0, 0.0, 0.0]\n", "load[0].node"),
+    ("[[load]]\nnode = 0\nforce = [1.0, 0.0]\n", "load[0].force"),
+    ("[[load]]\nnode = 0\nforce = [1e12, 0.0, 0.0]\n", "load[0].force"),
+    ("[[load]]\nnode = 0\nstart = 1.0\nstop = 0.5\n", "load[0].stop"),
+    ("[[load]]\nnode = 0\nrod = \"arm\"\n", "load[0].rod"),
+    ("[[load]]\nnode = 0\nforse = [1.0, 0.0, 0.0]\n", "load[0].forse"),
+    ("[[fix]]\nnodes = [0]\naxes = \"xw\"\n", "fix[0].axes"),
+    ("[[fix]]\nnodes = [-12]\n", "fix[0].nodes"),
+    ("[[fix]]\nnodes = [0.5]\n", "fix[0].nodes"),
+    ("[[fix]]\ntwist_edges = [10]\n", "fix[0].twist_edges"),
+    ("[[fix]]\nnodes = [0]\naxes = \"x\"\nvelocity = [0.0, 1.0, 0.0]\n", "fix[0].velocity"),
+    ("[[fix]]\nnodes = [0]\ntwist_rate = 1.0\n", "fix[0].twist_rate"),
+    ("[[fix]]\naxes = \"x\"\n", "fix[0].nodes"),
+    ("[fix]\nnodes = [0]\n", "fix"),
+])
+def test_bad_boundary_input_names_the_key(extra, key):
+    with pytest.raises(SceneError) as ei:
+        _scene(extra)
+    assert f"s.toml: {key}" in str(ei.value)
+
+
+def test_planar_scene_rejects_twist_keys():
+    assert _scene("[[load]]\nnode = 0\ntorque = 1.0\n").loads[0].torque == 1.0  # 3-D: fine
+    with pytest.raises(SceneError, match="load\\[0\\].torque"):
+        parse_scene(tomllib.loads(BASE.replace("dt = 0.01", "dt = 0.01\nmode = \"2d\"")
+                                  + "[[load]]\nnode = 0\ntorque = 1.0\n"), "s.toml")
+    with pytest.raises(SceneError, match="fix\\[0\\].twist_edges"):
+        parse_scene(tomllib.loads(BASE.replace("dt = 0.01", "dt = 0.01\nmode = \"2d\"")
+                                  + "[[fix]]\ntwist_edges = [0]\n"), "s.toml")
+
+
+def test_boundary_tables_round_trip(tmp_path):
+    spec = _scene("""
+[[fix]]
+rod = "rod"
+nodes = [0, 1]
+velocity = [0.0, 0.0, 0.25]
+start = 0.5
+stop = 1.5
+[[fix]]
+twist_edges = [-1]
+twist_rate = 2.0
+[[load]]
+node = 5
+force = [0.0, 1.0, 0.0]
+""")
+    out = tmp_path / "b.toml"
+    dump_scene(spec, out)
+    back = load_scene(out)
+    assert back.fixes == spec.fixes and back.loads == spec.loads
+    assert scene_to_toml(back) == out.read_text()
+
+
+def test_api_specs_are_checked_by_build_model():
+    spec = dataclasses.replace(make_spec(), loads=(LoadSpec(node=40),))
+    with pytest.raises(SceneError, match="load\\[0\\].node"):
+        build_model(spec)
+
+
+def test_load_window_acts_per_env():
+    """Two envs at different times: the load acts only in the env whose step lies in its window; a step that
+    straddles the window's end gets the force weighted by the fraction inside."""
+    spec = dataclasses.replace(make_spec(clamp="none", dt=0.01),
+                               loads=(LoadSpec(node=5, force=(0.0, 0.0, 3.0), start=1.0, stop=1.005),))
+    sim = Simulator(build_model(spec), envs=3)
+    state, ctrl = sim.reset(), sim.make_control()
+    state.time[:] = [0.0, 1.0, 0.5]
+    sim.step(state, ctrl)
+    m = sim.model
+    # momentum: Σ m v_z = F · (fraction of the step in the window) · dt
+    p = (state.dof_vel[:, :, 2] * m.node_mass[None, :]).sum(axis=1)
+    assert abs(p[0]) < 1e-12 and abs(p[2]) < 1e-12
+    assert p[1] == pytest.approx(3.0 * 0.5 * 0.01, rel=1e-8)
+
+
+def test_prescribed_motion_and_twist_rate():
+    """Fixed nodes follow velocity × (time in window) exactly, with that velocity; a fixed edge twists at its
+    rate; the window closes at stop."""
+    spec = dataclasses.replace(
+        make_spec(clamp="none", dt=0.01, damping=5.0),
+        fixes=(FixSpec(nodes=(0, 1), velocity=(0.0, 0.0, 0.2), stop=0.105),
+               FixSpec(twist_edges=(0,), twist_rate=3.0, stop=0.105)))
+    sim = Simulator(build_model(spec), envs=2)
+    state, ctrl = sim.reset(), sim.make_control()
+    state.time[1] = 0.05  # the second env starts later in the window: it moves less
+    x0 = state.dof[:, :2, :3].copy()
+    for k in range(8):
+        sim.step(state, ctrl)
+        assert not state.failed.any()
+        t = state.time
+        moved = 0.2 * np.clip(np.minimum(t, 0.105) - np.array([0.0, 0.05]), 0, None)
+        assert np.allclose(state.dof[:, :2, 2] - x0[:, :, 2], moved[:, None], atol=1e-14)
+        assert np.allclose(state.dof[:, :2, :2], x0[:, :, :2], atol=0)
+        frac = np.clip((np.minimum(t, 0.105) - np.maximum(t - 0.01, [0.0, 0.05])) / 0.01, 0.0, 1.0)
+        assert np.allclose(state.dof_vel[:, :2, 2], 0.2 * frac[:, None], atol=1e-12)
+        assert np.allclose(state.dof[:, 0, 3], moved / 0.2 * 3.0, atol=1e-12)
+    for _ in range(4):
+        sim.step(state, ctrl)
+    assert np.allclose(state.dof[:, 0, 2], 0.2 * np.array([0.105, 0.055]), atol=1e-14)
+    assert np.allclose(state.dof_vel[:, :2, 2], 0.0, atol=1e-14)

@@ -1,0 +1,120 @@
+"""Point loads and boundary conditions against beam theory (docs/physics.md §3.1, §3.6, §8D): tip-loaded cantilever (linear
+F L³/3EI and the large-deflection elastica, with convergence in N), pinned-pinned beam under a midspan load, and a
+clamp carried by prescribed motion."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_bvp
+
+from sim import Simulator, build_model
+from sim.boundary import FixSpec, LoadSpec
+from tests.unit._rodspec import make_spec
+from tests.verification._util import static_solve
+
+E, R = 1e7, 0.02
+
+
+def _cantilever(N, F, steps=3, **kw):
+    spec = make_spec(nodes=N, length=1.0, radius=R, E=E, dt=1e4, dtol=1e-14, max_iter=100, **kw)
+    spec = dataclasses.replace(spec, loads=(LoadSpec(node=-1, force=(0.0, 0.0, -F)),))
+    sim, state, stats = static_solve(spec, steps=steps)
+    assert stats.converged.all()
+    p = state.node_pos[0]
+    return sim.model, p[-1] - 0.5 * (p[0] + p[1])  # from the effective built-in end (middle of the clamped edge)
+
+
+def test_tip_loaded_cantilever_small_load_converges_to_FL3_over_3EI():
+    """δ = F L³/(3 EI) is reached as N grows (the clamp's effective end is the middle of edge 0, so the error
+    against the textbook length halves with each doubling of N); with the free length L' = L − l̄/2 the discrete
+    rod matches beam theory at every N."""
+    F = 1e-3
+    errs = []
+    for N in (11, 21, 41):
+        m, tip = _cantilever(N, F)
+        EI = m.EI1
+        d_free = F * (1.0 - 0.5 * m.rest_edge_length[0]) ** 3 / (3 * EI)
+        assert abs(-tip[2] - d_free) < 5e-3 * d_free, (N, tip, d_free)
+        errs.append(abs(-tip[2] - F / (3 * EI)) / (F / (3 * EI)))
+    assert errs[0] > errs[1] > errs[2]
+    assert 1.7 < errs[0] / errs[1] < 2.3 and 1.7 < errs[1] / errs[2] < 2.3, errs
+
+
+def _elastica_tip(alpha, Lf):
+    """Cantilever of length Lf with a dead vertical tip load P: EI θ'' + P cos θ = 0, θ(0) = 0, θ'(Lf) = 0
+    (θ: downward tangent angle), alpha = P/EI. Returns (x_tip, z_tip) from the clamp."""
+    s = np.linspace(0, Lf, 401)
+
+    def rhs(s, y):
+        return np.vstack([y[1], -alpha * np.cos(y[0]), np.cos(y[0]), -np.sin(y[0])])
+
+    def bc(ya, yb):
+        return np.array([ya[0], yb[1], ya[2], ya[3]])
+
+    y0 = np.zeros((4, s.size))
+    y0[2] = s
+    sol = solve_bvp(rhs, bc, s, y0, tol=1e-10, max_nodes=100000)
+    assert sol.success
+    return sol.y[2, -1], sol.y[3, -1]
+
+
+def test_tip_loaded_cantilever_large_load_vs_elastica():
+    """P L²/EI = 3: the tip drops by more than half the length; the discrete rod approaches the elastica as N
+    doubles (reference by shooting the elastica BVP with scipy)."""
+    errs = []
+    for N in (21, 41):
+        EI = E * np.pi * R ** 4 / 4
+        P = 3.0 * EI
+        m, tip = _cantilever(N, P, steps=8, line_search="backtrack")
+        Lf = 1.0 - 0.5 * m.rest_edge_length[0]
+        xt, zt = _elastica_tip(P / m.EI1, Lf)
+        assert zt < -0.5 * Lf
+        errs.append(float(np.hypot(tip[0] - xt, tip[2] - zt)))
+        assert abs(tip[1]) < 1e-12
+    assert errs[1] < errs[0] and errs[1] < 3e-3, errs
+
+
+@pytest.mark.parametrize("mode", ["2d", "3d"])
+def test_pinned_pinned_beam_midspan_load(mode):
+    """Ends pinned by axes only (node 0 fixed in x, y, z; the last node in y, z: a roller), no clamp: the
+    midspan deflection is F L³/(48 EI). In 3-D the twist of edge 0 is fixed (else spinning the rod about its
+    own axis costs nothing)."""
+    N, F = 21, 1e-3
+    spec = make_spec(nodes=N, length=1.0, radius=R, E=E, dt=1e4, dtol=1e-14, max_iter=100, clamp="none", mode=mode)
+    spec = dataclasses.replace(
+        spec, loads=(LoadSpec(node=N // 2, force=(0.0, 0.0, -F)),),
+        fixes=(FixSpec(nodes=(0,), axes="xyz", twist_edges=(0,) if mode == "3d" else ()),
+               FixSpec(nodes=(-1,), axes="yz")))
+    sim, state, stats = static_solve(spec, steps=3)
+    assert stats.converged.all()
+    p = state.node_pos[0]
+    expect = F / (48 * sim.model.EI1)
+    assert abs(-p[N // 2, 2] - expect) < 5e-3 * expect, (p[N // 2], expect)
+    assert p[-1, 0] < 1.0  # the roller end slides in
+    assert np.allclose(p[[0, -1], 2], 0.0, atol=1e-15)
+    # the pinned ends turn freely: end slope F L²/(16 EI) (the clamp would hold them level)
+    slope = (p[1, 2] - p[0, 2]) / (p[1, 0] - p[0, 0])
+    assert abs(-slope - F / (16 * sim.model.EI1)) < 0.02 * F / (16 * sim.model.EI1)
+
+
+def test_moving_clamp_carries_the_rod():
+    """A clamped rod under gravity whose clamp (nodes 0, 1) is carried 0.1 m up and 0.05 m along y by prescribed
+    motion, then relaxed: the equilibrium is the one of the fixed clamp, shifted by the prescribed displacement."""
+    base = make_spec(nodes=11, E=E, radius=R, gravity=(0.0, 0.0, -9.8), dt=0.01, damping=2.0, dtol=1e-12,
+                     max_iter=100)
+    move = FixSpec(nodes=(0, 1), velocity=(0.0, 0.5, 1.0), stop=0.1)
+    moving = dataclasses.replace(base, fixes=(move,))
+    sim = Simulator(build_model(moving), envs=1)
+    state, ctrl = sim.reset(), sim.make_control()
+    for _ in range(15):
+        sim.step(state, ctrl)
+        assert not state.failed.any()
+    assert np.allclose(state.node_pos[0, :2] - sim.model.rest_node_pos[:2], [0.0, 0.05, 0.1], atol=1e-14)
+    # relax both with large steps (the motion's window is over; the same fix stays a plain clamp)
+    relax = Simulator(build_model(dataclasses.replace(moving, sim=dataclasses.replace(base.sim, dt=1e4))), envs=1)
+    for _ in range(4):
+        relax.step(state, ctrl)
+    ref = static_solve(dataclasses.replace(base, sim=dataclasses.replace(base.sim, dt=1e4)), steps=4)[1]
+    assert np.allclose(state.node_pos[0], ref.node_pos[0] + [0.0, 0.05, 0.1], atol=1e-9)
