@@ -17,6 +17,7 @@ from .curvature import material_curvature
 from .frames import initial_reference_frames
 from .obstacles import ObstacleSet
 from .scene import SceneSpec
+from .section import section_of
 from .validate import check_scene
 
 __all__ = ["Model", "build_model"]
@@ -45,7 +46,7 @@ class Model:
     newton_max_iter: int
     accept_unconverged: bool
     divergence_guard: float          # [-] residual growth factor that retries an accepted unconverged step; 0 off
-    radius: float                    # [m]
+    radius: float                    # [m] (non-circular sections: the circumscribed radius contact uses)
     EA: float                        # [N]
     EI1: float                       # [N m^2]
     EI2: float                       # [N m^2]
@@ -101,16 +102,21 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
     vor[0] = 0.5 * lbar[0]
     vor[-1] = 0.5 * lbar[-1]
     vor[1:-1] = 0.5 * (lbar[:-1] + lbar[1:])
-    r = rod.radius
-    A = math.pi * r * r
-    mass = rod.density * A * vor
-    Jp = math.pi * r ** 4 / 2.0
-    theta_inertia = rod.density * Jp * lbar
     E = rod.youngs_modulus
     G = E / (2.0 * (1.0 + rod.poisson_ratio))
+    if getattr(rod, "cross_section", "circle") == "circle":
+        r = rod.radius
+        A = math.pi * r * r
+        Jp = math.pi * r ** 4 / 2.0
+        EI1 = EI2 = E * math.pi * r ** 4 / 4.0
+        GJ = G * Jp
+    else:  # sim/section.py: I1, I2 about the directors, torsion constant J, polar moment; contact radius
+        sec = section_of(rod)
+        r, A, Jp = sec.contact_radius, sec.area, sec.polar
+        EI1, EI2, GJ = E * sec.I1, E * sec.I2, G * sec.J
+    mass = rod.density * A * vor
+    theta_inertia = rod.density * Jp * lbar
     EA = E * A
-    EI = E * math.pi * r ** 4 / 4.0
-    GJ = G * Jp
     d1, t = initial_reference_frames(x)
     kbar = material_curvature(x, d1, np.cross(t, d1))  # rest shape: material = reference frame (θ = 0)
     g = np.asarray(sim.gravity, dtype=np.float64)
@@ -155,7 +161,7 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         spec=spec, mode=sim.mode, node_count=N, dt=sim.dt, gravity=_ro(g), damping=sim.damping,
         integrator=sim.integrator, line_search=sim.line_search, newton_tol=sim.newton_tol,
         newton_dtol=sim.newton_dtol, newton_max_iter=sim.newton_max_iter, divergence_guard=sim.divergence_guard,
-        accept_unconverged=sim.accept_unconverged, radius=r, EA=EA, EI1=EI, EI2=EI, GJ=GJ,
+        accept_unconverged=sim.accept_unconverged, radius=r, EA=EA, EI1=EI1, EI2=EI2, GJ=GJ,
         rest_node_pos=_ro(x), rest_edge_length=_ro(lbar), voronoi_length=_ro(vor), node_mass=_ro(mass),
         edge_twist_inertia=_ro(theta_inertia), rest_ref_d1=_ro(d1), rest_tangent=_ro(t),
         rest_kappa_bar=_ro(kbar), rest_tau_bar=_ro(np.zeros(N)), dof_mass=_ro(dmass.ravel()),

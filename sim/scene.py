@@ -13,12 +13,15 @@ Keys (SI units)::
            2, 4, 8, 16 sub-steps, the least-bad result kept; see docs/architecture.md)
     [rod]  nodes, length [m], radius [m], density [kg/m^3], youngs_modulus [Pa], poisson_ratio [-],
            start [m] (3-vector), direction (3-vector, normalised here), clamp ("first_edge"|"none",
-           default "first_edge")
+           default "first_edge"), cross_section ("circle"|"rectangle"|"ellipse", default "circle":
+           radius; "rectangle": width [m] (along m1) and height [m] (along m2); "ellipse": semi_axes [m]
+           [a, b] (a along m1); sim/section.py)
     [[obstacle]], [contact]   parsed by ``sim.obstacles`` (see there)
     [[load]], [[fix]]         point loads, constrained nodes/edges and prescribed motion: ``sim.boundary``
 """
 from __future__ import annotations
 
+import math
 import os
 import tomllib
 from dataclasses import dataclass, field
@@ -27,6 +30,7 @@ from typing import Any, Literal
 
 from . import boundary as _bc
 from . import obstacles as _obs
+from .section import SECTIONS
 from .tomlio import (
     SceneError,
     check_unknown,
@@ -77,6 +81,13 @@ class RodSpec:
     start: tuple[float, float, float]
     direction: tuple[float, float, float]
     clamp: Clamp = "first_edge"
+    # cross section (sim/section.py): "circle" uses radius; "rectangle" width (along m1) x height (along m2);
+    # "ellipse" semi_axes (a along m1, b along m2). For the last two, radius holds the contact radius
+    # (circumscribed; derived by the parser, and by build_model from the section whatever the field holds)
+    cross_section: str = "circle"
+    width: float | None = None
+    height: float | None = None
+    semi_axes: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -95,7 +106,7 @@ class SceneSpec:
 _SIM_KEYS = {"dt", "gravity", "damping", "newton_tol", "newton_max_iter", "accept_unconverged", "mode",
              "integrator", "line_search", "newton_dtol", "divergence_guard"}
 _ROD_KEYS = {"nodes", "length", "radius", "density", "youngs_modulus", "poisson_ratio", "start", "direction",
-             "clamp"}
+             "clamp", "cross_section", "width", "height", "semi_axes"}
 
 
 def _table(doc: dict, name: str, path: str | None, *, required: bool = True) -> dict | None:
@@ -107,6 +118,27 @@ def _table(doc: dict, name: str, path: str | None, *, required: bool = True) -> 
     if not isinstance(t, dict):
         raise SceneError(f"{path or '<scene>'}: {name}: expected a table [{name}]")
     return t
+
+
+def _take_section(r: dict, where: str, path: str | None) -> dict:
+    """The cross-section keys of a rod table: radius, or width/height, or semi_axes (sim/section.py)."""
+    kind = take_str(r, "cross_section", "rod.", path, "circle", choices=SECTIONS)
+    need = {"circle": ("radius",), "rectangle": ("width", "height"), "ellipse": ("semi_axes",)}[kind]
+    for k in ("radius", "width", "height", "semi_axes"):
+        if k in r and k not in need:
+            raise SceneError(f"{where}: rod.{k}: not used by cross_section = {kind!r} (it takes "
+                             f"{' and '.join(need)})")
+    if kind == "circle":
+        return {"radius": take_float(r, "radius", "rod.", path, positive=True)}
+    if kind == "rectangle":
+        w = take_float(r, "width", "rod.", path, positive=True)
+        h = take_float(r, "height", "rod.", path, positive=True)
+        return {"cross_section": kind, "width": w, "height": h, "radius": 0.5 * math.hypot(w, h)}
+    v = r.get("semi_axes", None)
+    if not isinstance(v, list) or len(v) != 2:
+        raise SceneError(f"{where}: rod.semi_axes: expected a list of 2 numbers [a, b], got {v!r}")
+    ab = tuple(take_float({"semi_axes": c}, "semi_axes", "rod.", path, positive=True) for c in v)
+    return {"cross_section": kind, "semi_axes": ab, "radius": max(ab)}
 
 
 def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
@@ -145,16 +177,18 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
     if not (-1.0 < nu <= 0.5):
         raise SceneError(f"{where}: rod.poisson_ratio: must be in (-1, 0.5], got {nu!r}")
     d = unit_vector(take_vec3(r, "direction", "rod.", path), f"{where}: rod.direction")  # no overflow
+    sec = _take_section(r, where, path)
     rod = RodSpec(
         nodes=nodes,
         length=take_float(r, "length", "rod.", path, positive=True),
-        radius=take_float(r, "radius", "rod.", path, positive=True),
+        radius=sec.pop("radius"),
         density=take_float(r, "density", "rod.", path, positive=True),
         youngs_modulus=take_float(r, "youngs_modulus", "rod.", path, positive=True),
         poisson_ratio=nu,
         start=take_vec3(r, "start", "rod.", path),
         direction=d,
         clamp=take_str(r, "clamp", "rod.", path, "first_edge", choices=("first_edge", "none")),  # type: ignore
+        **sec,
     )
     if sim.mode == "2d":
         if abs(rod.direction[1]) > 1e-12:
@@ -203,9 +237,13 @@ def scene_to_toml(spec: SceneSpec, *, base_dir: str | os.PathLike | None = None)
               "integrator", "line_search", "newton_dtol", "divergence_guard"):
         lines.append(f"{k} = {format_value(getattr(spec.sim, k))}")
     lines += ["", "[rod]"]
-    for k in ("nodes", "length", "radius", "density", "youngs_modulus", "poisson_ratio", "start", "direction",
+    sec = getattr(spec.rod, "cross_section", "circle")
+    keys = {"circle": ("radius",), "rectangle": ("cross_section", "width", "height"),
+            "ellipse": ("cross_section", "semi_axes")}[sec]
+    for k in ("nodes", "length", *keys, "density", "youngs_modulus", "poisson_ratio", "start", "direction",
               "clamp"):
-        lines.append(f"{k} = {format_value(getattr(spec.rod, k))}")
+        v = getattr(spec.rod, k)
+        lines.append(f"{k} = {format_value(list(v) if isinstance(v, tuple) else v)}")
     extra = _obs.dump_obstacles(spec.obstacles, base_dir=base_dir)
     if extra:
         lines += [""] + list(extra)

@@ -38,8 +38,10 @@ class Simulator:
         m = model
         c = m.spec.contact
         mp = getattr(c, "max_penetration", None)  # penetration guard [m]; None = 4 * delta
+        # the planar rod bends with EI1 (kernel): there, the stiffness of its in-plane component
+        ei1 = m.EI1 if m.mode == "3d" or m.planar_component == 0 else m.EI2
         prm = _solve.Params(
-            EA=m.EA, EI1=m.EI1, EI2=m.EI2, GJ=m.GJ, dt=m.dt, damping=m.damping, newton_tol=m.newton_tol,
+            EA=m.EA, EI1=ei1, EI2=m.EI2, GJ=m.GJ, dt=m.dt, damping=m.damping, newton_tol=m.newton_tol,
             newton_dtol=m.newton_dtol, newton_max_iter=float(m.newton_max_iter),
             accept_unconverged=1.0 if m.accept_unconverged else 0.0,
             midpoint=0.0 if m.integrator == "backward_euler" else 1.0,

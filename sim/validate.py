@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from .boundary import check_boundary
+from .section import SECTIONS, section_of
 from .tomlio import SceneError
 
 __all__ = ["BOUNDS", "check_scene", "check_step_inputs", "quarantine_nonfinite", "env_mask", "unit_vector",
@@ -41,6 +42,9 @@ BOUNDS: dict[str, tuple[float, float, str]] = {
     "rod.density": (1e-3, 1e6, "kg/m^3"),
     "rod.youngs_modulus": (1.0, 1e13, "Pa"),
     "rod.start": (-1e6, 1e6, "m"),
+    "rod.width": (1e-7, 1e2, "m"),
+    "rod.height": (1e-7, 1e2, "m"),
+    "rod.semi_axes": (1e-7, 1e2, "m"),
     "load.force": (-1e9, 1e9, "N"),
     "load.torque": (-1e9, 1e9, "N m"),
     "load.start": (0.0, 1e9, "s"),
@@ -150,6 +154,7 @@ def check_scene(spec: Any, where: str | None = None) -> None:
     c.choice("sim.line_search", s.line_search, ("none", "backtrack", "auto"))
     n = c.integer("rod.nodes", r.nodes)
     length = c.num("rod.length", r.length, positive=True)
+    sec = _check_section(c, r)  # before radius: for a non-circular section radius is derived from it
     radius = c.num("rod.radius", r.radius, positive=True)
     rho = c.num("rod.density", r.density, positive=True)
     E = c.num("rod.youngs_modulus", r.youngs_modulus, positive=True)
@@ -161,10 +166,15 @@ def check_scene(spec: Any, where: str | None = None) -> None:
     c.choice("rod.clamp", r.clamp, ("first_edge", "none"))
     # derived quantities (docs/physics.md §1.5): all must be positive normal floats
     seg = length / (n - 1)
-    area = math.pi * radius * radius
-    derived = {"node mass [kg]": rho * area * seg / 2.0, "EA [N]": E * area,
-               "EI [N m^2]": E * math.pi * radius ** 4 / 4.0,
-               "twist inertia [kg m^2]": rho * math.pi * radius ** 4 / 2.0 * seg}
+    if sec is None:
+        area = math.pi * radius * radius
+        derived = {"node mass [kg]": rho * area * seg / 2.0, "EA [N]": E * area,
+                   "EI [N m^2]": E * math.pi * radius ** 4 / 4.0,
+                   "twist inertia [kg m^2]": rho * math.pi * radius ** 4 / 2.0 * seg}
+    else:
+        derived = {"node mass [kg]": rho * sec.area * seg / 2.0, "EA [N]": E * sec.area,
+                   "EI [N m^2]": E * min(sec.I1, sec.I2), "GJ [N m^2]": E * sec.J / 3.0,
+                   "twist inertia [kg m^2]": rho * sec.polar * seg}
     for name, val in derived.items():
         if not (math.isfinite(val) and val > 1e-290):
             c.fail("rod", f"derived {name} = {val!r} is not a positive finite number (check radius, length, "
@@ -173,6 +183,22 @@ def check_scene(spec: Any, where: str | None = None) -> None:
         _check_obstacle(c, i, ob)
     _check_contact(c, spec.contact)
     check_boundary(c, spec)
+
+
+def _check_section(c: _Checker, r: Any) -> Any:
+    """Cross-section keys (sim/section.py); returns the Section of a non-circular rod, else None."""
+    kind = getattr(r, "cross_section", "circle")
+    c.choice("rod.cross_section", kind, SECTIONS)
+    if kind == "circle":
+        return None
+    if kind == "rectangle":
+        for k in ("width", "height"):
+            c.num("rod." + k, getattr(r, k), positive=True)
+    else:
+        c.vec("rod.semi_axes", r.semi_axes, "rod.semi_axes", 2)
+        for v in r.semi_axes:
+            c.num("rod.semi_axes", v, "rod.semi_axes", positive=True)
+    return section_of(r)
 
 
 def _check_obstacle(c: _Checker, i: int, ob: Any) -> None:
