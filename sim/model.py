@@ -94,9 +94,12 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
     check_scene(spec)  # specs built in code get the scene file's checks (sim/validate.py)
     rod, sim = spec.rod, spec.sim
     N = rod.nodes
-    d = np.asarray(rod.direction, dtype=np.float64)
-    s = np.linspace(0.0, rod.length, N)
-    x = np.asarray(rod.start, dtype=np.float64)[None, :] + s[:, None] * d[None, :]
+    if getattr(rod, "rest_points", None) is not None:  # non-straight rest shape (docs/physics.md §1.2)
+        x = np.array(rod.rest_points, dtype=np.float64).reshape(N, 3)
+    else:
+        d = np.asarray(rod.direction, dtype=np.float64)
+        s = np.linspace(0.0, rod.length, N)
+        x = np.asarray(rod.start, dtype=np.float64)[None, :] + s[:, None] * d[None, :]
     lbar = np.linalg.norm(np.diff(x, axis=0), axis=1)
     vor = np.empty(N)
     vor[0] = 0.5 * lbar[0]
@@ -166,7 +169,7 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         edge_twist_inertia=_ro(theta_inertia), rest_ref_d1=_ro(d1), rest_tangent=_ro(t),
         rest_kappa_bar=_ro(kbar), rest_tau_bar=_ro(np.zeros(N)), dof_mass=_ro(dmass.ravel()),
         dof_fixed=_ro(fixed.ravel()), dof_gravity=_ro(grav.ravel()), planar_component=pc, planar_sign=ps,
-        plane_y=float(rod.start[1]), locked_edges=tuple(sorted(locked)),
+        plane_y=float(x[0, 1]), locked_edges=tuple(sorted(locked)),
         obstacles=ObstacleSet.from_specs(spec.obstacles), load_force=_ro(lf), load_window=_ro(lw),
         motion_rate=_ro(mr), motion_window=_ro(mw),
     )

@@ -15,7 +15,8 @@ Keys (SI units)::
            start [m] (3-vector), direction (3-vector, normalised here), clamp ("first_edge"|"none",
            default "first_edge"), cross_section ("circle"|"rectangle"|"ellipse", default "circle":
            radius; "rectangle": width [m] (along m1) and height [m] (along m2); "ellipse": semi_axes [m]
-           [a, b] (a along m1); sim/section.py)
+           [a, b] (a along m1); sim/section.py), rest_points [m] (list of [x, y, z]: a non-straight rest
+           shape instead of nodes/length/start/direction)
     [[obstacle]], [contact]   parsed by ``sim.obstacles`` (see there)
     [[load]], [[fix]]         point loads, constrained nodes/edges and prescribed motion: ``sim.boundary``
 """
@@ -43,7 +44,8 @@ from .tomlio import (
 )
 from .validate import check_scene, unit_vector
 
-__all__ = ["SceneError", "SimSpec", "RodSpec", "SceneSpec", "load_scene", "parse_scene", "dump_scene"]
+__all__ = ["SceneError", "SimSpec", "RodSpec", "SceneSpec", "load_scene", "parse_scene", "dump_scene",
+           "rest_shape_fields"]
 
 Mode = Literal["3d", "2d"]
 Integrator = Literal["backward_euler", "midpoint"]
@@ -88,6 +90,9 @@ class RodSpec:
     width: float | None = None
     height: float | None = None
     semi_axes: tuple[float, float] | None = None
+    # non-straight rest shape: the nodes' rest positions (N, 3) [m]; then nodes/length/start/direction are the
+    # points' (see rest_shape_fields) and build_model places the nodes there (rest curvature from the points)
+    rest_points: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -106,7 +111,7 @@ class SceneSpec:
 _SIM_KEYS = {"dt", "gravity", "damping", "newton_tol", "newton_max_iter", "accept_unconverged", "mode",
              "integrator", "line_search", "newton_dtol", "divergence_guard"}
 _ROD_KEYS = {"nodes", "length", "radius", "density", "youngs_modulus", "poisson_ratio", "start", "direction",
-             "clamp", "cross_section", "width", "height", "semi_axes"}
+             "clamp", "cross_section", "width", "height", "semi_axes", "rest_points"}
 
 
 def _table(doc: dict, name: str, path: str | None, *, required: bool = True) -> dict | None:
@@ -118,6 +123,38 @@ def _table(doc: dict, name: str, path: str | None, *, required: bool = True) -> 
     if not isinstance(t, dict):
         raise SceneError(f"{path or '<scene>'}: {name}: expected a table [{name}]")
     return t
+
+
+def _take_shape(r: dict, where: str, path: str | None) -> dict:
+    """nodes/length/start/direction of a straight rod, or rest_points (and those derived from them)."""
+    if "rest_points" not in r:
+        nodes = take_int(r, "nodes", "rod.", path)
+        if nodes < 3:
+            raise SceneError(f"{where}: rod.nodes: must be >= 3, got {nodes}")
+        return {"nodes": nodes, "length": take_float(r, "length", "rod.", path, positive=True),
+                "start": take_vec3(r, "start", "rod.", path),
+                "direction": unit_vector(take_vec3(r, "direction", "rod.", path), f"{where}: rod.direction")}
+    for k in ("nodes", "length", "start", "direction"):
+        if k in r:
+            raise SceneError(f"{where}: rod.{k}: not used with rest_points (the points give the nodes, length, "
+                             "start and direction)")
+    v = r["rest_points"]
+    if not isinstance(v, list) or len(v) < 3:
+        raise SceneError(f"{where}: rod.rest_points: expected a list of at least 3 points [[x, y, z], ...], "
+                         f"got {v!r:.80}")
+    pts = tuple(take_vec3({"rest_points": p}, "rest_points", "rod.", path) for p in v)
+    return rest_shape_fields(pts, f"{where}: rod.rest_points")
+
+
+def rest_shape_fields(points, where: str = "rod.rest_points") -> dict:
+    """RodSpec fields of a rod whose rest shape is the polyline ``points`` (N, 3): nodes, length (the polyline's),
+    start (the first point), direction (of the first edge), rest_points."""
+    pts = tuple(tuple(float(c) for c in p) for p in points)
+    seg = [math.dist(a, b) for a, b in zip(pts[:-1], pts[1:])]
+    if not all(math.isfinite(x) and x > 0.0 for x in seg):
+        raise SceneError(f"{where}: consecutive points must differ (edge lengths {min(seg)!r} .. {max(seg)!r})")
+    d = unit_vector([b - a for a, b in zip(pts[0], pts[1])], where)
+    return {"nodes": len(pts), "length": math.fsum(seg), "start": pts[0], "direction": d, "rest_points": pts}
 
 
 def _take_section(r: dict, where: str, path: str | None) -> dict:
@@ -170,25 +207,18 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
     if 0.0 < sim.divergence_guard <= 1.0:
         raise SceneError(f"{where}: sim.divergence_guard: must be 0 (off) or > 1 (a residual growth factor), "
                          f"got {sim.divergence_guard!r}")
-    nodes = take_int(r, "nodes", "rod.", path)
-    if nodes < 3:
-        raise SceneError(f"{where}: rod.nodes: must be >= 3, got {nodes}")
     nu = take_float(r, "poisson_ratio", "rod.", path)
     if not (-1.0 < nu <= 0.5):
         raise SceneError(f"{where}: rod.poisson_ratio: must be in (-1, 0.5], got {nu!r}")
-    d = unit_vector(take_vec3(r, "direction", "rod.", path), f"{where}: rod.direction")  # no overflow
     sec = _take_section(r, where, path)
     rod = RodSpec(
-        nodes=nodes,
-        length=take_float(r, "length", "rod.", path, positive=True),
         radius=sec.pop("radius"),
         density=take_float(r, "density", "rod.", path, positive=True),
         youngs_modulus=take_float(r, "youngs_modulus", "rod.", path, positive=True),
         poisson_ratio=nu,
-        start=take_vec3(r, "start", "rod.", path),
-        direction=d,
         clamp=take_str(r, "clamp", "rod.", path, "first_edge", choices=("first_edge", "none")),  # type: ignore
         **sec,
+        **_take_shape(r, where, path),
     )
     if sim.mode == "2d":
         if abs(rod.direction[1]) > 1e-12:
@@ -240,10 +270,15 @@ def scene_to_toml(spec: SceneSpec, *, base_dir: str | os.PathLike | None = None)
     sec = getattr(spec.rod, "cross_section", "circle")
     keys = {"circle": ("radius",), "rectangle": ("cross_section", "width", "height"),
             "ellipse": ("cross_section", "semi_axes")}[sec]
+    shape = ("nodes", "length", "start", "direction") if spec.rod.rest_points is None else ()
     for k in ("nodes", "length", *keys, "density", "youngs_modulus", "poisson_ratio", "start", "direction",
               "clamp"):
+        if k in ("nodes", "length", "start", "direction") and k not in shape:
+            continue
         v = getattr(spec.rod, k)
         lines.append(f"{k} = {format_value(list(v) if isinstance(v, tuple) else v)}")
+    if spec.rod.rest_points is not None:
+        lines.append("rest_points = [" + ", ".join(format_value(list(p)) for p in spec.rod.rest_points) + "]")
     extra = _obs.dump_obstacles(spec.obstacles, base_dir=base_dir)
     if extra:
         lines += [""] + list(extra)

@@ -42,6 +42,7 @@ BOUNDS: dict[str, tuple[float, float, str]] = {
     "rod.density": (1e-3, 1e6, "kg/m^3"),
     "rod.youngs_modulus": (1.0, 1e13, "Pa"),
     "rod.start": (-1e6, 1e6, "m"),
+    "rod.rest_points": (-1e6, 1e6, "m"),
     "rod.width": (1e-7, 1e2, "m"),
     "rod.height": (1e-7, 1e2, "m"),
     "rod.semi_axes": (1e-7, 1e2, "m"),
@@ -153,6 +154,8 @@ def check_scene(spec: Any, where: str | None = None) -> None:
     c.choice("sim.integrator", s.integrator, ("backward_euler", "midpoint"))
     c.choice("sim.line_search", s.line_search, ("none", "backtrack", "auto"))
     n = c.integer("rod.nodes", r.nodes)
+    if getattr(r, "rest_points", None) is not None:  # before length: it is the points' (sim/scene.py)
+        _check_rest_points(c, r, n, s.mode)
     length = c.num("rod.length", r.length, positive=True)
     sec = _check_section(c, r)  # before radius: for a non-circular section radius is derived from it
     radius = c.num("rod.radius", r.radius, positive=True)
@@ -183,6 +186,29 @@ def check_scene(spec: Any, where: str | None = None) -> None:
         _check_obstacle(c, i, ob)
     _check_contact(c, spec.contact)
     check_boundary(c, spec)
+
+
+def _check_rest_points(c: _Checker, r: Any, n: int, mode: str) -> None:
+    """rest_points: n finite points within the bounds, no zero edge, no turn of 170° or more, planar in 2-D."""
+    pts = r.rest_points
+    if not isinstance(pts, (tuple, list, np.ndarray)) or len(pts) != n:
+        c.fail("rod.rest_points", f"expected rod.nodes = {n} points, got {len(pts) if hasattr(pts, '__len__') else pts!r}")
+    for p in pts:
+        c.vec("rod.rest_points", p, "rod.rest_points")
+    x = np.asarray(pts, dtype=np.float64)
+    e = np.diff(x, axis=0)
+    le = np.linalg.norm(e, axis=1)
+    if not (le > 1e-7).all():
+        j = int(np.argmin(le))
+        c.fail("rod.rest_points", f"points {j} and {j + 1} are {le[j]:.3g} m apart (edges must be > 1e-07 m)")
+    t = e / le[:, None]
+    cosang = np.einsum("ij,ij->i", t[:-1], t[1:])
+    if cosang.size and cosang.min() <= math.cos(math.radians(170.0)):
+        i = int(np.argmin(cosang)) + 1
+        c.fail("rod.rest_points", f"the polyline turns by {math.degrees(math.acos(max(-1.0, cosang.min()))):.1f} "
+                                  f"deg at point {i} (must be < 170 deg)")
+    if mode == "2d" and np.abs(x[:, 1] - x[0, 1]).max() > 0.0:
+        c.fail("rod.rest_points", "mode '2d' needs every point in one plane y = const (the first point's y)")
 
 
 def _check_section(c: _Checker, r: Any) -> Any:
