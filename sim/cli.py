@@ -31,7 +31,12 @@ def sim_main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="rodlab sim", description="Simulate a scene headless (rest controls). "
                                  "Prints a warning when the rod starts inside an obstacle.")
     ap.add_argument("scene", help="scene TOML file")
-    ap.add_argument("--duration", type=float, required=True, help="simulated time [s] (finite, > 0)")
+    ap.add_argument("--duration", type=float, help="simulated time [s] (finite, > 0; required unless --static)")
+    ap.add_argument("--static", action="store_true",
+                    help="solve for static equilibrium instead (sim.static: backward-Euler pseudo-time steps growing "
+                         "to 1e5 s with zeroed velocities, until a step moves no node by more than "
+                         "--static-tol x rod length); --out then holds one frame")
+    ap.add_argument("--static-tol", type=float, default=1e-10, help="relative displacement tolerance of --static")
     ap.add_argument("--envs", type=int, default=1, help=f"number of environments (default 1, at most {_MAX_ENVS})")
     ap.add_argument("--every", type=int, default=1, help="record every K-th step (default 1)")
     ap.add_argument("--out", help="write time, node_pos, edge_theta, newton_iters, converged, max_penetration, "
@@ -50,7 +55,10 @@ def sim_main(argv: list[str] | None = None) -> int:
 
     if not 1 <= a.envs <= _MAX_ENVS or a.every < 1:
         return fail(f"--envs must be in [1, {_MAX_ENVS}] and --every >= 1")
-    if not (math.isfinite(a.duration) and a.duration > 0):
+    if a.static:
+        if not (math.isfinite(a.static_tol) and a.static_tol > 0):
+            return fail(f"--static-tol must be a finite number > 0, got {a.static_tol!r}")
+    elif a.duration is None or not (math.isfinite(a.duration) and a.duration > 0):
         return fail(f"--duration must be a finite number > 0 [s], got {a.duration!r}")
     try:
         if a.out:
@@ -58,6 +66,8 @@ def sim_main(argv: list[str] | None = None) -> int:
         spec = load_scene(a.scene)
     except (SceneError, ValueError) as exc:
         return fail(str(exc))
+    if a.static:
+        return _static_main(a, spec, fail)
     t0 = time.perf_counter()
     model = build_model(spec)
     n = max(1, int(round(a.duration / model.dt)))
@@ -121,6 +131,31 @@ def sim_main(argv: list[str] | None = None) -> int:
           f"failed envs: {int(state.failed.sum())}")
     print(f"time per step: {wall / n * 1e3:.3f} ms (kernels ready in {t_ready:.2f} s)")
     return 0
+
+
+def _static_main(a: argparse.Namespace, spec, fail) -> int:
+    """``rodlab sim --static``: relax the rest state to equilibrium (sim.static) and report / write it."""
+    from . import Simulator, build_model
+    from .static import solve_static
+
+    t0 = time.perf_counter()
+    sim = Simulator(build_model(spec), envs=a.envs)
+    state, ctrl = sim.reset(), sim.make_control()
+    res = solve_static(spec, state, ctrl, xtol=a.static_tol)
+    wall = time.perf_counter() - t0
+    if a.out:
+        try:
+            _atomic_savez(a.out, time=np.zeros(1), node_pos=state.node_pos[None].copy(),
+                          edge_theta=np.asarray(state.edge_theta)[None].copy(), converged=res.converged[None],
+                          static_steps=res.steps, static_last_move=res.last_move)
+        except OSError as exc:
+            return fail(f"{a.out}: cannot write: {exc.strerror or exc}")
+        print(f"rodlab sim: wrote the static equilibrium to {a.out}")
+    print(f"scene {a.scene}: static equilibrium, {a.envs} env(s), mode {sim.model.mode}")
+    print(f"tip position env 0 [m]: {np.array2string(state.node_pos[0, -1], precision=6)}")
+    print(f"converged envs: {int(res.converged.sum())}/{a.envs} after {int(res.steps.max())} pseudo-time steps "
+          f"(last dt {res.dt:g} s, largest last move {float(res.last_move.max()):.3g} m); {wall:.2f} s")
+    return 0 if res.converged.all() else 1
 
 
 def bench_sim_main(argv: list[str] | None = None) -> int:
