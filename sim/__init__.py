@@ -7,16 +7,20 @@ Public surface::
     sim = Simulator(model, envs=B); state = sim.reset(); ctrl = sim.make_control()
     stats = sim.step(state, ctrl)
 
+Loads and constrained nodes: ``SceneSpec(loads=(LoadSpec(...),), fixes=(FixSpec(...),))`` (sim.boundary); static
+equilibrium: ``sim.static.solve_static(spec, state, ctrl)``.
+
 Compiling the kernels ahead of time: ``python -m sim.warmup`` (not imported here, so running it as a module is clean).
 """
 from ._cache import invalidate_if_sources_changed as _invalidate
 
 _invalidate()
 
+from .boundary import FixSpec, LoadSpec  # noqa: E402
 from .model import Model, build_model  # noqa: E402
 from .scene import RodSpec, SceneError, SceneSpec, SimSpec, dump_scene, load_scene, parse_scene  # noqa: E402
 from .state import Control, State, StepStats  # noqa: E402
 from .step import Simulator  # noqa: E402
 
 __all__ = ["load_scene", "parse_scene", "dump_scene", "SceneError", "SceneSpec", "SimSpec", "RodSpec", "Model",
-           "build_model", "Simulator", "State", "Control", "StepStats"]
+           "build_model", "Simulator", "State", "Control", "StepStats", "LoadSpec", "FixSpec"]

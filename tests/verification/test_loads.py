@@ -118,3 +118,18 @@ def test_moving_clamp_carries_the_rod():
         relax.step(state, ctrl)
     ref = static_solve(dataclasses.replace(base, sim=dataclasses.replace(base.sim, dt=1e4)), steps=4)[1]
     assert np.allclose(state.node_pos[0], ref.node_pos[0] + [0.0, 0.05, 0.1], atol=1e-9)
+
+
+def test_tip_torque_twists_the_rod_linearly():
+    """A torque T about the tangent on the last node (it acts on the last edge's twist) of a rod clamped at edge 0:
+    θ grows linearly to Φ = T Σ l_i / GJ (interior Voronoi lengths), the rod stays straight, and the twist energy
+    is T Φ / 2."""
+    N, T = 15, 0.02
+    spec = make_spec(nodes=N, E=1e6, dt=1e4, dtol=1e-14, max_iter=100)
+    spec = dataclasses.replace(spec, loads=(LoadSpec(node=-1, torque=T),))
+    sim, state, stats = static_solve(spec, steps=3)
+    m = sim.model
+    Phi = T * m.voronoi_length[1:-1].sum() / m.GJ
+    assert np.allclose(state.edge_theta[0], Phi * np.arange(N - 1) / (N - 2), atol=1e-9 * Phi)
+    assert np.isclose(stats.energy_twist[0], 0.5 * T * Phi, rtol=1e-9)
+    assert np.abs(state.node_pos[0, :, 1:]).max() < 1e-12
