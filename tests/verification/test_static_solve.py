@@ -20,7 +20,7 @@ from tests.verification.test_loads import _elastica_tip
 RHO, R, G, L0, SPAN, EPS = 1000.0, 1e-3, 9.8, 1.2, 1.0, 1e-2
 
 
-def elastic_catenary(s, w, EA):
+def elastic_catenary(s, w, EA, L0=L0, SPAN=SPAN):
     """Shape (x(s), z(s)) of an elastic cable of unstretched length L0, weight w per unstretched length and axial
     stiffness EA hanging between (0, 0) and (SPAN, 0), at unstretched arc length s. Tension (H, w s − V) with
     V = w L0/2; stretched length element (1 + T/EA) ds. H from x(L0) = SPAN (brentq)."""
@@ -95,6 +95,22 @@ def test_static_cantilever_matches_the_elastica_and_the_dynamic_relaxation():
     assert np.hypot(tip[0] - xt, tip[2] - zt) < 3e-3
     assert np.array_equal(state.node_pos[0], state.node_pos[1])
     assert np.all(state.time == 0.0) and np.all(state.dof_vel == 0.0)
+
+
+def test_shipped_rope_scene_hangs_as_the_elastic_catenary(scenes_dir):
+    """assets/scenes/rope_pinned.toml (rest shape: an arc given by rest_points, so a little rest curvature):
+    midspan sag within 0.5 % of the elastic catenary of the same rope."""
+    spec = load_scene(scenes_dir / "rope_pinned.toml")
+    sim = Simulator(build_model(spec), envs=1)
+    state, ctrl = sim.reset(), sim.make_control()
+    assert solve_static(spec, state, ctrl).converged.all()
+    m = sim.model
+    s = np.concatenate([[0.0], np.cumsum(m.rest_edge_length)])
+    w = spec.rod.density * np.pi * spec.rod.radius ** 2 * 9.8
+    x, z = elastic_catenary(s, w, m.EA, L0=s[-1], SPAN=1.0)
+    p = state.node_pos[0]
+    k = spec.rod.nodes // 2
+    assert abs((1.0 - p[k, 2]) - (-z[k])) < 5e-3 * -z[k], (p[k], z[k])
 
 
 def test_cli_static(tmp_path, capsys):
