@@ -162,3 +162,20 @@ def test_prescribed_motion_and_twist_rate():
         sim.step(state, ctrl)
     assert np.allclose(state.dof[:, 0, 2], 0.2 * np.array([0.105, 0.055]), atol=1e-14)
     assert np.allclose(state.dof_vel[:, :2, 2], 0.0, atol=1e-14)
+
+
+def test_prescribed_motion_planar():
+    """2-D: a pinned end (axes "xz") carried along z; the other end stays pinned; y (the plane) is not a DOF."""
+    spec = dataclasses.replace(
+        make_spec(clamp="none", dt=0.01, mode="2d", damping=5.0),
+        fixes=(FixSpec(nodes=(0,), axes="xz", velocity=(0.0, 0.0, 0.3)), FixSpec(nodes=(-1,), axes="xyz")))
+    m = build_model(spec)
+    assert m.dof_fixed.reshape(11, 2)[[0, -1]].all() and not m.dof_fixed.reshape(11, 2)[1:-1].any()
+    sim = Simulator(m, envs=1)
+    state, ctrl = sim.reset(), sim.make_control()
+    for k in range(1, 6):
+        sim.step(state, ctrl)
+        assert not state.failed.any()
+        assert state.dof[0, 0].tolist() == pytest.approx([0.0, 0.3 * 0.01 * k], abs=1e-14)
+        assert state.dof_vel[0, 0].tolist() == pytest.approx([0.0, 0.3], abs=1e-12)
+        assert state.dof[0, -1].tolist() == pytest.approx([1.0, 0.0], abs=1e-14)
