@@ -121,6 +121,7 @@ class WorkbenchApp:
 
     def stop(self) -> None:
         self.thread.stop()
+        self.view.rod.tube.close()  # no delayed tube swap after the server has gone
         rec, self.wb.recorder = self.wb.recorder, None  # no lock: the sim thread may be mid-step
         if rec is not None:
             rec.close()

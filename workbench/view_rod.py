@@ -61,6 +61,13 @@ class DoubleBufferedGlb:
             if self.pending:
                 self._swap()
 
+    def close(self) -> None:
+        """Cancel a pending swap (before the server stops)."""
+        with self._lock:
+            if self._timer is not None:
+                self._timer.cancel()
+            self.pending = False
+
     def set_visible(self, on: bool) -> None:
         with self._lock:
             self.shown = bool(on)
