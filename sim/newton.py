@@ -131,12 +131,17 @@ def _predict(x, x0, u, fixed, hs):
 
 
 @njit(inline="always", **_OPT)
-def _linear_solve(w, n, kl, sym):
-    """dx = J⁻¹ f (banded, in place in w.dx); False on a bad pivot."""
+def _linear_solve(planar, w, n, sym):
+    """dx = J⁻¹ f (banded, in place in w.dx); False on a bad pivot. The half bandwidths are passed as constants:
+    the solvers are inlined and their loops unrolled for them."""
     dx = w.dx
     for k in range(n):
         dx[k] = w.f[k]
-    return (band_ldl_solve(w.ab, n, kl, dx) if sym else band_lu_solve(w.ab, n, kl, dx)) == 0
+    if planar:
+        st = band_ldl_solve(w.ab, n, KL_2D, dx) if sym else band_lu_solve(w.ab, n, KL_2D, dx)
+    else:
+        st = band_ldl_solve(w.ab, n, KL_3D, dx) if sym else band_lu_solve(w.ab, n, KL_3D, dx)
+    return st == 0
 
 
 @njit(inline="always", **_OPT)
@@ -201,7 +206,6 @@ def newton(e, hs, kb, tb, rod, prm, cd, w):
     planar = prm.planar != 0
     x, dx, fixed = w.x, w.dx, rod.fixed
     n = x.shape[0]
-    kl = KL_2D if planar else KL_3D
     dpn = 2 if planar else 4
     maxit = int(prm.newton_max_iter)
     tol = prm.newton_tol
@@ -229,7 +233,7 @@ def newton(e, hs, kb, tb, rod, prm, cd, w):
             conv = True
             break
         rp = r
-        if not _linear_solve(w, n, kl, sym):
+        if not _linear_solve(planar, w, n, sym):
             return BAD_PIVOT, it, False, r, r0
         if limit:
             _limit_update(planar, e, cd, prm, w)
