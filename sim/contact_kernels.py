@@ -26,7 +26,8 @@ tri (T,3,3), node_lo (K,3), node_hi (K,3), node_child (K,2), node_range (K,2), c
 cand_count (B,), params (4,) [rod_radius, ...], active (B,M) bool, box (B,M,2,3) world AABBs,
 iter_flag (B,) int64 (0 right after the broad phase: friction is skipped on that first Newton iteration),
 scratch_f (B,128), scratch_m (B,2,6,6), scratch_i (B,128) int64 per-env work space (no allocation in the kernels),
-friction (M,) per-obstacle μ (-1: use the kernels' scalar μ, the [contact] friction))``.
+friction (M,) per-obstacle μ (-1: use the kernels' scalar μ, the [contact] friction), cand_merge (B,2C,2) int64
+(the candidate lists merged by contact_refresh))``.
 Kinds: 0 plane (p0 point, p1 unit normal), 1 sphere (p0 centre), 2 capsule (p0, p1 axis ends),
 3 box (p0 centre, rot, half), 4 mesh (p0, rot, mesh_root = BVH root node).
 Shapes: ``x``, ``x_prev``, ``x_start``, ``x_guess`` (N, >=3) [m]; ``grad`` (N, 3); ``hess`` (N-1, 6, 6)
@@ -51,13 +52,14 @@ from .geometry_distance import (
     vsub,
 )
 from .kinds import BOX, CAPSULE, MESH, PLANE, SPHERE
+from .solve_params import _OPT_CONTACT
 
 __all__ = ["contact_broadphase", "contact_accumulate", "contact_report", "contact_min_gap", "imc_energy",
            "friction_block", "PLANE", "SPHERE", "CAPSULE", "BOX", "MESH"]
 
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def imc_energy(g, k, delta):
     """IMC squared-softplus energy of gap g [m]: returns (E [J], dE/dg [N], d2E/dg2 [N/m])."""
     K1 = 15.0 / delta
@@ -71,7 +73,7 @@ def imc_energy(g, k, delta):
     return k * L * L / (K1 * K1), -2.0 * k * L * sig / K1, 2.0 * k * (sig * sig + L * sig * (1.0 - sig))
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def friction_block(va, vb, s, n, lam, d2E, mu, nu, dt, fr, J):
     """Smooth Coulomb friction of one contact on edge nodes (a, b), weights (1-s, s).
 
@@ -116,7 +118,7 @@ def friction_block(va, vb, s, n, lam, d2E, mu, nu, dt, fr, J):
     return (-c * t[0], -c * t[1], -c * t[2])
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def _to_local(p, R, x):
     d = (x[0] - p[0], x[1] - p[1], x[2] - p[2])
     return (R[0, 0] * d[0] + R[1, 0] * d[1] + R[2, 0] * d[2],
@@ -124,14 +126,14 @@ def _to_local(p, R, x):
             R[0, 2] * d[0] + R[1, 2] * d[1] + R[2, 2] * d[2])
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def _rot(R, v):
     return (R[0, 0] * v[0] + R[0, 1] * v[1] + R[0, 2] * v[2],
             R[1, 0] * v[0] + R[1, 1] * v[1] + R[1, 2] * v[2],
             R[2, 0] * v[0] + R[2, 1] * v[1] + R[2, 2] * v[2])
 
 
-@njit(cache=True, inline="always")
+@njit(inline="always", **_OPT_CONTACT)
 def _box_lb2(lo0, lo1, lo2, hi0, hi1, hi2, slo, shi):
     """Squared distance between the box [lo, hi] and the box [slo, shi] (0 if they overlap)."""
     d0 = max(0.0, lo0 - shi[0], slo[0] - hi0)
@@ -140,7 +142,7 @@ def _box_lb2(lo0, lo1, lo2, hi0, hi1, hi2, slo, shi):
     return d0 * d0 + d1 * d1 + d2 * d2
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def _mesh_closest(al, bl, root, nlo, nhi, nch, nrg, tri, reach, stack):
     """Closest triangle of a mesh BVH to segment (al, bl) (local frame) within ``reach``.
 
@@ -203,7 +205,7 @@ def _mesh_closest(al, bl, root, nlo, nhi, nch, nrg, tri, reach, stack):
     return best, bs, bnf, bq, bd1, bd2, bn
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def _eval_edge(cd, e, o, a, b, r, reach, g6, H6, nhat, ws, stack, derivs=True):
     """Gap [m], closest rod parameter s and obstacle point of edge (a, b) vs obstacle o (not a plane).
 
@@ -211,7 +213,7 @@ def _eval_edge(cd, e, o, a, b, r, reach, g6, H6, nhat, ws, stack, derivs=True):
     gap = inf otherwise.
     """
     (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
-     scm, sci, fric) = cd
+     scm, sci, fric, cmerge) = cd
     z = (0.0, 0.0, 0.0)
     k = kind[o]
     P = (p0[e, o, 0], p0[e, o, 1], p0[e, o, 2])
@@ -285,7 +287,7 @@ def _eval_edge(cd, e, o, a, b, r, reach, g6, H6, nhat, ws, stack, derivs=True):
     return np.inf, 0.0, z
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def _box_face(cd, e, o, a, b):
     """The box face that both end points of segment (a, b) lie over (outside the box, each projecting along the
     face normal onto the face): returns (axis, side, d_a, d_b) with the nodes' distances to the face [m],
@@ -307,7 +309,7 @@ def _box_face(cd, e, o, a, b):
     return -1, 0.0, 0.0, 0.0
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def _mesh_face(cd, e, o, a, b, reach, stack):
     """The flat mesh region under both end points of segment (a, b): each node's closest mesh point within
     ``reach`` lies inside a triangle, both are seen along one common unit direction n (obstacle -> node, world
@@ -334,7 +336,7 @@ def _mesh_face(cd, e, o, a, b, reach, stack):
     return True, _rot(Rm, ua), da, db
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def _flat_face(cd, e, o, a, b, reach, stack):
     """(found, unit normal n (world), d_a, d_b): the box face or flat mesh region under both nodes of the edge
     (a, b) and the nodes' distances to it [m]; see :func:`_box_face`, :func:`_mesh_face`."""
@@ -346,19 +348,19 @@ def _flat_face(cd, e, o, a, b, reach, stack):
     return _mesh_face(cd, e, o, a, b, reach, stack)
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def _row3(x, k):
     return (x[k, 0], x[k, 1], x[k, 2])
 
 
-@njit(cache=True, inline="always")
+@njit(inline="always", **_OPT_CONTACT)
 def _scratch(cd, e):
     """Env ``e``'s distance scratch: (ws (64,), g6 (6,), nhat (3,), H6 (6, 6), BVH stack)."""
     scf = cd.scratch_f
     return scf[e, 0:64], scf[e, 64:70], scf[e, 70:73], cd.scratch_m[e, 0], cd.scratch_i[e]
 
 
-@njit(cache=True, inline="always")
+@njit(inline="always", **_OPT_CONTACT)
 def _report_row(e, rc, j, o, rod_point, base, scale, n, ff, normal_force, gap, out_edge, out_obstacle,
                 out_rod_point, out_obstacle_point, out_normal, out_normal_force, out_friction_force, out_gap):
     """Write contact row ``rc`` of env ``e``: edge ``j`` against obstacle ``o``, rod point ``rod_point``, obstacle
@@ -374,12 +376,12 @@ def _report_row(e, rc, j, o, rod_point, base, scale, n, ff, normal_force, gap, o
     out_gap[e, rc] = gap
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemble, grad, hess, report,
                   out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
                   out_normal_force, out_friction_force, out_gap, out_max_penetration):
     (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
-     scm, sci, fric) = cd
+     scm, sci, fric, cmerge) = cd
     ws = scf[e, 0:64]
     g6 = scf[e, 64:70]
     nhat = scf[e, 70:73]
@@ -531,7 +533,7 @@ def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemb
     return energy
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def _plane_gap(cd, e, o, xx, kk):
     p0 = cd.p0
     p1 = cd.p1
@@ -539,7 +541,7 @@ def _plane_gap(cd, e, o, xx, kk):
             + p1[e, o, 2] * (xx[kk, 2] - p0[e, o, 2]))
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def contact_broadphase(e, cd, x_start, x_guess, margin):
     """Fill env ``e``'s candidate list: pairs whose gap may fall below ``margin`` [m] anywhere on the straight
     path from ``x_start`` to ``x_guess`` (one test at the midway configuration, inflated by half the motion). Pass as ``x_guess`` the predicted end of the (sub)step ``x0 + h u`` so that the list covers
@@ -549,7 +551,7 @@ def contact_broadphase(e, cd, x_start, x_guess, margin):
     obstacle-major with increasing j (the ownership rule relies on that order). Returns the count.
     """
     (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
-     scm, sci, fric) = cd
+     scm, sci, fric, cmerge) = cd
     r = params[0]
     N = x_start.shape[0]
     M = kind.shape[0]
@@ -557,12 +559,15 @@ def contact_broadphase(e, cd, x_start, x_guess, margin):
     ws, g6, nhat, H6, stack = _scratch(cd, e)
     infl = r + margin
     # rod AABB over both configurations
-    lo0 = min(x_start[:, 0].min(), x_guess[:, 0].min())
-    lo1 = min(x_start[:, 1].min(), x_guess[:, 1].min())
-    lo2 = min(x_start[:, 2].min(), x_guess[:, 2].min())
-    hi0 = max(x_start[:, 0].max(), x_guess[:, 0].max())
-    hi1 = max(x_start[:, 1].max(), x_guess[:, 1].max())
-    hi2 = max(x_start[:, 2].max(), x_guess[:, 2].max())
+    lo0 = lo1 = lo2 = np.inf
+    hi0 = hi1 = hi2 = -np.inf
+    for k in range(N):
+        lo0 = min(lo0, x_start[k, 0], x_guess[k, 0])
+        lo1 = min(lo1, x_start[k, 1], x_guess[k, 1])
+        lo2 = min(lo2, x_start[k, 2], x_guess[k, 2])
+        hi0 = max(hi0, x_start[k, 0], x_guess[k, 0])
+        hi1 = max(hi1, x_start[k, 1], x_guess[k, 1])
+        hi2 = max(hi2, x_start[k, 2], x_guess[k, 2])
     cnt = 0
     for o in range(M):
         if not active[e, o]:
@@ -609,7 +614,7 @@ def contact_broadphase(e, cd, x_start, x_guess, margin):
     return cnt
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def contact_refresh(e, cd, x_start, x_end, margin):
     """Re-run the broad phase of env ``e`` over the motion ``x_start`` -> ``x_end`` (the solved end of a step)
     and merge it with the current list. Returns True if that added pairs (the caller then solves again).
@@ -622,12 +627,12 @@ def contact_refresh(e, cd, x_start, x_end, margin):
     ccount = cd.cand_count
     cap = cand.shape[1]
     n1 = ccount[e]
-    old = np.empty((n1, 2), np.int64)
+    old = cd.cand_merge[e, :cap]  # the current list, kept while the broad phase rewrites cand[e]
     for c in range(n1):
         old[c, 0] = cand[e, c, 0]
         old[c, 1] = cand[e, c, 1]
     n2 = contact_broadphase(e, cd, x_start, x_end, margin)
-    new = np.empty((n2, 2), np.int64)
+    new = cd.cand_merge[e, cap:]
     for c in range(n2):
         new[c, 0] = cand[e, c, 0]
         new[c, 1] = cand[e, c, 1]
@@ -659,7 +664,7 @@ def contact_refresh(e, cd, x_start, x_end, margin):
     return added
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def _pair_gap(cd, e, c, x, dxp, t, r, reach, g6, H6, nhat, ws, stack):
     """Gap [m] of candidate c of env e at node positions x + t·dxp ((N, 3) arrays)."""
     cand = cd.cand
@@ -676,7 +681,7 @@ def _pair_gap(cd, e, c, x, dxp, t, r, reach, g6, H6, nhat, ws, stack):
     return gap
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def contact_step_limit(e, cd, x, dxp, rod_radius, delta):
     """Largest fraction t ∈ (0, 1] of the Newton update ``dxp`` ((N, 3) node displacements from positions
     ``x``) that lets no candidate pair of env ``e`` go deeper than max-penetration allowance: a pair with
@@ -722,7 +727,7 @@ def contact_step_limit(e, cd, x, dxp, rod_radius, delta):
     return max(tmax, 1e-3)
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def contact_accumulate(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, friction_on, grad, hess):
     """Add the contact (+ friction) residual into ``grad`` (N, 3) [N] and Jacobian blocks into ``hess``
     (N-1, 6, 6) [N/m] for env ``e``'s candidates at positions ``x``; return the contact energy [J].
@@ -737,7 +742,7 @@ def contact_accumulate(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, frict
                          cd.scratch_f[e:e, :0], cd.scratch_f[e, :0])
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def contact_min_gap(e, cd, x, rod_radius):
     """Smallest negative gap [m] over env ``e``'s current candidates at node positions ``x`` (N, >=3) [m];
     0.0 when no candidate penetrates (so the max penetration is ``-contact_min_gap``).
@@ -761,7 +766,7 @@ def contact_min_gap(e, cd, x, rod_radius):
     return best
 
 
-@njit(cache=True)
+@njit(**_OPT_CONTACT)
 def contact_report(e, cd, x, x_prev, dt, rod_radius, k, delta, mu, nu, friction_on,
                    out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
                    out_normal_force, out_friction_force, out_gap, out_max_penetration):

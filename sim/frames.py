@@ -10,10 +10,11 @@ import math
 import numpy as np
 from numba import njit
 
+from .solve_params import _OPT
+
 __all__ = ["cross", "dot", "transport", "rotate_about", "signed_angle", "initial_reference_frames",
            "update_frames", "reference_twist"]
 
-_OPT = dict(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"})
 _TWO_PI = 2.0 * math.pi
 
 

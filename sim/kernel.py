@@ -11,12 +11,12 @@ from .contact_kernels import contact_accumulate, contact_broadphase, contact_rep
 from .newton import _energies, _positions, _predicted_positions, substep
 from .solve_2d import KL_2D, frames_from_2d
 from .solve_3d import KL_3D
-from .solve_params import _CHUNK, _OPT, OK, Workspace, guard_score
+from .solve_params import _CHUNK, _OPT, _OPT_ALLOC, OK, Workspace, copy_into, guard_score
 
 __all__ = ["step_kernel", "alloc_workspace"]
 
 
-@njit(**_OPT)
+@njit(**_OPT_ALLOC)
 def alloc_workspace(N, planar):
     """A :class:`sim.solve_params.Workspace` for a rod of N nodes (one per thread and chunk of envs)."""
     dpn = 2 if planar else 4
@@ -35,11 +35,11 @@ def alloc_workspace(N, planar):
 
 @njit(inline="always", **_OPT)
 def _copy_state(x, v, d1, t, beta, to_x, to_v, to_d1, to_t, to_beta):
-    to_x[:] = x
-    to_v[:] = v
-    to_d1[:, :] = d1
-    to_t[:, :] = t
-    to_beta[:] = beta
+    copy_into(to_x, x)
+    copy_into(to_v, v)
+    copy_into(to_d1, d1)
+    copy_into(to_t, t)
+    copy_into(to_beta, beta)
 
 
 @njit(**_OPT)
@@ -101,8 +101,8 @@ def env_step(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
         ns, iters, conv_all, r, r0 = fb_ns, fb_it, fb_conv, fb_r, fb_r0
     if ok:
         if planar:
-            xs[:] = w.sub_x
-            us[:] = w.sub_v
+            copy_into(xs, w.sub_x)
+            copy_into(us, w.sub_v)
             frames_from_2d(xs, prm.plane_y, d1s, ts, bs, w)
         else:
             _copy_state(w.sub_x, w.sub_v, w.sub_d1, w.sub_t, w.sub_beta, xs, us, d1s, ts, bs)
@@ -168,7 +168,7 @@ def _clear_outputs(out, e):  # a call, not inlined: the outputs are written insi
     out.failed[e] = False
 
 
-@njit(parallel=True, **_OPT)
+@njit(parallel=True, **_OPT_ALLOC)
 def step_kernel(state, ctl, rod, prm_arr, cd, crep, out):
     """Advance all non-failed envs of ``state`` (:class:`sim.solve_params.StateArrays`, dof/vel (B, n)) by prm.dt
     under ``ctl`` (:class:`sim.solve_params.ControlArrays`); per-env results into ``out``

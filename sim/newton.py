@@ -54,6 +54,7 @@ from .solve_params import (
     RESIDUAL_GROWTH,
     STRAIN,
     UNCONVERGED,
+    copy_into,
     jacobian_symmetric,
     lazy_line_search,
     midpoint_gained_energy,
@@ -364,11 +365,12 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
         for i in range(w.beta.shape[0]):
             if not np.isfinite(w.beta[i]):
                 return NON_FINITE, it, conv, r, r0, 0.0, pen0
-        w.sub_d1[:, :] = w.d1
-        w.sub_t[:, :] = w.t
-        w.sub_beta[:] = w.beta
-    x0[:] = x
-    u[:] = dx[:x.shape[0]]
+        copy_into(w.sub_d1, w.d1)
+        copy_into(w.sub_t, w.t)
+        copy_into(w.sub_beta, w.beta)
+    copy_into(x0, x)
+    for k in range(x.shape[0]):
+        u[k] = dx[k]
     pen = 0.0
     if contact:  # pos: end of sub-step, pos0: its start; the list must cover the whole sub-step motion
         if not list_covers_step:

@@ -13,7 +13,7 @@ from .contact_kernels import contact_accumulate
 from .energies.planar import planar_bend_element
 from .energies.stretch import stretch_element_2d
 from .frames import update_frames
-from .solve_params import _OPT
+from .solve_params import _OPT, copy_into
 
 __all__ = ["assemble_2d", "energies_2d", "frames_from_2d", "KL_2D"]
 
@@ -142,6 +142,6 @@ def frames_from_2d(xs, py, d1s, ts, bs, w):
         pos[k, 1] = py
         pos[k, 2] = xs[2 * k + 1]
     update_frames(pos, d1s, ts, bs, w.t, w.d1, w.d2, w.elen, w.beta)
-    d1s[:, :] = w.d1
-    ts[:, :] = w.t
-    bs[:] = w.beta
+    copy_into(d1s, w.d1)
+    copy_into(ts, w.t)
+    copy_into(bs, w.beta)

@@ -77,7 +77,24 @@ OK, NON_FINITE, RESIDUAL_GROWTH, BAD_PIVOT, UNCONVERGED, STRAIN, MIDPOINT_GAINED
 # envs per workspace allocation in the step kernels' parallel loop
 _CHUNK = 8
 
-_OPT = dict(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"})
+# numba options of the step's kernels. They allocate nothing (all scratch is in the Workspace), so they are compiled
+# without the runtime's reference counting (_nrt=False): its atomic increments and decrements on every array passed
+# down the call chain, on arrays that both threads share, cost about a fifth of a step. A kernel that tried to
+# allocate would not compile. _OPT_ALLOC: the few functions that allocate (the workspace, the parallel driver).
+_OPT_ALLOC = dict(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"})
+_OPT = dict(_OPT_ALLOC, _nrt=False)
+# the contact kernels: the same without fastmath (their results are compared bit for bit with references)
+_OPT_CONTACT = dict(cache=True, _nrt=False)
+
+
+@njit(inline="always", **_OPT)
+def copy_into(dst, src):
+    """dst[...] = src, element by element, for C-contiguous arrays of one size (no temporary, no reference
+    counting)."""
+    d = dst.reshape(dst.size)
+    s = src.reshape(src.size)
+    for i in range(d.shape[0]):
+        d[i] = s[i]
 
 
 @njit(inline="always", **_OPT)

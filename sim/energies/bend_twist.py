@@ -12,10 +12,10 @@ import math
 from numba import njit
 
 from sim.frames import add, axpy, cross, dot, norm, scale, sub
+from sim.solve_params import _OPT
 
 __all__ = ["bend_twist_core", "bend_twist_element", "material_curvatures", "material_directors"]
 
-_OPT = dict(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"})
 
 
 @njit(inline="always", **_OPT)
