@@ -212,8 +212,9 @@ def _eval_edge(cd, e, o, a, b, r, reach, g6, H6, nhat, ws, stack, derivs=True):
     Fills g6/H6/nhat (derivatives of Delta, if ``derivs``) when the gap is < reach - r; returns
     gap = inf otherwise.
     """
-    (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
-     scm, sci, fric, cmerge) = cd
+    kind, p0, p1, rot = cd.kind, cd.p0, cd.p1, cd.rot
+    rad, half, mroot, tri = cd.radius, cd.half, cd.mesh_root, cd.tri
+    nlo, nhi, nch, nrg = cd.node_lo, cd.node_hi, cd.node_child, cd.node_range
     z = (0.0, 0.0, 0.0)
     k = kind[o]
     P = (p0[e, o, 0], p0[e, o, 1], p0[e, o, 2])
@@ -380,8 +381,9 @@ def _report_row(e, rc, j, o, rod_point, base, scale, n, ff, normal_force, gap, o
 def _contact_pass(e, cd, x, x_prev, dt, r, k, delta, mu, nu, friction_on, assemble, grad, hess, report,
                   out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
                   out_normal_force, out_friction_force, out_gap, out_max_penetration):
-    (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
-     scm, sci, fric, cmerge) = cd
+    kind, p0, p1, rad = cd.kind, cd.p0, cd.p1, cd.radius
+    cand, ccount, scf, scm = cd.cand, cd.cand_count, cd.scratch_f, cd.scratch_m
+    sci, fric = cd.scratch_i, cd.friction
     ws = scf[e, 0:64]
     g6 = scf[e, 64:70]
     nhat = scf[e, 70:73]
@@ -550,8 +552,8 @@ def contact_broadphase(e, cd, x_start, x_guess, margin):
     Candidates are (edge j, obstacle o) for non-plane obstacles and (node k, plane o), stored
     obstacle-major with increasing j (the ownership rule relies on that order). Returns the count.
     """
-    (kind, p0, p1, rot, rad, half, mroot, tri, nlo, nhi, nch, nrg, cand, ccount, params, active, obox, itf, scf,
-     scm, sci, fric, cmerge) = cd
+    kind, cand, ccount = cd.kind, cd.cand, cd.cand_count
+    params, active, obox = cd.params, cd.active, cd.box
     r = params[0]
     N = x_start.shape[0]
     M = kind.shape[0]
