@@ -23,7 +23,7 @@ derivatives through them), skipped when ``friction_on`` is False (Newton iterati
 :meth:`sim.obstacles.ObstacleSet.kernel_data`:
 ``(kind (M,), p0 (B,M,3), p1 (B,M,3), rot (B,M,3,3), radius (B,M), half (M,3), mesh_root (M,),
 tri (T,3,3), node_lo (K,3), node_hi (K,3), node_child (K,2), node_range (K,2), cand (B,C,2) int64,
-cand_count (B,), params (4,) [rod_radius, ...], active (B,M) bool, box (B,M,2,3) world AABBs,
+cand_count (B,), rod_radius (1,) [m] (the broad phase's inflation), active (B,M) bool, box (B,M,2,3) world AABBs,
 iter_flag (B,) int64 (0 right after the broad phase: friction is skipped on that first Newton iteration),
 scratch_f (B,128), scratch_m (B,2,6,6), scratch_i (B,128) int64 per-env work space (no allocation in the kernels),
 friction (M,) per-obstacle μ (-1: use the kernels' scalar μ, the [contact] friction), cand_merge (B,2C,2) int64
@@ -553,8 +553,8 @@ def contact_broadphase(e, cd, x_start, x_guess, margin):
     obstacle-major with increasing j (the ownership rule relies on that order). Returns the count.
     """
     kind, cand, ccount = cd.kind, cd.cand, cd.cand_count
-    params, active, obox = cd.params, cd.active, cd.box
-    r = params[0]
+    active, obox = cd.active, cd.box
+    r = cd.rod_radius[0]
     N = x_start.shape[0]
     M = kind.shape[0]
     cap = cand.shape[1]
