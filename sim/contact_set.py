@@ -37,22 +37,30 @@ REPORT_CAPACITY = 64
 ContactData = namedtuple("ContactData", [
     "kind", "p0", "p1", "rot", "radius", "half", "mesh_root", "tri", "node_lo", "node_hi", "node_child",
     "node_range", "cand", "cand_count", "rod_radius", "active", "box", "iter_flag", "scratch_f", "scratch_m",
-    "scratch_i", "friction", "cand_merge"])
+    "scratch_i", "friction", "cand_merge", "edge_radius", "node_radius"])
 ContactData.__doc__ = "Arrays read by :mod:`sim.contact_kernels` (fields documented there); a numba namedtuple."
 # the kernels' per-env work space: candidate pairs, their count, [rod radius, ...], first-iteration flag, scratch
 ContactScratch = namedtuple("ContactScratch", ["cand", "cand_count", "rod_radius", "iter_flag", "scratch_f",
-                                               "scratch_m", "scratch_i", "cand_merge"])
+                                               "scratch_m", "scratch_i", "cand_merge", "edge_radius",
+                                               "node_radius"])
 _PER_ENV = ("position", "orientation", "local_a", "local_b", "radius", "active", "p0", "p1", "rot", "box")
 
 
-def contact_scratch(envs: int, n_nodes: int, count: int, rod_radius: float) -> ContactScratch:
-    """Work space of the contact kernels for ``envs`` envs of a rod of ``n_nodes`` nodes and ``count`` obstacles
-    (rod radius [m] inflates the broad phase)."""
+def contact_scratch(envs: int, n_nodes: int, count: int, rod_radius) -> ContactScratch:
+    """Work space of the contact kernels for ``envs`` envs of a rod of ``n_nodes`` nodes and ``count`` obstacles,
+    with the rod's radii: ``rod_radius`` [m] one value or one per edge (n_nodes - 1,). An edge's capsule has its
+    own radius; a node (plane contact) the larger of its edges'; the largest inflates the broad phase."""
     B = int(envs)
+    n = max(int(n_nodes), 2)
+    er = np.array(np.broadcast_to(np.asarray(rod_radius, dtype=np.float64), (n - 1,)))
+    nr = np.empty(n)
+    nr[0], nr[-1] = er[0], er[-1]
+    nr[1:-1] = np.maximum(er[:-1], er[1:])
     return ContactScratch(
+        edge_radius=er, node_radius=nr,
         cand=np.zeros((B, max(int(n_nodes) * int(count), 1), 2), dtype=np.int64),
         cand_merge=np.zeros((B, 2 * max(int(n_nodes) * int(count), 1), 2), dtype=np.int64),
-        cand_count=np.zeros(B, dtype=np.int64), rod_radius=np.array([float(rod_radius)]),
+        cand_count=np.zeros(B, dtype=np.int64), rod_radius=np.array([float(er.max())]),
         iter_flag=np.ones(B, dtype=np.int64), scratch_f=np.zeros((B, 128)), scratch_m=np.zeros((B, 2, 6, 6)),
         scratch_i=np.zeros((B, 128), dtype=np.int64))
 
@@ -62,7 +70,7 @@ def contact_data(obs: "ObstacleSet", scratch: ContactScratch) -> ContactData:
     return ContactData(obs.kind, obs.p0, obs.p1, obs.rot, obs.radius, obs.half, obs.mesh_root, obs.tri, obs.node_lo,
                        obs.node_hi, obs.node_child, obs.node_range, scratch.cand, scratch.cand_count, scratch.rod_radius,
                        obs.active, obs.box, scratch.iter_flag, scratch.scratch_f, scratch.scratch_m, scratch.scratch_i,
-                       obs.friction, scratch.cand_merge)
+                       obs.friction, scratch.cand_merge, scratch.edge_radius, scratch.node_radius)
 
 
 class ObstacleSet:
@@ -156,7 +164,8 @@ class ObstacleSet:
     def from_specs(cls, specs: Sequence[ObstacleSpec], *, envs: int = 1) -> "ObstacleSet":
         return cls(specs, envs=envs)
 
-    def for_envs(self, envs: int, *, n_nodes: int | None = None, rod_radius: float | None = None) -> "ObstacleSet":
+    def for_envs(self, envs: int, *, n_nodes: int | None = None,
+                 rod_radius: float | np.ndarray | None = None) -> "ObstacleSet":
         """A new ObstacleSet for ``envs`` environments sharing this one's static data (meshes, BVHs), with
         its own per-env poses at the spec values. Use one per Simulator."""
         new = copy.copy(self)
@@ -322,19 +331,22 @@ class ObstacleSet:
 
     # ------------------------------------------------------------------ kernel data
     def kernel_data(self, envs: int | None = None, *, n_nodes: int | None = None,
-                    rod_radius: float | None = None) -> ContactData:
+                    rod_radius: float | np.ndarray | None = None) -> ContactData:
         """The tuple of arrays read by :mod:`sim.contact_kernels` (layout documented there).
 
         Re-allocates per-env arrays only if ``envs`` changes (then poses return to the spec); otherwise
         the same arrays are returned, so later ``set_pose``/``set_capsules`` calls are seen by the solver.
-        ``n_nodes`` sizes the candidate buffers (B, n_nodes * M, 2); ``rod_radius`` [m] inflates the
-        broad phase.
+        ``n_nodes`` sizes the candidate buffers (B, n_nodes * M, 2); ``rod_radius`` [m]: the rod's radius, or
+        one per edge (see :func:`contact_scratch`).
         """
         if envs is not None and int(envs) != self.envs:
             self._alloc(int(envs))
-        n = int(n_nodes) if n_nodes is not None else max(self._n_nodes, 64)
-        rr = float(rod_radius) if rod_radius is not None else self._rod_radius
-        if self._kd is None or n != self._n_nodes or rr != self._rod_radius:
+        rr = rod_radius if rod_radius is not None else self._rod_radius
+        if n_nodes is not None:
+            n = int(n_nodes)
+        else:  # per-edge radii give the node count
+            n = len(rr) + 1 if np.ndim(rr) else max(self._n_nodes, 64)
+        if self._kd is None or n != self._n_nodes or not np.array_equal(rr, self._rod_radius):
             self._n_nodes, self._rod_radius = n, rr
             self._kd = contact_data(self, contact_scratch(self.envs, n, self.count, rr))
         return self._kd

@@ -46,10 +46,11 @@ class Model:
     newton_max_iter: int
     accept_unconverged: bool
     divergence_guard: float          # [-] residual growth factor that retries an accepted unconverged step; 0 off
-    radius: float                    # [m] (non-circular sections: the circumscribed radius contact uses)
-    EA: float                        # [N]
-    EI1: float                       # [N m^2]
-    EI2: float                       # [N m^2]
+    radius: float                    # [m] (non-circular sections: the circumscribed radius contact uses;
+                                     # per-edge radii: the largest)
+    EA: float                        # [N]      the rod's stiffnesses; with per-edge radius or youngs_modulus
+    EI1: float                       # [N m^2]  lists, the largest over the edges (the per-edge and per-node
+    EI2: float                       # [N m^2]  values the step uses are edge_EA and node_EI1/EI2/GJ)
     GJ: float                        # [N m^2]
     rest_node_pos: np.ndarray        # (N, 3) [m] initial = rest configuration
     rest_edge_length: np.ndarray     # (N-1,) [m]
@@ -58,6 +59,11 @@ class Model:
     edge_twist_inertia: np.ndarray   # (N-1,) [kg m^2] = rho J lbar_j  ([REC])
     rest_ref_d1: np.ndarray          # (N-1, 3) initial space-parallel reference director
     rest_tangent: np.ndarray         # (N-1, 3)
+    edge_radius: np.ndarray          # (N-1,) [m] contact radius per edge
+    edge_EA: np.ndarray              # (N-1,) [N] stretching stiffness per edge
+    node_EI1: np.ndarray             # (N,) [N m^2] bending stiffness at a node (interior: mean of its two edges)
+    node_EI2: np.ndarray             # (N,) [N m^2]
+    node_GJ: np.ndarray              # (N,) [N m^2] twisting stiffness at a node (same rule)
     rest_kappa_bar: np.ndarray       # (N, 2) integrated natural curvature of the rest shape (rows 0, N-1 = 0)
     rest_tau_bar: np.ndarray         # (N,) natural twist of the rest shape [rad]
     dof_mass: np.ndarray             # (ndof,) [kg] or [kg m^2]
@@ -84,6 +90,16 @@ class Model:
         return 4 if self.mode == "3d" else 2
 
 
+def _node_mean(edge: np.ndarray) -> np.ndarray:
+    """(N,) per-node values of an (N-1,) per-edge quantity: an interior node the mean of its two edges, an end
+    node its edge's (bending and twisting act at interior nodes only)."""
+    out = np.empty(edge.shape[0] + 1)
+    out[0] = edge[0]
+    out[-1] = edge[-1]
+    out[1:-1] = 0.5 * (edge[:-1] + edge[1:])
+    return out
+
+
 def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
     """Build the Model of ``spec``.
 
@@ -105,21 +121,31 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
     vor[0] = 0.5 * lbar[0]
     vor[-1] = 0.5 * lbar[-1]
     vor[1:-1] = 0.5 * (lbar[:-1] + lbar[1:])
-    E = rod.youngs_modulus
+    # per-edge section and material (docs/physics.md §1.5): the scalar keys, or the per-edge lists
+    er = getattr(rod, "edge_radius", None)
+    eE = getattr(rod, "edge_youngs_modulus", None)
+    E = np.full(N - 1, float(rod.youngs_modulus)) if eE is None else np.asarray(eE, dtype=np.float64)
     G = E / (2.0 * (1.0 + rod.poisson_ratio))
     if getattr(rod, "cross_section", "circle") == "circle":
-        r = rod.radius
+        r = np.full(N - 1, float(rod.radius)) if er is None else np.asarray(er, dtype=np.float64)
         A = math.pi * r * r
         Jp = math.pi * r ** 4 / 2.0
         EI1 = EI2 = E * math.pi * r ** 4 / 4.0
         GJ = G * Jp
     else:  # sim/section.py: I1, I2 about the directors, torsion constant J, polar moment; contact radius
         sec = section_of(rod)
-        r, A, Jp = sec.contact_radius, sec.area, sec.polar
+        r, A, Jp = np.full(N - 1, sec.contact_radius), np.full(N - 1, sec.area), np.full(N - 1, sec.polar)
         EI1, EI2, GJ = E * sec.I1, E * sec.I2, G * sec.J
-    mass = rod.density * A * vor
+    if np.all(A == A[0]):  # one section: node mass ρ A l_vor
+        mass = rod.density * A[0] * vor
+    else:  # half of each adjacent edge's mass ρ A_j l_j
+        me = rod.density * A * lbar
+        mass = np.zeros(N)
+        mass[:-1] += 0.5 * me
+        mass[1:] += 0.5 * me
     theta_inertia = rod.density * Jp * lbar
     EA = E * A
+    node_EI1, node_EI2, node_GJ = (_node_mean(v) for v in (EI1, EI2, GJ))
     d1, t = initial_reference_frames(x)
     kbar = material_curvature(x, d1, np.cross(t, d1))  # rest shape: material = reference frame (θ = 0)
     g = np.asarray(sim.gravity, dtype=np.float64)
@@ -164,7 +190,9 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         spec=spec, mode=sim.mode, node_count=N, dt=sim.dt, gravity=_ro(g), damping=sim.damping,
         integrator=sim.integrator, line_search=sim.line_search, newton_tol=sim.newton_tol,
         newton_dtol=sim.newton_dtol, newton_max_iter=sim.newton_max_iter, divergence_guard=sim.divergence_guard,
-        accept_unconverged=sim.accept_unconverged, radius=r, EA=EA, EI1=EI1, EI2=EI2, GJ=GJ,
+        accept_unconverged=sim.accept_unconverged, radius=float(r.max()), EA=float(EA.max()),
+        EI1=float(EI1.max()), EI2=float(EI2.max()), GJ=float(GJ.max()), edge_radius=_ro(r), edge_EA=_ro(EA),
+        node_EI1=_ro(node_EI1), node_EI2=_ro(node_EI2), node_GJ=_ro(node_GJ),
         rest_node_pos=_ro(x), rest_edge_length=_ro(lbar), voronoi_length=_ro(vor), node_mass=_ro(mass),
         edge_twist_inertia=_ro(theta_inertia), rest_ref_d1=_ro(d1), rest_tangent=_ro(t),
         rest_kappa_bar=_ro(kbar), rest_tau_bar=_ro(np.zeros(N)), dof_mass=_ro(dmass.ravel()),

@@ -16,7 +16,8 @@ Keys (SI units)::
            default "first_edge"), cross_section ("circle"|"rectangle"|"ellipse", default "circle":
            radius; "rectangle": width [m] (along m1) and height [m] (along m2); "ellipse": semi_axes [m]
            [a, b] (a along m1); sim/section.py), rest_points [m] (list of [x, y, z]: a non-straight rest
-           shape instead of nodes/length/start/direction)
+           shape instead of nodes/length/start/direction); radius (circle) and youngs_modulus also take a
+           list of nodes - 1 values, one per edge (a non-uniform rod)
     [[obstacle]], [contact]   parsed by ``sim.obstacles`` (see there)
     [[load]], [[fix]]         point loads, constrained nodes/edges and prescribed motion: ``sim.boundary``
 """
@@ -93,6 +94,10 @@ class RodSpec:
     # non-straight rest shape: the nodes' rest positions (N, 3) [m]; then nodes/length/start/direction are the
     # points' (see rest_shape_fields) and build_model places the nodes there (rest curvature from the points)
     rest_points: tuple | None = None
+    # non-uniform rod: per-edge radius [m] (circular section) and Young's modulus [Pa], N-1 values each; the
+    # scalar radius / youngs_modulus then hold the largest value (build_model uses the lists)
+    edge_radius: tuple | None = None
+    edge_youngs_modulus: tuple | None = None
 
 
 @dataclass(frozen=True)
@@ -166,7 +171,12 @@ def _take_section(r: dict, where: str, path: str | None) -> dict:
             raise SceneError(f"{where}: rod.{k}: not used by cross_section = {kind!r} (it takes "
                              f"{' and '.join(need)})")
     if kind == "circle":
+        if isinstance(r.get("radius"), list):
+            er = _take_edge_list(r, "radius", path)
+            return {"radius": max(er), "edge_radius": er}
         return {"radius": take_float(r, "radius", "rod.", path, positive=True)}
+    if isinstance(r.get("radius"), list):
+        raise SceneError(f"{where}: rod.radius: a per-edge list needs cross_section = \"circle\"")
     if kind == "rectangle":
         w = take_float(r, "width", "rod.", path, positive=True)
         h = take_float(r, "height", "rod.", path, positive=True)
@@ -176,6 +186,16 @@ def _take_section(r: dict, where: str, path: str | None) -> dict:
         raise SceneError(f"{where}: rod.semi_axes: expected a list of 2 numbers [a, b], got {v!r}")
     ab = tuple(take_float({"semi_axes": c}, "semi_axes", "rod.", path, positive=True) for c in v)
     return {"cross_section": kind, "semi_axes": ab, "radius": max(ab)}
+
+
+def _take_edge_list(r: dict, key: str, path: str | None) -> tuple:
+    """A per-edge list rod.<key> = [v_0, ..., v_{N-2}] of positive numbers (its length is checked against the
+    nodes by sim/validate.py)."""
+    v = r[key]
+    if len(v) < 2:
+        raise SceneError(f"{path or '<scene>'}: rod.{key}: a per-edge list needs one value per edge (nodes - 1), "
+                         f"got {len(v)}")
+    return tuple(take_float({key: c}, key, "rod.", path, positive=True) for c in v)
 
 
 def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
@@ -211,10 +231,15 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
     if not (-1.0 < nu <= 0.5):
         raise SceneError(f"{where}: rod.poisson_ratio: must be in (-1, 0.5], got {nu!r}")
     sec = _take_section(r, where, path)
+    if isinstance(r.get("youngs_modulus"), list):
+        sec["edge_youngs_modulus"] = _take_edge_list(r, "youngs_modulus", path)
+        youngs = max(sec["edge_youngs_modulus"])
+    else:
+        youngs = take_float(r, "youngs_modulus", "rod.", path, positive=True)
     rod = RodSpec(
         radius=sec.pop("radius"),
         density=take_float(r, "density", "rod.", path, positive=True),
-        youngs_modulus=take_float(r, "youngs_modulus", "rod.", path, positive=True),
+        youngs_modulus=youngs,
         poisson_ratio=nu,
         clamp=take_str(r, "clamp", "rod.", path, "first_edge", choices=("first_edge", "none")),  # type: ignore
         **sec,
@@ -276,6 +301,9 @@ def scene_to_toml(spec: SceneSpec, *, base_dir: str | os.PathLike | None = None)
         if k in ("nodes", "length", "start", "direction") and k not in shape:
             continue
         v = getattr(spec.rod, k)
+        per_edge = getattr(spec.rod, f"edge_{k}", None) if k in ("radius", "youngs_modulus") else None
+        if per_edge is not None:
+            v = per_edge
         lines.append(f"{k} = {format_value(list(v) if isinstance(v, tuple) else v)}")
     if spec.rod.rest_points is not None:
         lines.append("rest_points = [" + ", ".join(format_value(list(p)) for p in spec.rod.rest_points) + "]")

@@ -32,7 +32,7 @@ def rod_obstacle_overlaps(model, *, tolerance: float = 0.0) -> list[Overlap]:
     M = model.obstacles.count
     if M == 0:
         return []
-    obs = model.obstacles.for_envs(M, n_nodes=model.node_count, rod_radius=model.radius)
+    obs = model.obstacles.for_envs(M, n_nodes=model.node_count, rod_radius=model.edge_radius)
     for o in range(M):  # env o sees obstacle o only
         for k in range(M):
             obs.set_active(k, k == o, envs=[o])
@@ -41,7 +41,7 @@ def rod_obstacle_overlaps(model, *, tolerance: float = 0.0) -> list[Overlap]:
     out = []
     for o in range(M):
         contact_broadphase(o, cd, x, x, 0.0)
-        gap = float(contact_min_gap(o, cd, x, model.radius))
+        gap = float(contact_min_gap(o, cd, x))
         if gap < -tolerance:
             spec = model.spec.obstacles[o]
             out.append(Overlap(o, getattr(spec, "name", "") or "", getattr(spec, "type", "?"), -gap))

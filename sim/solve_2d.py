@@ -51,7 +51,7 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
     es = 0.0
     for j in range(N - 1):  # stretching
         o = 2 * j
-        ej, _ = stretch_element_2d((x[o], x[o + 1]), (x[o + 2], x[o + 3]), rest_len[j], prm.EA, g4, H4, with_jac)
+        ej, _ = stretch_element_2d((x[o], x[o + 1]), (x[o + 2], x[o + 3]), rest_len[j], rod.EA[j], g4, H4, with_jac)
         es += ej
         for a in range(4):
             f[o + a] += g4[a]
@@ -63,7 +63,7 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
     for i in range(1, N - 1):  # bending at the interior nodes
         o = 2 * (i - 1)
         ebi, _ = planar_bend_element((x[o], x[o + 1]), (x[o + 2], x[o + 3]), (x[o + 4], x[o + 5]),
-                                     sgn * kb[i, 0], prm.EI1, vor_len[i], g6, H6, with_jac)
+                                     sgn * kb[i, 0], rod.EI1[i], vor_len[i], g6, H6, with_jac)
         eb += ebi
         for a in range(6):
             f[o + a] += g6[a]
@@ -84,7 +84,7 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
             pos0[k, 2] = x0[2 * k + 1]
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
-        ec = contact_accumulate(e, cd, pos, pos0, h, prm.radius, prm.contact_k, prm.contact_delta, prm.friction,
+        ec = contact_accumulate(e, cd, pos, pos0, h, prm.contact_k, prm.contact_delta, prm.friction,
                                 prm.friction_nu, prm.friction_on > 0, cg, ch)
         for k in range(N):
             f[2 * k] += cg[k, 0]
@@ -120,14 +120,14 @@ def energies_2d(xs, kb, rod, prm, w):
     es = 0.0
     for j in range(N - 1):
         o = 2 * j
-        ej, _ = stretch_element_2d((xs[o], xs[o + 1]), (xs[o + 2], xs[o + 3]), rest_len[j], prm.EA, w.g4, w.H4,
+        ej, _ = stretch_element_2d((xs[o], xs[o + 1]), (xs[o + 2], xs[o + 3]), rest_len[j], rod.EA[j], w.g4, w.H4,
                                    False)
         es += ej
     eb = 0.0
     for i in range(1, N - 1):
         o = 2 * (i - 1)
         ebi, _ = planar_bend_element((xs[o], xs[o + 1]), (xs[o + 2], xs[o + 3]), (xs[o + 4], xs[o + 5]),
-                                     prm.planar_sign * kb[i, 0], prm.EI1, vor_len[i], w.g6, w.H6, False)
+                                     prm.planar_sign * kb[i, 0], rod.EI1[i], vor_len[i], w.g6, w.H6, False)
         eb += ebi
     return es, eb, 0.0
 

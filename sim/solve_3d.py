@@ -64,7 +64,7 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
     for j in range(N - 1):  # stretching
         o0 = 4 * j
         o1 = 4 * j + 4
-        ej, _ = stretch_element((x[o0], x[o0 + 1], x[o0 + 2]), (x[o1], x[o1 + 1], x[o1 + 2]), rest_len[j], prm.EA,
+        ej, _ = stretch_element((x[o0], x[o0 + 1], x[o0 + 2]), (x[o1], x[o1 + 1], x[o1 + 2]), rest_len[j], rod.EA[j],
                                 g6, H6, with_jac)
         es += ej
         for a in range(3):
@@ -89,7 +89,7 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
             (x[o], x[o + 1], x[o + 2]), (x[o + 4], x[o + 5], x[o + 6]), (x[o + 8], x[o + 9], x[o + 10]),
             (mf[i - 1, 0], mf[i - 1, 1], mf[i - 1, 2]), (mf[i - 1, 3], mf[i - 1, 4], mf[i - 1, 5]),
             (mf[i, 0], mf[i, 1], mf[i, 2]), (mf[i, 3], mf[i, 4], mf[i, 5]),
-            x[o + 7] - x[o + 3] + beta[i], kb[i, 0], kb[i, 1], tb[i], prm.EI1, prm.EI2, prm.GJ, vor_len[i],
+            x[o + 7] - x[o + 3] + beta[i], kb[i, 0], kb[i, 1], tb[i], rod.EI1[i], rod.EI2[i], rod.GJ[i], vor_len[i],
             g11, H11, w.wk, with_jac, sym)
         eb += ebi
         et += eti
@@ -108,7 +108,7 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                 pos0[k, a] = x0[4 * k + a]
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
-        ec = contact_accumulate(e, cd, pos, pos0, h, prm.radius, prm.contact_k, prm.contact_delta, prm.friction,
+        ec = contact_accumulate(e, cd, pos, pos0, h, prm.contact_k, prm.contact_delta, prm.friction,
                                 prm.friction_nu, prm.friction_on > 0, cg, ch)
         for k in range(N):
             for a in range(3):
@@ -140,7 +140,6 @@ def energies_3d(xs, d1s, ts, bs, kb, tb, rod, prm, w):
     the material directors)."""
     rest_len, vor_len, mf = rod.rest_len, rod.vor_len, w.mf
     N = xs.shape[0] // 4
-    EA = prm.EA
     es = 0.0
     for j in range(N - 1):
         o = 4 * j
@@ -148,7 +147,7 @@ def energies_3d(xs, d1s, ts, bs, kb, tb, rod, prm, w):
         ey = xs[o + 5] - xs[o + 1]
         ez = xs[o + 6] - xs[o + 2]
         eps = math.sqrt(ex * ex + ey * ey + ez * ez) / rest_len[j] - 1.0
-        es += 0.5 * EA * rest_len[j] * eps * eps
+        es += 0.5 * rod.EA[j] * rest_len[j] * eps * eps
         a0, a1, a2 = d1s[j, 0], d1s[j, 1], d1s[j, 2]
         t0, t1, t2 = ts[j, 0], ts[j, 1], ts[j, 2]
         m1, m2 = material_directors((a0, a1, a2), (t1 * a2 - t2 * a1, t2 * a0 - t0 * a2, t0 * a1 - t1 * a0), xs[o + 3])
@@ -164,7 +163,7 @@ def energies_3d(xs, d1s, ts, bs, kb, tb, rod, prm, w):
                                      (mf[i - 1, 3], mf[i - 1, 4], mf[i - 1, 5]), (mf[i, 0], mf[i, 1], mf[i, 2]),
                                      (mf[i, 3], mf[i, 4], mf[i, 5]))
         lv = vor_len[i]
-        eb += 0.5 / lv * (prm.EI1 * (k1 - kb[i, 0]) ** 2 + prm.EI2 * (k2 - kb[i, 1]) ** 2)
+        eb += 0.5 / lv * (rod.EI1[i] * (k1 - kb[i, 0]) ** 2 + rod.EI2[i] * (k2 - kb[i, 1]) ** 2)
         tw = xs[o + 7] - xs[o + 3] + bs[i] - tb[i]
-        et += 0.5 * prm.GJ / lv * tw * tw
+        et += 0.5 * rod.GJ[i] / lv * tw * tw
     return es, eb, et

@@ -12,13 +12,12 @@ import numpy as np
 from numba import njit
 
 # The solver's scalar parameters by name: a namedtuple of float64 (flags 0.0/1.0, planar 1.0 for the 2-D model;
-# line_search 0 none, 1 backtrack, 2 auto), built once by the Simulator from the Model. Units: EA [N],
-# EI1/EI2/GJ [N m²], dt [s],
-# damping [1/s], newton_dtol [m/s], radius/contact_delta/contact_margin/max_penetration/plane_y [m],
+# line_search 0 none, 1 backtrack, 2 auto), built once by the Simulator from the Model. Units: dt [s],
+# damping [1/s], newton_dtol [m/s], contact_delta/contact_margin/max_penetration/plane_y [m],
 # contact_k [N/m], friction_nu [m/s]; the rest dimensionless.
 Params = namedtuple("Params", [
-    "EA", "EI1", "EI2", "GJ", "dt", "damping", "newton_tol", "newton_dtol", "newton_max_iter", "accept_unconverged",
-    "midpoint", "line_search", "radius", "contact_k", "contact_delta", "friction", "friction_nu", "friction_on",
+    "dt", "damping", "newton_tol", "newton_dtol", "newton_max_iter", "accept_unconverged",
+    "midpoint", "line_search", "contact_k", "contact_delta", "friction", "friction_nu", "friction_on",
     "contact_margin", "n_obstacles", "planar_sign", "plane_y", "retry_levels", "max_strain", "max_penetration",
     "step_limit", "divergence_guard", "midpoint_energy_tol", "planar",
 ])
@@ -52,8 +51,10 @@ StepOutput = namedtuple("StepOutput", [
 ])
 # the rod's constant per-edge / per-node / per-DOF arrays (docs/physics.md §1.2): rest edge lengths (N-1,),
 # Voronoi lengths (N,), DOF masses, fixed-DOF flags (n,) of one env, and the external forces grav (gravity plus
-# point loads): (1, n) shared by all envs, or (B, n) per env when time-windowed loads act (row min(e, rows - 1))
-RodData = namedtuple("RodData", ["rest_len", "vor_len", "mass", "fixed", "grav"])
+# point loads): (1, n) shared by all envs, or (B, n) per env when time-windowed loads act (row min(e, rows - 1));
+# the stiffnesses: EA [N] per edge (N-1,), EI1/EI2/GJ [N m²] per node (N,) (an interior node: the mean of its two
+# edges'; docs/physics.md §1.5). The planar rod reads its in-plane bending stiffness from EI1.
+RodData = namedtuple("RodData", ["rest_len", "vor_len", "mass", "fixed", "grav", "EA", "EI1", "EI2", "GJ"])
 # the batched state the kernel advances in place (leading axis B): DOFs and their velocities (B, n), the stored
 # reference frames (B, N-1, 3) and reference twist (B, N), time (B,), failed flags (B,)
 StateArrays = namedtuple("StateArrays", ["dof", "vel", "ref_d1", "tangent", "ref_twist", "time", "failed"])

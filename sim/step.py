@@ -39,13 +39,13 @@ class Simulator:
         c = m.spec.contact
         mp = getattr(c, "max_penetration", None)  # penetration guard [m]; None = 4 * delta
         # the planar rod bends with EI1 (kernel): there, the stiffness of its in-plane component
-        ei1 = m.EI1 if m.mode == "3d" or m.planar_component == 0 else m.EI2
+        ei1 = m.node_EI1 if m.mode == "3d" or m.planar_component == 0 else m.node_EI2
         prm = _solve.Params(
-            EA=m.EA, EI1=ei1, EI2=m.EI2, GJ=m.GJ, dt=m.dt, damping=m.damping, newton_tol=m.newton_tol,
+            dt=m.dt, damping=m.damping, newton_tol=m.newton_tol,
             newton_dtol=m.newton_dtol, newton_max_iter=float(m.newton_max_iter),
             accept_unconverged=1.0 if m.accept_unconverged else 0.0,
             midpoint=0.0 if m.integrator == "backward_euler" else 1.0,
-            line_search={"none": 0.0, "backtrack": 1.0, "auto": 2.0}[m.line_search], radius=m.radius,
+            line_search={"none": 0.0, "backtrack": 1.0, "auto": 2.0}[m.line_search],
             contact_k=c.stiffness, contact_delta=c.delta, friction=c.friction, friction_nu=c.friction_velocity_tol,
             friction_on=1.0 if np.any(m.obstacles.effective_friction(c.friction) > 0) else 0.0,
             contact_margin=c.margin, n_obstacles=float(m.obstacles.count if getattr(c, "enabled", True) else 0),
@@ -56,13 +56,14 @@ class Simulator:
         self._prm = _solve.params_record(prm)  # one float64 record (passed by reference in the kernels)
         self._rod = _solve.RodData(rest_len=np.array(m.rest_edge_length), vor_len=np.array(m.voronoi_length),
                                    mass=np.array(m.dof_mass), fixed=np.array(m.dof_fixed),
-                                   grav=np.array(m.dof_gravity)[None, :])
+                                   grav=np.array(m.dof_gravity)[None, :], EA=np.array(m.edge_EA),
+                                   EI1=np.array(ei1), EI2=np.array(m.node_EI2), GJ=np.array(m.node_GJ))
         # point loads (sim.boundary): per-env external forces only when a scene has loads; prescribed motion
         self._loads = m.load_force.shape[0] > 0
         self._motion = m.motion_rate.shape[0] > 0
         self._moving_dofs = np.flatnonzero(np.any(m.motion_rate != 0.0, axis=0)) if self._motion else None
         # work space of the contact kernels (candidate lists); the poses themselves are in State.obstacles
-        self._scratch = contact_scratch(B, m.node_count, m.obstacles.count, m.radius)
+        self._scratch = contact_scratch(B, m.node_count, m.obstacles.count, m.edge_radius)
         self._no_obstacles = m.obstacles.for_envs(B) if m.obstacles.count == 0 else None
         C = int(m.obstacles.report_capacity)
         self._crep = _solve.ContactReport(

@@ -161,6 +161,16 @@ def check_scene(spec: Any, where: str | None = None) -> None:
     radius = c.num("rod.radius", r.radius, positive=True)
     rho = c.num("rod.density", r.density, positive=True)
     E = c.num("rod.youngs_modulus", r.youngs_modulus, positive=True)
+    # per-edge lists (a non-uniform rod): one value per edge, each within the key's bounds; the derived checks
+    # below then use the smallest
+    er = _edge_list(c, "rod.radius", getattr(r, "edge_radius", None), n)
+    if er is not None:
+        if sec is not None:
+            c.fail("rod.radius", 'a per-edge list needs cross_section = "circle"')
+        radius = min(er)
+    eE = _edge_list(c, "rod.youngs_modulus", getattr(r, "edge_youngs_modulus", None), n)
+    if eE is not None:
+        E = min(eE)
     nu = r.poisson_ratio
     if isinstance(nu, bool) or not isinstance(nu, (int, float, np.floating)) or not -1.0 < float(nu) <= 0.5:
         c.fail("rod.poisson_ratio", f"must be in (-1, 0.5], got {nu!r}")
@@ -186,6 +196,16 @@ def check_scene(spec: Any, where: str | None = None) -> None:
         _check_obstacle(c, i, ob)
     _check_contact(c, spec.contact)
     check_boundary(c, spec)
+
+
+def _edge_list(c: _Checker, key: str, v: Any, n: int) -> list[float] | None:
+    """A per-edge list (None if absent): n - 1 numbers within the bounds of ``key``."""
+    if v is None:
+        return None
+    if not isinstance(v, (tuple, list, np.ndarray)) or len(v) != n - 1:
+        c.fail(key, f"a per-edge list needs one value per edge (rod.nodes - 1 = {n - 1}), got "
+                    f"{len(v) if hasattr(v, '__len__') else v!r}")
+    return [c.num(key, x, positive=True) for x in v]
 
 
 def _check_rest_points(c: _Checker, r: Any, n: int, mode: str) -> None:

@@ -18,8 +18,9 @@ def make_set(specs, n_nodes, *, rod_radius=R_ROD, envs=1):
 
 
 def accumulate(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, friction_on=False, margin=5e-2,
-               rod_radius=R_ROD, k=K, delta=DELTA, broadphase=True, e=0):
-    """Return (energy [J], grad (N,3), hess (N-1,6,6)) of the contact at positions x (N, 3)."""
+               k=K, delta=DELTA, broadphase=True, e=0):
+    """Return (energy [J], grad (N,3), hess (N-1,6,6)) of the contact at positions x (N, 3) (the rod radii are
+    those ``cd`` was made with, see make_set)."""
     x = np.ascontiguousarray(x, dtype=np.float64)
     xp = x.copy() if x_prev is None else np.ascontiguousarray(x_prev, dtype=np.float64)
     if broadphase:
@@ -27,19 +28,18 @@ def accumulate(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, friction_on=Fals
         cd.iter_flag[e] = 1  # evaluate as a Newton iteration >= 1 (friction is skipped on iteration 0)
     g = np.zeros_like(x)
     h = np.zeros((x.shape[0] - 1, 6, 6))
-    E = contact_accumulate(e, cd, x, xp, dt, rod_radius, k, delta, mu, nu, friction_on, g, h)
+    E = contact_accumulate(e, cd, x, xp, dt, k, delta, mu, nu, friction_on, g, h)
     return E, g, h
 
 
-def report(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, cap=64, rod_radius=R_ROD, e=0, B=1, k=K,
-           delta=DELTA):
+def report(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, cap=64, e=0, B=1, k=K, delta=DELTA):
     x = np.ascontiguousarray(x, dtype=np.float64)
     xp = x.copy() if x_prev is None else np.ascontiguousarray(x_prev, dtype=np.float64)
     out = dict(count=np.zeros(B, np.int64), edge=np.zeros((B, cap), np.int64), obstacle=np.zeros((B, cap), np.int64),
                rod_point=np.zeros((B, cap, 3)), obstacle_point=np.zeros((B, cap, 3)), normal=np.zeros((B, cap, 3)),
                normal_force=np.zeros((B, cap)), friction_force=np.zeros((B, cap, 3)), gap=np.zeros((B, cap)),
                max_penetration=np.zeros(B))
-    E = contact_report(e, cd, x, xp, dt, rod_radius, k, delta, mu, nu, True, out["count"], out["edge"],
+    E = contact_report(e, cd, x, xp, dt, k, delta, mu, nu, True, out["count"], out["edge"],
                        out["obstacle"], out["rod_point"], out["obstacle_point"], out["normal"], out["normal_force"],
                        out["friction_force"], out["gap"], out["max_penetration"])
     return E, out
