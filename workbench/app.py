@@ -20,6 +20,7 @@ from workbench.gui_controls import ControlsPanel
 from workbench.gui_guard import GuiGuard, finite_pose, only_value_updates
 from workbench.handshake import Guard, start_viser
 from workbench.runner import SimThread
+from workbench.view_boundary import boundary_of
 from workbench.view_rod import scene_info
 from workbench.view_scene import SceneView
 
@@ -145,8 +146,15 @@ class WorkbenchApp:
             self._planar = planar
             self.view.set_camera("front" if planar else "iso")
         self.sync_obstacle_view()
+        self.sync_boundary_view()
         self.view.set_rod_scene(*scene_info(self.wb), self.wb.live.rod_radius)
         self.request_render()
+
+    def sync_boundary_view(self) -> None:
+        """Redraw the fixed nodes, fixed twists and loads of the live scene."""
+        with self.wb.lock:
+            b = boundary_of(self.wb.live.model)
+        self.view.set_boundary(b)
 
     def sync_obstacle_view(self) -> None:
         """Redraw the live obstacles: clickable, the gizmo on the one selected in the Obstacles tab."""
@@ -162,7 +170,7 @@ class WorkbenchApp:
         self.request_render()
 
     def _render(self, fr: Frame) -> None:
-        self.view.render(fr)
+        self.view.render(fr, boundary=self.wb.mode != "replay")  # a recording does not carry fixes and loads
         for hook in self.render_hooks:
             hook(fr)
         now = time.perf_counter()

@@ -1,6 +1,7 @@
 """The 3D scene of the workbench (viser): rod (``workbench.view_rod``: smooth tube, control points, rest shape, tip
-trail, tip frame), material frames, contacts, targets, obstacles with transform gizmos, ground grid, camera presets
-and "follow tip". One ``server.atomic()`` per frame.
+trail, tip frame), fixed nodes, fixed twists and point loads (``workbench.view_boundary``), material frames,
+contacts, targets, obstacles with transform gizmos, ground grid, camera presets and "follow tip". One
+``server.atomic()`` per frame.
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import viser
 from workbench import coloring
 from workbench.frame import Frame, quat_from_matrix
 from workbench.obstacles import ObstacleEdit, mesh_for_edit
+from workbench.view_boundary import Boundary, BoundaryView
 from workbench.view_rod import RodView
 
 ROD_COLOR = np.array([230, 120, 40], dtype=np.uint8)
@@ -63,6 +65,7 @@ class Overlays:
     trail: bool = True  # the tip's path over the last ``view_rod.TRAIL_SECONDS``
     tip_frame: bool = True  # the tip's material frame (m1, m2, t) (shown with the IK target's frame)
     follow_tip: bool = False  # the camera's look-at follows the tip (its offset kept)
+    boundary: bool = True  # fixed nodes, fixed twists and point loads (``workbench.view_boundary``)
 
 
 class SceneView:
@@ -83,6 +86,7 @@ class SceneView:
         n_e = n_nodes - 1
         ident = np.tile([1.0, 0.0, 0.0, 0.0], (n_e, 1))
         self.rod = RodView(server, n_nodes)
+        self.boundary = BoundaryView(server)
         self.frames = sc.add_batched_axes(
             "/rod/frames", batched_wxyzs=ident, batched_positions=np.zeros((n_e, 3)),
             axes_length=0.12, axes_radius=0.006, visible=False)
@@ -106,8 +110,9 @@ class SceneView:
         self.last_frame: Frame | None = None
 
     # ------------------------------------------------------------------ per frame
-    def render(self, fr: Frame) -> None:
-        """Push one frame (all node updates in one atomic message batch)."""
+    def render(self, fr: Frame, *, boundary: bool = True) -> None:
+        """Push one frame (all node updates in one atomic message batch); ``boundary``: the frame is of the live
+        scene, whose fixes and loads are drawn (when their overlay is on)."""
         x = fr.node_pos
         e = np.diff(x, axis=0)
         length = np.linalg.norm(e, axis=1)
@@ -123,6 +128,8 @@ class SceneView:
             self.color_range = ("none", 0.0, 1.0)
         with self.server.atomic():
             self.rod.render(fr, node_c, ov)
+            self.boundary.render(x, fr.time, ov.boundary and boundary,
+                                 lambda f: arrow_vectors(f, ov.arrows, ov.force_scale))
             if ov.frames and fr.m1 is not None and fr.m2 is not None:
                 R = np.stack([fr.m1, fr.m2, t], axis=-1)
                 self.frames.batched_positions = 0.5 * (x[:-1] + x[1:])
@@ -187,6 +194,10 @@ class SceneView:
     def set_rod_scene(self, rest_nodes, control_nodes, radius: float) -> None:
         """Rest shape and control points of the live rod (``view_rod.scene_info``)."""
         self.rod.set_scene(rest_nodes, control_nodes, radius)
+
+    def set_boundary(self, b: Boundary | None) -> None:
+        """Fixed nodes, fixed twists and point loads of the live scene (``view_boundary.boundary_of``)."""
+        self.boundary.set_boundary(b)
 
     def set_camera(self, preset: str) -> None:
         """Move every page's camera (and the start view of pages opened later) to a preset of ``CAMERAS``."""
