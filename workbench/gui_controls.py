@@ -82,6 +82,11 @@ class ControlsPanel:
             self.tip_frame = gui.add_checkbox("Tip frame", initial_value=True,
                                               hint="the tip's material frame (m1 red, m2 green, tangent blue); in "
                                                    "the IK task beside the target's frame")
+            self.boundary = gui.add_checkbox("Fixes and loads", initial_value=True,
+                                             hint="boxes on the fixed nodes (black: clamped, teal: pinned, every "
+                                                  "axis fixed; white: some axes fixed), rings on edges whose twist "
+                                                  "is fixed, and an arrow along each point load while it acts "
+                                                  "(length as the force arrows; its force in N, torque in N·m)")
             self.camera = gui.add_button_group("Camera", ("front", "side", "top", "iso"),
                                                hint="view presets: front looks along +y at the x-z plane")
             self.follow = gui.add_checkbox("Follow tip", initial_value=False,
@@ -172,7 +177,8 @@ class ControlsPanel:
                 app.request_render()
 
         for handle, attr in ((self.control_points, "control_points"), (self.rest_shape, "rest_shape"),
-                             (self.trail, "trail"), (self.tip_frame, "tip_frame"), (self.follow, "follow_tip")):
+                             (self.trail, "trail"), (self.tip_frame, "tip_frame"), (self.boundary, "boundary"),
+                             (self.follow, "follow_tip")):
             _toggle(handle, attr)
 
         @self.arrows.on_update
