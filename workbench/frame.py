@@ -20,7 +20,8 @@ class Frame:
 
     Attributes:
         node_pos: (N, 3) node positions [m].
-        rod_radius: cross-section radius [m].
+        rod_radius: cross-section radius [m] (a non-uniform rod: its largest).
+        node_radius: (N,) radius at each node [m] of a non-uniform rod (the tube follows it), or None.
         m1, m2: (N-1, 3) material directors per edge (unit) or None when unknown.
         node_curvature: (N,) magnitude of the integrated curvature |κ| at nodes [-] (0 at the ends).
         edge_strain: (N-1,) axial strain |e_j|/l0_j - 1 [-], or None.
@@ -34,6 +35,7 @@ class Frame:
 
     node_pos: np.ndarray
     rod_radius: float
+    node_radius: np.ndarray | None = None
     m1: np.ndarray | None = None
     m2: np.ndarray | None = None
     node_curvature: np.ndarray | None = None

@@ -118,6 +118,15 @@ class LiveSim:
                 return float(getattr(self.model, name))
         return 0.05
 
+    @property
+    def node_radius(self) -> np.ndarray | None:
+        """(N,) radius at each node [m] of a non-uniform rod (the larger of a node's two edges', as in contact);
+        None when the rod has one radius."""
+        er = getattr(self.model, "edge_radius", None)
+        if er is None or np.all(er == er[0]):
+            return None
+        return np.concatenate([er[:1], np.maximum(er[:-1], er[1:]), er[-1:]])
+
     def reset(self) -> None:
         if self.owner is not None:  # the task resets its own simulator
             self.last_stats = None
@@ -176,7 +185,7 @@ class LiveSim:
         cp, cf, cn, cfn = contacts_from_stats(self.last_stats)
         sc = {**self.step_scalars(), **(scalars or {})}
         kb = getattr(self.ctrl, "kappa_bar", None)
-        return Frame(node_pos=x.copy(), rod_radius=self.rod_radius, m1=m1, m2=m2,
+        return Frame(node_pos=x.copy(), rod_radius=self.rod_radius, node_radius=self.node_radius, m1=m1, m2=m2,
                      kappa_bar=None if kb is None else np.asarray(kb[0], dtype=np.float64).copy(),
                      node_curvature=integrated_curvature(x), edge_strain=edge_strain(x, self.rest_length),
                      contact_points=cp, contact_forces=cf, contact_normals=cn, contact_normal_force=cfn,

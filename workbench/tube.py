@@ -96,23 +96,29 @@ def node_frames(x: np.ndarray, m1: np.ndarray | None = None) -> tuple[np.ndarray
     return t, d1, d2
 
 
-def tube_mesh(x: np.ndarray, radius: float, *, m1: np.ndarray | None = None, colors: np.ndarray | None = None,
+def tube_mesh(x: np.ndarray, radius, *, m1: np.ndarray | None = None, colors: np.ndarray | None = None,
               sides: int = SIDES) -> TubeMesh:
-    """The tube around centreline ``x`` (N, 3) [m] of cross-section ``radius`` [m]; ``colors`` (N, 3) uint8 per node
-    (default grey); ``m1`` (N-1, 3) material directors (optional, see module docstring)."""
+    """The tube around centreline ``x`` (N, 3) [m] of cross-section ``radius`` [m] (one value, or one per node for a
+    non-uniform rod); ``colors`` (N, 3) uint8 per node (default grey); ``m1`` (N-1, 3) material directors
+    (optional, see module docstring)."""
     x = np.asarray(x, np.float64)
     if x.ndim != 2 or x.shape[1] != 3 or len(x) < 2:
         raise ValueError(f"tube_mesh: node positions must be (N >= 2, 3), got {x.shape}")
-    if not np.all(np.isfinite(x)) or not (np.isfinite(radius) and radius > 0):
-        raise ValueError("tube_mesh: node positions and radius must be finite (radius > 0)")
     n = len(x)
+    rad = np.asarray(radius, np.float64)
+    if rad.ndim == 1 and rad.shape != (n,):
+        raise ValueError(f"tube_mesh: per-node radii must be (N,) = ({n},), got {rad.shape}")
+    if not np.all(np.isfinite(x)) or rad.ndim > 1 or not (np.all(np.isfinite(rad)) and np.all(rad > 0)):
+        raise ValueError("tube_mesh: node positions and radius must be finite (radius > 0)")
+    radius = rad[:, None, None] if rad.ndim == 1 else float(rad)
     t, d1, d2 = node_frames(x, m1)
     th = 2.0 * np.pi * np.arange(sides) / sides
     radial = np.cos(th)[None, :, None] * d1[:, None, :] + np.sin(th)[None, :, None] * d2[:, None, :]  # (N, k, 3)
-    ring = (x[:, None, :] + radius * radial).reshape(-1, 3)
+    rr = radius * radial  # (N, k, 3)
+    ring = (x[:, None, :] + rr).reshape(-1, 3)
     cap_v, cap_n = [], []
     for end, sign in ((0, -1.0), (n - 1, 1.0)):
-        cap_v += [x[end] + radius * radial[end], x[end][None]]
+        cap_v += [x[end] + rr[end], x[end][None]]
         cap_n.append(np.repeat(sign * t[end][None], sides + 1, axis=0))
     verts = np.concatenate([ring] + cap_v)
     normals = np.concatenate([radial.reshape(-1, 3)] + cap_n)

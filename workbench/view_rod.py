@@ -137,7 +137,8 @@ class RodView:
         x = np.asarray(fr.node_pos, np.float64)
         r = float(fr.rod_radius)
         m1 = fr.m1 if fr.m1 is not None and len(fr.m1) == len(x) - 1 else None
-        mesh = tube_mesh(x, r, m1=m1, colors=colors, sides=self.sides)
+        nr = fr.node_radius if fr.node_radius is not None and len(fr.node_radius) == len(x) else r
+        mesh = tube_mesh(x, nr, m1=m1, colors=colors, sides=self.sides)
         self.last_mesh = mesh
         self.tube.put(glb_bytes(mesh))
         if self.rest is not None:

@@ -90,6 +90,40 @@ def test_faces_are_cached_and_bad_input_is_refused():
         tube_mesh(straight(), R, colors=np.zeros((3, 3), np.uint8))
 
 
+def test_tube_of_a_non_uniform_rod_follows_the_node_radii():
+    """Per-node radii (a tapered rod): every ring lies at its node's radius from the centreline, the caps at the
+    end nodes' radii; wrong shapes and non-positive radii are refused."""
+    x = straight()
+    r = np.linspace(0.03, 0.01, N)
+    m = tube_mesh(x, r, sides=K)
+    ring = m.vertices[: N * K].reshape(N, K, 3).astype(np.float64)
+    dist = np.linalg.norm(ring - x[:, None, :], axis=2)
+    np.testing.assert_allclose(dist, np.repeat(r[:, None], K, axis=1), rtol=1e-6)
+    cap0 = m.vertices[N * K: N * K + K].astype(np.float64)
+    np.testing.assert_allclose(np.linalg.norm(cap0 - x[0], axis=1), r[0], rtol=1e-6)
+    with pytest.raises(ValueError, match=r"per-node radii must be \(N,\)"):
+        tube_mesh(x, r[:-1])
+    with pytest.raises(ValueError, match="radius > 0"):
+        tube_mesh(x, np.where(np.arange(N) == 3, 0.0, r))
+
+
+def test_live_frame_carries_the_node_radii_of_a_non_uniform_rod():
+    """The workbench's live session of the shipped tapered cantilever hands the tube its per-node radii (the
+    larger of each node's two edges', as contact uses); a uniform rod hands none."""
+    from pathlib import Path
+
+    from sim import load_scene
+    from workbench.simbridge import LiveSim
+
+    root = Path(__file__).resolve().parents[2] / "assets" / "scenes"
+    live = LiveSim(load_scene(root / "tapered_cantilever.toml"))
+    fr = live.frame()
+    er = live.model.edge_radius
+    assert fr.node_radius is not None and fr.node_radius[0] == er[0] and fr.node_radius[-1] == er[-1]
+    np.testing.assert_array_equal(fr.node_radius[1:-1], np.maximum(er[:-1], er[1:]))
+    assert LiveSim(load_scene(root / "arm.toml")).frame().node_radius is None
+
+
 def test_glb_is_one_mesh_with_vertex_colours():
     x = sharp()
     cols = np.tile(np.array([[255, 0, 0]], np.uint8), (N, 1))
