@@ -30,6 +30,8 @@ friction (M,) per-obstacle μ (-1: use the kernels' scalar μ, the [contact] fri
 (the candidate lists merged by contact_refresh))``.
 Kinds: 0 plane (p0 point, p1 unit normal), 1 sphere (p0 centre), 2 capsule (p0, p1 axis ends),
 3 box (p0 centre, rot, half), 4 mesh (p0, rot, mesh_root = BVH root node).
+``radius``: the rod's radii [m], (1,) for a rod of one radius or (N-1,) one per edge; an edge's capsule has its own
+radius, a node (plane contact) the larger of its two edges'.
 Shapes: ``x``, ``x_prev``, ``x_start``, ``x_guess`` (N, >=3) [m]; ``grad`` (N, 3); ``hess`` (N-1, 6, 6)
 (edge j's block over (x_j, x_{j+1}); row = residual component, may be non-symmetric).
 """
@@ -377,8 +379,21 @@ def _report_row(e, rc, j, o, rod_point, base, scale, n, ff, normal_force, gap, o
     out_gap[e, rc] = gap
 
 
+@njit(inline="always", **_OPT_CONTACT)
+def _edge_radius(radius, j):
+    """Radius [m] of edge j: ``radius`` is (1,) for a rod of one radius or (N-1,) per edge."""
+    return radius[min(j, radius.shape[0] - 1)]
+
+
+@njit(inline="always", **_OPT_CONTACT)
+def _node_radius(radius, k):
+    """Radius [m] at node k (plane contact): the larger of its edges' (``radius`` as in :func:`_edge_radius`)."""
+    m = radius.shape[0] - 1
+    return max(radius[min(max(k - 1, 0), m)], radius[min(k, m)])
+
+
 @njit(**_OPT_CONTACT)
-def _contact_pass(e, cd, x, x_prev, dt, k, delta, mu, nu, friction_on, assemble, grad, hess, report,
+def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, assemble, grad, hess, report,
                   out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
                   out_normal_force, out_friction_force, out_gap, out_max_penetration):
     kind, p0, p1, rad = cd.kind, cd.p0, cd.p1, cd.radius
@@ -388,6 +403,8 @@ def _contact_pass(e, cd, x, x_prev, dt, k, delta, mu, nu, friction_on, assemble,
     g6 = scf[e, 64:70]
     nhat = scf[e, 70:73]
     fr = scf[e, 73:79]
+    r0 = radius[0]
+    uniform = radius.shape[0] == 1  # one radius for the whole rod: no per-candidate look-up
     H6 = scm[e, 0]
     Jf = scm[e, 1]
     stack = sci[e]
@@ -404,7 +421,7 @@ def _contact_pass(e, cd, x, x_prev, dt, k, delta, mu, nu, friction_on, assemble,
         j = cand[e, c, 0]
         o = cand[e, c, 1]
         mu_o = fric[o] if fric[o] >= 0.0 else mu  # the obstacle's own μ, else the [contact] one
-        r = cd.node_radius[j] if kind[o] == PLANE else cd.edge_radius[j]  # this node's / edge's radius
+        r = r0 if uniform else (_node_radius(radius, j) if kind[o] == PLANE else _edge_radius(radius, j))
         do_fric = friction_on and mu_o > 0.0
         if kind[o] == PLANE:
             xk = _row3(x, j)
@@ -668,7 +685,7 @@ def contact_refresh(e, cd, x_start, x_end, margin):
 
 
 @njit(**_OPT_CONTACT)
-def _pair_gap(cd, e, c, x, dxp, t, reach, g6, H6, nhat, ws, stack):
+def _pair_gap(cd, e, c, x, dxp, t, radius, reach, g6, H6, nhat, ws, stack):
     """Gap [m] of candidate c of env e at node positions x + t·dxp ((N, 3) arrays); gaps of edges beyond
     ``reach`` minus the edge's radius come back as inf."""
     cand = cd.cand
@@ -679,15 +696,15 @@ def _pair_gap(cd, e, c, x, dxp, t, reach, g6, H6, nhat, ws, stack):
         p0 = cd.p0
         p1 = cd.p1
         return (p1[e, o, 0] * (a[0] - p0[e, o, 0]) + p1[e, o, 1] * (a[1] - p0[e, o, 1])
-                + p1[e, o, 2] * (a[2] - p0[e, o, 2])) - cd.node_radius[j]
-    r = cd.edge_radius[j]
+                + p1[e, o, 2] * (a[2] - p0[e, o, 2])) - _node_radius(radius, j)
+    r = _edge_radius(radius, j)
     b = (x[j + 1, 0] + t * dxp[j + 1, 0], x[j + 1, 1] + t * dxp[j + 1, 1], x[j + 1, 2] + t * dxp[j + 1, 2])
     gap, s, q = _eval_edge(cd, e, o, a, b, r, reach + r, g6, H6, nhat, ws, stack, False)
     return gap
 
 
 @njit(**_OPT_CONTACT)
-def contact_step_limit(e, cd, x, dxp, delta):
+def contact_step_limit(e, cd, x, dxp, radius, delta):
     """Largest fraction t ∈ (0, 1] of the Newton update ``dxp`` ((N, 3) node displacements from positions
     ``x``) that lets no candidate pair of env ``e`` go deeper than max-penetration allowance: a pair with
     gap g0 at t = 0 may reach min(g0, 0) − δ, not below. So one update can neither jump a rod edge across an
@@ -707,7 +724,7 @@ def contact_step_limit(e, cd, x, dxp, delta):
         if D <= 0.0:
             continue
         reach = D * tmax + 2.0 * delta   # gaps beyond reach cannot reach the floor (returned as inf)
-        g = _pair_gap(cd, e, c, x, dxp, 0.0, reach, g6, H6, nhat, ws, stack)
+        g = _pair_gap(cd, e, c, x, dxp, 0.0, radius, reach, g6, H6, nhat, ws, stack)
         floor = min(g, 0.0) - delta
         if g - D * tmax >= floor:   # cannot reach the floor within the allowed fraction
             continue
@@ -725,14 +742,14 @@ def contact_step_limit(e, cd, x, dxp, delta):
             t += step
             if t >= tmax:
                 break
-            g = _pair_gap(cd, e, c, x, dxp, t, reach, g6, H6, nhat, ws, stack)
+            g = _pair_gap(cd, e, c, x, dxp, t, radius, reach, g6, H6, nhat, ws, stack)
         if t < tmax:
             tmax = t
     return max(tmax, 1e-3)
 
 
 @njit(**_OPT_CONTACT)
-def contact_accumulate(e, cd, x, x_prev, dt, k, delta, mu, nu, friction_on, grad, hess):
+def contact_accumulate(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, grad, hess):
     """Add the contact (+ friction) residual into ``grad`` (N, 3) [N] and Jacobian blocks into ``hess``
     (N-1, 6, 6) [N/m] for env ``e``'s candidates at positions ``x``; return the contact energy [J].
 
@@ -740,14 +757,14 @@ def contact_accumulate(e, cd, x, x_prev, dt, k, delta, mu, nu, friction_on, grad
     iteration 0 of the (sub)step, docs/physics.md §4.6)."""
     fr_on = friction_on and cd.iter_flag[e] > 0
     cd.iter_flag[e] = 1
-    return _contact_pass(e, cd, x, x_prev, dt, k, delta, mu, nu, fr_on, True, grad, hess,
+    return _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, fr_on, True, grad, hess,
                          False, cd.scratch_i[e, :0], cd.cand[e, :0], cd.cand[e, :0], cd.scratch_m[e, :0, :, :3],
                          cd.scratch_m[e, :0, :, :3], cd.scratch_m[e, :0, :, :3], cd.scratch_f[e:e, :0], cd.scratch_m[e, :0, :, :3],
                          cd.scratch_f[e:e, :0], cd.scratch_f[e, :0])
 
 
 @njit(**_OPT_CONTACT)
-def contact_min_gap(e, cd, x):
+def contact_min_gap(e, cd, x, radius):
     """Smallest negative gap [m] over env ``e``'s current candidates at node positions ``x`` (N, >=3) [m];
     0.0 when no candidate penetrates (so the max penetration is ``-contact_min_gap``).
 
@@ -761,9 +778,9 @@ def contact_min_gap(e, cd, x):
         j = cand[e, c, 0]
         o = cand[e, c, 1]
         if kind[o] == PLANE:
-            gap = _plane_gap(cd, e, o, x, j) - cd.node_radius[j]
+            gap = _plane_gap(cd, e, o, x, j) - _node_radius(radius, j)
         else:
-            r = cd.edge_radius[j]
+            r = _edge_radius(radius, j)
             gap, s, q = _eval_edge(cd, e, o, _row3(x, j), _row3(x, j + 1), r, r, g6, H6, nhat, ws, stack, False)
         if gap < best:
             best = gap
@@ -771,7 +788,7 @@ def contact_min_gap(e, cd, x):
 
 
 @njit(**_OPT_CONTACT)
-def contact_report(e, cd, x, x_prev, dt, k, delta, mu, nu, friction_on,
+def contact_report(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on,
                    out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
                    out_normal_force, out_friction_force, out_gap, out_max_penetration):
     """Fill env ``e``'s StepStats contact rows (up to capacity C) and max penetration [m]; return energy [J].
@@ -780,7 +797,7 @@ def contact_report(e, cd, x, x_prev, dt, k, delta, mu, nu, friction_on,
     closest point on the obstacle's surface, for every kind) [m], unit normal (obstacle -> rod),
     normal force magnitude [N], friction force on the rod [N] (3,), gap [m]. Velocities (x - x_prev)/dt.
     """
-    return _contact_pass(e, cd, x, x_prev, dt, k, delta, mu, nu, friction_on, False, cd.scratch_f[e:e, :3], cd.scratch_m[e, :0],
+    return _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, False, cd.scratch_f[e:e, :3], cd.scratch_m[e, :0],
                          True,
                          out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
                          out_normal_force, out_friction_force, out_gap, out_max_penetration)

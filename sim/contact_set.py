@@ -30,39 +30,37 @@ from .obstacles import (
 )
 from .rotations import quat_z_to
 
-__all__ = ["ObstacleSet", "ContactData", "ContactScratch", "contact_scratch", "contact_data"]
+__all__ = ["ObstacleSet", "ContactData", "ContactScratch", "contact_scratch", "contact_data", "contact_radii"]
 
 REPORT_CAPACITY = 64
 
 ContactData = namedtuple("ContactData", [
     "kind", "p0", "p1", "rot", "radius", "half", "mesh_root", "tri", "node_lo", "node_hi", "node_child",
     "node_range", "cand", "cand_count", "rod_radius", "active", "box", "iter_flag", "scratch_f", "scratch_m",
-    "scratch_i", "friction", "cand_merge", "edge_radius", "node_radius"])
+    "scratch_i", "friction", "cand_merge"])
 ContactData.__doc__ = "Arrays read by :mod:`sim.contact_kernels` (fields documented there); a numba namedtuple."
 # the kernels' per-env work space: candidate pairs, their count, [rod radius, ...], first-iteration flag, scratch
 ContactScratch = namedtuple("ContactScratch", ["cand", "cand_count", "rod_radius", "iter_flag", "scratch_f",
-                                               "scratch_m", "scratch_i", "cand_merge", "edge_radius",
-                                               "node_radius"])
+                                               "scratch_m", "scratch_i", "cand_merge"])
 _PER_ENV = ("position", "orientation", "local_a", "local_b", "radius", "active", "p0", "p1", "rot", "box")
 
 
 def contact_scratch(envs: int, n_nodes: int, count: int, rod_radius) -> ContactScratch:
-    """Work space of the contact kernels for ``envs`` envs of a rod of ``n_nodes`` nodes and ``count`` obstacles,
-    with the rod's radii: ``rod_radius`` [m] one value or one per edge (n_nodes - 1,). An edge's capsule has its
-    own radius; a node (plane contact) the larger of its edges'; the largest inflates the broad phase."""
+    """Work space of the contact kernels for ``envs`` envs of a rod of ``n_nodes`` nodes and ``count`` obstacles;
+    ``rod_radius`` [m] (one value, or one per edge: the largest) inflates the broad phase."""
     B = int(envs)
-    n = max(int(n_nodes), 2)
-    er = np.array(np.broadcast_to(np.asarray(rod_radius, dtype=np.float64), (n - 1,)))
-    nr = np.empty(n)
-    nr[0], nr[-1] = er[0], er[-1]
-    nr[1:-1] = np.maximum(er[:-1], er[1:])
     return ContactScratch(
-        edge_radius=er, node_radius=nr,
         cand=np.zeros((B, max(int(n_nodes) * int(count), 1), 2), dtype=np.int64),
         cand_merge=np.zeros((B, 2 * max(int(n_nodes) * int(count), 1), 2), dtype=np.int64),
-        cand_count=np.zeros(B, dtype=np.int64), rod_radius=np.array([float(er.max())]),
+        cand_count=np.zeros(B, dtype=np.int64), rod_radius=np.array([float(np.max(rod_radius))]),
         iter_flag=np.ones(B, dtype=np.int64), scratch_f=np.zeros((B, 128)), scratch_m=np.zeros((B, 2, 6, 6)),
         scratch_i=np.zeros((B, 128), dtype=np.int64))
+
+
+def contact_radii(edge_radius) -> np.ndarray:
+    """The contact kernels' ``radius`` argument: (1,) for a rod of one radius, else the (N-1,) edge radii [m]."""
+    er = np.asarray(edge_radius, dtype=np.float64).reshape(-1)
+    return er[:1].copy() if np.all(er == er[0]) else er.copy()
 
 
 def contact_data(obs: "ObstacleSet", scratch: ContactScratch) -> ContactData:
@@ -70,7 +68,7 @@ def contact_data(obs: "ObstacleSet", scratch: ContactScratch) -> ContactData:
     return ContactData(obs.kind, obs.p0, obs.p1, obs.rot, obs.radius, obs.half, obs.mesh_root, obs.tri, obs.node_lo,
                        obs.node_hi, obs.node_child, obs.node_range, scratch.cand, scratch.cand_count, scratch.rod_radius,
                        obs.active, obs.box, scratch.iter_flag, scratch.scratch_f, scratch.scratch_m, scratch.scratch_i,
-                       obs.friction, scratch.cand_merge, scratch.edge_radius, scratch.node_radius)
+                       obs.friction, scratch.cand_merge)
 
 
 class ObstacleSet:
@@ -342,10 +340,7 @@ class ObstacleSet:
         if envs is not None and int(envs) != self.envs:
             self._alloc(int(envs))
         rr = rod_radius if rod_radius is not None else self._rod_radius
-        if n_nodes is not None:
-            n = int(n_nodes)
-        else:  # per-edge radii give the node count
-            n = len(rr) + 1 if np.ndim(rr) else max(self._n_nodes, 64)
+        n = int(n_nodes) if n_nodes is not None else max(self._n_nodes, 64)
         if self._kd is None or n != self._n_nodes or not np.array_equal(rr, self._rod_radius):
             self._n_nodes, self._rod_radius = n, rr
             self._kd = contact_data(self, contact_scratch(self.envs, n, self.count, rr))

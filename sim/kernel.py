@@ -130,7 +130,7 @@ def _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
         contact_broadphase(e, cd, pos, pos, prm.contact_margin)
         w.cg[:, :] = 0.0
         w.ch[:, :, :] = 0.0
-        ec = contact_accumulate(e, cd, pos, pos, prm.dt, prm.contact_k, prm.contact_delta, prm.friction,
+        ec = contact_accumulate(e, cd, pos, pos, prm.dt, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
                                 prm.friction_nu, prm.friction_on > 0, w.cg, w.ch)
     ek = 0.0
     eg = 0.0
@@ -146,7 +146,7 @@ def _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
     out.energy_gravity[e] = eg
     if prm.n_obstacles > 0:  # pos0: the step start by the step's velocity (friction velocity)
         _predicted_positions(planar, xs, us, -prm.dt, pos0, prm.plane_y)
-        contact_report(e, cd, pos, pos0, prm.dt, prm.contact_k, prm.contact_delta, prm.friction,
+        contact_report(e, cd, pos, pos0, prm.dt, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
                        prm.friction_nu, prm.friction_on > 0, crep.count, crep.edge, crep.obstacle, crep.rod_point,
                        crep.obstacle_point, crep.normal, crep.normal_force, crep.friction_force, crep.gap,
                        crep.max_penetration)

@@ -146,10 +146,10 @@ def _linear_solve(planar, w, n, sym):
 
 
 @njit(inline="always", **_OPT)
-def _limit_update(planar, e, cd, prm, w):
+def _limit_update(planar, e, rod, cd, prm, w):
     """Shorten dx so that no update carries a rod edge through an obstacle (w.pos: the nodes at x)."""
     _node_motion(planar, w.dx, w.cg)
-    tcap = contact_step_limit(e, cd, w.pos, w.cg, prm.contact_delta)
+    tcap = contact_step_limit(e, cd, w.pos, w.cg, rod.radius, prm.contact_delta)
     if tcap < 1.0:
         for k in range(w.x.shape[0]):
             w.dx[k] *= tcap
@@ -237,7 +237,7 @@ def newton(e, hs, kb, tb, rod, prm, cd, w):
         if not _linear_solve(planar, w, n, sym):
             return BAD_PIVOT, it, False, r, r0
         if limit:
-            _limit_update(planar, e, cd, prm, w)
+            _limit_update(planar, e, rod, cd, prm, w)
         if prm.line_search == 1:
             _line_search(planar, e, hs, r, kb, tb, rod, prm, cd, w, sym)
         else:
@@ -268,7 +268,7 @@ def mech_energy(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, w, pos, pos0, h):
         eg -= grav[k] * xs[k]
     ec = 0.0
     if prm.n_obstacles > 0 and cd.cand_count[e] > 0:
-        ec = contact_accumulate(e, cd, pos, pos0, h, prm.contact_k, prm.contact_delta, prm.friction,
+        ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
                                 prm.friction_nu, False, w.cg, w.ch)
     e_in = es + eb + et + ek + ec
     return e_in + eg, e_in
@@ -323,7 +323,7 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
         _predicted_positions(planar, x0, u, hs, pos, py)
         contact_broadphase(e, cd, pos0, pos, prm.contact_margin)
         if want_pen0 and cd.cand_count[e] > 0:
-            pen0 = -contact_min_gap(e, cd, pos0)
+            pen0 = -contact_min_gap(e, cd, pos0, rod.radius)
     # newton
     st, it, conv, r, r0 = newton(e, hs, kb, tb, rod, prm, cd, w)
     if st != OK:
@@ -376,7 +376,7 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
         if not list_covers_step:
             contact_broadphase(e, cd, pos0, pos, prm.contact_margin)
         if cd.cand_count[e] > 0:
-            pen = -contact_min_gap(e, cd, pos)
+            pen = -contact_min_gap(e, cd, pos, rod.radius)
     return OK, it, conv, r, r0, pen, pen0
 
 

@@ -28,6 +28,7 @@ def rod_obstacle_overlaps(model, *, tolerance: float = 0.0) -> list[Overlap]:
     """Obstacles the rod's rest configuration of ``model`` (a :class:`sim.Model`) penetrates deeper than
     ``tolerance`` [m], deepest first. Empty without obstacles."""
     from .contact_kernels import contact_broadphase, contact_min_gap
+    from .contact_set import contact_radii
 
     M = model.obstacles.count
     if M == 0:
@@ -41,7 +42,7 @@ def rod_obstacle_overlaps(model, *, tolerance: float = 0.0) -> list[Overlap]:
     out = []
     for o in range(M):
         contact_broadphase(o, cd, x, x, 0.0)
-        gap = float(contact_min_gap(o, cd, x))
+        gap = float(contact_min_gap(o, cd, x, contact_radii(model.edge_radius)))
         if gap < -tolerance:
             spec = model.spec.obstacles[o]
             out.append(Overlap(o, getattr(spec, "name", "") or "", getattr(spec, "type", "?"), -gap))

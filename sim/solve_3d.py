@@ -108,7 +108,7 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                 pos0[k, a] = x0[4 * k + a]
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
-        ec = contact_accumulate(e, cd, pos, pos0, h, prm.contact_k, prm.contact_delta, prm.friction,
+        ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
                                 prm.friction_nu, prm.friction_on > 0, cg, ch)
         for k in range(N):
             for a in range(3):

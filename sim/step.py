@@ -10,7 +10,7 @@ import numpy as np
 from . import solve as _solve
 from . import validate as _validate
 from .boundary import window_fraction
-from .contact_set import contact_data, contact_scratch
+from .contact_set import contact_data, contact_radii, contact_scratch
 from .model import Model
 from .state import Control, State, StepStats
 
@@ -57,7 +57,8 @@ class Simulator:
         self._rod = _solve.RodData(rest_len=np.array(m.rest_edge_length), vor_len=np.array(m.voronoi_length),
                                    mass=np.array(m.dof_mass), fixed=np.array(m.dof_fixed),
                                    grav=np.array(m.dof_gravity)[None, :], EA=np.array(m.edge_EA),
-                                   EI1=np.array(ei1), EI2=np.array(m.node_EI2), GJ=np.array(m.node_GJ))
+                                   EI1=np.array(ei1), EI2=np.array(m.node_EI2), GJ=np.array(m.node_GJ),
+                                   radius=contact_radii(m.edge_radius))
         # point loads (sim.boundary): per-env external forces only when a scene has loads; prescribed motion
         self._loads = m.load_force.shape[0] > 0
         self._motion = m.motion_rate.shape[0] > 0

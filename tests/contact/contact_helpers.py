@@ -11,6 +11,11 @@ DELTA = 5e-3
 R_ROD = 0.05
 
 
+def radii(rod_radius) -> np.ndarray:
+    """The contact kernels' radius argument: (1,) for one radius, else one per edge."""
+    return np.atleast_1d(np.asarray(rod_radius, dtype=np.float64))
+
+
 def make_set(specs, n_nodes, *, rod_radius=R_ROD, envs=1):
     os_ = ObstacleSet.from_specs(specs, envs=envs)
     cd = os_.kernel_data(envs, n_nodes=n_nodes, rod_radius=rod_radius)
@@ -18,9 +23,9 @@ def make_set(specs, n_nodes, *, rod_radius=R_ROD, envs=1):
 
 
 def accumulate(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, friction_on=False, margin=5e-2,
-               k=K, delta=DELTA, broadphase=True, e=0):
-    """Return (energy [J], grad (N,3), hess (N-1,6,6)) of the contact at positions x (N, 3) (the rod radii are
-    those ``cd`` was made with, see make_set)."""
+               rod_radius=R_ROD, k=K, delta=DELTA, broadphase=True, e=0):
+    """Return (energy [J], grad (N,3), hess (N-1,6,6)) of the contact at positions x (N, 3); ``rod_radius`` one
+    value or one per edge."""
     x = np.ascontiguousarray(x, dtype=np.float64)
     xp = x.copy() if x_prev is None else np.ascontiguousarray(x_prev, dtype=np.float64)
     if broadphase:
@@ -28,18 +33,19 @@ def accumulate(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, friction_on=Fals
         cd.iter_flag[e] = 1  # evaluate as a Newton iteration >= 1 (friction is skipped on iteration 0)
     g = np.zeros_like(x)
     h = np.zeros((x.shape[0] - 1, 6, 6))
-    E = contact_accumulate(e, cd, x, xp, dt, k, delta, mu, nu, friction_on, g, h)
+    E = contact_accumulate(e, cd, x, xp, dt, radii(rod_radius), k, delta, mu, nu, friction_on, g, h)
     return E, g, h
 
 
-def report(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, cap=64, e=0, B=1, k=K, delta=DELTA):
+def report(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, cap=64, rod_radius=R_ROD, e=0, B=1, k=K,
+           delta=DELTA):
     x = np.ascontiguousarray(x, dtype=np.float64)
     xp = x.copy() if x_prev is None else np.ascontiguousarray(x_prev, dtype=np.float64)
     out = dict(count=np.zeros(B, np.int64), edge=np.zeros((B, cap), np.int64), obstacle=np.zeros((B, cap), np.int64),
                rod_point=np.zeros((B, cap, 3)), obstacle_point=np.zeros((B, cap, 3)), normal=np.zeros((B, cap, 3)),
                normal_force=np.zeros((B, cap)), friction_force=np.zeros((B, cap, 3)), gap=np.zeros((B, cap)),
                max_penetration=np.zeros(B))
-    E = contact_report(e, cd, x, xp, dt, k, delta, mu, nu, True, out["count"], out["edge"],
+    E = contact_report(e, cd, x, xp, dt, radii(rod_radius), k, delta, mu, nu, True, out["count"], out["edge"],
                        out["obstacle"], out["rod_point"], out["obstacle_point"], out["normal"], out["normal_force"],
                        out["friction_force"], out["gap"], out["max_penetration"])
     return E, out

@@ -32,7 +32,7 @@ def capsule_sim():
 
 def gap(cd, x):
     contact_broadphase(0, cd, x, x, 1.0)
-    return -contact_min_gap(0, cd, x)   # penetration (>= 0)
+    return -contact_min_gap(0, cd, x, np.array([R_ROD]))   # penetration (>= 0)
 
 
 def test_update_through_an_obstacle_stops_at_delta():
@@ -42,7 +42,7 @@ def test_update_through_an_obstacle_stops_at_delta():
     d = np.zeros_like(x)
     d[:, 2] = -1.0
     contact_broadphase(0, cd, x, x + d, 0.05)
-    t = contact_step_limit(0, cd, x, d, DELTA)
+    t = contact_step_limit(0, cd, x, d, np.array([R_ROD]), DELTA)
     assert 0.14 < t < 0.16
     assert gap(cd, x + t * d) == pytest.approx(DELTA, abs=1e-4)
 
@@ -53,7 +53,7 @@ def test_sliding_and_receding_updates_are_not_limited():
     x[:, 2] = 0.2 + R_CAP + R_ROD - 0.002   # resting 2 mm deep on the capsule
     for d in (np.tile([0.0, 0.3, 0.0], (21, 1)), np.tile([0.0, 0.0, 0.2], (21, 1))):  # slide along y, lift off
         contact_broadphase(0, cd, x, x + d, 0.05)
-        assert contact_step_limit(0, cd, x, d, DELTA) == 1.0
+        assert contact_step_limit(0, cd, x, d, np.array([R_ROD]), DELTA) == 1.0
 
 
 def test_penetrating_pair_goes_at_most_delta_deeper():
@@ -63,7 +63,7 @@ def test_penetrating_pair_goes_at_most_delta_deeper():
     d = np.zeros_like(x)
     d[:, 2] = -0.1
     contact_broadphase(0, cd, x, x + d, 0.05)
-    t = contact_step_limit(0, cd, x, d, DELTA)
+    t = contact_step_limit(0, cd, x, d, np.array([R_ROD]), DELTA)
     assert gap(cd, x + t * d) == pytest.approx(0.01 + DELTA, abs=1e-4)
 
 
