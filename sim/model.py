@@ -52,7 +52,8 @@ class Model:
     EI1: float                       # [N m^2]  lists, the largest over the edges (the per-edge and per-node
     EI2: float                       # [N m^2]  values the step uses are edge_EA and node_EI1/EI2/GJ)
     GJ: float                        # [N m^2]
-    rest_node_pos: np.ndarray        # (N, 3) [m] initial = rest configuration
+    rest_node_pos: np.ndarray        # (N, 3) [m] initial configuration (= rest, but for the edge lengths of a
+                                     # pre-stretched rod: rest_edge_length)
     rest_edge_length: np.ndarray     # (N-1,) [m]
     voronoi_length: np.ndarray       # (N,) [m]
     node_mass: np.ndarray            # (N,) [kg]
@@ -116,7 +117,11 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         d = np.asarray(rod.direction, dtype=np.float64)
         s = np.linspace(0.0, rod.length, N)
         x = np.asarray(rod.start, dtype=np.float64)[None, :] + s[:, None] * d[None, :]
+    # rest edge lengths: the initial ones, or shorter by the pre-stretch ε0 (the rod starts stretched by ε0)
     lbar = np.linalg.norm(np.diff(x, axis=0), axis=1)
+    eps0 = float(getattr(rod, "prestretch", 0.0))
+    if eps0 != 0.0:
+        lbar = lbar / (1.0 + eps0)
     vor = np.empty(N)
     vor[0] = 0.5 * lbar[0]
     vor[-1] = 0.5 * lbar[-1]

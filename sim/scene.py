@@ -17,7 +17,8 @@ Keys (SI units)::
            radius; "rectangle": width [m] (along m1) and height [m] (along m2); "ellipse": semi_axes [m]
            [a, b] (a along m1); sim/section.py), rest_points [m] (list of [x, y, z]: a non-straight rest
            shape instead of nodes/length/start/direction); radius (circle) and youngs_modulus also take a
-           list of nodes - 1 values, one per edge (a non-uniform rod)
+           list of nodes - 1 values, one per edge (a non-uniform rod); prestretch [-] (default 0: rest
+           edge lengths = initial / (1 + prestretch), the rod starts with that axial strain)
     [[obstacle]], [contact]   parsed by ``sim.obstacles`` (see there)
     [[load]], [[fix]]         point loads, constrained nodes/edges and prescribed motion: ``sim.boundary``
 """
@@ -98,6 +99,9 @@ class RodSpec:
     # scalar radius / youngs_modulus then hold the largest value (build_model uses the lists)
     edge_radius: tuple | None = None
     edge_youngs_modulus: tuple | None = None
+    # pre-stretch ε0 [-]: the rest edge lengths are the initial ones / (1 + ε0), so the rod starts with axial
+    # strain ε0 (tension E A ε0 where its ends are held; ε0 < 0 starts it compressed)
+    prestretch: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -116,7 +120,7 @@ class SceneSpec:
 _SIM_KEYS = {"dt", "gravity", "damping", "newton_tol", "newton_max_iter", "accept_unconverged", "mode",
              "integrator", "line_search", "newton_dtol", "divergence_guard"}
 _ROD_KEYS = {"nodes", "length", "radius", "density", "youngs_modulus", "poisson_ratio", "start", "direction",
-             "clamp", "cross_section", "width", "height", "semi_axes", "rest_points"}
+             "clamp", "cross_section", "width", "height", "semi_axes", "rest_points", "prestretch"}
 
 
 def _table(doc: dict, name: str, path: str | None, *, required: bool = True) -> dict | None:
@@ -242,6 +246,7 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
         youngs_modulus=youngs,
         poisson_ratio=nu,
         clamp=take_str(r, "clamp", "rod.", path, "first_edge", choices=("first_edge", "none")),  # type: ignore
+        prestretch=take_float(r, "prestretch", "rod.", path, 0.0),
         **sec,
         **_take_shape(r, where, path),
     )
@@ -305,6 +310,8 @@ def scene_to_toml(spec: SceneSpec, *, base_dir: str | os.PathLike | None = None)
         if per_edge is not None:
             v = per_edge
         lines.append(f"{k} = {format_value(list(v) if isinstance(v, tuple) else v)}")
+    if getattr(spec.rod, "prestretch", 0.0):
+        lines.append(f"prestretch = {format_value(spec.rod.prestretch)}")
     if spec.rod.rest_points is not None:
         lines.append("rest_points = [" + ", ".join(format_value(list(p)) for p in spec.rod.rest_points) + "]")
     extra = _obs.dump_obstacles(spec.obstacles, base_dir=base_dir)

@@ -46,6 +46,7 @@ BOUNDS: dict[str, tuple[float, float, str]] = {
     "rod.width": (1e-7, 1e2, "m"),
     "rod.height": (1e-7, 1e2, "m"),
     "rod.semi_axes": (1e-7, 1e2, "m"),
+    "rod.prestretch": (-0.5, 0.5, "-"),
     "load.force": (-1e9, 1e9, "N"),
     "load.torque": (-1e9, 1e9, "N m"),
     "load.start": (0.0, 1e9, "s"),
@@ -177,6 +178,7 @@ def check_scene(spec: Any, where: str | None = None) -> None:
     c.vec("rod.start", r.start, "rod.start")
     c.unit("rod.direction", r.direction)
     c.choice("rod.clamp", r.clamp, ("first_edge", "none"))
+    c.num("rod.prestretch", getattr(r, "prestretch", 0.0))
     # derived quantities (docs/physics.md §1.5): all must be positive normal floats
     seg = length / (n - 1)
     if sec is None:

@@ -56,8 +56,7 @@ class LiveSim:
         self.model, self.sim = owner.model, owner.sim
         self.state, self.ctrl = owner.state, owner.ctrl
         self.rest_ctrl = owner.sim.make_control()
-        x0 = np.asarray(self.sim.reset().node_pos[0], dtype=np.float64)
-        self.rest_length = np.linalg.norm(np.diff(x0, axis=0), axis=1)
+        self.rest_length = np.asarray(self.model.rest_edge_length, dtype=np.float64)  # (a pre-stretched rod: shorter)
         self.last_stats = None
         self.step_time = 0.0
         return self
@@ -81,8 +80,7 @@ class LiveSim:
         self.state = self.sim.reset()
         self.ctrl = self.sim.make_control()
         self.rest_ctrl = copy_struct(self.ctrl)
-        x0 = np.asarray(self.state.node_pos[0], dtype=np.float64)
-        self.rest_length = np.linalg.norm(np.diff(x0, axis=0), axis=1)
+        self.rest_length = np.asarray(self.model.rest_edge_length, dtype=np.float64)  # (a pre-stretched rod: shorter)
         if old_state is not None:
             obstacles = self.state.obstacles  # the new scene's obstacles, not the old state's
             assign_struct(self.state, old_state)
