@@ -156,14 +156,14 @@ class GridPanel:
         """Focus env ``env``: its colour, the camera on its cell, its readouts below."""
         if self.session is None or not 0 <= int(env) < self.session.n:
             return
-        self.view.set_focus(int(env))
-        if int(self.focus.value) != int(env):
+        if int(self.focus.value) != int(env):  # the slider first: whoever sees the view focused sees it too
             self._syncing = True
             try:
                 self.focus.value = int(env)
             finally:
                 self._syncing = False
             self.app.checks.accept(self.focus)
+        self.view.set_focus(int(env))
         self.update_status()
 
     def stop(self) -> None:
