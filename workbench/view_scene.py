@@ -171,8 +171,11 @@ class SceneView:
                     self.target_frame.wxyz = fr.target_wxyz
                 if self.target_frame.visible != show_f:
                     self.target_frame.visible = show_f
-            elif self.target.visible:
-                self.target.visible = False
+            else:  # no target in this frame (e.g. teleop after a task): neither its marker nor its frame
+                if self.target.visible:
+                    self.target.visible = False
+                if self.target_frame.visible:
+                    self.target_frame.visible = False
         self.last_frame = fr
         if ov.follow_tip:
             self.follow(fr.tip)

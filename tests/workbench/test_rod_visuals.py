@@ -248,3 +248,24 @@ def test_rpy_convention_is_z_y_x():
     np.testing.assert_allclose(quat_to_matrix(quat_from_rpy_deg((0, 0, 90))) @ [1, 0, 0], [0, 1, 0], atol=1e-12)
     np.testing.assert_allclose(quat_to_matrix(quat_from_rpy_deg((0, 90, 0))) @ [1, 0, 0], [0, 0, -1], atol=1e-12)
     np.testing.assert_allclose(quat_to_matrix(quat_from_rpy_deg((90, 0, 0))) @ [0, 1, 0], [0, 0, 1], atol=1e-12)
+
+
+def test_target_and_its_frame_hide_when_a_frame_has_no_target():
+    """A task frame shows the target and its orientation frame; the next frame without a target (teleop after the
+    task, or another task) hides both."""
+    import viser
+
+    from workbench.view_scene import SceneView
+
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        view = SceneView(server, N, env_map=False)
+        x = straight()
+        view.render(Frame(node_pos=x, rod_radius=R, targets=np.array([[0.3, 0.0, 0.5]]),
+                          target_wxyz=np.array([1.0, 0.0, 0.0, 0.0])))
+        assert view.target.visible and view.target_frame.visible
+        view.render(Frame(node_pos=x, rod_radius=R))
+        assert not view.target.visible and not view.target_frame.visible
+        view.rod.tube.close()
+    finally:
+        server.stop()

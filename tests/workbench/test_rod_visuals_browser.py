@@ -145,7 +145,8 @@ def test_tip_frame_beside_the_ik_target_frame(wb_page):
     wb, view = app.wb, app.view
     app.policy.start_task("ik4d", "zero")
     try:
-        wait_for(lambda: wb.mode == "policy" and view.target_frame.visible and view.rod.tip_frame.visible,
+        wait_for(lambda: wb.mode == "policy" and view.target_frame.visible and view.rod.tip_frame.visible
+                 and view.last_frame is not None and view.last_frame.target_wxyz is not None,
                  timeout=120, what="IK task with both frames")
         fr = view.last_frame
         assert fr.target_wxyz is not None
