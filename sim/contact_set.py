@@ -30,7 +30,8 @@ from .obstacles import (
 )
 from .rotations import quat_z_to
 
-__all__ = ["ObstacleSet", "ContactData", "ContactScratch", "contact_scratch", "contact_data", "contact_radii"]
+__all__ = ["ObstacleSet", "ContactData", "ContactScratch", "contact_scratch", "contact_data", "contact_radii",
+           "node_radii"]
 
 REPORT_CAPACITY = 64
 
@@ -39,7 +40,8 @@ ContactData = namedtuple("ContactData", [
     "node_range", "cand", "cand_count", "rod_radius", "active", "box", "iter_flag", "scratch_f", "scratch_m",
     "scratch_i", "friction", "cand_merge"])
 ContactData.__doc__ = "Arrays read by :mod:`sim.contact_kernels` (fields documented there); a numba namedtuple."
-# the kernels' per-env work space: candidate pairs, their count, [rod radius, ...], first-iteration flag, scratch
+# the kernels' per-env work space: candidate pairs, their count, the rod's largest radius, first-iteration flag,
+# scratch, and the buffer contact_refresh merges candidate lists in
 ContactScratch = namedtuple("ContactScratch", ["cand", "cand_count", "rod_radius", "iter_flag", "scratch_f",
                                                "scratch_m", "scratch_i", "cand_merge"])
 _PER_ENV = ("position", "orientation", "local_a", "local_b", "radius", "active", "p0", "p1", "rot", "box")
@@ -61,6 +63,13 @@ def contact_radii(edge_radius) -> np.ndarray:
     """The contact kernels' ``radius`` argument: (1,) for a rod of one radius, else the (N-1,) edge radii [m]."""
     er = np.asarray(edge_radius, dtype=np.float64).reshape(-1)
     return er[:1].copy() if np.all(er == er[0]) else er.copy()
+
+
+def node_radii(edge_radius) -> np.ndarray:
+    """(N,) radius [m] at each node of a rod with (N-1,) edge radii: the larger of a node's two edges', the rule
+    the contact kernels use for plane contact (sim.contact_kernels._node_radius)."""
+    er = np.asarray(edge_radius, dtype=np.float64).reshape(-1)
+    return np.concatenate([er[:1], np.maximum(er[:-1], er[1:]), er[-1:]])
 
 
 def contact_data(obs: "ObstacleSet", scratch: ContactScratch) -> ContactData:

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from sim import Simulator, build_model, load_scene
+from sim.contact_set import node_radii
 from workbench.frame import Frame, edge_strain, integrated_curvature
 
 
@@ -123,7 +124,7 @@ class LiveSim:
         er = getattr(self.model, "edge_radius", None)
         if er is None or np.all(er == er[0]):
             return None
-        return np.concatenate([er[:1], np.maximum(er[:-1], er[1:]), er[-1:]])
+        return node_radii(er)
 
     def reset(self) -> None:
         if self.owner is not None:  # the task resets its own simulator
