@@ -20,3 +20,17 @@ def make_spec(*, nodes=11, length=1.0, radius=0.02, density=1000.0, E=1e6, nu=0.
 
 def with_sim(spec: SceneSpec, **kw) -> SceneSpec:
     return replace(spec, sim=replace(spec.sim, **kw))
+
+
+def small_scene_toml(rod_lines: str) -> str:
+    """A five-node rod scene as TOML text ([sim] at rest, no gravity; [rod] along +x) with ``rod_lines`` (the keys
+    under test, e.g. per-edge lists or a pre-stretch) added to its [rod] table; keys given there replace the
+    defaults."""
+    rod = {"nodes": "5", "length": "1.0", "radius": "0.01", "density": "1000", "youngs_modulus": "1e6",
+           "poisson_ratio": "0.5", "start": "[0, 0, 0]", "direction": "[1, 0, 0]"}
+    extra = [ln for ln in rod_lines.strip().splitlines() if ln.strip()]
+    for ln in extra:
+        rod.pop(ln.split("=")[0].strip(), None)
+    lines = ["[sim]", "dt = 0.01", "gravity = [0, 0, 0]", "newton_tol = 1e-8", "newton_max_iter = 20",
+             "accept_unconverged = false", "[rod]"] + [f"{k} = {v}" for k, v in rod.items()] + extra
+    return "\n".join(lines) + "\n"

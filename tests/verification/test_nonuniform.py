@@ -14,7 +14,7 @@ from sim.boundary import LoadSpec
 from sim.obstacles import CapsuleSpec, PlaneSpec
 from sim.scene import parse_scene, scene_to_toml
 from sim.tomlio import SceneError
-from tests.unit._rodspec import make_spec
+from tests.unit._rodspec import make_spec, small_scene_toml
 from tests.verification._util import static_solve
 
 R = 0.02
@@ -124,23 +124,10 @@ def test_contact_uses_each_edge_radius():
     assert z[-1] < 0.5 * r[0]  # the thin end lies far lower than the thick one would
 
 
-_DOC = """
-[sim]
-dt = 0.01
-gravity = [0, 0, 0]
-newton_tol = 1e-8
-newton_max_iter = 20
-accept_unconverged = false
-[rod]
-nodes = 5
-length = 1.0
+_DOC = small_scene_toml("""
 radius = [0.01, 0.012, 0.014, 0.016]
-density = 1000
 youngs_modulus = [1e6, 2e6, 2e6, 1e6]
-poisson_ratio = 0.5
-start = [0, 0, 0]
-direction = [1, 0, 0]
-"""
+""")
 
 
 def test_scene_keys_round_trip_and_bad_lists_are_named():

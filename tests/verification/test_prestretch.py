@@ -13,7 +13,7 @@ from sim import Simulator, build_model
 from sim.boundary import FixSpec, LoadSpec
 from sim.scene import parse_scene, scene_to_toml
 from sim.tomlio import SceneError
-from tests.unit._rodspec import make_spec
+from tests.unit._rodspec import make_spec, small_scene_toml
 from tests.verification._util import static_solve
 
 E, R, EPS0 = 1e7, 0.002, 0.05
@@ -75,24 +75,9 @@ def test_free_rod_relaxes_to_its_rest_length():
     assert np.linalg.norm(x[-1] - x[0]) == pytest.approx(1.0 / 1.2, rel=1e-6)
 
 
-_DOC = """
-[sim]
-dt = 0.01
-gravity = [0, 0, 0]
-newton_tol = 1e-8
-newton_max_iter = 20
-accept_unconverged = false
-[rod]
-nodes = 5
-length = 1.0
-radius = 0.01
-density = 1000
-youngs_modulus = 1e6
-poisson_ratio = 0.5
-start = [0, 0, 0]
-direction = [1, 0, 0]
+_DOC = small_scene_toml("""
 prestretch = 0.05
-"""
+""")
 
 
 def test_scene_key_round_trip_and_bounds():
