@@ -16,12 +16,12 @@ A scene with neither creates no scene node.
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Callable
 
 import numpy as np
 import trimesh
 
+from sim.boundary import node_index
 from workbench.frame import quat_z_to
 
 KIND_NAMES = ("clamped", "pinned", "partial")
@@ -82,11 +82,10 @@ def boundary_of(model) -> Boundary:
     kind = np.where(clamped[nodes], 0, np.where(full[nodes], 1, 2)).astype(np.int64)
     axes = tuple("".join(c for c, f in zip(names, pos[i]) if f) for i in nodes)
     loads = tuple(getattr(getattr(model, "spec", None), "loads", ()) or ())
-    ln = np.array([ld.node + N if ld.node < 0 else ld.node for ld in loads], dtype=np.int64)
+    ln = np.array([node_index(ld.node, N) for ld in loads], dtype=np.int64)
     lf = np.array([ld.force for ld in loads], dtype=np.float64).reshape(len(loads), 3)
     lt = np.array([ld.torque for ld in loads], dtype=np.float64)
-    lw = np.array([(ld.start, math.inf if ld.stop is None else ld.stop) for ld in loads],
-                  dtype=np.float64).reshape(len(loads), 2)
+    lw = np.asarray(model.load_window, dtype=np.float64).reshape(len(loads), 2)  # [start, stop), stop = inf if open
     length = float(np.sum(model.rest_edge_length))
     size = max(GLYPH_RADII * float(model.radius), GLYPH_MIN * length)
     return Boundary(n_nodes=N, fixed_nodes=nodes, fixed_axes=axes, fixed_kind=kind,
