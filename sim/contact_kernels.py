@@ -686,8 +686,8 @@ def contact_refresh(e, cd, x_start, x_end, margin):
 
 @njit(**_OPT_CONTACT)
 def _pair_gap(cd, e, c, x, dxp, t, radius, reach, g6, H6, nhat, ws, stack):
-    """Gap [m] of candidate c of env e at node positions x + t·dxp ((N, 3) arrays); gaps of edges beyond
-    ``reach`` minus the edge's radius come back as inf."""
+    """Gap [m] of candidate c of env e at node positions x + t·dxp ((N, 3) arrays); an edge's gap of ``reach`` [m]
+    or more may come back as inf."""
     cand = cd.cand
     j = cand[e, c, 0]
     o = cand[e, c, 1]
