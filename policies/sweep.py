@@ -360,6 +360,7 @@ def run_sweep(trials: list[Trial], out: Path, *, address: str | None, cpus_per_t
     except ImportError:
         raise SweepError("Ray is not installed: pip install 'rodlab[sweep]' (make test installs it)") from None
 
+    term_handler = signal.getsignal(signal.SIGTERM)  # ray.init installs its own SIGTERM handler: keep ours
     if address:
         ray.init(address=address, log_to_driver=False)
         concurrency = max(1, int(ray.cluster_resources().get("CPU", cpus_per_trial)) // cpus_per_trial)
@@ -368,6 +369,8 @@ def run_sweep(trials: list[Trial], out: Path, *, address: str | None, cpus_per_t
         ray.init(num_cpus=ncpu, include_dashboard=False, log_to_driver=False,
                  object_store_memory=128 * 1024 * 1024)
         concurrency = max(1, ncpu // cpus_per_trial)
+    if callable(term_handler):
+        signal.signal(signal.SIGTERM, term_handler)
     task_fn = ray.remote(num_cpus=cpus_per_trial, max_retries=0)(launch_trial)
     refs = {task_fn.remote(str(t.run_dir), cpus_per_trial): t for t in pending}
     live = None

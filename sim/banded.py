@@ -20,7 +20,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["band_ldl_solve", "band_lu_solve", "dense_to_band", "solve_dense_banded"]
+__all__ = ["band_ldl_solve", "band_lu_solve", "band_ldl_factor", "band_ldl_apply", "band_lu_factor", "band_lu_apply",
+           "dense_to_band", "solve_dense_banded"]
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"}, inline="always")
@@ -42,6 +43,15 @@ def band_lu_solve(ab, n, kl, b):
 
     Returns 0 on success, else 1 + the index of the first bad pivot (b is then undefined).
     """
+    st = band_lu_factor(ab, n, kl)
+    if st == 0:
+        band_lu_apply(ab, n, kl, b)
+    return st
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"}, inline="always")
+def band_lu_factor(ab, n, kl):
+    """LU of the padded band ``ab`` in place (no pivoting). Returns 0, or 1 + the index of the first bad pivot."""
     tiny = _pivot_floor(ab, n, kl)
     if tiny < 0.0:
         return 1
@@ -55,6 +65,12 @@ def band_lu_solve(ab, n, kl, b):
             ab[k + i, kl - i] = lik
             for j in range(1, kl + 1):
                 ab[k + i, kl + j - i] -= lik * ab[k, kl + j]
+    return 0
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"}, inline="always")
+def band_lu_apply(ab, n, kl, b):
+    """Overwrite ``b`` (length n + kl) with A⁻¹ b from the factors :func:`band_lu_factor` left in ``ab``."""
     for k in range(n):  # forward, column (axpy) form: L[k+i, k] = ab[k+i, kl-i]; b's padding absorbs k+i >= n
         bk = b[k]
         for i in range(1, kl + 1):
@@ -63,7 +79,6 @@ def band_lu_solve(ab, n, kl, b):
         b[k] = 0.0
     for i in range(n - 1, -1, -1):
         b[i] = _upper_dot_residual(ab, kl, b, i) / ab[i, kl]
-    return 0
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"}, inline="always")
@@ -84,6 +99,15 @@ def band_ldl_solve(ab, n, kl, b):
     half (``ab[i, kl + j]``, j ≥ 0; the lower half is neither read nor written), and ``b`` overwritten with the
     solution. The caller must know A is symmetric. Returns 0 on success, else 1 + the first bad pivot's index.
     """
+    st = band_ldl_factor(ab, n, kl)
+    if st == 0:
+        band_ldl_apply(ab, n, kl, b)
+    return st
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"}, inline="always")
+def band_ldl_factor(ab, n, kl):
+    """LDLᵀ of the upper half of the padded band ``ab`` in place. Returns 0, or 1 + the first bad pivot's index."""
     tiny = _pivot_floor(ab, n, kl)
     if tiny < 0.0:
         return 1
@@ -98,6 +122,12 @@ def band_ldl_solve(ab, n, kl, b):
                 ab[k + i, kl + j - i] -= lk * ab[k, kl + j]
         for i in range(1, kl + 1):
             ab[k, kl + i] *= ip  # row k of the upper half now holds Lᵀ
+    return 0
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"}, inline="always")
+def band_ldl_apply(ab, n, kl, b):
+    """Overwrite ``b`` (length n + kl) with A⁻¹ b from the factors :func:`band_ldl_factor` left in ``ab``."""
     for k in range(n):  # L y = b (unit lower, column form); the padding rows of ab are identity rows
         bk = b[k]
         for i in range(1, kl + 1):
@@ -108,7 +138,6 @@ def band_ldl_solve(ab, n, kl, b):
         b[k] /= ab[k, kl]
     for i in range(n - 1, -1, -1):  # Lᵀ x = y (unit upper)
         b[i] = _upper_dot_residual(ab, kl, b, i)
-    return 0
 
 
 def dense_to_band(A: np.ndarray, kl: int) -> np.ndarray:

@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit, prange
 
 from .contact_kernels import contact_accumulate, contact_broadphase, contact_report
+from .contact_rod import rod_pairs_broadphase, rod_pairs_energy
 from .newton import _energies, _positions, _predicted_positions, substep
 from .solve_2d import KL_2D, frames_from_2d
 from .solve_3d import KL_3D
@@ -17,11 +18,17 @@ __all__ = ["step_kernel", "alloc_workspace"]
 
 
 @njit(**_OPT_ALLOC)
-def alloc_workspace(N, planar):
-    """A :class:`sim.solve_params.Workspace` for a rod of N nodes (one per thread and chunk of envs)."""
+def alloc_workspace(N, planar, P):
+    """A :class:`sim.solve_params.Workspace` for a rod of N nodes with P edge pairs that may touch (one per thread
+    and chunk of envs; the edge-pair fields are empty when P = 0)."""
     dpn = 2 if planar else 4
     kl = KL_2D if planar else KL_3D
     n = dpn * N
+    K = (2 if planar else 3) * N if P > 0 else 0
+    nslot = n if P > 0 else 0
+    nbox = N - 1 if P > 0 else 0
+    wb_slot = np.full(nslot, -1, np.int64)
+    rp_box = np.empty((nbox, 6))
     return Workspace(
         x=np.empty(n), f=np.empty(n), dx=np.zeros(n + kl), xt=np.empty(n), ab=np.empty((n + kl, 2 * kl + 1)),
         pos=np.empty((N, 3)), pos0=np.empty((N, 3)), t=np.empty((N - 1, 3)), d1=np.empty((N - 1, 3)),
@@ -30,7 +37,11 @@ def alloc_workspace(N, planar):
         cg=np.zeros((N, 3)), ch=np.zeros((N - 1, 6, 6)), mf=np.empty((N - 1, 6)),
         sub_x=np.empty(n), sub_v=np.empty(n), sub_d1=np.empty((N - 1, 3)), sub_t=np.empty((N - 1, 3)),
         sub_beta=np.empty(N), fb_x=np.empty(n), fb_v=np.empty(n), fb_d1=np.empty((N - 1, 3)),
-        fb_t=np.empty((N - 1, 3)), fb_beta=np.empty(N))
+        fb_t=np.empty((N - 1, 3)), fb_beta=np.empty(N), rp_cand=np.zeros(P, np.int64), rp_n=np.zeros(1, np.int64),
+        rp_box=rp_box, g12=np.empty(12), H12=np.empty((12, 12)), n12=np.empty(3),
+        ws12=np.empty(32), wb_slot=wb_slot, wb_dof=np.zeros(K, np.int64), wb_n=np.zeros(1, np.int64),
+        wb_M=np.zeros((K, K)), wb_Z=np.empty((K, n + kl)), wb_C=np.empty((K, K)), wb_r=np.empty(K),
+        wb_piv=np.empty(K, np.int64))
 
 
 @njit(inline="always", **_OPT)
@@ -132,6 +143,10 @@ def _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
         w.ch[:, :, :] = 0.0
         ec = contact_accumulate(e, cd, pos, pos, prm.dt, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
                                 prm.friction_nu, prm.friction_on > 0, w.cg, w.ch)
+    if prm.rod_pairs > 0:  # edge pairs near the state kept
+        _positions(planar, xs, pos, prm.plane_y)
+        rod_pairs_broadphase(rod.pairs, pos, pos, rod.radius, prm.contact_margin, w.rp_box, w.rp_cand, w.rp_n)
+        ec += rod_pairs_energy(rod.pairs, w.rp_cand, w.rp_n, pos, rod.radius, prm.contact_k, prm.contact_delta)
     ek = 0.0
     eg = 0.0
     grav = rod.grav[min(e, rod.grav.shape[0] - 1)]  # external forces: (1, n) shared or (B, n) per env
@@ -181,7 +196,7 @@ def step_kernel(state, ctl, rod, prm_arr, cd, crep, out):
     nch = (B + _CHUNK - 1) // _CHUNK
     for chunk in prange(nch):  # workspaces are allocated once per chunk of envs, not per env-step
         prm = prm_arr[0]  # the parameters record, by reference
-        w = alloc_workspace(N, prm.planar != 0)
+        w = alloc_workspace(N, prm.planar != 0, rod.pairs.shape[0])
         for e in range(chunk * _CHUNK, min(B, chunk * _CHUNK + _CHUNK)):
             _clear_outputs(out, e)
             if failed[e]:

@@ -34,13 +34,21 @@ import math
 import numpy as np
 from numba import njit
 
-from .banded import band_ldl_solve, band_lu_solve
+from .banded import band_ldl_apply, band_ldl_factor, band_lu_apply, band_lu_factor
 from .contact_kernels import (
     contact_accumulate,
     contact_broadphase,
     contact_min_gap,
     contact_refresh,
     contact_step_limit,
+)
+from .contact_rod import (
+    dense_lu_solve,
+    rod_pairs_broadphase,
+    rod_pairs_energy,
+    rod_pairs_min_gap,
+    rod_pairs_refresh,
+    rod_pairs_step_limit,
 )
 from .frames import update_frames
 from .solve_2d import KL_2D, assemble_2d, energies_2d
@@ -55,6 +63,7 @@ from .solve_params import (
     STRAIN,
     UNCONVERGED,
     copy_into,
+    has_candidates,
     jacobian_symmetric,
     lazy_line_search,
     midpoint_gained_energy,
@@ -132,24 +141,82 @@ def _predict(x, x0, u, fixed, hs):
 
 
 @njit(inline="always", **_OPT)
+def _band_apply(planar, sym, ab, n, b):
+    """b ← B⁻¹ b from the band's factors (b of length n + kl). The half bandwidths are passed as constants: the
+    solvers are inlined and their loops unrolled for them."""
+    if planar:
+        if sym:
+            band_ldl_apply(ab, n, KL_2D, b)
+        else:
+            band_lu_apply(ab, n, KL_2D, b)
+    elif sym:
+        band_ldl_apply(ab, n, KL_3D, b)
+    else:
+        band_lu_apply(ab, n, KL_3D, b)
+
+
+@njit(inline="always", **_OPT)
 def _linear_solve(planar, w, n, sym):
-    """dx = J⁻¹ f (banded, in place in w.dx); False on a bad pivot. The half bandwidths are passed as constants:
-    the solvers are inlined and their loops unrolled for them."""
+    """dx = J⁻¹ f (in place in w.dx): the banded solve, plus the Woodbury correction when edge pairs coupled
+    DOFs outside the band (w.wb_n[0] > 0, :func:`_woodbury`); False on a bad pivot or a singular correction."""
     dx = w.dx
     for k in range(n):
         dx[k] = w.f[k]
     if planar:
-        st = band_ldl_solve(w.ab, n, KL_2D, dx) if sym else band_lu_solve(w.ab, n, KL_2D, dx)
+        st = band_ldl_factor(w.ab, n, KL_2D) if sym else band_lu_factor(w.ab, n, KL_2D)
     else:
-        st = band_ldl_solve(w.ab, n, KL_3D, dx) if sym else band_lu_solve(w.ab, n, KL_3D, dx)
-    return st == 0
+        st = band_ldl_factor(w.ab, n, KL_3D) if sym else band_lu_factor(w.ab, n, KL_3D)
+    if st != 0:
+        return False
+    _band_apply(planar, sym, w.ab, n, dx)
+    if w.wb_n[0] > 0:
+        return _woodbury(planar, sym, w, n)
+    return True
+
+
+@njit(**_OPT)
+def _woodbury(planar, sym, w, n):
+    """Correct dx = B⁻¹ f (w.dx; B the factored band) to (B + E M Eᵀ)⁻¹ f, where M (w.wb_M, K × K) couples the
+    listed DOFs w.wb_dof (E their unit columns): dx − Z (I + M Eᵀ Z)⁻¹ M Eᵀ dx with Z = B⁻¹ E (docs/physics.md
+    §4.8). K band solves and one dense K × K solve."""
+    K = w.wb_n[0]
+    Z, M, C, r, dof, dx = w.wb_Z, w.wb_M, w.wb_C, w.wb_r, w.wb_dof, w.dx
+    for b in range(K):
+        zb = Z[b]
+        for i in range(zb.shape[0]):
+            zb[i] = 0.0
+        zb[dof[b]] = 1.0
+        _band_apply(planar, sym, w.ab, n, zb)
+    for a in range(K):
+        acc = 0.0
+        for c in range(K):
+            acc += M[a, c] * dx[dof[c]]
+        r[a] = acc
+        for b in range(K):
+            v = 0.0
+            for c in range(K):
+                v += M[a, c] * Z[b, dof[c]]
+            C[a, b] = v + (1.0 if a == b else 0.0)
+    if not dense_lu_solve(C, K, r, w.wb_piv):
+        return False
+    for b in range(K):
+        wv = r[b]
+        for i in range(n):
+            dx[i] -= wv * Z[b, i]
+    return True
 
 
 @njit(inline="always", **_OPT)
 def _limit_update(planar, e, rod, cd, prm, w):
-    """Shorten dx so that no update carries a rod edge through an obstacle (w.pos: the nodes at x)."""
+    """Shorten dx so that no update carries a rod edge through an obstacle or another edge (w.pos: the nodes
+    at x)."""
     _node_motion(planar, w.dx, w.cg)
-    tcap = contact_step_limit(e, cd, w.pos, w.cg, rod.radius, prm.contact_delta)
+    tcap = 1.0
+    if prm.n_obstacles > 0 and cd.cand_count[e] > 0:
+        tcap = contact_step_limit(e, cd, w.pos, w.cg, rod.radius, prm.contact_delta)
+    if prm.rod_pairs > 0 and w.rp_n[0] > 0:
+        tcap = min(tcap, rod_pairs_step_limit(rod.pairs, w.rp_cand, w.rp_n, w.pos, w.cg, rod.radius,
+                                              prm.contact_delta))
     if tcap < 1.0:
         for k in range(w.x.shape[0]):
             w.dx[k] *= tcap
@@ -210,10 +277,10 @@ def newton(e, hs, kb, tb, rod, prm, cd, w):
     dpn = 2 if planar else 4
     maxit = int(prm.newton_max_iter)
     tol = prm.newton_tol
-    dtol = newton_dtol(prm, cd, e)
+    dtol = newton_dtol(prm, cd, e, w)
     sym = jacobian_symmetric(prm)
-    lazy = lazy_line_search(prm, cd, e)
-    limit = prm.step_limit > 0 and prm.n_obstacles > 0 and cd.cand_count[e] > 0
+    lazy = lazy_line_search(prm, cd, e, w)
+    limit = prm.step_limit > 0 and has_candidates(prm, cd, e, w)
     _predict(x, w.sub_x, w.sub_v, fixed, hs)
     r0 = 0.0
     r = 0.0
@@ -270,6 +337,8 @@ def mech_energy(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, w, pos, pos0, h):
     if prm.n_obstacles > 0 and cd.cand_count[e] > 0:
         ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
                                 prm.friction_nu, False, w.cg, w.ch)
+    if prm.rod_pairs > 0 and w.rp_n[0] > 0:
+        ec += rod_pairs_energy(rod.pairs, w.rp_cand, w.rp_n, pos, rod.radius, prm.contact_k, prm.contact_delta)
     e_in = es + eb + et + ek + ec
     return e_in + eg, e_in
 
@@ -313,17 +382,23 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
     planar = prm.planar != 0
     py = prm.plane_y
     contact = prm.n_obstacles > 0
+    pairs = prm.rod_pairs > 0
     x, dx, pos, pos0 = w.x, w.dx, w.pos, w.pos0
     x0, u = w.sub_x, w.sub_v
     hs = 0.5 * h if midpoint else h
     # predict: contact candidates over the predicted motion x0 → x0 + hs·u
     pen0 = 0.0
-    if contact:
+    if contact or pairs:
         _positions(planar, x0, pos0, py)
         _predicted_positions(planar, x0, u, hs, pos, py)
+    if contact:
         contact_broadphase(e, cd, pos0, pos, prm.contact_margin)
         if want_pen0 and cd.cand_count[e] > 0:
             pen0 = -contact_min_gap(e, cd, pos0, rod.radius)
+    if pairs:
+        rod_pairs_broadphase(rod.pairs, pos0, pos, rod.radius, prm.contact_margin, w.rp_box, w.rp_cand, w.rp_n)
+        if want_pen0 and w.rp_n[0] > 0:
+            pen0 = max(pen0, -rod_pairs_min_gap(rod.pairs, w.rp_cand, w.rp_n, pos0, rod.radius))
     # newton
     st, it, conv, r, r0 = newton(e, hs, kb, tb, rod, prm, cd, w)
     if st != OK:
@@ -332,10 +407,17 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
     # far from x0 + h u); refresh the list over the motion actually taken and, if it gained pairs, solve again.
     # Backward Euler ends where the solve ended: the refreshed list then covers the whole sub-step motion.
     list_covers_step = False
-    if contact:
+    if contact or pairs:
         _positions(planar, x, pos, py)
         list_covers_step = not midpoint
-        if contact_refresh(e, cd, pos0, pos, prm.contact_margin):
+        added = False
+        if contact:
+            added = contact_refresh(e, cd, pos0, pos, prm.contact_margin)
+        if pairs:
+            added_pairs = rod_pairs_refresh(rod.pairs, pos0, pos, rod.radius, prm.contact_margin, w.rp_box,
+                                            w.rp_cand, w.rp_n)
+            added = added or added_pairs
+        if added:
             list_covers_step = False
             st, it2, conv, r, r0 = newton(e, hs, kb, tb, rod, prm, cd, w)
             it += it2
@@ -377,6 +459,11 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
             contact_broadphase(e, cd, pos0, pos, prm.contact_margin)
         if cd.cand_count[e] > 0:
             pen = -contact_min_gap(e, cd, pos, rod.radius)
+    if pairs:
+        if not list_covers_step:
+            rod_pairs_broadphase(rod.pairs, pos0, pos, rod.radius, prm.contact_margin, w.rp_box, w.rp_cand, w.rp_n)
+        if w.rp_n[0] > 0:
+            pen = max(pen, -rod_pairs_min_gap(rod.pairs, w.rp_cand, w.rp_n, pos, rod.radius))
     return OK, it, conv, r, r0, pen, pen0
 
 

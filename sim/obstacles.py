@@ -13,7 +13,9 @@ Scene keys (SI units; every obstacle may carry ``name = "..."``)::
                                    3 numbers, default 1), position [m], orientation (wxyz)
     [contact] stiffness [N/m] (1e6), delta [m] (5e-3), friction mu [-] (0),
               friction_velocity_tol [m/s] (1e-2), margin [m] (5e-2, broad-phase inflation), enabled (true),
-              max_penetration [m] (4 * delta; a (sub)step ending deeper is retried with more sub-steps)
+              max_penetration [m] (4 * delta; a (sub)step ending deeper is retried with more sub-steps),
+              self_contact (false: edges of one rod touching each other, sim/contact_rod.py),
+              rod_contact (default true when the scene has several rods: edges of different rods touching)
 
 Poses: every obstacle has a per-env pose (position, quaternion wxyz). For capsule/sphere/plane the spec's
 coordinates are the obstacle's local frame (initial pose = identity); box and mesh start at their spec
@@ -145,6 +147,8 @@ class ContactSpec:
     enabled: bool = True
     max_penetration: float | None = None
     step_limit: bool = True
+    self_contact: bool = False          # edges of one rod touch each other (sim/contact_rod.py)
+    rod_contact: bool | None = None     # edges of different rods touch; None: on when there are several rods
 
     @property
     def penetration_limit(self) -> float:
@@ -242,7 +246,7 @@ def parse_contact(table: Mapping[str, Any] | None, scene_path: str | None) -> Co
         return ContactSpec()
     p = "contact."
     check_unknown(table, {"stiffness", "delta", "friction", "friction_velocity_tol", "margin", "enabled",
-                          "max_penetration", "step_limit"}, p, scene_path)
+                          "max_penetration", "step_limit", "self_contact", "rod_contact"}, p, scene_path)
     d = ContactSpec()
     return ContactSpec(
         stiffness=take_float(table, "stiffness", p, scene_path, d.stiffness, positive=True),
@@ -253,6 +257,8 @@ def parse_contact(table: Mapping[str, Any] | None, scene_path: str | None) -> Co
         margin=take_float(table, "margin", p, scene_path, d.margin, nonnegative=True),
         enabled=take_bool(table, "enabled", p, scene_path, d.enabled),
         step_limit=take_bool(table, "step_limit", p, scene_path, d.step_limit),
+        self_contact=take_bool(table, "self_contact", p, scene_path, d.self_contact),
+        rod_contact=take_bool(table, "rod_contact", p, scene_path, True) if "rod_contact" in table else None,
         max_penetration=(take_float(table, "max_penetration", p, scene_path, positive=True)
                          if "max_penetration" in table else None),
     )
@@ -288,6 +294,10 @@ def dump_contact(contact: ContactSpec) -> list[str]:
     lines = ["[contact]"]
     for k in ("stiffness", "delta", "friction", "friction_velocity_tol", "margin", "enabled", "step_limit"):
         lines.append(f"{k} = {format_value(getattr(contact, k))}")
+    if contact.self_contact:
+        lines.append("self_contact = true")
+    if contact.rod_contact is not None:  # omitted = on with several rods
+        lines.append(f"rod_contact = {format_value(bool(contact.rod_contact))}")
     if contact.max_penetration is not None:  # omitted = 4 * delta (follows delta)
         lines.append(f"max_penetration = {format_value(float(contact.max_penetration))}")
     return lines

@@ -10,6 +10,7 @@ import math
 from numba import njit
 
 from .contact_kernels import contact_accumulate
+from .contact_rod import reset_coupling, rod_pairs_accumulate
 from .energies.planar import planar_bend_element
 from .energies.stretch import stretch_element_2d
 from .frames import update_frames
@@ -98,6 +99,21 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                         lb = (b // 2) * 3 + (0 if b % 2 == 0 else 2)
                         c = 2 * j + b
                         ab[r, kl + c - r] += ch[j, la, lb]
+    if prm.rod_pairs > 0:  # edges touching edges in the plane (sim/contact_rod.py)
+        pos, pos0 = w.pos, w.pos0
+        py = prm.plane_y
+        for k in range(N):
+            pos[k, 0] = x[2 * k]
+            pos[k, 1] = py
+            pos[k, 2] = x[2 * k + 1]
+            pos0[k, 0] = x0[2 * k]
+            pos0[k, 1] = py
+            pos0[k, 2] = x0[2 * k + 1]
+        if with_jac:
+            reset_coupling(w.wb_slot, w.wb_dof, w.wb_n, w.wb_M)
+        ec += rod_pairs_accumulate(rod.pairs, w.rp_cand, w.rp_n, pos, pos0, h, 2, fixed, rod.radius, prm.contact_k,
+                                   prm.contact_delta, prm.friction, prm.friction_nu, f, ab, kl, sym, with_jac,
+                                   w.wb_slot, w.wb_dof, w.wb_n, w.wb_M, w.g12, w.H12, w.n12, w.ws12)
     r2 = 0.0
     for k in range(n):  # constrained DOFs: identity rows and columns, zero residual
         if fixed[k]:

@@ -10,6 +10,7 @@ import math
 from numba import njit
 
 from .contact_kernels import contact_accumulate
+from .contact_rod import reset_coupling, rod_pairs_accumulate
 from .energies.bend_twist import bend_twist_core, material_curvatures, material_directors
 from .energies.stretch import stretch_element
 from .frames import update_frames
@@ -120,6 +121,16 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                     for b in range(a if sym else 0, 6):
                         c = 4 * j + b if b < 3 else 4 * j + 1 + b
                         ab[r, kl + c - r] += ch[j, a, b]
+    if prm.rod_pairs > 0:  # edges touching edges (sim/contact_rod.py): in-band blocks into ab, the rest listed
+        pos0 = w.pos0
+        for k in range(N):
+            for a in range(3):
+                pos0[k, a] = x0[4 * k + a]
+        if with_jac:
+            reset_coupling(w.wb_slot, w.wb_dof, w.wb_n, w.wb_M)
+        ec += rod_pairs_accumulate(rod.pairs, w.rp_cand, w.rp_n, pos, pos0, h, 4, fixed, rod.radius, prm.contact_k,
+                                   prm.contact_delta, prm.friction, prm.friction_nu, f, ab, kl, sym, with_jac,
+                                   w.wb_slot, w.wb_dof, w.wb_n, w.wb_M, w.g12, w.H12, w.n12, w.ws12)
     r2 = 0.0
     for k in range(n):  # constrained DOFs: identity rows and columns, zero residual
         if fixed[k]:

@@ -14,12 +14,14 @@ from numba import njit
 # The solver's scalar parameters by name: a namedtuple of float64 (flags 0.0/1.0, planar 1.0 for the 2-D model;
 # line_search 0 none, 1 backtrack, 2 auto), built once by the Simulator from the Model. Units: dt [s],
 # damping [1/s], newton_dtol [m/s], contact_delta/contact_margin/max_penetration/plane_y [m],
-# contact_k [N/m], friction_nu [m/s]; the rest dimensionless.
+# contact_k [N/m], friction_nu [m/s]; the rest dimensionless. rod_pairs: 1.0 when edges of rods may touch each other
+# (self- or rod–rod contact on and allowed pairs exist, sim/contact_rod.py; they use contact_k, contact_delta,
+# contact_margin and the [contact] friction μ = friction).
 Params = namedtuple("Params", [
     "dt", "damping", "newton_tol", "newton_dtol", "newton_max_iter", "accept_unconverged",
     "midpoint", "line_search", "contact_k", "contact_delta", "friction", "friction_nu", "friction_on",
     "contact_margin", "n_obstacles", "planar_sign", "plane_y", "retry_levels", "max_strain", "max_penetration",
-    "step_limit", "divergence_guard", "midpoint_energy_tol", "planar",
+    "step_limit", "divergence_guard", "midpoint_energy_tol", "planar", "rod_pairs",
 ])
 # The kernels receive the parameters as one record of this structured dtype (same names, read as prm.EA ...):
 # numba passes a record by reference, where a namedtuple of 28 floats is copied into every call.
@@ -54,8 +56,10 @@ StepOutput = namedtuple("StepOutput", [
 # point loads): (1, n) shared by all envs, or (B, n) per env when time-windowed loads act (row min(e, rows - 1));
 # the stiffnesses: EA [N] per edge (N-1,), EI1/EI2/GJ [N m²] per node (N,) (an interior node: the mean of its two
 # edges'; docs/physics.md §1.5). The planar rod reads its in-plane bending stiffness from EI1. radius [m]: (1,) for
-# a rod of one radius, else (N-1,) per edge (sim.contact_kernels).
-RodData = namedtuple("RodData", ["rest_len", "vor_len", "mass", "fixed", "grav", "EA", "EI1", "EI2", "GJ", "radius"])
+# a rod of one radius, else (N-1,) per edge (sim.contact_kernels). pairs (P, 2) int64: the edge pairs that may touch
+# (sim.contact_rod.allowed_pairs; (0, 2) without self- or rod–rod contact).
+RodData = namedtuple("RodData", ["rest_len", "vor_len", "mass", "fixed", "grav", "EA", "EI1", "EI2", "GJ", "radius",
+                                 "pairs"])
 # the batched state the kernel advances in place (leading axis B): DOFs and their velocities (B, n), the stored
 # reference frames (B, N-1, 3) and reference twist (B, N), time (B,), failed flags (B,)
 StateArrays = namedtuple("StateArrays", ["dof", "vel", "ref_d1", "tangent", "ref_twist", "time", "failed"])
@@ -67,10 +71,16 @@ ControlArrays = namedtuple("ControlArrays", ["kappa_bar", "tau_bar"])
 # (3-D bend-twist); contact gradient cg (N, 3) and per-edge Hessians ch (N-1, 6, 6); material directors mf
 # (N-1, 6); the (sub)step start state sub_* and the guard fallback state fb_* (DOFs, velocities, frames). Every
 # entry is written before it is read, so nothing carries over from one env to the next.
+# Edge pairs (sim.contact_rod; sized 0 without them): candidate pair indices rp_cand (P,) and their count rp_n (1,),
+# edge boxes rp_box (N-1, 6), pair derivatives g12 (12,), H12 (12, 12), normal n12 (3,), scratch ws12 (32,); the
+# Jacobian's coupling outside the band: DOF -> list slot wb_slot (n,) (-1: not listed), listed DOFs wb_dof (K,) and
+# their count wb_n (1,), coupling matrix wb_M (K, K), B⁻¹ columns wb_Z (K, n + kl), capacitance wb_C (K, K), its
+# right-hand side wb_r (K,) and pivots wb_piv (K,); K = 3N (3-D) or 2N (planar) position DOFs.
 Workspace = namedtuple("Workspace", [
     "x", "f", "dx", "xt", "ab", "pos", "pos0", "t", "d1", "d2", "elen", "beta", "g4", "H4", "g6", "H6", "g11",
     "H11", "wk", "cg", "ch", "mf", "sub_x", "sub_v", "sub_d1", "sub_t", "sub_beta", "fb_x", "fb_v", "fb_d1",
-    "fb_t", "fb_beta",
+    "fb_t", "fb_beta", "rp_cand", "rp_n", "rp_box", "g12", "H12", "n12", "ws12", "wb_slot", "wb_dof", "wb_n",
+    "wb_M", "wb_Z", "wb_C", "wb_r", "wb_piv",
 ])
 
 # (sub)step status codes of sim.newton
@@ -101,9 +111,10 @@ def copy_into(dst, src):
 
 @njit(inline="always", **_OPT)
 def jacobian_symmetric(prm):
-    """Whether the Newton Jacobian is symmetric: yes unless friction acts (obstacles present and μ > 0); the
+    """Whether the Newton Jacobian is symmetric: yes unless friction acts (obstacles or edge pairs present and
+    μ > 0); the
     kernels then assemble only the band's upper half and factor it by LDLᵀ."""
-    return not (prm.n_obstacles > 0 and prm.friction_on > 0)
+    return not ((prm.n_obstacles > 0 and prm.friction_on > 0) or (prm.rod_pairs > 0 and prm.friction > 0))
 
 
 @njit(inline="always", **_OPT)
@@ -117,22 +128,29 @@ def guard_score(pen, lim, grow, rg):
 
 
 @njit(inline="always", **_OPT)
-def lazy_line_search(prm, cd, e):
+def lazy_line_search(prm, cd, e, w):
     """Whether env ``e``'s Newton loop backtracks lazily (``line_search = "auto"``, the default): only in
-    an env with contact candidates (where friction's stick law and the stiff contact potential make full
-    Newton steps overshoot), and only when an update raised ‖f‖; otherwise the full step costs nothing
-    extra. The decision is read once per Newton solve (the candidate list is fixed during it)."""
-    return prm.line_search == 2 and prm.n_obstacles > 0 and cd.cand_count[e] > 0
+    an env with contact candidates (obstacle or edge pairs: where friction's stick law and the stiff contact
+    potential make full Newton steps overshoot), and only when an update raised ‖f‖; otherwise the full step
+    costs nothing extra. The decision is read once per Newton solve (the candidate list is fixed during it)."""
+    return prm.line_search == 2 and has_candidates(prm, cd, e, w)
 
 
 @njit(inline="always", **_OPT)
-def newton_dtol(prm, cd, e):
+def has_candidates(prm, cd, e, w):
+    """Whether env ``e`` has contact candidates now: obstacle pairs (cd) or edge pairs (the Workspace's list)."""
+    return (prm.n_obstacles > 0 and cd.cand_count[e] > 0) or (prm.rod_pairs > 0 and w.rp_n[0] > 0)
+
+
+@njit(inline="always", **_OPT)
+def newton_dtol(prm, cd, e, w):
     """Displacement-test tolerance [m/s] of env ``e``'s Newton solve: ``newton_dtol``, capped at 1 % of the
     friction velocity tolerance ν where friction can act (contact candidates and μ > 0): the stick law
     γ(|v_t|/ν) resolves velocities on the scale ν, so an update that still changes velocities by ~ν is
     not converged (docs/physics.md §4.6)."""
     dtol = prm.newton_dtol
-    if prm.friction_on > 0 and prm.n_obstacles > 0 and cd.cand_count[e] > 0:
+    if ((prm.friction_on > 0 and prm.n_obstacles > 0 and cd.cand_count[e] > 0)
+            or (prm.friction > 0 and prm.rod_pairs > 0 and w.rp_n[0] > 0)):
         dtol = min(dtol, 0.01 * prm.friction_nu)
     return dtol
 

@@ -10,6 +10,7 @@ import numpy as np
 from . import solve as _solve
 from . import validate as _validate
 from .boundary import window_fraction
+from .contact_rod import model_pairs
 from .contact_set import contact_data, contact_radii, contact_scratch
 from .model import Model
 from .state import Control, State, StepStats
@@ -40,6 +41,7 @@ class Simulator:
         mp = getattr(c, "max_penetration", None)  # penetration guard [m]; None = 4 * delta
         # the planar rod bends with EI1 (kernel): there, the stiffness of its in-plane component
         ei1 = m.node_EI1 if m.mode == "3d" or m.planar_component == 0 else m.node_EI2
+        pairs = model_pairs(m)  # edge pairs that may touch (self- / rod–rod contact); (0, 2) without
         prm = _solve.Params(
             dt=m.dt, damping=m.damping, newton_tol=m.newton_tol,
             newton_dtol=m.newton_dtol, newton_max_iter=float(m.newton_max_iter),
@@ -52,13 +54,14 @@ class Simulator:
             planar_sign=m.planar_sign, plane_y=m.plane_y, retry_levels=5.0, max_strain=0.9,
             max_penetration=4.0 * c.delta if mp is None else float(mp),
             step_limit=1.0 if getattr(c, "step_limit", True) else 0.0, divergence_guard=m.divergence_guard,
-            midpoint_energy_tol=MIDPOINT_ENERGY_TOL, planar=1.0 if m.mode == "2d" else 0.0)
+            midpoint_energy_tol=MIDPOINT_ENERGY_TOL, planar=1.0 if m.mode == "2d" else 0.0,
+            rod_pairs=1.0 if pairs.shape[0] > 0 else 0.0)
         self._prm = _solve.params_record(prm)  # one float64 record (passed by reference in the kernels)
         self._rod = _solve.RodData(rest_len=np.array(m.rest_edge_length), vor_len=np.array(m.voronoi_length),
                                    mass=np.array(m.dof_mass), fixed=np.array(m.dof_fixed),
                                    grav=np.array(m.dof_gravity)[None, :], EA=np.array(m.edge_EA),
                                    EI1=np.array(ei1), EI2=np.array(m.node_EI2), GJ=np.array(m.node_GJ),
-                                   radius=contact_radii(m.edge_radius))
+                                   radius=contact_radii(m.edge_radius), pairs=pairs)
         # point loads (sim.boundary): per-env external forces only when a scene has loads; prescribed motion
         self._loads = m.load_force.shape[0] > 0
         self._motion = m.motion_rate.shape[0] > 0

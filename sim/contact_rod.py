@@ -1,0 +1,541 @@
+"""Rod–rod and self-contact: IMC potential and friction between pairs of rod edges (docs/physics.md §4.8).
+
+Each edge is a capsule of its radius. For an allowed pair of edges (i, j) (:func:`allowed_pairs`: both material
+edges, not neighbours along one rod) the gap is ``g = Δ − r_i − r_j`` with ``Δ`` the exact distance between the two
+centre-line segments (Lumelsky's closest points, docs/physics.md §4.2) and the energy the IMC softplus-squared
+``E(g)`` of the obstacles (:func:`sim.contact_kernels.imc_energy`). ``Δ``'s gradient and Hessian over the 12
+coordinates of the pair's four nodes follow from the envelope theorem and a Schur complement over the closest-point
+parameters that are interior (:func:`seg_seg_derivs`), so the Newton Jacobian is exact inside each region
+(point–point, point–edge, edge–edge).
+
+A pair couples nodes far apart along the chain, outside the band of the banded Jacobian. The assembly
+(:func:`rod_pairs_accumulate`) adds the blocks of each edge with itself into the band and collects the blocks
+between the two edges, entry by entry over the DOFs they touch, into a small dense coupling matrix ``M`` over a
+list of those DOFs (the Workspace's ``wb_*`` fields); :func:`sim.newton` then solves ``(B + E M Eᵀ) dx = f`` by the
+Woodbury identity on the banded factorisation of ``B`` (:func:`sim.newton._woodbury`). With no pair within reach the
+list is empty and the solve is the banded one.
+
+Candidates: once per (sub)step, over the predicted motion, every allowed pair whose swept boxes (each edge's box over
+the step's start and end, grown by its radius and half the contact margin) overlap (:func:`rod_pairs_broadphase`);
+refreshed over the motion actually taken like the obstacle candidates (:func:`rod_pairs_refresh`).
+
+Friction (IMC friction, §4.6, lagged normal and closest-point weights): the contact points' relative velocity
+``v = Σ c_k v_k`` with weights ``c = (1−s, s, −(1−t), −t)`` on the nodes (x_i, x_{i+1}, x_j, x_{j+1}); residual
+``μ λ γ(|v_t|) c_k t̂`` on node k, ``λ = −E'(g)``.
+
+Positions are (N, 3) arrays; ``dpn`` DOFs per node: 4 (3-D: [x, y, z, θ]) or 2 (planar: [x, z], y fixed).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .contact_kernels import imc_energy
+from .geometry_distance import closest_seg_seg, vcross, vdot, vlerp, vsub
+from .solve_params import _OPT_CONTACT
+
+__all__ = ["allowed_pairs", "model_pairs", "edge_rods", "seg_seg_derivs", "rod_pairs_broadphase", "rod_pairs_refresh", "rod_pairs_accumulate",
+           "rod_pairs_min_gap", "rod_pairs_energy", "reset_coupling", "rod_pairs_step_limit", "dense_lu_solve"]
+
+_EPS_PARAM = 1e-9  # a closest-point parameter this close to 0 or 1 counts as at the segment's end
+
+
+def allowed_pairs(rest_edge_length: np.ndarray, edge_radius: np.ndarray, edge_rod: np.ndarray, *,
+                  self_contact: bool, rod_contact: bool, delta: float) -> np.ndarray:
+    """Edge pairs (i, j), i < j, that may touch: (P, 2) int64.
+
+    ``edge_rod`` (E,): the rod of each edge (−1 for a joint edge between two rods, which never touches).
+    Pairs of one rod (only with ``self_contact``) are left out when they are neighbours along it: the rest arc
+    length between the end of edge i and the start of edge j is below the contact distance r_i + r_j + δ (such
+    edges touch whenever the rod is straight), and always when they share a node. Pairs of two rods need
+    ``rod_contact``.
+    """
+    lbar = np.asarray(rest_edge_length, dtype=np.float64)
+    r = np.asarray(edge_radius, dtype=np.float64)
+    rod = np.asarray(edge_rod, dtype=np.int64)
+    E = lbar.shape[0]
+    if r.shape[0] == 1:
+        r = np.full(E, r[0])
+    arc_end = np.cumsum(np.where(rod >= 0, lbar, 0.0))   # rest arc length at each edge's end (joints add none)
+    arc_start = arc_end - np.where(rod >= 0, lbar, 0.0)
+    out = []
+    for i in range(E):
+        if rod[i] < 0:
+            continue
+        for j in range(i + 1, E):
+            if rod[j] < 0:
+                continue
+            if rod[i] == rod[j]:
+                if not self_contact or j - i < 2:
+                    continue
+                if arc_start[j] - arc_end[i] < r[i] + r[j] + delta:
+                    continue
+            elif not rod_contact:
+                continue
+            out.append((i, j))
+    return np.array(out, dtype=np.int64).reshape(-1, 2)
+
+
+def edge_rods(model) -> np.ndarray:
+    """(N-1,) int64: the rod of each edge of ``model``'s chain, −1 for a joint edge between two rods."""
+    E = model.node_count - 1
+    offsets = getattr(model, "rod_node_offsets", None)
+    if offsets is None or len(offsets) <= 2:
+        return np.zeros(E, dtype=np.int64)
+    out = np.full(E, -1, dtype=np.int64)
+    for r in range(len(offsets) - 1):
+        out[int(offsets[r]):int(offsets[r + 1]) - 1] = r
+    return out
+
+
+def model_pairs(model) -> np.ndarray:
+    """The edge pairs of ``model`` that may touch (:func:`allowed_pairs` with its ``[contact]`` switches):
+    ``self_contact`` (default off), ``rod_contact`` (default on when there are several rods); none when contact is
+    disabled."""
+    c = model.spec.contact
+    rods = edge_rods(model)
+    several = rods.max(initial=0) > 0
+    rod_contact = several if c.rod_contact is None else bool(c.rod_contact) and several
+    if not getattr(c, "enabled", True) or not (c.self_contact or rod_contact):
+        return np.zeros((0, 2), dtype=np.int64)
+    return allowed_pairs(model.rest_edge_length, model.edge_radius, rods, self_contact=bool(c.self_contact),
+                         rod_contact=rod_contact, delta=float(c.delta))
+
+
+@njit(**_OPT_CONTACT)
+def seg_seg_derivs(a, b, p, q, grad, hess, nhat, ws):
+    """Distance Δ [m] between segments (a, b) and (p, q) (3-tuples) with its gradient ``grad`` (12,) and Hessian
+    ``hess`` (12, 12) over (a, b, p, q), and the unit normal ``nhat`` (3,) from the (p, q) point to the (a, b)
+    point. Returns (Δ, s, t): the closest points are a + s (b − a) and p + t (q − p).
+
+    D = |u|², u = (1−s) a + s b − (1−t) p − t q. At the minimum over the interior parameters y ⊂ {s, t},
+    ∇(D/2) = Jᵀu (J = ∂u/∂x = [(1−s) I, s I, −(1−t) I, −t I]) and ∇²(D/2) = JᵀJ − D_xy D_yy⁻¹ D_yx with
+    D_yy = GᵀG (G = ∂u/∂y: e1 = b − a for s, −e2 = p − q for t) and D_xy the mixed derivative
+    (Jᵀ G + ∂G/∂xᵀ u); then ∇Δ = ∇(D/2)/Δ and ∇²Δ = (∇²(D/2) − ∇Δ∇Δᵀ)/Δ. ``ws`` (≥ 30,) is scratch.
+    Touching centre lines (Δ ≈ 0) have no normal: ``nhat`` is then e1 × e2 (or a direction ⟂ e1) and the
+    Hessian is left 0.
+    """
+    s, t = closest_seg_seg(a, b, p, q)
+    c0 = 1.0 - s
+    c1 = s
+    c2 = -(1.0 - t)
+    c3 = -t
+    u = vsub(vlerp(a, b, s), vlerp(p, q, t))
+    dd = math.sqrt(vdot(u, u))
+    e1 = vsub(b, a)
+    e2 = vsub(q, p)
+    for r in range(12):
+        for c in range(12):
+            hess[r, c] = 0.0
+    scale = max(math.sqrt(vdot(e1, e1)), math.sqrt(vdot(e2, e2)), 1e-300)
+    if dd <= 1e-12 * scale:
+        n = vcross(e1, e2)
+        nn = math.sqrt(vdot(n, n))
+        if nn <= 1e-12 * scale * scale:
+            ax = 0
+            if abs(e1[1]) < abs(e1[ax]):
+                ax = 1
+            if abs(e1[2]) < abs(e1[ax]):
+                ax = 2
+            n = vcross(e1, (1.0 if ax == 0 else 0.0, 1.0 if ax == 1 else 0.0, 1.0 if ax == 2 else 0.0))
+            nn = math.sqrt(vdot(n, n))
+        for i in range(3):
+            nhat[i] = n[i] / nn
+            grad[i] = c0 * nhat[i]
+            grad[3 + i] = c1 * nhat[i]
+            grad[6 + i] = c2 * nhat[i]
+            grad[9 + i] = c3 * nhat[i]
+        return 0.0, s, t
+    inv = 1.0 / dd
+    for i in range(3):
+        nhat[i] = u[i] * inv
+        grad[i] = c0 * nhat[i]
+        grad[3 + i] = c1 * nhat[i]
+        grad[6 + i] = c2 * nhat[i]
+        grad[9 + i] = c3 * nhat[i]
+    cw = (c0, c1, c2, c3)
+    for k in range(4):  # JᵀJ
+        for m in range(4):
+            v = cw[k] * cw[m]
+            for i in range(3):
+                hess[3 * k + i, 3 * m + i] = v
+    # columns of D_xy/2 over the interior parameters: ws[12 m + r] (m = 0, 1), G columns at ws[24 + 3 m + i]
+    nf = 0
+    if _EPS_PARAM < s < 1.0 - _EPS_PARAM:
+        for i in range(3):
+            ws[i] = c0 * e1[i] - u[i]
+            ws[3 + i] = c1 * e1[i] + u[i]
+            ws[6 + i] = c2 * e1[i]
+            ws[9 + i] = c3 * e1[i]
+            ws[24 + i] = e1[i]
+        nf = 1
+    if _EPS_PARAM < t < 1.0 - _EPS_PARAM:
+        o = 12 * nf
+        for i in range(3):
+            ws[o + i] = -c0 * e2[i]
+            ws[o + 3 + i] = -c1 * e2[i]
+            ws[o + 6 + i] = -c2 * e2[i] + u[i]
+            ws[o + 9 + i] = -c3 * e2[i] - u[i]
+            ws[24 + 3 * nf + i] = -e2[i]
+        nf += 1
+    if nf == 1:
+        g00 = ws[24] * ws[24] + ws[25] * ws[25] + ws[26] * ws[26]
+        if g00 > 0.0:
+            ig = 1.0 / g00
+            for r in range(12):
+                for c in range(12):
+                    hess[r, c] -= ws[r] * ws[c] * ig
+    elif nf == 2:
+        g00 = ws[24] * ws[24] + ws[25] * ws[25] + ws[26] * ws[26]
+        g11 = ws[27] * ws[27] + ws[28] * ws[28] + ws[29] * ws[29]
+        g01 = ws[24] * ws[27] + ws[25] * ws[28] + ws[26] * ws[29]
+        det = g00 * g11 - g01 * g01
+        if det > 1e-12 * g00 * g11:
+            i00 = g11 / det
+            i11 = g00 / det
+            i01 = -g01 / det
+            for r in range(12):
+                ar = ws[r]
+                br = ws[12 + r]
+                for c in range(12):
+                    ac = ws[c]
+                    bc = ws[12 + c]
+                    hess[r, c] -= ar * (i00 * ac + i01 * bc) + br * (i01 * ac + i11 * bc)
+        elif g00 > 0.0:  # (nearly) parallel edges: the point–edge Hessian (s interior only)
+            ig = 1.0 / g00
+            for r in range(12):
+                for c in range(12):
+                    hess[r, c] -= ws[r] * ws[c] * ig
+    for r in range(12):
+        for c in range(12):
+            hess[r, c] = (hess[r, c] - grad[r] * grad[c]) * inv
+    return dd, s, t
+
+
+@njit(inline="always", **_OPT_CONTACT)
+def _radius(radius, j):
+    """Radius [m] of edge j (``radius`` (1,) for one radius, else (E,) per edge)."""
+    return radius[min(j, radius.shape[0] - 1)]
+
+
+@njit(inline="always", **_OPT_CONTACT)
+def _row(x, k):
+    return (x[k, 0], x[k, 1], x[k, 2])
+
+
+@njit(**_OPT_CONTACT)
+def _edge_boxes(x_start, x_end, radius, margin, box):
+    """box (E, 6): each edge's axis-aligned box over its positions at the start and the end of the motion, grown
+    by its radius and half the margin (two boxes overlap iff the grown-by-the-whole-margin test would pass)."""
+    for j in range(box.shape[0]):
+        g = _radius(radius, j) + 0.5 * margin
+        for a in range(3):
+            lo = min(x_start[j, a], x_start[j + 1, a], x_end[j, a], x_end[j + 1, a])
+            hi = max(x_start[j, a], x_start[j + 1, a], x_end[j, a], x_end[j + 1, a])
+            box[j, a] = lo - g
+            box[j, 3 + a] = hi + g
+
+
+@njit(inline="always", **_OPT_CONTACT)
+def _boxes_overlap(box, i, j):
+    return (box[i, 0] <= box[j, 3] and box[j, 0] <= box[i, 3] and box[i, 1] <= box[j, 4] and box[j, 1] <= box[i, 4]
+            and box[i, 2] <= box[j, 5] and box[j, 2] <= box[i, 5])
+
+
+@njit(**_OPT_CONTACT)
+def rod_pairs_broadphase(pairs, x_start, x_end, radius, margin, box, cand, ncand):
+    """Candidates among the allowed ``pairs`` (P, 2) for a motion from ``x_start`` to ``x_end``: the indices into
+    ``pairs`` of the pairs whose swept boxes overlap, into ``cand`` (P,); ``ncand[0]`` their count."""
+    _edge_boxes(x_start, x_end, radius, margin, box)
+    n = 0
+    for c in range(pairs.shape[0]):
+        if _boxes_overlap(box, pairs[c, 0], pairs[c, 1]):
+            cand[n] = c
+            n += 1
+    ncand[0] = n
+    return n
+
+
+@njit(**_OPT_CONTACT)
+def rod_pairs_refresh(pairs, x_start, x_end, radius, margin, box, cand, ncand):
+    """Add to the candidate list the allowed pairs whose boxes over the motion ``x_start`` → ``x_end`` overlap and
+    that are not in it yet (the list stays sorted). Returns whether any pair was added."""
+    _edge_boxes(x_start, x_end, radius, margin, box)
+    n0 = ncand[0]
+    added = False
+    k = 0
+    n = n0
+    for c in range(pairs.shape[0]):
+        while k < n0 and cand[k] < c:
+            k += 1
+        if k < n0 and cand[k] == c:
+            continue
+        if _boxes_overlap(box, pairs[c, 0], pairs[c, 1]):
+            cand[n] = c
+            n += 1
+            added = True
+    if added:  # insertion sort of the appended tail into the sorted head
+        for m in range(n0, n):
+            v = cand[m]
+            p = m - 1
+            while p >= 0 and cand[p] > v:
+                cand[p + 1] = cand[p]
+                p -= 1
+            cand[p + 1] = v
+    ncand[0] = n
+    return added
+
+
+@njit(inline="always", **_OPT_CONTACT)
+def _dof(dpn, k, a):
+    """DOF index of coordinate a of node k: 3-D 4k + a; planar 2k (x), 2k + 1 (z), −1 for y (not a DOF)."""
+    if dpn == 4:
+        return 4 * k + a
+    if a == 1:
+        return -1
+    return 2 * k + (0 if a == 0 else 1)
+
+
+@njit(inline="always", **_OPT_CONTACT)
+def _slot(wb_slot, wb_dof, wb_n, d):
+    """Index of DOF d in the coupling list, appended if new."""
+    s = wb_slot[d]
+    if s < 0:
+        s = wb_n[0]
+        wb_slot[d] = s
+        wb_dof[s] = d
+        wb_n[0] = s + 1
+    return s
+
+
+@njit(**_OPT_CONTACT)
+def reset_coupling(wb_slot, wb_dof, wb_n, wb_M):
+    """Empty the coupling list (before a Jacobian assembly)."""
+    K = wb_n[0]
+    for s in range(K):
+        wb_slot[wb_dof[s]] = -1
+        for c in range(K):
+            wb_M[s, c] = 0.0
+    wb_n[0] = 0
+
+
+@njit(**_OPT_CONTACT)
+def rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, dpn, fixed, radius, k, delta, mu, nu, f, ab, kl, sym,
+                         with_jac, wb_slot, wb_dof, wb_n, wb_M, g12, H12, nhat, ws):
+    """Add the IMC energy and friction of the candidate pairs at node positions ``x`` (N, 3) to the residual ``f``
+    (DOFs) and, with ``with_jac``, the Jacobian: blocks of an edge with itself into the padded band ``ab``
+    (upper half only with ``sym``), blocks between the two edges into the coupling list (``wb_*``, entries on
+    constrained DOFs dropped: those rows and columns are identity). Velocities (x − x_prev)/dt. Returns the
+    energy [J]."""
+    energy = 0.0
+    for m in range(ncand[0]):
+        i = pairs[cand[m], 0]
+        j = pairs[cand[m], 1]
+        rs = _radius(radius, i) + _radius(radius, j)
+        dd, s, t = seg_seg_derivs(_row(x, i), _row(x, i + 1), _row(x, j), _row(x, j + 1), g12, H12, nhat, ws)
+        gap = dd - rs
+        if gap >= delta:
+            continue
+        E, dE, d2E = imc_energy(gap, k, delta)
+        energy += E
+        cw = (1.0 - s, s, -(1.0 - t), -t)
+        nodes = (i, i + 1, j, j + 1)
+        # friction (lagged n̂, s, t): relative velocity of the two contact points
+        gam = 0.0
+        dgam = 0.0
+        vtn = 0.0
+        tv0 = 0.0
+        tv1 = 0.0
+        tv2 = 0.0
+        lam = -dE
+        if mu > 0.0 and lam > 0.0:
+            v0 = 0.0
+            v1 = 0.0
+            v2 = 0.0
+            for q in range(4):
+                nd = nodes[q]
+                v0 += cw[q] * (x[nd, 0] - x_prev[nd, 0])
+                v1 += cw[q] * (x[nd, 1] - x_prev[nd, 1])
+                v2 += cw[q] * (x[nd, 2] - x_prev[nd, 2])
+            v0 /= dt
+            v1 /= dt
+            v2 /= dt
+            vn = v0 * nhat[0] + v1 * nhat[1] + v2 * nhat[2]
+            v0 -= vn * nhat[0]
+            v1 -= vn * nhat[1]
+            v2 -= vn * nhat[2]
+            vtn = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+            if vtn > 1e-15:
+                tv0 = v0 / vtn
+                tv1 = v1 / vtn
+                tv2 = v2 / vtn
+                if vtn > nu:
+                    gam = 1.0
+                else:
+                    K2 = 15.0 / nu
+                    gam = 2.0 / (1.0 + math.exp(-K2 * vtn)) - 1.0
+                    dgam = 0.5 * K2 * (1.0 - gam * gam)
+        tv = (tv0, tv1, tv2)
+        cf = mu * lam * gam
+        for q in range(4):
+            for a in range(3):
+                d = _dof(dpn, nodes[q], a)
+                if d >= 0:
+                    f[d] += dE * g12[3 * q + a] + cf * cw[q] * tv[a]
+        if not with_jac:
+            continue
+        # contact Hessian E'' ∇Δ∇Δᵀ + E' ∇²Δ, then friction's consistent part
+        for r in range(12):
+            for c in range(12):
+                H12[r, c] = d2E * g12[r] * g12[c] + dE * H12[r, c]
+        if gam > 0.0:
+            a1 = mu * lam / dt
+            for a in range(3):
+                for b in range(3):
+                    P = (1.0 if a == b else 0.0) - nhat[a] * nhat[b]
+                    blk = a1 * (dgam * tv[a] * tv[b] + gam / vtn * (P - tv[a] * tv[b])) - mu * d2E * gam * tv[a] * nhat[b]
+                    for q in range(4):
+                        for p in range(4):
+                            H12[3 * q + a, 3 * p + b] += blk * cw[q] * cw[p]
+        for q in range(4):
+            for a in range(3):
+                r = _dof(dpn, nodes[q], a)
+                if r < 0 or fixed[r]:
+                    continue
+                for p in range(4):
+                    same_edge = (q < 2) == (p < 2)
+                    for b in range(3):
+                        c = _dof(dpn, nodes[p], b)
+                        if c < 0 or fixed[c]:
+                            continue
+                        v = H12[3 * q + a, 3 * p + b]
+                        if same_edge:
+                            if sym and c < r:
+                                continue
+                            ab[r, kl + c - r] += v
+                        else:
+                            wb_M[_slot(wb_slot, wb_dof, wb_n, r), _slot(wb_slot, wb_dof, wb_n, c)] += v
+    return energy
+
+
+@njit(inline="always", **_OPT_CONTACT)
+def _gap(x, radius, i, j):
+    """Gap [m] of edges i and j at node positions x."""
+    a = _row(x, i)
+    b = _row(x, i + 1)
+    p = _row(x, j)
+    q = _row(x, j + 1)
+    s, t = closest_seg_seg(a, b, p, q)
+    u = vsub(vlerp(a, b, s), vlerp(p, q, t))
+    return math.sqrt(vdot(u, u)) - _radius(radius, i) - _radius(radius, j)
+
+
+@njit(**_OPT_CONTACT)
+def rod_pairs_min_gap(pairs, cand, ncand, x, radius):
+    """Smallest gap [m] over the candidate pairs at positions ``x``, or +inf without candidates."""
+    best = np.inf
+    for m in range(ncand[0]):
+        gap = _gap(x, radius, pairs[cand[m], 0], pairs[cand[m], 1])
+        if gap < best:
+            best = gap
+    return best
+
+
+@njit(**_OPT_CONTACT)
+def rod_pairs_energy(pairs, cand, ncand, x, radius, k, delta):
+    """IMC energy [J] of the candidate pairs at positions ``x`` (no friction, no derivatives)."""
+    energy = 0.0
+    for m in range(ncand[0]):
+        gap = _gap(x, radius, pairs[cand[m], 0], pairs[cand[m], 1])
+        if gap < delta:
+            energy += imc_energy(gap, k, delta)[0]
+    return energy
+
+
+@njit(inline="always", **_OPT_CONTACT)
+def _pair_distance(x, dxp, tt, i, j):
+    """Centre-line distance of edges i, j at positions x + tt·dxp."""
+    a = (x[i, 0] + tt * dxp[i, 0], x[i, 1] + tt * dxp[i, 1], x[i, 2] + tt * dxp[i, 2])
+    b = (x[i + 1, 0] + tt * dxp[i + 1, 0], x[i + 1, 1] + tt * dxp[i + 1, 1], x[i + 1, 2] + tt * dxp[i + 1, 2])
+    p = (x[j, 0] + tt * dxp[j, 0], x[j, 1] + tt * dxp[j, 1], x[j, 2] + tt * dxp[j, 2])
+    q = (x[j + 1, 0] + tt * dxp[j + 1, 0], x[j + 1, 1] + tt * dxp[j + 1, 1], x[j + 1, 2] + tt * dxp[j + 1, 2])
+    s, t = closest_seg_seg(a, b, p, q)
+    u = vsub(vlerp(a, b, s), vlerp(p, q, t))
+    return math.sqrt(vdot(u, u))
+
+
+@njit(**_OPT_CONTACT)
+def rod_pairs_step_limit(pairs, cand, ncand, x, dxp, radius, delta):
+    """Largest fraction τ ∈ (0, 1] of the Newton update ``dxp`` ((N, 3) node displacements from positions ``x``)
+    along which no candidate pair's gap falls below min(g0, 0) − δ (g0 its gap at τ = 0): one update can neither
+    carry an edge through another nor push a touching pair more than δ deeper. Conservative advancement: the
+    distance of two segments is Lipschitz in τ with the sum D of the two edges' largest node displacements."""
+    tmax = 1.0
+    for m in range(ncand[0]):
+        i = pairs[cand[m], 0]
+        j = pairs[cand[m], 1]
+        Di = max(math.sqrt(dxp[i, 0] ** 2 + dxp[i, 1] ** 2 + dxp[i, 2] ** 2),
+                 math.sqrt(dxp[i + 1, 0] ** 2 + dxp[i + 1, 1] ** 2 + dxp[i + 1, 2] ** 2))
+        Dj = max(math.sqrt(dxp[j, 0] ** 2 + dxp[j, 1] ** 2 + dxp[j, 2] ** 2),
+                 math.sqrt(dxp[j + 1, 0] ** 2 + dxp[j + 1, 1] ** 2 + dxp[j + 1, 2] ** 2))
+        D = Di + Dj
+        if D <= 0.0:
+            continue
+        rs = _radius(radius, i) + _radius(radius, j)
+        g = _pair_distance(x, dxp, 0.0, i, j) - rs
+        floor = min(g, 0.0) - delta
+        if floor < -rs:
+            floor = -rs * (1.0 - 1e-3)  # never let the centre lines meet
+        if g - D * tmax >= floor:
+            continue
+        tt = 0.0
+        for _ in range(256):
+            step = (g - floor) / D
+            if step < 1e-3 * delta / D:
+                break
+            tt += step
+            if tt >= tmax:
+                break
+            g = _pair_distance(x, dxp, tt, i, j) - rs
+        if tt < tmax:
+            tmax = tt
+    return max(tmax, 1e-3)
+
+
+@njit(**_OPT_CONTACT)
+def dense_lu_solve(A, k, b, piv):
+    """Solve A[:k, :k] y = b[:k] in place (LU with partial pivoting; A overwritten, y into b). False if singular."""
+    for c in range(k):
+        p = c
+        big = abs(A[c, c])
+        for r in range(c + 1, k):
+            if abs(A[r, c]) > big:
+                big = abs(A[r, c])
+                p = r
+        if not (big > 0.0 and big < np.inf):
+            return False
+        piv[c] = p
+        if p != c:
+            for m in range(k):
+                tmp = A[c, m]
+                A[c, m] = A[p, m]
+                A[p, m] = tmp
+            tmp = b[c]
+            b[c] = b[p]
+            b[p] = tmp
+        ip = 1.0 / A[c, c]
+        for r in range(c + 1, k):
+            l = A[r, c] * ip
+            if l != 0.0:
+                A[r, c] = l
+                for m in range(c + 1, k):
+                    A[r, m] -= l * A[c, m]
+                b[r] -= l * b[c]
+    for r in range(k - 1, -1, -1):
+        v = b[r]
+        for m in range(r + 1, k):
+            v -= A[r, m] * b[m]
+        b[r] = v / A[r, r]
+    return True

@@ -1,0 +1,179 @@
+"""Edge–edge contact (self- and rod–rod, docs/physics.md §4.8): the segment distance's gradient and Hessian against
+finite differences in every region, the assembled residual's Jacobian (band + coupling list) against finite
+differences, the Woodbury-corrected banded solve against a dense solve, friction's direction, and which pairs may
+touch."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim.banded import dense_to_band
+from sim.contact_rod import allowed_pairs, rod_pairs_accumulate, seg_seg_derivs
+from sim.kernel import alloc_workspace
+from sim.newton import _linear_solve
+
+# segment pairs (a, b, p, q) per closest-point region
+SEGMENTS = {
+    "edge_edge": ((0.0, 0.0, 0.0), (1.0, 0.1, 0.0), (0.4, -0.5, 0.3), (0.6, 0.5, 0.25)),
+    "point_edge": ((0.0, 0.0, 0.0), (1.0, 0.0, 0.1), (1.3, -0.5, 0.3), (1.2, 0.5, 0.35)),
+    "edge_point": ((0.2, -0.4, 0.1), (0.3, 0.6, 0.0), (0.25, 0.1, 0.4), (0.3, 0.2, 1.0)),
+    "point_point": ((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (1.3, 0.2, 0.1), (2.0, 0.5, 0.3)),
+    "near_parallel": ((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.3, 0.05, 0.001), (1.4, 0.05, 0.0015)),
+}
+
+
+def _derivs(x12):
+    g = np.zeros(12)
+    H = np.zeros((12, 12))
+    n = np.zeros(3)
+    ws = np.zeros(32)
+    d, s, t = seg_seg_derivs(tuple(x12[0:3]), tuple(x12[3:6]), tuple(x12[6:9]), tuple(x12[9:12]), g, H, n, ws)
+    return d, s, t, g, H, n
+
+
+@pytest.mark.parametrize("name", list(SEGMENTS))
+def test_segment_distance_gradient_and_hessian_fd(name):
+    x = np.concatenate(SEGMENTS[name]).astype(float)
+    d, s, t, g, H, n = _derivs(x)
+    a, b, p, q = x[0:3], x[3:6], x[6:9], x[9:12]
+    assert d == pytest.approx(np.linalg.norm((a + s * (b - a)) - (p + t * (q - p))), rel=1e-12)
+    # a brute-force distance over a fine grid is never smaller
+    ss = np.linspace(0, 1, 401)
+    P1 = a[None] + ss[:, None] * (b - a)[None]
+    P2 = p[None] + ss[:, None] * (q - p)[None]
+    assert d <= np.linalg.norm(P1[:, None] - P2[None], axis=-1).min() + 1e-12
+    h = 1e-6
+    for k in range(12):
+        xp = x.copy()
+        xm = x.copy()
+        xp[k] += h
+        xm[k] -= h
+        dp, *_, gp, _, _ = _derivs(xp)
+        dm, *_, gm, _, _ = _derivs(xm)
+        assert g[k] == pytest.approx((dp - dm) / (2 * h), abs=1e-7)
+        np.testing.assert_allclose(H[:, k], (gp - gm) / (2 * h), atol=2e-5 * max(1.0, np.abs(H).max()))
+    np.testing.assert_allclose(H, H.T, atol=1e-10)
+
+
+def _two_edge_chain(gap, radius=0.02):
+    """A 6-node chain whose edges 0 (nodes 0–1) and 4 (nodes 4–5) cross at centre-line distance 2r + gap; the
+    nodes between them make a loop far from both."""
+    d = 2 * radius + gap
+    x = np.array([[-0.1, 0.0, 0.0], [0.1, 0.02, 0.0], [0.3, 0.3, 0.1], [0.0, 0.5, 0.2], [0.01, -0.1, d - 0.005],
+                  [-0.01, 0.1, d + 0.005]])
+    return x
+
+
+def _accumulate(x, x_prev, *, mu=0.0, k=1e5, delta=2e-3, radius=0.02, dt=0.01, fixed=None):
+    N = x.shape[0]
+    n = 4 * N
+    kl = 10
+    pairs = np.array([[0, 4]], dtype=np.int64)
+    cand = np.array([0], dtype=np.int64)
+    ncand = np.array([1], dtype=np.int64)
+    f = np.zeros(n)
+    ab = np.zeros((n + kl, 2 * kl + 1))
+    K = 3 * N
+    slot = np.full(n, -1, np.int64)
+    wdof = np.zeros(K, np.int64)
+    wn = np.zeros(1, np.int64)
+    M = np.zeros((K, K))
+    fixed = np.zeros(n, bool) if fixed is None else fixed
+    E = rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, 4, fixed, np.array([radius]), k, delta, mu, 1e-2, f,
+                             ab, kl, False, True, slot, wdof, wn, M, np.zeros(12), np.zeros((12, 12)), np.zeros(3),
+                             np.zeros(32))
+    J = np.zeros((n, n))
+    for r in range(n):
+        for c in range(max(0, r - kl), min(n, r + kl + 1)):
+            J[r, c] = ab[r, kl + c - r]
+    for a in range(wn[0]):
+        for b in range(wn[0]):
+            J[wdof[a], wdof[b]] += M[a, b]
+    return E, f, J
+
+
+@pytest.mark.parametrize("gap", [-2e-3, -1e-3, 0.0, 1e-3])
+def test_assembled_pair_jacobian_fd(gap):
+    """Band + coupling list = the full Jacobian of the pair's residual (no friction: exact)."""
+    x = _two_edge_chain(gap)
+    E, f, J = _accumulate(x, x)
+    assert E > 0.0
+    h = 1e-7
+    for node in range(6):
+        for a in range(3):
+            xp = x.copy()
+            xm = x.copy()
+            xp[node, a] += h
+            xm[node, a] -= h
+            Ep, fp, _ = _accumulate(xp, xp)
+            Em, fm, _ = _accumulate(xm, xm)
+            col = 4 * node + a
+            assert f[col] == pytest.approx((Ep - Em) / (2 * h), rel=1e-5, abs=1e-6)
+            np.testing.assert_allclose(J[:, col], (fp - fm) / (2 * h), rtol=1e-4, atol=1e-3)
+    # the blocks between the two edges are off the band (node 1 to node 4: 12 DOFs apart) and were listed
+    assert np.abs(J[0:3, 16:19]).max() > 0.0
+
+
+def test_pair_friction_opposes_sliding():
+    x = _two_edge_chain(-1e-3)
+    x_prev = x.copy()
+    x_prev[0:2, 0] -= 0.005  # edge 0 moved +x by 0.5 m/s relative to edge 4
+    _, f0, _ = _accumulate(x, x_prev, mu=0.0)
+    _, f1, _ = _accumulate(x, x_prev, mu=0.5)
+    fr = f1 - f0  # the residual's friction part = minus the friction force
+    force_on_edge0 = -(fr[0:3] + fr[4:7])
+    force_on_edge4 = -(fr[16:19] + fr[20:23])
+    assert force_on_edge0[0] < 0.0 and force_on_edge4[0] > 0.0
+    np.testing.assert_allclose(force_on_edge0, -force_on_edge4, atol=1e-12)
+    # sliding (|v_t| > ν): |friction| = μ λ
+    _, dE_only, _ = _accumulate(x, x, mu=0.0)
+    lam = np.linalg.norm(dE_only[0:3] + dE_only[4:7])
+    assert np.linalg.norm(force_on_edge0) == pytest.approx(0.5 * lam, rel=1e-6)
+
+
+def test_woodbury_solve_matches_dense():
+    rng = np.random.default_rng(3)
+    N = 12
+    n = 4 * N
+    kl = 10
+    A = np.zeros((n, n))
+    for i in range(n):
+        for j in range(max(0, i - kl), min(n, i + kl + 1)):
+            A[i, j] = rng.normal() * 0.1
+    A = A + A.T + np.diag(np.full(n, 8.0))
+    w = alloc_workspace(N, False, 1)
+    w.ab[:, :] = dense_to_band(A, kl)
+    dofs = [0, 1, 2, 40, 41, 42, 20]
+    Mfull = np.zeros((n, n))
+    for a in dofs:
+        for b in dofs:
+            if abs(a - b) > kl:
+                Mfull[a, b] = rng.normal()
+    Mfull = Mfull + Mfull.T
+    for s, d in enumerate(dofs):
+        w.wb_slot[d] = s
+        w.wb_dof[s] = d
+    w.wb_n[0] = len(dofs)
+    w.wb_M[:len(dofs), :len(dofs)] = Mfull[np.ix_(dofs, dofs)]
+    f = rng.normal(size=n)
+    w.f[:] = f
+    assert _linear_solve(False, w, n, False)
+    expect = np.linalg.solve(A + Mfull, f)
+    np.testing.assert_allclose(w.dx[:n], expect, rtol=1e-10, atol=1e-12)
+
+
+def test_allowed_pairs_exclude_neighbours_along_the_rod():
+    E = 20
+    lbar = np.full(E, 0.01)
+    r = np.array([0.02])
+    pairs = allowed_pairs(lbar, r, np.zeros(E, np.int64), self_contact=True, rod_contact=False, delta=1e-3)
+    # edges i < j touch when straight if the arc between them is below 2r + δ = 0.041: j - i - 1 edges of 0.01
+    assert pairs.shape[0] > 0
+    gaps = (pairs[:, 1] - pairs[:, 0] - 1) * 0.01
+    assert gaps.min() >= 0.041 - 1e-12
+    assert allowed_pairs(lbar, r, np.zeros(E, np.int64), self_contact=False, rod_contact=True,
+                         delta=1e-3).shape == (0, 2)
+    # two rods joined by a joint edge (rod id -1): all cross pairs, never the joint
+    rods = np.array([0] * 9 + [-1] + [1] * 10)
+    cross = allowed_pairs(lbar, r, rods, self_contact=False, rod_contact=True, delta=1e-3)
+    assert cross.shape[0] == 9 * 10 and not np.any(cross == 9)
