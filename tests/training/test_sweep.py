@@ -75,8 +75,11 @@ def test_two_trial_local_sweep_end_to_end(tmp_path):
     assert (out / "follow_target__s0" / "policy.zip").stat().st_mtime_ns == mtime
 
 
-@pytest.mark.slow  # about 1.5 min: two sweeps of 400 iterations
-def test_interrupted_sweep_continues_each_trial(tmp_path):
+@pytest.mark.slow  # about 1.5 min each: two sweeps of 400 iterations
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_interrupted_sweep_continues_each_trial(tmp_path, sig):
+    """Ctrl-C, or a SIGTERM to the sweep (which ray.init would otherwise take over), stops the trials with a
+    checkpoint; re-running continues them."""
     out = tmp_path / "sweep"
     steps = 4 * 400
     first = out / "follow_target__s0"
@@ -89,7 +92,7 @@ def test_interrupted_sweep_continues_each_trial(tmp_path):
                 break
             assert proc.poll() is None, proc.stdout.read()
             time.sleep(0.2)
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(sig)
         log = _finish(proc, 300)
     finally:
         if proc.poll() is None:
