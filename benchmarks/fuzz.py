@@ -120,8 +120,12 @@ def _same_direction(a: Any, b: Any) -> bool:
 
 def _kept_as_given(spec: Any, doc: dict) -> str:
     """'' when every value of ``doc`` is what ``spec`` holds, else the first difference."""
-    for table, obj in (("sim", spec.sim), ("rod", spec.rod), ("contact", spec.contact)):
-        for k, v in (doc.get(table) or {}).items():
+    rods = doc.get("rod") or {}
+    rods = rods if isinstance(rods, list) else [rods]  # [rod], or [[rod]] tables (several rods)
+    tables = [("sim", spec.sim, doc.get("sim") or {}), ("contact", spec.contact, doc.get("contact") or {})]
+    tables += [("rod", r, t) for t, r in zip(rods, spec.rods)]
+    for table, obj, given in tables:
+        for k, v in given.items():
             got = getattr(obj, k, None)
             if k in ("direction",):
                 if not _same_direction(v, got):

@@ -8,7 +8,10 @@ Public surface::
     stats = sim.step(state, ctrl)
 
 Loads and constrained nodes: ``SceneSpec(loads=(LoadSpec(...),), fixes=(FixSpec(...),))`` (sim.boundary); static
-equilibrium: ``sim.static.solve_static(spec, state, ctrl)``.
+equilibrium: ``sim.static.solve_static(spec, state, ctrl)``. Several rods: ``SceneSpec(sim, rods=(RodSpec(...,
+name="a"), RodSpec(..., name="b")))`` (``[[rod]]`` tables in a file): one chain of nodes in that order;
+``model.split_rods(state.node_pos)`` -> {name: (B, n_rod, 3)}, ``model.rod_slices()`` -> {name: slice}, fixes and
+loads name their ``rod`` (docs/physics.md §1.7).
 
 Compiling the kernels ahead of time: ``python -m sim.warmup`` (not imported here, so running it as a module is clean).
 """

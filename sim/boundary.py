@@ -3,14 +3,18 @@ TOML parsing, checks and dump, and the per-DOF arrays the Model and the Simulato
 
 Keys (SI units)::
 
-    [[load]]  rod (optional; the single [rod] table is "rod"), node (int; negative counts from the end),
+    [[load]]  rod (the name of the rod it acts on; optional in a one-rod scene, whose [rod] table is "rod"),
+              node (int, within that rod; negative counts from its end),
               force [N] (3-vector, world frame, default 0), torque [N m] (about the local tangent, 3-D only,
               default 0; it acts on the twist of edge min(node, N-2)), start [s] (default 0), stop [s]
               (default: never)
-    [[fix]]   rod (optional), nodes (list of int, negative from the end), axes (subset of "xyz", default
-              "xyz"), twist_edges (list of int, 3-D only), velocity [m/s] (3-vector: prescribed motion of the
+    [[fix]]   rod (as for loads), nodes (list of int within that rod, negative from its end), axes (subset of
+              "xyz", default "xyz"), twist_edges (list of int within that rod, 3-D only), velocity [m/s] (3-vector: prescribed motion of the
               fixed axes, default 0), twist_rate [rad/s] (of the fixed twist edges, default 0), start [s],
               stop [s] (the window of the prescribed motion)
+
+Node and edge indices count within their rod; :func:`global_node` / :func:`global_edge` map them onto the
+scene's chain of nodes (the rods' nodes concatenated in file order, docs/physics.md §1.7).
 
 A load acts on an env while its time is inside [start, stop): over a step [t, t + dt] the force is weighted by
 the fraction of the step inside the window; a prescribed motion moves its DOFs by rate × (the time of the step
@@ -28,9 +32,10 @@ import numpy as np
 from .tomlio import SceneError, check_unknown, format_value, take_float, take_int, take_str, take_vec3
 
 __all__ = ["LoadSpec", "FixSpec", "parse_loads", "parse_fixes", "dump_loads", "dump_fixes", "check_boundary",
-           "ROD_NAME", "node_index", "load_arrays", "motion_arrays", "fixed_dofs", "window_fraction"]
+           "ROD_NAME", "node_index", "load_arrays", "motion_arrays", "fixed_dofs", "window_fraction", "rod_layout",
+           "rod_span", "global_node", "global_edge"]
 
-ROD_NAME = "rod"  # the name of the single [rod] table, accepted as the ``rod`` key of loads and fixes
+ROD_NAME = "rod"  # the name of the single [rod] table (and the default rod name), the ``rod`` key of loads and fixes
 
 
 @dataclass(frozen=True)
@@ -137,20 +142,70 @@ def node_index(i: int, count: int) -> int:
     return i + count if i < 0 else i
 
 
+def rod_layout(spec: Any) -> tuple[tuple[str, int, int], ...]:
+    """(name, first node, node count) of each rod of ``spec`` in file order (their nodes form one chain)."""
+    rods = getattr(spec, "rods", None) or (spec.rod,)
+    out, off = [], 0
+    for r in rods:
+        out.append((getattr(r, "name", ROD_NAME), off, int(r.nodes)))
+        off += int(r.nodes)
+    return tuple(out)
+
+
+def _names(layout: Sequence[tuple[str, int, int]]) -> str:
+    return ", ".join(repr(name) for name, _, _ in layout)
+
+
+def rod_span(spec: Any, rod: str | None) -> tuple[int, int]:
+    """(first node, node count) of the rod named ``rod`` (None: the only rod); SceneError if there is no such
+    rod, or ``rod`` is None and the scene has several."""
+    layout = rod_layout(spec)
+    if rod is None:
+        if len(layout) > 1:
+            raise SceneError(f"the scene has several rods ({_names(layout)}): name one (rod = ...)")
+        return layout[0][1], layout[0][2]
+    for name, off, n in layout:
+        if name == rod:
+            return off, n
+    raise SceneError(f"no rod named {rod!r} (the rods: {_names(layout)})")
+
+
+def global_node(spec: Any, rod: str | None, i: int) -> int:
+    """The chain index of node ``i`` (negative counts from the end) of the rod named ``rod``."""
+    off, n = rod_span(spec, rod)
+    return off + node_index(int(i), n)
+
+
+def global_edge(spec: Any, rod: str | None, j: int) -> int:
+    """The chain index of edge ``j`` (negative counts from the end) of the rod named ``rod``."""
+    off, n = rod_span(spec, rod)
+    return off + node_index(int(j), n - 1)
+
+
 def check_boundary(c: Any, spec: Any) -> None:
     """Check the loads and fixes of ``spec`` (``c``: the scene checker of :mod:`sim.validate`)."""
-    N = int(spec.rod.nodes)
+    layout = rod_layout(spec)
     planar = spec.sim.mode == "2d"
 
-    def common(p: str, it: Any) -> None:
-        if it.rod is not None and it.rod != ROD_NAME:
-            c.fail(p + "rod", f"no rod named {it.rod!r} (the single [rod] table is {ROD_NAME!r})")
+    def common(p: str, it: Any) -> int:
+        """The node count of the item's rod (after checking its ``rod`` key) and its window."""
+        if it.rod is None and len(layout) > 1:
+            c.fail(p + "rod", f"the scene has several rods ({_names(layout)}): name the one this acts on")
+        N = layout[0][2]
+        if it.rod is not None:
+            hit = [n for name, _, n in layout if name == it.rod]
+            if not hit:
+                if len(layout) == 1 and layout[0][0] == ROD_NAME:
+                    c.fail(p + "rod", f"no rod named {it.rod!r} (the single [rod] table is {ROD_NAME!r})")
+                c.fail(p + "rod", f"no rod named {it.rod!r} (the rods: {_names(layout)})")
+            N = hit[0]
         bound = p.split("[")[0] + ".start"
         c.num(p + "start", it.start, bound)
         if it.stop is not None:
             stop = c.num(p + "stop", it.stop, bound)
             if not stop > it.start:
                 c.fail(p + "stop", f"must be > start ({it.start!r}), got {stop!r}")
+        return N
 
     def idx(key: str, i: Any, count: int, what: str) -> None:
         if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
@@ -160,7 +215,7 @@ def check_boundary(c: Any, spec: Any) -> None:
 
     for k, ld in enumerate(getattr(spec, "loads", ()) or ()):
         p = f"load[{k}]."
-        common(p, ld)
+        N = common(p, ld)
         idx(p + "node", ld.node, N, "node")
         c.vec(p + "force", ld.force, "load.force")
         tq = c.num(p + "torque", ld.torque, "load.torque")
@@ -170,7 +225,7 @@ def check_boundary(c: Any, spec: Any) -> None:
             c.fail(p + "force", "mode '2d' needs a force in the x-z plane (y = 0)")
     for k, fx in enumerate(getattr(spec, "fixes", ()) or ()):
         p = f"fix[{k}]."
-        common(p, fx)
+        N = common(p, fx)
         ax = fx.axes
         if not isinstance(ax, str) or set(ax) - set("xyz") or len(set(ax)) != len(ax):
             c.fail(p + "axes", f"must be a subset of \"xyz\" (each letter once), got {fx.axes!r}")
@@ -202,15 +257,14 @@ def _axis_dofs(axes: str, planar: bool) -> list[tuple[int, int]]:
 
 
 def fixed_dofs(spec: Any, fixed: np.ndarray) -> None:
-    """Set the flags of the DOFs the fixes constrain in ``fixed`` (N, dofs per node)."""
-    N = fixed.shape[0]
+    """Set the flags of the DOFs the fixes constrain in ``fixed`` (N, dofs per node; N the scene's total)."""
     planar = fixed.shape[1] == 2
     for fx in getattr(spec, "fixes", ()) or ():
         for i in fx.nodes:
             for _, s in _axis_dofs(fx.axes, planar):
-                fixed[node_index(i, N), s] = True
+                fixed[global_node(spec, fx.rod, i), s] = True
         for j in fx.twist_edges:
-            fixed[node_index(j, N - 1), 3] = True
+            fixed[global_edge(spec, fx.rod, j), 3] = True
 
 
 def load_arrays(spec: Any, N: int, dpn: int) -> tuple[np.ndarray, np.ndarray]:
@@ -219,11 +273,12 @@ def load_arrays(spec: Any, N: int, dpn: int) -> tuple[np.ndarray, np.ndarray]:
     F = np.zeros((len(loads), N, dpn))
     win = np.zeros((len(loads), 2))
     for k, ld in enumerate(loads):
-        i = node_index(ld.node, N)
+        off, n = rod_span(spec, ld.rod)
+        i = node_index(ld.node, n)
         for a, s in _axis_dofs("xyz", dpn == 2):
-            F[k, i, s] = ld.force[a]
-        if dpn == 4:
-            F[k, min(i, N - 2), 3] += ld.torque
+            F[k, off + i, s] = ld.force[a]
+        if dpn == 4:  # the twist of the rod's edge min(i, n - 2)
+            F[k, off + min(i, n - 2), 3] += ld.torque
         win[k] = (ld.start, math.inf if ld.stop is None else ld.stop)
     return F.reshape(len(loads), N * dpn), win
 
@@ -236,9 +291,9 @@ def motion_arrays(spec: Any, N: int, dpn: int) -> tuple[np.ndarray, np.ndarray]:
     for k, fx in enumerate(moving):
         for i in fx.nodes:
             for a, s in _axis_dofs(fx.axes, dpn == 2):
-                R[k, node_index(i, N), s] = fx.velocity[a]
+                R[k, global_node(spec, fx.rod, i), s] = fx.velocity[a]
         for j in fx.twist_edges:
-            R[k, node_index(j, N - 1), 3] = fx.twist_rate
+            R[k, global_edge(spec, fx.rod, j), 3] = fx.twist_rate
         win[k] = (fx.start, math.inf if fx.stop is None else fx.stop)
     return R.reshape(len(moving), N * dpn), win
 

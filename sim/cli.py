@@ -39,9 +39,11 @@ def sim_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--static-tol", type=float, default=1e-10, help="relative displacement tolerance of --static")
     ap.add_argument("--envs", type=int, default=1, help=f"number of environments (default 1, at most {_MAX_ENVS})")
     ap.add_argument("--every", type=int, default=1, help="record every K-th step (default 1)")
-    ap.add_argument("--out", help="write time, node_pos, edge_theta, newton_iters, converged, max_penetration, "
-                                  "contact_count, contact_force (and per-contact rows) to this .npz; its folder is "
-                                  "checked for writing before the simulation starts")
+    ap.add_argument("--out", help="write time, node_pos (frames, envs, nodes of all rods, 3), edge_theta, "
+                                  "newton_iters, converged, max_penetration, contact_count, contact_force (and "
+                                  "per-contact rows), rod_node_offsets (where each rod's nodes start, then the "
+                                  "total) and rod_names to this .npz; its folder is checked for writing before the "
+                                  "simulation starts")
     add_progress_flag(ap)
     a = ap.parse_args(argv)
     from . import Simulator, build_model, load_scene
@@ -120,17 +122,32 @@ def sim_main(argv: list[str] | None = None) -> int:
     wall = time.perf_counter() - t1
     if a.out:
         try:
-            _atomic_savez(a.out, **{k: np.asarray(v) for k, v in frames.items()})
+            _atomic_savez(a.out, **{k: np.asarray(v) for k, v in frames.items()}, **_rod_arrays(model))
         except OSError as exc:
             return fail(f"{a.out}: cannot write: {exc.strerror or exc}")
         print(f"rodlab sim: wrote {len(frames['time'])} frames to {a.out}")
-    tip = state.node_pos[:, -1]
     print(f"scene {a.scene}: {n} steps of {model.dt:g} s, {a.envs} env(s), mode {model.mode}")
-    print(f"tip position env 0 [m]: {np.array2string(tip[0], precision=5)}")
+    _print_tips(model, state, 5)
     print(f"newton iterations per step: mean {it_sum / (n * a.envs):.2f}, max {it_max}; "
           f"failed envs: {int(state.failed.sum())}")
     print(f"time per step: {wall / n * 1e3:.3f} ms (kernels ready in {t_ready:.2f} s)")
     return 0
+
+
+def _rod_arrays(model) -> dict:
+    """The per-rod layout written with the frames: rod_node_offsets (R+1,) int64 (each rod's first node in
+    node_pos, then the total) and rod_names (R,) str (docs/physics.md §1.7)."""
+    return {"rod_node_offsets": np.asarray(model.rod_node_offsets, dtype=np.int64),
+            "rod_names": np.asarray(model.rod_names, dtype=str)}
+
+
+def _print_tips(model, state, precision: int) -> None:
+    """The tip (last node) of env 0: of the rod, or of each rod by name."""
+    if model.rod_count == 1:
+        print(f"tip position env 0 [m]: {np.array2string(state.node_pos[0, -1], precision=precision)}")
+        return
+    for name, pos in model.split_rods(state.node_pos[0]).items():
+        print(f"tip position of rod {name!r}, env 0 [m]: {np.array2string(pos[-1], precision=precision)}")
 
 
 def _static_main(a: argparse.Namespace, spec, fail) -> int:
@@ -139,7 +156,8 @@ def _static_main(a: argparse.Namespace, spec, fail) -> int:
     from .static import solve_static
 
     t0 = time.perf_counter()
-    sim = Simulator(build_model(spec), envs=a.envs)
+    model = build_model(spec)
+    sim = Simulator(model, envs=a.envs)
     state, ctrl = sim.reset(), sim.make_control()
     res = solve_static(spec, state, ctrl, xtol=a.static_tol)
     wall = time.perf_counter() - t0
@@ -147,12 +165,12 @@ def _static_main(a: argparse.Namespace, spec, fail) -> int:
         try:
             _atomic_savez(a.out, time=np.zeros(1), node_pos=state.node_pos[None].copy(),
                           edge_theta=np.asarray(state.edge_theta)[None].copy(), converged=res.converged[None],
-                          static_steps=res.steps, static_last_move=res.last_move)
+                          static_steps=res.steps, static_last_move=res.last_move, **_rod_arrays(model))
         except OSError as exc:
             return fail(f"{a.out}: cannot write: {exc.strerror or exc}")
         print(f"rodlab sim: wrote the static equilibrium to {a.out}")
     print(f"scene {a.scene}: static equilibrium, {a.envs} env(s), mode {sim.model.mode}")
-    print(f"tip position env 0 [m]: {np.array2string(state.node_pos[0, -1], precision=6)}")
+    _print_tips(model, state, 6)
     print(f"converged envs: {int(res.converged.sum())}/{a.envs} after {int(res.steps.max())} pseudo-time steps "
           f"(last dt {res.dt:g} s, largest last move {float(res.last_move.max()):.3g} m); {wall:.2f} s")
     return 0 if res.converged.all() else 1

@@ -395,7 +395,7 @@ def _node_radius(radius, k):
 @njit(**_OPT_CONTACT)
 def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, assemble, grad, hess, report,
                   out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
-                  out_normal_force, out_friction_force, out_gap, out_max_penetration):
+                  out_normal_force, out_friction_force, out_gap, out_max_penetration, link):
     kind, p0, p1, rad = cd.kind, cd.p0, cd.p1, cd.radius
     cand, ccount, scf, scm = cd.cand, cd.cand_count, cd.scratch_f, cd.scratch_m
     sci, fric = cd.scratch_i, cd.friction
@@ -473,6 +473,9 @@ def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, a
                     if gap >= delta:
                         continue
                     w = 1.0 if (end == 0 and j == 0) or (end == 1 and j == N - 2) else 0.5
+                    if link is not None:  # a rod's end node next to a joint edge (several rods): its only edge
+                        if (end == 0 and j > 0 and link[j - 1] == 0) or (end == 1 and j < N - 2 and link[j + 1] == 0):
+                            w = 1.0
                     E, dE, d2E = imc_energy(gap, k, delta)
                     energy += w * E
                     dE *= w
@@ -562,10 +565,13 @@ def _plane_gap(cd, e, o, xx, kk):
 
 
 @njit(**_OPT_CONTACT)
-def contact_broadphase(e, cd, x_start, x_guess, margin):
+def contact_broadphase(e, cd, x_start, x_guess, margin, link=None):
     """Fill env ``e``'s candidate list: pairs whose gap may fall below ``margin`` [m] anywhere on the straight
     path from ``x_start`` to ``x_guess`` (one test at the midway configuration, inflated by half the motion). Pass as ``x_guess`` the predicted end of the (sub)step ``x0 + h u`` so that the list covers
     the motion of the step (the Newton guess x0 + 0.01 h u also works for slow motion).
+
+    ``link`` (N-1,) (optional, RodData.link): edges with 0 are joint edges between two rods of a scene, which carry
+    no material and are never candidates (planes test nodes, which all belong to a rod).
 
     Candidates are (edge j, obstacle o) for non-plane obstacles and (node k, plane o), stored
     obstacle-major with increasing j (the ownership rule relies on that order). Returns the count.
@@ -606,6 +612,9 @@ def contact_broadphase(e, cd, x_start, x_guess, margin):
                     cnt += 1
             continue
         for j in range(N - 1):
+            if link is not None:
+                if link[j] == 0:
+                    continue
             # edge AABB (both configurations) against the obstacle AABB
             elo0 = min(x_start[j, 0], x_start[j + 1, 0], x_guess[j, 0], x_guess[j + 1, 0]) - infl
             ehi0 = max(x_start[j, 0], x_start[j + 1, 0], x_guess[j, 0], x_guess[j + 1, 0]) + infl
@@ -635,13 +644,14 @@ def contact_broadphase(e, cd, x_start, x_guess, margin):
 
 
 @njit(**_OPT_CONTACT)
-def contact_refresh(e, cd, x_start, x_end, margin):
+def contact_refresh(e, cd, x_start, x_end, margin, link=None):
     """Re-run the broad phase of env ``e`` over the motion ``x_start`` -> ``x_end`` (the solved end of a step)
     and merge it with the current list. Returns True if that added pairs (the caller then solves again).
 
     The list built from the predicted motion x0 + h·u misses obstacles that a control change moves the rod
     onto within the step; this catches them (and the guard then sees their penetration). The merged list
     keeps the broad phase's order (obstacle-major, increasing edge/node index), truncated at capacity.
+    ``link``: as for :func:`contact_broadphase`.
     """
     cand = cd.cand
     ccount = cd.cand_count
@@ -651,7 +661,7 @@ def contact_refresh(e, cd, x_start, x_end, margin):
     for c in range(n1):
         old[c, 0] = cand[e, c, 0]
         old[c, 1] = cand[e, c, 1]
-    n2 = contact_broadphase(e, cd, x_start, x_end, margin)
+    n2 = contact_broadphase(e, cd, x_start, x_end, margin, link)
     new = cd.cand_merge[e, cap:]
     for c in range(n2):
         new[c, 0] = cand[e, c, 0]
@@ -749,18 +759,19 @@ def contact_step_limit(e, cd, x, dxp, radius, delta):
 
 
 @njit(**_OPT_CONTACT)
-def contact_accumulate(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, grad, hess):
+def contact_accumulate(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, grad, hess, link=None):
     """Add the contact (+ friction) residual into ``grad`` (N, 3) [N] and Jacobian blocks into ``hess``
     (N-1, 6, 6) [N/m] for env ``e``'s candidates at positions ``x``; return the contact energy [J].
 
     Friction (if ``friction_on``) is skipped on the first call after ``contact_broadphase`` (Newton
-    iteration 0 of the (sub)step, docs/physics.md §4.6)."""
+    iteration 0 of the (sub)step, docs/physics.md §4.6). ``link`` (optional, RodData.link): tells a rod's end
+    nodes next to a joint edge (several rods) for the flat-face weights."""
     fr_on = friction_on and cd.iter_flag[e] > 0
     cd.iter_flag[e] = 1
     return _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, fr_on, True, grad, hess,
                          False, cd.scratch_i[e, :0], cd.cand[e, :0], cd.cand[e, :0], cd.scratch_m[e, :0, :, :3],
                          cd.scratch_m[e, :0, :, :3], cd.scratch_m[e, :0, :, :3], cd.scratch_f[e:e, :0], cd.scratch_m[e, :0, :, :3],
-                         cd.scratch_f[e:e, :0], cd.scratch_f[e, :0])
+                         cd.scratch_f[e:e, :0], cd.scratch_f[e, :0], link)
 
 
 @njit(**_OPT_CONTACT)
@@ -790,7 +801,7 @@ def contact_min_gap(e, cd, x, radius):
 @njit(**_OPT_CONTACT)
 def contact_report(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on,
                    out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
-                   out_normal_force, out_friction_force, out_gap, out_max_penetration):
+                   out_normal_force, out_friction_force, out_gap, out_max_penetration, link=None):
     """Fill env ``e``'s StepStats contact rows (up to capacity C) and max penetration [m]; return energy [J].
 
     Rows: edge (node for planes), obstacle, rod point (on the rod's centre line) [m], obstacle point (the
@@ -800,4 +811,4 @@ def contact_report(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on,
     return _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, False, cd.scratch_f[e:e, :3], cd.scratch_m[e, :0],
                          True,
                          out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
-                         out_normal_force, out_friction_force, out_gap, out_max_penetration)
+                         out_normal_force, out_friction_force, out_gap, out_max_penetration, link)

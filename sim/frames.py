@@ -97,11 +97,15 @@ def signed_angle(a, b, n):
 
 
 @njit(**_OPT)
-def update_frames(x, d1_old, t_old, beta_old, t, d1, d2, elen, beta):
+def update_frames(x, d1_old, t_old, beta_old, t, d1, d2, elen, beta, link=None):
     """Time-parallel frames at positions x (N, 3) from the step-start frames.
 
     Writes unit tangents ``t``, reference directors ``d1``, ``d2`` (N-1, 3), edge lengths ``elen`` (N-1,)
     and reference twists ``beta`` (N,) (0 at both end nodes). Returns the minimum edge length.
+
+    ``link`` (N-1,) (optional; 1 a material edge, 0 a joint edge between two rods, docs/physics.md §1.7): a joint
+    edge keeps its step-start frame (it may have zero length where two rods touch end to end), is left out of the
+    minimum, and the nodes next to it get β = 0 (rod end nodes: no bending or twisting there).
     """
     ne = x.shape[0] - 1
     lmin = np.inf
@@ -109,6 +113,16 @@ def update_frames(x, d1_old, t_old, beta_old, t, d1, d2, elen, beta):
         e = (x[j + 1, 0] - x[j, 0], x[j + 1, 1] - x[j, 1], x[j + 1, 2] - x[j, 2])
         le = norm(e)
         elen[j] = le
+        if link is not None:
+            if link[j] == 0:
+                to = (t_old[j, 0], t_old[j, 1], t_old[j, 2])
+                u = (d1_old[j, 0], d1_old[j, 1], d1_old[j, 2])
+                v = cross(to, u)
+                for a in range(3):
+                    t[j, a] = to[a]
+                    d1[j, a] = u[a]
+                    d2[j, a] = v[a]
+                continue
         lmin = min(lmin, le)
         tj = scale(1.0 / le, e)
         to = (t_old[j, 0], t_old[j, 1], t_old[j, 2])
@@ -121,6 +135,10 @@ def update_frames(x, d1_old, t_old, beta_old, t, d1, d2, elen, beta):
     beta[0] = 0.0
     beta[ne] = 0.0
     for i in range(1, ne):
+        if link is not None:
+            if link[i - 1] == 0 or link[i] == 0:
+                beta[i] = 0.0
+                continue
         beta[i] = reference_twist(d1, t, i, beta_old[i])
     return lmin
 

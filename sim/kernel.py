@@ -114,7 +114,7 @@ def env_step(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
         if planar:
             copy_into(xs, w.sub_x)
             copy_into(us, w.sub_v)
-            frames_from_2d(xs, prm.plane_y, d1s, ts, bs, w)
+            frames_from_2d(xs, prm.plane_y, d1s, ts, bs, w, rod.link)
         else:
             _copy_state(w.sub_x, w.sub_v, w.sub_d1, w.sub_t, w.sub_beta, xs, us, d1s, ts, bs)
     _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w)
@@ -138,11 +138,11 @@ def _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
         # candidates of the state actually kept (a guard fallback or a restored state is not the configuration
         # the last sub-step's list was built for): energy and report see every pair near it
         _positions(planar, xs, pos, prm.plane_y)
-        contact_broadphase(e, cd, pos, pos, prm.contact_margin)
+        contact_broadphase(e, cd, pos, pos, prm.contact_margin, rod.link)
         w.cg[:, :] = 0.0
         w.ch[:, :, :] = 0.0
         ec = contact_accumulate(e, cd, pos, pos, prm.dt, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
-                                prm.friction_nu, prm.friction_on > 0, w.cg, w.ch)
+                                prm.friction_nu, prm.friction_on > 0, w.cg, w.ch, rod.link)
     if prm.rod_pairs > 0:  # edge pairs near the state kept
         _positions(planar, xs, pos, prm.plane_y)
         rod_pairs_broadphase(rod.pairs, pos, pos, rod.radius, prm.contact_margin, w.rp_box, w.rp_cand, w.rp_n)
@@ -164,7 +164,7 @@ def _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
         contact_report(e, cd, pos, pos0, prm.dt, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
                        prm.friction_nu, prm.friction_on > 0, crep.count, crep.edge, crep.obstacle, crep.rod_point,
                        crep.obstacle_point, crep.normal, crep.normal_force, crep.friction_force, crep.gap,
-                       crep.max_penetration)
+                       crep.max_penetration, rod.link)
 
 
 @njit(**_OPT)

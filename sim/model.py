@@ -81,6 +81,13 @@ class Model:
     load_window: np.ndarray = field(default_factory=lambda: _ro(np.zeros((0, 2))))
     motion_rate: np.ndarray = field(default_factory=lambda: _ro(np.zeros((0, 0))))
     motion_window: np.ndarray = field(default_factory=lambda: _ro(np.zeros((0, 2))))
+    # several rods (docs/physics.md §1.7): the rods' names in file order, where each rod's nodes start in the
+    # chain (R+1,) (the last entry N), and which edges are material (N-1,) (False: a joint edge between two rods)
+    rod_names: tuple[str, ...] = ("rod",)
+    rod_node_offsets: np.ndarray = field(default_factory=lambda: _ro(np.zeros(0, np.int64)))
+    edge_link: np.ndarray = field(default_factory=lambda: _ro(np.zeros(0, bool)))
+    # 2-D: each rod's (planar_component, planar_sign) (the first rod's are planar_component / planar_sign)
+    rod_planar: tuple[tuple[int, float], ...] = ()
 
     @property
     def edge_count(self) -> int:
@@ -89,6 +96,31 @@ class Model:
     @property
     def dofs_per_node(self) -> int:
         return 4 if self.mode == "3d" else 2
+
+    @property
+    def rod_count(self) -> int:
+        return len(self.rod_names)
+
+    def rod_slices(self) -> dict[str, slice]:
+        """name -> slice of the rod's nodes in the chain (its edges: ``slice(start, stop - 1)``), file order."""
+        off = self.rod_node_offsets
+        if len(off) != len(self.rod_names) + 1:  # a model built without the per-rod fields: one rod
+            return {self.rod_names[0]: slice(0, self.node_count)}
+        return {name: slice(int(off[k]), int(off[k + 1])) for k, name in enumerate(self.rod_names)}
+
+    def split_rods(self, arr, axis: int = -2) -> dict[str, np.ndarray]:
+        """name -> the rod's part of ``arr``, an array over the chain's nodes along ``axis`` (default -2: e.g.
+        ``state.node_pos`` (B, N, 3) or the (frames, B, N, 3) ``node_pos`` of ``rodlab sim --out``). Views."""
+        a = np.asarray(arr)
+        ax = axis % a.ndim
+        if a.shape[ax] != self.node_count:
+            raise ValueError(f"split_rods: axis {axis} has length {a.shape[ax]}, not the node count {self.node_count}")
+        idx = [slice(None)] * a.ndim
+        out = {}
+        for name, sl in self.rod_slices().items():
+            idx[ax] = sl
+            out[name] = a[tuple(idx)]
+        return out
 
 
 def _node_mean(edge: np.ndarray) -> np.ndarray:
@@ -101,15 +133,17 @@ def _node_mean(edge: np.ndarray) -> np.ndarray:
     return out
 
 
-def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
-    """Build the Model of ``spec``.
+def _planar_axes(d1_0: np.ndarray, t_0: np.ndarray) -> tuple[int, float]:
+    """(component, sign) of a planar rod's in-plane curvature from its first edge's reference frame
+    (docs/physics.md §1.6): κb = -κ_2D ŷ, κ1 = -κ_2D (m2·ŷ), κ2 = κ_2D (m1·ŷ)."""
+    d2_0 = np.cross(t_0, d1_0)
+    if abs(d2_0[1]) > 0.5:
+        return 0, float(-np.sign(d2_0[1]))
+    return 1, float(np.sign(d1_0[1]) or 1.0)
 
-    ``locked_edges``: extra edges j whose nodes x_j, x_{j+1} and twist angle θ^j are constrained (kept at the
-    values the State holds; set ``state.dof[:, j, 3]`` to impose a twist angle). Used e.g. by the pure-twist
-    check; ``rod.clamp = "first_edge"`` locks edge 0 the same way.
-    """
-    check_scene(spec)  # specs built in code get the scene file's checks (sim/validate.py)
-    rod, sim = spec.rod, spec.sim
+
+def _rod_arrays(rod) -> dict:
+    """The per-edge / per-node arrays of one rod (its own nodes and edges only)."""
     N = rod.nodes
     if getattr(rod, "rest_points", None) is not None:  # non-straight rest shape (docs/physics.md §1.2)
         x = np.array(rod.rest_points, dtype=np.float64).reshape(N, 3)
@@ -148,24 +182,69 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         mass = np.zeros(N)
         mass[:-1] += 0.5 * me
         mass[1:] += 0.5 * me
-    theta_inertia = rod.density * Jp * lbar
-    EA = E * A
-    node_EI1, node_EI2, node_GJ = (_node_mean(v) for v in (EI1, EI2, GJ))
     d1, t = initial_reference_frames(x)
-    kbar = material_curvature(x, d1, np.cross(t, d1))  # rest shape: material = reference frame (θ = 0)
+    return dict(
+        x=x, lbar=lbar, vor=vor, r=r, EA=E * A, EI1=EI1, EI2=EI2, GJ=GJ, mass=mass, theta=rod.density * Jp * lbar,
+        node_EI1=_node_mean(EI1), node_EI2=_node_mean(EI2), node_GJ=_node_mean(GJ), d1=d1, t=t,
+        kbar=material_curvature(x, d1, np.cross(t, d1)),  # rest shape: material = reference frame (θ = 0)
+        planar=_planar_axes(d1[0], t[0]))
+
+
+def _chain(parts: list[dict], key: str, joint) -> np.ndarray:
+    """The rods' per-edge arrays ``key`` joined into the chain's, ``joint(a, b)`` the value of the joint edge
+    between rods a and b (one rod: its own array)."""
+    if len(parts) == 1:
+        return parts[0][key]
+    out = [parts[0][key]]
+    for a, b in zip(parts[:-1], parts[1:]):
+        out += [np.asarray(joint(a, b))[None], b[key]]
+    return np.concatenate(out)
+
+
+def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
+    """Build the Model of ``spec``.
+
+    ``locked_edges``: extra edges j whose nodes x_j, x_{j+1} and twist angle θ^j are constrained (kept at the
+    values the State holds; set ``state.dof[:, j, 3]`` to impose a twist angle). Used e.g. by the pure-twist
+    check; ``rod.clamp = "first_edge"`` locks edge 0 the same way (each rod's first edge in a scene of several).
+
+    Several rods (docs/physics.md §1.7) are one chain of nodes in file order; the edge between the last node of
+    one rod and the first of the next is a joint edge (``edge_link`` False) that carries no material: no
+    stretching, no mass, no bending or twisting at its end nodes, its twist angle fixed. Its per-edge entries hold
+    finite placeholders (rest length 1, EA 0, twist inertia 1, the smaller radius of its two neighbours, the
+    frame of the edge before it).
+    """
+    check_scene(spec)  # specs built in code get the scene file's checks (sim/validate.py)
+    sim = spec.sim
+    parts = [_rod_arrays(rod) for rod in spec.rods]
+    counts = [rod.nodes for rod in spec.rods]
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    N = int(offsets[-1])
+    cat = (lambda key: parts[0][key]) if len(parts) == 1 else (lambda key: np.concatenate([p[key] for p in parts]))
+    x = cat("x")
+    vor, mass, kbar = cat("vor"), cat("mass"), cat("kbar")
+    node_EI1, node_EI2, node_GJ = cat("node_EI1"), cat("node_EI2"), cat("node_GJ")
+    lbar = _chain(parts, "lbar", lambda a, b: 1.0)
+    r = _chain(parts, "r", lambda a, b: min(a["r"][-1], b["r"][0]))
+    EA = _chain(parts, "EA", lambda a, b: 0.0)
+    theta_inertia = _chain(parts, "theta", lambda a, b: 1.0)
+    d1 = _chain(parts, "d1", lambda a, b: a["d1"][-1])
+    t = _chain(parts, "t", lambda a, b: a["t"][-1])
+    link = np.ones(N - 1, dtype=bool)
+    link[offsets[1:-1] - 1] = False  # the joint edges: from each rod's last node to the next rod's first
+    EI1 = np.concatenate([np.atleast_1d(p["EI1"]) for p in parts])
+    EI2 = np.concatenate([np.atleast_1d(p["EI2"]) for p in parts])
+    GJ = np.concatenate([np.atleast_1d(p["GJ"]) for p in parts])
     g = np.asarray(sim.gravity, dtype=np.float64)
     locked = set(int(j) for j in locked_edges)
     for j in locked:
         if not 0 <= j < N - 1:
             raise ValueError(f"locked_edges: edge index {j} out of range [0, {N - 2}]")
-    if rod.clamp == "first_edge":
-        locked.add(0)
-    # in-plane component for 2-D (docs/physics.md §1.6): κb = -κ_2D ŷ, κ1 = -κ_2D (m2·ŷ), κ2 = κ_2D (m1·ŷ)
-    d2_0 = np.cross(t[0], d1[0])
-    if abs(d2_0[1]) > 0.5:
-        pc, ps = 0, float(-np.sign(d2_0[1]))
-    else:
-        pc, ps = 1, float(np.sign(d1[0][1]) or 1.0)
+    for rod, off in zip(spec.rods, offsets[:-1]):
+        if rod.clamp == "first_edge":
+            locked.add(int(off))
+    # in-plane component for 2-D (docs/physics.md §1.6), of the first rod (rod_planar: each rod's)
+    pc, ps = parts[0]["planar"]
     if sim.mode == "3d":
         ndn = 4
         dmass = np.empty((N, 4))
@@ -174,6 +253,7 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         dmass[-1, 3] = 1.0
         fixed = np.zeros((N, 4), dtype=bool)
         fixed[-1, 3] = True
+        fixed[:-1, 3] |= ~link  # the twist of a joint edge: fixed, like the dummy θ of the last node
         for j in locked:
             fixed[j, :3] = True
             fixed[j + 1, :3] = True
@@ -204,5 +284,6 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         dof_fixed=_ro(fixed.ravel()), dof_gravity=_ro(grav.ravel()), planar_component=pc, planar_sign=ps,
         plane_y=float(x[0, 1]), locked_edges=tuple(sorted(locked)),
         obstacles=ObstacleSet.from_specs(spec.obstacles), load_force=_ro(lf), load_window=_ro(lw),
-        motion_rate=_ro(mr), motion_window=_ro(mw),
+        motion_rate=_ro(mr), motion_window=_ro(mw), rod_names=tuple(spec.rod_names),
+        rod_node_offsets=_ro(offsets), edge_link=_ro(link), rod_planar=tuple(p["planar"] for p in parts),
     )

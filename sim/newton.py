@@ -336,7 +336,7 @@ def mech_energy(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, w, pos, pos0, h):
     ec = 0.0
     if prm.n_obstacles > 0 and cd.cand_count[e] > 0:
         ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
-                                prm.friction_nu, False, w.cg, w.ch)
+                                prm.friction_nu, False, w.cg, w.ch, rod.link)
     if prm.rod_pairs > 0 and w.rp_n[0] > 0:
         ec += rod_pairs_energy(rod.pairs, w.rp_cand, w.rp_n, pos, rod.radius, prm.contact_k, prm.contact_delta)
     e_in = es + eb + et + ek + ec
@@ -360,9 +360,11 @@ def _integrate(w, fixed, h, hs, midpoint):
 
 
 @njit(inline="always", **_OPT)
-def _strain_ok(pos, rest_len, max_strain):
-    """|edge strain| ≤ max_strain on every edge (node positions pos)."""
+def _strain_ok(pos, rest_len, link, max_strain):
+    """|edge strain| ≤ max_strain on every material edge (node positions pos; ``link`` RodData.link)."""
     for j in range(rest_len.shape[0]):
+        if link[j] == 0:
+            continue
         ex = pos[j + 1, 0] - pos[j, 0]
         ey = pos[j + 1, 1] - pos[j, 1]
         ez = pos[j + 1, 2] - pos[j, 2]
@@ -392,7 +394,7 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
         _positions(planar, x0, pos0, py)
         _predicted_positions(planar, x0, u, hs, pos, py)
     if contact:
-        contact_broadphase(e, cd, pos0, pos, prm.contact_margin)
+        contact_broadphase(e, cd, pos0, pos, prm.contact_margin, rod.link)
         if want_pen0 and cd.cand_count[e] > 0:
             pen0 = -contact_min_gap(e, cd, pos0, rod.radius)
     if pairs:
@@ -412,7 +414,7 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
         list_covers_step = not midpoint
         added = False
         if contact:
-            added = contact_refresh(e, cd, pos0, pos, prm.contact_margin)
+            added = contact_refresh(e, cd, pos0, pos, prm.contact_margin, rod.link)
         if pairs:
             added_pairs = rod_pairs_refresh(rod.pairs, pos0, pos, rod.radius, prm.contact_margin, w.rp_box,
                                             w.rp_cand, w.rp_n)
@@ -430,8 +432,8 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
     _integrate(w, rod.fixed, h, hs, midpoint)
     _positions(planar, x, pos, py)
     if not planar:
-        update_frames(pos, w.sub_d1, w.sub_t, w.sub_beta, w.t, w.d1, w.d2, w.elen, w.beta)
-    if not _strain_ok(pos, rod.rest_len, prm.max_strain):
+        update_frames(pos, w.sub_d1, w.sub_t, w.sub_beta, w.t, w.d1, w.d2, w.elen, w.beta, rod.link)
+    if not _strain_ok(pos, rod.rest_len, rod.link, prm.max_strain):
         return STRAIN, it, conv, r, r0, 0.0, pen0
     for k in range(x.shape[0]):
         if not (np.isfinite(x[k]) and np.isfinite(dx[k])):
@@ -456,7 +458,7 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
     pen = 0.0
     if contact:  # pos: end of sub-step, pos0: its start; the list must cover the whole sub-step motion
         if not list_covers_step:
-            contact_broadphase(e, cd, pos0, pos, prm.contact_margin)
+            contact_broadphase(e, cd, pos0, pos, prm.contact_margin, rod.link)
         if cd.cand_count[e] > 0:
             pen = -contact_min_gap(e, cd, pos, rod.radius)
     if pairs:

@@ -39,9 +39,12 @@ def rod_obstacle_overlaps(model, *, tolerance: float = 0.0) -> list[Overlap]:
             obs.set_active(k, k == o, envs=[o])
     cd = obs.kernel_data()
     x = np.ascontiguousarray(model.rest_node_pos, dtype=np.float64)
+    link = np.ones(model.node_count - 1, np.uint8)  # joint edges between rods are never candidates
+    if len(getattr(model, "edge_link", ())) == model.node_count - 1:
+        link = np.asarray(model.edge_link, dtype=np.uint8)
     out = []
     for o in range(M):
-        contact_broadphase(o, cd, x, x, 0.0)
+        contact_broadphase(o, cd, x, x, 0.0, link)
         gap = float(contact_min_gap(o, cd, x, contact_radii(model.edge_radius)))
         if gap < -tolerance:
             spec = model.spec.obstacles[o]

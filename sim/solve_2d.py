@@ -49,8 +49,11 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
         f[k] = m * ih2 * (dxk - h * u[k]) - grav[k] + damp * m * dxk * ih
         if with_jac:
             ab[k, kl] = m * ih2 + damp * m * ih
+    link = rod.link
     es = 0.0
-    for j in range(N - 1):  # stretching
+    for j in range(N - 1):  # stretching (not across a joint edge between two rods)
+        if link[j] == 0:
+            continue
         o = 2 * j
         ej, _ = stretch_element_2d((x[o], x[o + 1]), (x[o + 2], x[o + 3]), rest_len[j], rod.EA[j], g4, H4, with_jac)
         es += ej
@@ -61,7 +64,9 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                 for b in range(a if sym else 0, 4):
                     ab[o + a, kl + b - a] += H4[a, b]
     eb = 0.0
-    for i in range(1, N - 1):  # bending at the interior nodes
+    for i in range(1, N - 1):  # bending at the interior nodes (of each rod)
+        if link[i - 1] == 0 or link[i] == 0:
+            continue
         o = 2 * (i - 1)
         ebi, _ = planar_bend_element((x[o], x[o + 1]), (x[o + 2], x[o + 3]), (x[o + 4], x[o + 5]),
                                      sgn * kb[i, 0], rod.EI1[i], vor_len[i], g6, H6, with_jac)
@@ -86,7 +91,7 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
         ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
-                                prm.friction_nu, prm.friction_on > 0, cg, ch)
+                                prm.friction_nu, prm.friction_on > 0, cg, ch, link)
         for k in range(N):
             f[2 * k] += cg[k, 0]
             f[2 * k + 1] += cg[k, 2]
@@ -131,16 +136,20 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
 @njit(**_OPT)
 def energies_2d(xs, kb, rod, prm, w):
     """(E_stretch, E_bend, 0) [J] of a planar state."""
-    rest_len, vor_len = rod.rest_len, rod.vor_len
+    rest_len, vor_len, link = rod.rest_len, rod.vor_len, rod.link
     N = xs.shape[0] // 2
     es = 0.0
     for j in range(N - 1):
+        if link[j] == 0:
+            continue
         o = 2 * j
         ej, _ = stretch_element_2d((xs[o], xs[o + 1]), (xs[o + 2], xs[o + 3]), rest_len[j], rod.EA[j], w.g4, w.H4,
                                    False)
         es += ej
     eb = 0.0
     for i in range(1, N - 1):
+        if link[i - 1] == 0 or link[i] == 0:
+            continue
         o = 2 * (i - 1)
         ebi, _ = planar_bend_element((xs[o], xs[o + 1]), (xs[o + 2], xs[o + 3]), (xs[o + 4], xs[o + 5]),
                                      prm.planar_sign * kb[i, 0], rod.EI1[i], vor_len[i], w.g6, w.H6, False)
@@ -149,15 +158,16 @@ def energies_2d(xs, kb, rod, prm, w):
 
 
 @njit(**_OPT)
-def frames_from_2d(xs, py, d1s, ts, bs, w):
-    """Update the stored 3-D frames (d1s, ts, bs) of a planar state to its DOFs xs (time-parallel transport)."""
+def frames_from_2d(xs, py, d1s, ts, bs, w, link):
+    """Update the stored 3-D frames (d1s, ts, bs) of a planar state to its DOFs xs (time-parallel transport;
+    ``link``: RodData.link)."""
     pos = w.pos
     N = xs.shape[0] // 2
     for k in range(N):
         pos[k, 0] = xs[2 * k]
         pos[k, 1] = py
         pos[k, 2] = xs[2 * k + 1]
-    update_frames(pos, d1s, ts, bs, w.t, w.d1, w.d2, w.elen, w.beta)
+    update_frames(pos, d1s, ts, bs, w.t, w.d1, w.d2, w.elen, w.beta, link)
     copy_into(d1s, w.d1)
     copy_into(ts, w.t)
     copy_into(bs, w.beta)

@@ -42,7 +42,7 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
     for k in range(N):
         for a in range(3):
             pos[k, a] = x[4 * k + a]
-    update_frames(pos, w.sub_d1, w.sub_t, w.sub_beta, t, d1, d2, w.elen, beta)
+    update_frames(pos, w.sub_d1, w.sub_t, w.sub_beta, t, d1, d2, w.elen, beta, rod.link)
     if with_jac:
         if sym:
             ab[:, kl:] = 0.0  # the LDLᵀ path never reads the lower half
@@ -61,8 +61,11 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
         f[k] = fk
         if with_jac:
             ab[k, kl] = jk
+    link = rod.link
     es = 0.0
-    for j in range(N - 1):  # stretching
+    for j in range(N - 1):  # stretching (not across a joint edge between two rods)
+        if link[j] == 0:
+            continue
         o0 = 4 * j
         o1 = 4 * j + 4
         ej, _ = stretch_element((x[o0], x[o0 + 1], x[o0 + 2]), (x[o1], x[o1 + 1], x[o1 + 2]), rest_len[j], rod.EA[j],
@@ -84,7 +87,9 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
         for a in range(3):
             mf[j, a] = m1[a]
             mf[j, 3 + a] = m2[a]
-    for i in range(1, N - 1):  # bending and twisting at the interior nodes
+    for i in range(1, N - 1):  # bending and twisting at the interior nodes (of each rod)
+        if link[i - 1] == 0 or link[i] == 0:
+            continue
         o = 4 * (i - 1)
         ebi, eti = bend_twist_core(
             (x[o], x[o + 1], x[o + 2]), (x[o + 4], x[o + 5], x[o + 6]), (x[o + 8], x[o + 9], x[o + 10]),
@@ -110,7 +115,7 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
         ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
-                                prm.friction_nu, prm.friction_on > 0, cg, ch)
+                                prm.friction_nu, prm.friction_on > 0, cg, ch, link)
         for k in range(N):
             for a in range(3):
                 f[4 * k + a] += cg[k, a]
@@ -149,16 +154,17 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
 def energies_3d(xs, d1s, ts, bs, kb, tb, rod, prm, w):
     """(E_stretch, E_bend, E_twist) [J] of a state whose stored frames (d1s, ts, bs) are at xs (w.mf: scratch for
     the material directors)."""
-    rest_len, vor_len, mf = rod.rest_len, rod.vor_len, w.mf
+    rest_len, vor_len, mf, link = rod.rest_len, rod.vor_len, w.mf, rod.link
     N = xs.shape[0] // 4
     es = 0.0
     for j in range(N - 1):
         o = 4 * j
-        ex = xs[o + 4] - xs[o]
-        ey = xs[o + 5] - xs[o + 1]
-        ez = xs[o + 6] - xs[o + 2]
-        eps = math.sqrt(ex * ex + ey * ey + ez * ez) / rest_len[j] - 1.0
-        es += 0.5 * rod.EA[j] * rest_len[j] * eps * eps
+        if link[j] != 0:
+            ex = xs[o + 4] - xs[o]
+            ey = xs[o + 5] - xs[o + 1]
+            ez = xs[o + 6] - xs[o + 2]
+            eps = math.sqrt(ex * ex + ey * ey + ez * ez) / rest_len[j] - 1.0
+            es += 0.5 * rod.EA[j] * rest_len[j] * eps * eps
         a0, a1, a2 = d1s[j, 0], d1s[j, 1], d1s[j, 2]
         t0, t1, t2 = ts[j, 0], ts[j, 1], ts[j, 2]
         m1, m2 = material_directors((a0, a1, a2), (t1 * a2 - t2 * a1, t2 * a0 - t0 * a2, t0 * a1 - t1 * a0), xs[o + 3])
@@ -168,6 +174,8 @@ def energies_3d(xs, d1s, ts, bs, kb, tb, rod, prm, w):
     eb = 0.0
     et = 0.0
     for i in range(1, N - 1):
+        if link[i - 1] == 0 or link[i] == 0:
+            continue
         o = 4 * (i - 1)
         k1, k2 = material_curvatures((xs[o], xs[o + 1], xs[o + 2]), (xs[o + 4], xs[o + 5], xs[o + 6]),
                                      (xs[o + 8], xs[o + 9], xs[o + 10]), (mf[i - 1, 0], mf[i - 1, 1], mf[i - 1, 2]),

@@ -5,7 +5,8 @@ A backward-Euler step from rest solves ``M (x − x0)/h² + ∇E(x) − F = 0``;
 and the step becomes a Newton solve of the static residual ``∇E(x) = F`` regularised by ``M/h²``. Starting from the
 scene's ``dt`` and multiplying ``h`` by ``growth`` after every step keeps the first steps small (robust from a far
 start); a step whose env fails is undone and retried with ``h`` divided by ``growth``. Each step's Newton solve
-ends when an update moves no free position by more than ``xtol · L / 10`` (``L`` the rod length) or by the force
+ends when an update moves no free position by more than ``xtol · L / 10`` (``L`` the rod length; with several
+rods the longest) or by the force
 test. Stopping rule, per env: ``h`` has reached ``dt_max`` and the whole step moved no free position DOF by more
 than ``xtol · L``: a Newton step on the (barely regularised) static residual then changes nothing at that scale.
 
@@ -68,7 +69,7 @@ def solve_static(spec: SceneSpec, state: Any, ctrl: Any, *, xtol: float = 1e-10,
     time0 = state.time.copy()
     sims: dict[float, Simulator] = {}
     h = float(spec.sim.dt)
-    length = float(spec.rod.length)
+    length = max(float(r.length) for r in spec.rods)
     conv = np.zeros(B, bool)
     steps = np.zeros(B, np.int64)
     move = np.full(B, np.inf)

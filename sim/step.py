@@ -39,8 +39,12 @@ class Simulator:
         m = model
         c = m.spec.contact
         mp = getattr(c, "max_penetration", None)  # penetration guard [m]; None = 4 * delta
-        # the planar rod bends with EI1 (kernel): there, the stiffness of its in-plane component
-        ei1 = m.node_EI1 if m.mode == "3d" or m.planar_component == 0 else m.node_EI2
+        # the planar rod bends with EI1 (kernel): there, the stiffness of its in-plane component (each rod's)
+        if m.mode == "3d":
+            ei1 = m.node_EI1
+        else:
+            comp, _ = _planar_nodes(m)
+            ei1 = np.where(comp == 0, m.node_EI1, m.node_EI2)
         pairs = model_pairs(m)  # edge pairs that may touch (self- / rod–rod contact); (0, 2) without
         prm = _solve.Params(
             dt=m.dt, damping=m.damping, newton_tol=m.newton_tol,
@@ -61,7 +65,7 @@ class Simulator:
                                    mass=np.array(m.dof_mass), fixed=np.array(m.dof_fixed),
                                    grav=np.array(m.dof_gravity)[None, :], EA=np.array(m.edge_EA),
                                    EI1=np.array(ei1), EI2=np.array(m.node_EI2), GJ=np.array(m.node_GJ),
-                                   radius=contact_radii(m.edge_radius), pairs=pairs)
+                                   radius=contact_radii(m.edge_radius), link=_edge_link(m), pairs=pairs)
         # point loads (sim.boundary): per-env external forces only when a scene has loads; prescribed motion
         self._loads = m.load_force.shape[0] > 0
         self._motion = m.motion_rate.shape[0] > 0
@@ -107,7 +111,11 @@ class Simulator:
         m = self.model
         kb = np.array(m.rest_kappa_bar)
         if m.mode == "2d":
-            kb = np.stack([kb[:, m.planar_component], np.zeros(m.node_count)], axis=1)
+            # column 0: the in-plane curvature in the first rod's convention (the kernel's κ_2D = planar_sign ·
+            # column 0); a rod whose own component or sign differs has its value converted
+            comp, sign = _planar_nodes(m)
+            kb0 = np.where(comp == 0, kb[:, 0], kb[:, 1]) * (sign * m.planar_sign)
+            kb = np.stack([kb0, np.zeros(m.node_count)], axis=1)
         return kb, np.array(m.rest_tau_bar)
 
     def make_control(self) -> Control:
@@ -218,6 +226,26 @@ class Simulator:
         th = state.edge_theta[..., None]
         c, s = np.cos(th), np.sin(th)
         return c * d1 + s * d2, -s * d1 + c * d2, t.copy()
+
+
+def _edge_link(m: Model) -> np.ndarray:
+    """The kernels' (N-1,) uint8 edge flags: 1 a material edge, 0 a joint edge between two rods."""
+    link = getattr(m, "edge_link", None)
+    if link is None or len(link) != m.node_count - 1:
+        return np.ones(m.node_count - 1, np.uint8)
+    return np.asarray(link, dtype=np.uint8)
+
+
+def _planar_nodes(m: Model) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) per node: the planar component (0: κ1, 1: κ2) and sign of its rod (2-D, docs/physics.md §1.6)."""
+    per_rod = getattr(m, "rod_planar", ()) or ((m.planar_component, m.planar_sign),)
+    off = np.asarray(getattr(m, "rod_node_offsets", ()), dtype=np.int64)
+    if len(off) != len(per_rod) + 1:
+        off = np.array([0, m.node_count])
+    counts = np.diff(off)
+    comp = np.repeat(np.array([c for c, _ in per_rod], np.int64), counts)
+    sign = np.repeat(np.array([sg for _, sg in per_rod], np.float64), counts)
+    return comp, sign
 
 
 def _ix(i: IndexLike):

@@ -108,10 +108,10 @@ class _Checker:
             self.fail(key, f"must be within [{lo:g}, {hi:g}] {unit} (docs/conventions.md, Input bounds), got {x!r}")
         return x
 
-    def integer(self, key: str, v: Any) -> int:
+    def integer(self, key: str, v: Any, bound: str | None = None) -> int:
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
             self.fail(key, f"expected an integer, got {type(v).__name__} {v!r}")
-        lo, hi, _ = BOUNDS[key]
+        lo, hi, _ = BOUNDS[bound or key]
         if not lo <= int(v) <= hi:
             self.fail(key, f"must be an integer within [{lo:g}, {hi:g}], got {v!r}")
         return int(v)
@@ -139,7 +139,7 @@ def check_scene(spec: Any, where: str | None = None) -> None:
     """Check every number of ``spec`` against :data:`BOUNDS` (and derived masses/stiffnesses); raise
     SceneError naming ``where`` (default ``spec.path``), the key and the problem."""
     c = _Checker(where or getattr(spec, "path", None) or "<scene>")
-    s, r = spec.sim, spec.rod
+    s = spec.sim
     c.num("sim.dt", s.dt, positive=True)
     c.vec("sim.gravity", s.gravity, "sim.gravity")
     c.num("sim.damping", s.damping)
@@ -154,31 +154,59 @@ def check_scene(spec: Any, where: str | None = None) -> None:
     c.choice("sim.mode", s.mode, ("3d", "2d"))
     c.choice("sim.integrator", s.integrator, ("backward_euler", "midpoint"))
     c.choice("sim.line_search", s.line_search, ("none", "backtrack", "auto"))
-    n = c.integer("rod.nodes", r.nodes)
+    rods = tuple(getattr(spec, "rods", None) or (spec.rod,))
+    names = [getattr(r, "name", "rod") for r in rods]
+    for i, name in enumerate(names):
+        if not isinstance(name, str) or not name.strip():
+            c.fail(f"rod[{i}].name", f"must be a non-empty name, got {name!r}")
+        if name in names[:i]:
+            c.fail(f"rod[{i}].name", f"duplicate rod name {name!r} (rod names must be unique)")
+    for r, name in zip(rods, names):
+        _check_rod(c, r, s.mode, f"rod[{name!r}]." if len(rods) > 1 else "rod.")
+    if s.mode == "2d" and len(rods) > 1:  # one motion plane: every rod at the first rod's y
+        y0 = _first_point(rods[0])[1]
+        for r, name in zip(rods[1:], names[1:]):
+            if _first_point(r)[1] != y0:
+                c.fail(f"rod[{name!r}].start", f"mode '2d' needs every rod in one plane y = const (the first "
+                                                 f"rod's y = {y0!r}), got y = {_first_point(r)[1]!r}")
+    for i, ob in enumerate(getattr(spec, "obstacles", ()) or ()):
+        _check_obstacle(c, i, ob)
+    _check_contact(c, spec.contact)
+    check_boundary(c, spec)
+
+
+def _first_point(r: Any) -> tuple:
+    pts = getattr(r, "rest_points", None)
+    return tuple(pts[0]) if pts is not None else tuple(r.start)
+
+
+def _check_rod(c: _Checker, r: Any, mode: str, rp: str) -> None:
+    """The keys of one rod table (``rp``: its key prefix in messages, ``rod.`` or ``rod['name'].``)."""
+    n = c.integer(rp + "nodes", r.nodes, "rod.nodes")
     if getattr(r, "rest_points", None) is not None:  # before length: it is the points' (sim/scene.py)
-        _check_rest_points(c, r, n, s.mode)
-    length = c.num("rod.length", r.length, positive=True)
-    sec = _check_section(c, r)  # before radius: for a non-circular section radius is derived from it
-    radius = c.num("rod.radius", r.radius, positive=True)
-    rho = c.num("rod.density", r.density, positive=True)
-    E = c.num("rod.youngs_modulus", r.youngs_modulus, positive=True)
+        _check_rest_points(c, r, n, mode, rp)
+    length = c.num(rp + "length", r.length, "rod.length", positive=True)
+    sec = _check_section(c, r, rp)  # before radius: for a non-circular section radius is derived from it
+    radius = c.num(rp + "radius", r.radius, "rod.radius", positive=True)
+    rho = c.num(rp + "density", r.density, "rod.density", positive=True)
+    E = c.num(rp + "youngs_modulus", r.youngs_modulus, "rod.youngs_modulus", positive=True)
     # per-edge lists (a non-uniform rod): one value per edge, each within the key's bounds; the derived checks
     # below then use the smallest
-    er = _edge_list(c, "rod.radius", getattr(r, "edge_radius", None), n)
+    er = _edge_list(c, rp + "radius", "rod.radius", getattr(r, "edge_radius", None), n)
     if er is not None:
         if sec is not None:
-            c.fail("rod.radius", 'a per-edge list needs cross_section = "circle"')
+            c.fail(rp + "radius", 'a per-edge list needs cross_section = "circle"')
         radius = min(er)
-    eE = _edge_list(c, "rod.youngs_modulus", getattr(r, "edge_youngs_modulus", None), n)
+    eE = _edge_list(c, rp + "youngs_modulus", "rod.youngs_modulus", getattr(r, "edge_youngs_modulus", None), n)
     if eE is not None:
         E = min(eE)
     nu = r.poisson_ratio
     if isinstance(nu, bool) or not isinstance(nu, (int, float, np.floating)) or not -1.0 < float(nu) <= 0.5:
-        c.fail("rod.poisson_ratio", f"must be in (-1, 0.5], got {nu!r}")
-    c.vec("rod.start", r.start, "rod.start")
-    c.unit("rod.direction", r.direction)
-    c.choice("rod.clamp", r.clamp, ("first_edge", "none"))
-    c.num("rod.prestretch", getattr(r, "prestretch", 0.0))
+        c.fail(rp + "poisson_ratio", f"must be in (-1, 0.5], got {nu!r}")
+    c.vec(rp + "start", r.start, "rod.start")
+    c.unit(rp + "direction", r.direction)
+    c.choice(rp + "clamp", r.clamp, ("first_edge", "none"))
+    c.num(rp + "prestretch", getattr(r, "prestretch", 0.0), "rod.prestretch")
     # derived quantities (docs/physics.md §1.5): all must be positive normal floats
     seg = length / (n - 1)
     if sec is None:
@@ -192,60 +220,56 @@ def check_scene(spec: Any, where: str | None = None) -> None:
                    "twist inertia [kg m^2]": rho * sec.polar * seg}
     for name, val in derived.items():
         if not (math.isfinite(val) and val > 1e-290):
-            c.fail("rod", f"derived {name} = {val!r} is not a positive finite number (check radius, length, "
-                          "density, youngs_modulus)")
-    for i, ob in enumerate(getattr(spec, "obstacles", ()) or ()):
-        _check_obstacle(c, i, ob)
-    _check_contact(c, spec.contact)
-    check_boundary(c, spec)
+            c.fail(rp.rstrip("."), f"derived {name} = {val!r} is not a positive finite number (check radius, "
+                                   "length, density, youngs_modulus)")
 
 
-def _edge_list(c: _Checker, key: str, v: Any, n: int) -> list[float] | None:
+def _edge_list(c: _Checker, key: str, bound: str, v: Any, n: int) -> list[float] | None:
     """A per-edge list (None if absent): n - 1 numbers within the bounds of ``key``."""
     if v is None:
         return None
     if not isinstance(v, (tuple, list, np.ndarray)) or len(v) != n - 1:
         c.fail(key, f"a per-edge list needs one value per edge (rod.nodes - 1 = {n - 1}), got "
                     f"{len(v) if hasattr(v, '__len__') else v!r}")
-    return [c.num(key, x, positive=True) for x in v]
+    return [c.num(key, x, bound, positive=True) for x in v]
 
 
-def _check_rest_points(c: _Checker, r: Any, n: int, mode: str) -> None:
+def _check_rest_points(c: _Checker, r: Any, n: int, mode: str, rp: str = "rod.") -> None:
     """rest_points: n finite points within the bounds, no zero edge, no turn of 170° or more, planar in 2-D."""
     pts = r.rest_points
     if not isinstance(pts, (tuple, list, np.ndarray)) or len(pts) != n:
-        c.fail("rod.rest_points", f"expected rod.nodes = {n} points, got {len(pts) if hasattr(pts, '__len__') else pts!r}")
+        c.fail(rp + "rest_points", f"expected rod.nodes = {n} points, got {len(pts) if hasattr(pts, '__len__') else pts!r}")
     for p in pts:
-        c.vec("rod.rest_points", p, "rod.rest_points")
+        c.vec(rp + "rest_points", p, "rod.rest_points")
     x = np.asarray(pts, dtype=np.float64)
     e = np.diff(x, axis=0)
     le = np.linalg.norm(e, axis=1)
     if not (le > 1e-7).all():
         j = int(np.argmin(le))
-        c.fail("rod.rest_points", f"points {j} and {j + 1} are {le[j]:.3g} m apart (edges must be > 1e-07 m)")
+        c.fail(rp + "rest_points", f"points {j} and {j + 1} are {le[j]:.3g} m apart (edges must be > 1e-07 m)")
     t = e / le[:, None]
     cosang = np.einsum("ij,ij->i", t[:-1], t[1:])
     if cosang.size and cosang.min() <= math.cos(math.radians(170.0)):
         i = int(np.argmin(cosang)) + 1
-        c.fail("rod.rest_points", f"the polyline turns by {math.degrees(math.acos(max(-1.0, cosang.min()))):.1f} "
+        c.fail(rp + "rest_points", f"the polyline turns by {math.degrees(math.acos(max(-1.0, cosang.min()))):.1f} "
                                   f"deg at point {i} (must be < 170 deg)")
     if mode == "2d" and np.abs(x[:, 1] - x[0, 1]).max() > 0.0:
-        c.fail("rod.rest_points", "mode '2d' needs every point in one plane y = const (the first point's y)")
+        c.fail(rp + "rest_points", "mode '2d' needs every point in one plane y = const (the first point's y)")
 
 
-def _check_section(c: _Checker, r: Any) -> Any:
+def _check_section(c: _Checker, r: Any, rp: str = "rod.") -> Any:
     """Cross-section keys (sim/section.py); returns the Section of a non-circular rod, else None."""
     kind = getattr(r, "cross_section", "circle")
-    c.choice("rod.cross_section", kind, SECTIONS)
+    c.choice(rp + "cross_section", kind, SECTIONS)
     if kind == "circle":
         return None
     if kind == "rectangle":
         for k in ("width", "height"):
-            c.num("rod." + k, getattr(r, k), positive=True)
+            c.num(rp + k, getattr(r, k), "rod." + k, positive=True)
     else:
-        c.vec("rod.semi_axes", r.semi_axes, "rod.semi_axes", 2)
+        c.vec(rp + "semi_axes", r.semi_axes, "rod.semi_axes", 2)
         for v in r.semi_axes:
-            c.num("rod.semi_axes", v, "rod.semi_axes", positive=True)
+            c.num(rp + "semi_axes", v, "rod.semi_axes", positive=True)
     return section_of(r)
 
 

@@ -38,7 +38,7 @@ def test_shipped_scene_round_trip(tmp_path, path):
     spec = load_scene(path)
     spec1, text1 = _reload(spec, tmp_path, "a.toml")
     assert "np." not in text1 and "float64" not in text1
-    assert spec1.sim == spec.sim and spec1.rod == spec.rod and spec1.contact == spec.contact
+    assert spec1.sim == spec.sim and spec1.rods == spec.rods and spec1.contact == spec.contact
     assert spec1.obstacles == spec.obstacles
     spec2, text2 = _reload(spec1, tmp_path, "b.toml")
     assert spec2.obstacles == spec1.obstacles and text2 == text1
@@ -156,7 +156,7 @@ def assert_same_obstacles(a_list, b_list, *, rtol: float) -> None:
 def test_random_scene_round_trip(tmp_path, spec):
     spec1, text1 = _reload(spec, tmp_path, "r1.toml")
     assert "np." not in text1
-    assert spec1.sim == spec.sim and spec1.rod == spec.rod and spec1.contact == spec.contact
+    assert spec1.sim == spec.sim and spec1.rods == spec.rods and spec1.contact == spec.contact
     assert_same_obstacles(spec.obstacles, spec1.obstacles, rtol=1e-12)
     spec2, _ = _reload(spec1, tmp_path, "r2.toml")
     assert spec2.sim == spec1.sim and spec2.rod == spec1.rod and spec2.contact == spec1.contact
