@@ -147,7 +147,7 @@ class WorkbenchApp:
             self.view.set_camera("front" if planar else "iso")
         self.sync_obstacle_view()
         self.sync_boundary_view()
-        self.view.set_rod_scene(*scene_info(self.wb), self.wb.live.rod_radius)
+        self.view.set_rod_scene(*scene_info(self.wb), self.wb.live.rod_radius, self.wb.live.rod_offsets)
         self.request_render()
 
     def sync_boundary_view(self) -> None:

@@ -8,6 +8,8 @@ Signed quantities use a blue–grey–red map centred on 0, magnitudes a blue–
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from sim.curvature import curvature_binormal, material_curvature
@@ -37,7 +39,28 @@ def _edge_twist(x: np.ndarray, m1: np.ndarray) -> np.ndarray:
 
 def node_values(fr: Frame, quantity: str) -> np.ndarray | None:
     """(N,) values of ``quantity`` at the nodes (end nodes copy their neighbour), or None when the frame lacks what
-    it needs (material frames for κ1, κ2, twist; the natural curvature for commanded − actual)."""
+    it needs (material frames for κ1, κ2, twist; the natural curvature for commanded − actual). Several rods
+    (``fr.rod_offsets``): each rod's values on its own (the edge joining two rods is no part of either)."""
+    off = getattr(fr, "rod_offsets", None)
+    if off is None or len(off) <= 2:
+        return _rod_values(fr, quantity)
+    parts = []
+    for a, b in zip(off[:-1], off[1:]):
+        a, b = int(a), int(b)
+
+        def cut(v, stop):
+            return None if v is None else np.asarray(v)[a:stop]
+        sub = dataclasses.replace(fr, node_pos=np.asarray(fr.node_pos)[a:b], m1=cut(fr.m1, b - 1),
+                                  m2=cut(fr.m2, b - 1), kappa_bar=cut(getattr(fr, "kappa_bar", None), b),
+                                  edge_strain=cut(fr.edge_strain, b - 1), rod_offsets=None)
+        v = _rod_values(sub, quantity)
+        if v is None:
+            return None
+        parts.append(v)
+    return np.concatenate(parts)
+
+
+def _rod_values(fr: Frame, quantity: str) -> np.ndarray | None:
     x = np.asarray(fr.node_pos, np.float64)
     if quantity == "curvature":
         v = np.linalg.norm(curvature_binormal(x), axis=1)

@@ -40,7 +40,7 @@ class Workbench:
         self.lock = threading.RLock()
         self.scene_path = Path(scene_path) if scene_path else None
         self.live = LiveSim(spec)
-        self.teleop = Teleop(n_nodes=self.live.n_nodes, substeps=substeps)
+        self.teleop = Teleop(n_nodes=_first_rod_nodes(self.live), substeps=substeps)  # steers the first rod
         self.mode: Mode = "teleop"
         self.playing = True
         self.history = History(history)
@@ -260,6 +260,9 @@ class Workbench:
         if self.recorder is not None:
             self.recorder.new_episode()
         self.live.set_spec(spec, keep_state=keep_state)
+        n0 = _first_rod_nodes(self.live)
+        if n0 != self.teleop.n_nodes:  # another rod to steer (a scene of other node counts)
+            self.teleop = Teleop(n_nodes=n0, substeps=self.teleop.substeps)
         self.obstacles = obst.edits_from_spec(spec)
         for cb in list(self.on_scene_changed):
             cb()
@@ -342,3 +345,9 @@ class Workbench:
         with self.lock:
             rec, self.recorder = self.recorder, None
         return rec.close() if rec is not None else None
+
+
+def _first_rod_nodes(live) -> int:
+    """The node count of the live scene's first rod (teleop steers it; all nodes in a one-rod scene)."""
+    off = live.rod_offsets
+    return int(live.n_nodes if off is None else off[1])

@@ -31,6 +31,8 @@ class Frame:
         targets: (T, 3) target marker positions [m].
         time: simulated time [s].
         scalars: named live values (reward, reward terms, tip error, newton_iters, ...).
+        rod_offsets: (R+1,) where each rod's nodes start in ``node_pos`` (then N) when the scene has several rods
+            (``sim.Model.rod_node_offsets``; drawn as separate tubes), else None.
     """
 
     node_pos: np.ndarray
@@ -49,6 +51,7 @@ class Frame:
     target_wxyz: np.ndarray | None = None
     time: float = 0.0
     scalars: dict[str, float] = dataclasses.field(default_factory=dict)
+    rod_offsets: np.ndarray | None = None
 
     @property
     def tip(self) -> np.ndarray:

@@ -126,6 +126,12 @@ class LiveSim:
             return None
         return node_radii(er)
 
+    @property
+    def rod_offsets(self) -> np.ndarray | None:
+        """(R+1,) where each rod's nodes start (then N) when the scene has several rods, else None."""
+        off = getattr(self.model, "rod_node_offsets", None)
+        return None if off is None or len(off) <= 2 else np.asarray(off, np.int64)
+
     def reset(self) -> None:
         if self.owner is not None:  # the task resets its own simulator
             self.last_stats = None
@@ -184,12 +190,17 @@ class LiveSim:
         cp, cf, cn, cfn = contacts_from_stats(self.last_stats)
         sc = {**self.step_scalars(), **(scalars or {})}
         kb = getattr(self.ctrl, "kappa_bar", None)
+        off = self.rod_offsets
+        curv = integrated_curvature(x)
+        if off is not None:  # each rod's end nodes bend nothing (the edge joining two rods is no part of either)
+            curv[off[1:-1] - 1] = 0.0
+            curv[off[1:-1]] = 0.0
         return Frame(node_pos=x.copy(), rod_radius=self.rod_radius, node_radius=self.node_radius, m1=m1, m2=m2,
                      kappa_bar=None if kb is None else np.asarray(kb[0], dtype=np.float64).copy(),
-                     node_curvature=integrated_curvature(x), edge_strain=edge_strain(x, self.rest_length),
+                     node_curvature=curv, edge_strain=edge_strain(x, self.rest_length),
                      contact_points=cp, contact_forces=cf, contact_normals=cn, contact_normal_force=cfn,
                      targets=np.zeros((0, 3)) if targets is None else np.asarray(targets).reshape(-1, 3),
-                     time=float(np.asarray(self.state.time)[0]), scalars=sc)
+                     time=float(np.asarray(self.state.time)[0]), scalars=sc, rod_offsets=off)
 
 
 def contacts_from_stats(st, env: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -10,6 +10,7 @@ increments, exactly as a task does.
 from __future__ import annotations
 
 import copy
+import types
 from typing import Literal
 
 import numpy as np
@@ -91,7 +92,10 @@ class Teleop:
     # ---------------------------------------------------------------- apply
     def apply(self, ctrl, rest=None) -> None:
         """Write this sim step's control into ``ctrl`` (a sim ``Control`` with B = 1); ``rest``: the
-        rest-shape control (absolute values are added to it)."""
+        rest-shape control (absolute values are added to it). In a scene of several rods teleop steers the
+        first rod (its ``n_nodes`` nodes, the first in the chain); the others keep their rest control."""
+        if ctrl.kappa_bar.shape[1] > self.n_nodes:
+            ctrl, rest = _first_rod(ctrl, self.n_nodes), None if rest is None else _first_rod(rest, self.n_nodes)
         if self.mode == "absolute":
             self._set_converter(self.values[:, :2], self.values[:, 2])
             kappa, tau = self.converter.natural_values()
@@ -104,3 +108,8 @@ class Teleop:
             self._sub = 0
         self.converter.apply(ctrl, self._pending, self._sub)
         self._sub += 1
+
+
+def _first_rod(ctrl, n: int) -> types.SimpleNamespace:
+    """Views of a Control's first ``n`` nodes (writes reach ``ctrl``)."""
+    return types.SimpleNamespace(kappa_bar=ctrl.kappa_bar[:, :n], tau_bar=ctrl.tau_bar[:, :n])

@@ -130,6 +130,26 @@ def tube_mesh(x: np.ndarray, radius, *, m1: np.ndarray | None = None, colors: np
     return TubeMesh(verts.astype(np.float32), normals.astype(np.float32), vcol, tube_faces(n, sides))
 
 
+def rods_mesh(x: np.ndarray, radius, offsets, *, m1: np.ndarray | None = None, colors: np.ndarray | None = None,
+              sides: int = SIDES) -> TubeMesh:
+    """One mesh of several rods' tubes: the nodes ``x`` (N, 3) of a chain split at ``offsets`` (R+1,) (each rod's
+    first node, then N; ``sim.Model.rod_node_offsets``), each rod its own capped tube (the edge joining two rods
+    is not drawn). ``radius``, ``m1`` and ``colors`` over the whole chain as for :func:`tube_mesh`; ``offsets``
+    None or of one rod: :func:`tube_mesh`."""
+    if offsets is None or len(offsets) <= 2:
+        return tube_mesh(x, radius, m1=m1, colors=colors, sides=sides)
+    parts = []
+    for a, b in zip(offsets[:-1], offsets[1:]):
+        a, b = int(a), int(b)
+        r = radius if np.ndim(radius) == 0 else np.asarray(radius)[a:b]
+        parts.append(tube_mesh(x[a:b], r, m1=None if m1 is None else m1[a:b - 1],
+                               colors=None if colors is None else colors[a:b], sides=sides))
+    base = np.cumsum([0] + [len(p.vertices) for p in parts[:-1]])
+    return TubeMesh(np.concatenate([p.vertices for p in parts]), np.concatenate([p.normals for p in parts]),
+                    np.concatenate([p.colors for p in parts]),
+                    np.concatenate([p.faces + np.uint32(o) for p, o in zip(parts, base)]).astype(np.uint32))
+
+
 def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
     s = np.asarray(c, np.float32) / 255.0
     return np.where(s <= 0.04045, s / 12.92, ((s + 0.055) / 1.055) ** 2.4).astype(np.float32)

@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 import trimesh
 
-from sim.boundary import node_index
+from sim.boundary import global_node, node_index
 from workbench.frame import quat_z_to
 
 KIND_NAMES = ("clamped", "pinned", "partial")
@@ -73,7 +73,11 @@ def boundary_of(model) -> Boundary:
     pos = fx if planar else fx[:, :3]  # 2-D: the x and z of the plane (its y is fixed for every node)
     names = "xz" if planar else "xyz"
     full = pos.all(axis=1)
-    twist = np.zeros(N - 1, dtype=bool) if planar else fx[:-1, 3]  # row N-1 of θ is no edge
+    twist = np.zeros(N - 1, dtype=bool) if planar else fx[:-1, 3].copy()  # row N-1 of θ is no edge
+    link = np.asarray(getattr(model, "edge_link", ()), dtype=bool)
+    if len(link) != N - 1:
+        link = np.ones(N - 1, dtype=bool)
+    twist &= link  # a joint edge between two rods has its twist fixed, but is no part of either rod
     locked = full[:-1] & full[1:] & (True if planar else twist)
     clamped = np.zeros(N, dtype=bool)
     clamped[:-1] |= locked
@@ -82,11 +86,13 @@ def boundary_of(model) -> Boundary:
     kind = np.where(clamped[nodes], 0, np.where(full[nodes], 1, 2)).astype(np.int64)
     axes = tuple("".join(c for c, f in zip(names, pos[i]) if f) for i in nodes)
     loads = tuple(getattr(getattr(model, "spec", None), "loads", ()) or ())
-    ln = np.array([node_index(ld.node, N) for ld in loads], dtype=np.int64)
+    spec = getattr(model, "spec", None)
+    ln = np.array([global_node(spec, ld.rod, ld.node) if hasattr(spec, "rods") else node_index(ld.node, N)
+                   for ld in loads], dtype=np.int64)
     lf = np.array([ld.force for ld in loads], dtype=np.float64).reshape(len(loads), 3)
     lt = np.array([ld.torque for ld in loads], dtype=np.float64)
     lw = np.asarray(model.load_window, dtype=np.float64).reshape(len(loads), 2)  # [start, stop), stop = inf if open
-    length = float(np.sum(model.rest_edge_length))
+    length = float(np.sum(np.asarray(model.rest_edge_length)[link]))
     size = max(GLYPH_RADII * float(model.radius), GLYPH_MIN * length)
     return Boundary(n_nodes=N, fixed_nodes=nodes, fixed_axes=axes, fixed_kind=kind,
                     twist_edges=np.flatnonzero(twist), load_nodes=ln, load_force=lf, load_torque=lt,

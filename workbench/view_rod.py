@@ -14,7 +14,7 @@ import numpy as np
 import trimesh
 
 from workbench.frame import Frame, quat_from_matrix
-from workbench.tube import SIDES, glb_bytes, tube_mesh
+from workbench.tube import SIDES, glb_bytes, rods_mesh, tube_mesh
 
 SWAP_DELAY = 0.08  # [s] a tube sent this long ago is shown even if no newer frame comes
 TRAIL_SECONDS = 2.0  # [s] of simulated time kept in the tip trail
@@ -102,15 +102,16 @@ class RodView:
         self.tip_frame = sc.add_frame(f"{name}/tip_frame", axes_length=0.1, axes_radius=0.006, visible=False)
 
     # ------------------------------------------------------------------ per scene
-    def set_scene(self, rest_nodes: np.ndarray | None, control_nodes, radius: float) -> None:
-        """The rest shape (N, 3) [m] (drawn as a faint tube) and the control nodes (marked on the rod)."""
+    def set_scene(self, rest_nodes: np.ndarray | None, control_nodes, radius: float, rod_offsets=None) -> None:
+        """The rest shape (N, 3) [m] (drawn as a faint tube, one per rod with ``rod_offsets``, see
+        :func:`workbench.tube.rods_mesh`) and the control nodes (marked on the rod)."""
         sc = self.server.scene
         if self.rest is not None:
             self.rest.remove()
             self.rest = None
         self.rest_nodes = None if rest_nodes is None else np.asarray(rest_nodes, np.float64)
         if self.rest_nodes is not None:
-            m = tube_mesh(self.rest_nodes, radius, sides=self.sides)
+            m = rods_mesh(self.rest_nodes, radius, rod_offsets, sides=self.sides)
             self.rest = sc.add_mesh_simple(f"{self._name}/rest", m.vertices, m.faces, color=(150, 150, 160),
                                            opacity=REST_OPACITY, cast_shadow=False, receive_shadow=False,
                                            visible=False)
@@ -138,7 +139,7 @@ class RodView:
         r = float(fr.rod_radius)
         m1 = fr.m1 if fr.m1 is not None and len(fr.m1) == len(x) - 1 else None
         nr = fr.node_radius if fr.node_radius is not None and len(fr.node_radius) == len(x) else r
-        mesh = tube_mesh(x, nr, m1=m1, colors=colors, sides=self.sides)
+        mesh = rods_mesh(x, nr, getattr(fr, "rod_offsets", None), m1=m1, colors=colors, sides=self.sides)
         self.last_mesh = mesh
         self.tube.put(glb_bytes(mesh))
         if self.rest is not None:

@@ -194,9 +194,10 @@ class SceneView:
             except (AssertionError, ValueError):  # the page has not reported its camera yet
                 continue
 
-    def set_rod_scene(self, rest_nodes, control_nodes, radius: float) -> None:
-        """Rest shape and control points of the live rod (``view_rod.scene_info``)."""
-        self.rod.set_scene(rest_nodes, control_nodes, radius)
+    def set_rod_scene(self, rest_nodes, control_nodes, radius: float, rod_offsets=None) -> None:
+        """Rest shape and control points of the live rod (``view_rod.scene_info``); ``rod_offsets``: where each
+        rod starts when the scene has several (``sim.Model.rod_node_offsets``)."""
+        self.rod.set_scene(rest_nodes, control_nodes, radius, rod_offsets)
 
     def set_boundary(self, b: Boundary | None) -> None:
         """Fixed nodes, fixed twists and point loads of the live scene (``view_boundary.boundary_of``)."""

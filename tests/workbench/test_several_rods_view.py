@@ -1,0 +1,78 @@
+"""Several rods in the workbench (docs/physics.md §1.7): each rod is its own tube (the edge joining two rods of the
+chain is not drawn), colours are per rod, the boundary glyphs leave the joint alone; and in a real browser the
+two-rod scene loads and draws two tubes."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim import build_model, load_scene
+from workbench.coloring import node_values
+from workbench.frame import Frame
+from workbench.tube import SIDES, rods_mesh, tube_mesh, vertex_count
+from workbench.view_boundary import boundary_of
+
+SCENES = Path(__file__).resolve().parents[2] / "assets" / "scenes"
+
+
+def _chain():
+    x = np.zeros((9, 3))
+    x[:5, 0] = np.linspace(0.0, 1.0, 5)
+    x[5:, 1] = 1.0
+    x[5:, 0] = np.linspace(0.0, 1.0, 4)
+    return x, np.array([0, 5, 9])
+
+
+def test_rods_mesh_is_one_capped_tube_per_rod():
+    x, off = _chain()
+    m = rods_mesh(x, 0.05, off)
+    a, b = tube_mesh(x[:5], 0.05), tube_mesh(x[5:], 0.05)
+    assert len(m.vertices) == vertex_count(5) + vertex_count(4)
+    np.testing.assert_array_equal(m.vertices, np.concatenate([a.vertices, b.vertices]))
+    split = vertex_count(5)
+    crosses = (m.faces < split).any(axis=1) & (m.faces >= split).any(axis=1)
+    assert not crosses.any()  # no triangle joins the two rods
+    one = rods_mesh(x[:5], 0.05, None)
+    np.testing.assert_array_equal(one.faces, a.faces)
+
+
+def test_node_colours_are_per_rod():
+    x, off = _chain()
+    fr = Frame(node_pos=x, rod_radius=0.05, rod_offsets=off)
+    v = node_values(fr, "curvature")
+    assert v.shape == (9,) and np.allclose(v, 0.0)  # two straight rods: the jump between them bends nothing
+
+
+def test_boundary_of_two_rods_names_loads_by_rod():
+    import dataclasses
+
+    from sim.boundary import LoadSpec
+
+    spec = load_scene(SCENES / "two_rods.toml")
+    spec = dataclasses.replace(spec, loads=(LoadSpec(rod="cross", node=-1, force=(0.0, 0.0, 1.0)),))
+    b = boundary_of(build_model(spec))
+    assert b.load_nodes.tolist() == [41]
+    assert len(b.twist_edges) == 0  # the joint edge's fixed twist is no boundary of either rod
+
+
+@pytest.mark.browser
+def test_two_rod_scene_loads_and_draws_two_tubes(wb_page):
+    from tools.browser import wait_for
+
+    app, page = wb_page
+    wb = app.wb
+    try:
+        wb.load_scene(SCENES / "two_rods.toml")
+        f = wb.frame_index
+        wait_for(lambda: wb.frame_index > f + 5, timeout=60, what="the two-rod scene to step")
+        app.request_render()
+        wait_for(lambda: app.view.rod.last_mesh is not None
+                 and len(app.view.rod.last_mesh.vertices) == 2 * vertex_count(21, SIDES),
+                 timeout=30, what="two tubes of 21 nodes")
+        assert wb.live.model.rod_names == ("base", "cross")
+        page.wait_for_timeout(300)
+        assert np.isfinite(app.view.rod.last_mesh.vertices).all()
+    finally:
+        wb.load_scene(SCENES / "default.toml")
