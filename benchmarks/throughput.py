@@ -12,6 +12,8 @@ Parts (``--parts``, default all):
   (benchmarks.throughput_contact, when the contact model is available); contact cost with no / far /
   near obstacles.
 * ``modes``   -- 2D mode against 3D on a planar command; early Newton exit against fixed iterations.
+* ``pairs``   -- self- and rod–rod contact (benchmarks.throughput_pairs): the self_contact switch with nothing
+  near (ratio), a rod resting on itself, two rods resting across each other.
 
 Every figure is the median of several repeats; the load average is stored with each one.
 """
@@ -26,7 +28,7 @@ import numpy as np
 from .common import base_parser, have_elastica, load, machine_info, pyplot, save_figure, write_json
 from .rodlab_runs import Solver, make_sim, scene_dict
 
-PARTS = ("tasks", "envs", "nodes", "obstacles", "modes")
+PARTS = ("tasks", "envs", "nodes", "obstacles", "modes", "pairs")
 ARM = dict(length=1.0, radius=0.05, density=1000.0, youngs=1e7, poisson=0.5)
 PAPER_SOLVER = Solver(tol=1e-3, max_iter=2)
 
@@ -167,6 +169,9 @@ def main(argv: list[str] | None = None) -> int:
             res["nodes"] = part_nodes(args.quick, repeats)
         elif part == "obstacles":
             res["obstacles"] = tt.part_obstacles(quick=args.quick, repeats=repeats)
+        elif part == "pairs":
+            from . import throughput_pairs as tp
+            res["pairs"] = tp.part_pairs(quick=args.quick, repeats=repeats)
         else:
             res["modes"] = part_modes(args.quick, repeats)
         write_json(args.out, name, res)

@@ -310,6 +310,18 @@ def _slot(wb_slot, wb_dof, wb_n, d):
     return s
 
 
+@njit(inline="always", **_OPT_CONTACT)
+def _gap(x, radius, i, j):
+    """Gap [m] of edges i and j at node positions x."""
+    a = _row(x, i)
+    b = _row(x, i + 1)
+    p = _row(x, j)
+    q = _row(x, j + 1)
+    s, t = closest_seg_seg(a, b, p, q)
+    u = vsub(vlerp(a, b, s), vlerp(p, q, t))
+    return math.sqrt(vdot(u, u)) - _radius(radius, i) - _radius(radius, j)
+
+
 @njit(**_OPT_CONTACT)
 def reset_coupling(wb_slot, wb_dof, wb_n, wb_M):
     """Empty the coupling list (before a Jacobian assembly)."""
@@ -333,11 +345,11 @@ def rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, dpn, fixed, radius, 
     for m in range(ncand[0]):
         i = pairs[cand[m], 0]
         j = pairs[cand[m], 1]
+        if _gap(x, radius, i, j) >= delta:  # the cheap test first: most candidates are not in touch
+            continue
         rs = _radius(radius, i) + _radius(radius, j)
         dd, s, t = seg_seg_derivs(_row(x, i), _row(x, i + 1), _row(x, j), _row(x, j + 1), g12, H12, nhat, ws)
         gap = dd - rs
-        if gap >= delta:
-            continue
         E, dE, d2E = imc_energy(gap, k, delta)
         energy += E
         cw = (1.0 - s, s, -(1.0 - t), -t)
@@ -418,18 +430,6 @@ def rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, dpn, fixed, radius, 
                         else:
                             wb_M[_slot(wb_slot, wb_dof, wb_n, r), _slot(wb_slot, wb_dof, wb_n, c)] += v
     return energy
-
-
-@njit(inline="always", **_OPT_CONTACT)
-def _gap(x, radius, i, j):
-    """Gap [m] of edges i and j at node positions x."""
-    a = _row(x, i)
-    b = _row(x, i + 1)
-    p = _row(x, j)
-    q = _row(x, j + 1)
-    s, t = closest_seg_seg(a, b, p, q)
-    u = vsub(vlerp(a, b, s), vlerp(p, q, t))
-    return math.sqrt(vdot(u, u)) - _radius(radius, i) - _radius(radius, j)
 
 
 @njit(**_OPT_CONTACT)
