@@ -12,7 +12,11 @@ metrics.csv, eval.csv) and groups the seeds of one task and setting (the directo
   std (DisMech -> DisMech), for the training and the evaluation curve, in hours and in env steps;
 * timing: median iteration time, env-step time and update time over the logged windows with updates;
 * the paper's figures beside them: Table II return, wall-clock to 5 M env steps (docs/tasks.md §8.5) and
-  the Follow Target iteration time of 122 ms (RTX 3090).
+  the Follow Target iteration time of 122 ms (RTX 3090);
+* with ``--iteration-ms TASK=MS``: the time to plateau the runs would take at MS per iteration (env steps to
+  plateau / envs × MS, plus the runs' evaluation share), for runs whose measured wall-clock is not the figure to
+  quote (trials sharing the machine with other work, or run with fewer threads than the quoted setting); the MS
+  comes from a measurement on a quiet machine (``rodlab bench train``), which the report names.
 
 Writes ``REPORT_DIR/fig2.png`` (Agg), ``report.md`` and ``report.json`` (default REPORT_DIR: SWEEP_DIR/report).
 """
@@ -124,7 +128,17 @@ def first_reach(xs: np.ndarray, mean: np.ndarray, level: float) -> float:
     return float(xs[hit[0]]) if hit.size else math.nan
 
 
-def summarize(runs: list[dict]) -> list[dict]:
+def projected_hours(env_steps: float | None, num_envs: int, iter_ms: float, eval_share: float | None) -> float | None:
+    """Hours to reach ``env_steps`` at ``iter_ms`` per iteration of ``num_envs`` env steps, the evaluations during
+    training adding their share of the wall-clock (``eval_share`` of the total: ×1/(1 − share))."""
+    if env_steps is None or not iter_ms or iter_ms <= 0:
+        return None
+    hours = env_steps / float(num_envs) * iter_ms / 3.6e6
+    share = eval_share or 0.0
+    return _num(hours / (1.0 - share)) if share < 1.0 else None
+
+
+def summarize(runs: list[dict], iteration_ms: dict[str, float] | None = None) -> list[dict]:
     groups: dict[str, list[dict]] = {}
     for r in runs:
         groups.setdefault(r["group"], []).append(r)
@@ -157,6 +171,12 @@ def summarize(runs: list[dict]) -> list[dict]:
         row["eval_share_of_wallclock"] = _num(float(np.mean(share))) if share else None
         row["env_steps_max"] = max(r["final_steps"] for r in rs)
         row["hours_max"] = max(r["final_hours"] for r in rs)
+        ims = (iteration_ms or {}).get(task)
+        if ims:
+            row["projected_iter_ms"] = float(ims)
+            for kind in ("train", "eval"):
+                row[f"{kind}_projected_hours_to_plateau"] = projected_hours(
+                    row.get(f"{kind}_env_steps_to_plateau"), row["num_envs"], ims, row["eval_share_of_wallclock"])
         out.append(row)
     return out
 
@@ -189,10 +209,22 @@ def markdown(rows: list[dict]) -> str:
             f"{_fmt(r.get('eval_final_mean'), '.2f', '—')} ± {_fmt(r.get('eval_final_std'), '.2f', '—')} | "
             f"{_fmt(r['iter_ms'], '.1f', '—')} | {_fmt(r['env_step_ms'], '.1f', '—')} | {_fmt(r['update_ms'], '.1f', '—')} | "
             f"{paper} | {_fmt(r['paper_wallclock_h'], '.2f', '—')} | {_fmt(r['paper_iter_ms'], '.0f', '—')} |")
+    proj = [r for r in rows if r.get("projected_iter_ms")]
+    if proj:
+        lines += ["", "| task / setting | iteration [ms] (given) | time to plateau at that rate, training [h] | "
+                  "time to plateau at that rate, eval [h] | paper: wall-clock to 5 M steps [h] |", "|---|---|---|---|---|"]
+        for r in proj:
+            lines.append(f"| {r['group']} | {r['projected_iter_ms']:.0f} | "
+                         f"{_fmt(r.get('train_projected_hours_to_plateau'), '.3f')} | "
+                         f"{_fmt(r.get('eval_projected_hours_to_plateau'), '.3f')} | "
+                         f"{_fmt(r['paper_wallclock_h'], '.2f', '—')} |")
     lines += ["", "Time to plateau: first point at which the seed-mean curve reaches the paper's Table II value "
               "minus its std (DisMech -> DisMech); 'not reached' within the runs. Training curve: stochastic policy, "
               "episodes finished in each log window; eval curve: deterministic policy on fixed seeds. Wall-clock "
-              "includes the evaluations during training (their share: report.json eval_share_of_wallclock). Paper wall-clock: docs/tasks.md §8.5."]
+              "includes the evaluations during training (their share: report.json eval_share_of_wallclock). Paper wall-clock: docs/tasks.md §8.5."
+              + (" 'At that rate': env steps to plateau / envs x the given iteration time, divided by (1 - the runs' "
+                 "evaluation share): the wall-clock of these learning curves at a measured quiet-machine "
+                 "iteration time." if proj else "")]
     return "\n".join(lines) + "\n"
 
 
@@ -234,7 +266,8 @@ def plot(rows: list[dict], out_png: Path) -> Path:
     return out_png
 
 
-def report(sweep_dir: str | Path, out_dir: str | Path | None = None) -> dict:
+def report(sweep_dir: str | Path, out_dir: str | Path | None = None,
+           iteration_ms: dict[str, float] | None = None) -> dict:
     from sim.atomicio import write_bytes
 
     sweep_dir = Path(sweep_dir)
@@ -243,7 +276,7 @@ def report(sweep_dir: str | Path, out_dir: str | Path | None = None) -> dict:
     runs = [load_run(p) for p in find_runs(sweep_dir)]
     if not runs:
         raise ReportError(f"no run directories (with config.json) in {sweep_dir}")
-    rows = summarize(runs)
+    rows = summarize(runs, iteration_ms)
     out = Path(out_dir) if out_dir else sweep_dir / "report"
     out.mkdir(parents=True, exist_ok=True)
     png = plot(rows, out / "fig2.png")
@@ -259,9 +292,22 @@ def main(argv: list[str] | None = None) -> int:
                                 "against env steps and wall-clock) and time-to-plateau table of a sweep.")
     p.add_argument("sweep_dir", help="sweep directory (rodlab sweep --out) or one run directory")
     p.add_argument("--out", default=None, help="output directory (default SWEEP_DIR/report)")
+    p.add_argument("--iteration-ms", action="append", default=[], metavar="TASK=MS",
+                   help="also give the time to plateau at MS ms per iteration for TASK (a quiet-machine "
+                        "measurement, e.g. rodlab bench train); repeatable")
     a = p.parse_args(argv)
     try:
-        res = report(a.sweep_dir, a.out)
+        ims = {}
+        for item in a.iteration_ms:
+            task, sep, val = item.partition("=")
+            try:
+                ms = float(val)
+            except ValueError:
+                ms = float("nan")
+            if not sep or not task or not math.isfinite(ms) or ms <= 0:
+                raise ReportError(f"--iteration-ms {item!r}: expected TASK=MS with MS a positive number")
+            ims[task] = ms
+        res = report(a.sweep_dir, a.out, ims)
     except ReportError as exc:
         print(f"rodlab report: {exc}", file=sys.stderr)
         return 2

@@ -70,6 +70,19 @@ def test_report_on_fake_sweep(tmp_path):
     assert json.loads(Path(res["json"]).read_text())["groups"][0]["group"] == "follow_target"
 
 
+def test_report_projects_time_to_plateau_at_a_given_iteration_time(tmp_path):
+    root = tmp_path / "sweep"
+    for seed, scale in enumerate((150.0, 200.0, 250.0)):
+        _fake_run(root, "follow_target", seed, rate=1000.0, scale=scale)
+    res = report(root, iteration_ms={"follow_target": 160.0})
+    ft = res["groups"][0]
+    steps = ft["train_env_steps_to_plateau"]
+    # eval.csv's eval_s_total is 0 in the fake runs: no evaluation share
+    assert ft["train_projected_hours_to_plateau"] == pytest.approx(steps / 500 * 0.160 / 3600, rel=1e-5)  # rounded to 1e-6 h
+    assert "| follow_target | 160 |" in res["table"]
+    assert main([str(root), "--iteration-ms", "follow_target=fast"]) == 2
+
+
 def test_report_errors(tmp_path, capsys):
     with pytest.raises(ReportError, match="no run directories"):
         report(tmp_path)
