@@ -8,7 +8,7 @@ import numpy as np
 from numba import njit, prange
 
 from .contact_kernels import contact_accumulate, contact_broadphase, contact_report
-from .contact_rod import rod_pairs_broadphase, rod_pairs_energy
+from .contact_rod import rod_pairs_broadphase, rod_pairs_energy, rod_pairs_min_gap
 from .newton import _energies, _positions, _predicted_positions, substep
 from .solve_2d import KL_2D, frames_from_2d
 from .solve_3d import KL_3D
@@ -165,6 +165,13 @@ def _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
                        prm.friction_nu, prm.friction_on > 0, crep.count, crep.edge, crep.obstacle, crep.rod_point,
                        crep.obstacle_point, crep.normal, crep.normal_force, crep.friction_force, crep.gap,
                        crep.max_penetration, rod.link)
+    if prm.rod_pairs > 0:  # the deepest edge pair too (the candidates of the state kept, listed above)
+        pen = 0.0
+        if w.rp_n[0] > 0:
+            pen = max(0.0, -rod_pairs_min_gap(rod.pairs, w.rp_cand, w.rp_n, pos, rod.radius))
+        if prm.n_obstacles > 0:
+            pen = max(pen, crep.max_penetration[e])
+        crep.max_penetration[e] = pen
 
 
 @njit(**_OPT)

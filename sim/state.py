@@ -105,8 +105,9 @@ class StepStats:
 
     newton_iters (B,) int (total over sub-steps), residual (B,) last evaluated ‖f‖ [mixed N, N·m],
     residual0 (B,) first ‖f‖ of the step, converged (B,) bool, substeps (B,) int (1 = no retry),
-    failed (B,) bool (failed in this step), energy_* (B,) [J] at the end of the step, max_penetration (B,) [m],
-    contact_* rows (see docs/architecture.md).
+    failed (B,) bool (failed in this step), energy_* (B,) [J] at the end of the step, max_penetration (B,) [m]
+    (the deepest obstacle contact or edge pair), contact_* rows of the obstacle contacts (see docs/architecture.md;
+    edge pairs are not listed there: their energy is in energy_contact).
     """
 
     newton_iters: np.ndarray

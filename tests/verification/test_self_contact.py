@@ -82,6 +82,7 @@ def test_curled_rod_touches_itself_and_does_not_pass_through(mode):
     assert gaps.min() > -2 * DELTA            # never deeper than the contact's smoothing scale
     assert gaps[-1] < DELTA                   # ... and it does touch: the loop is closed on itself
     assert stats.energy_contact[0] > 0.0
+    assert stats.max_penetration[0] == pytest.approx(max(0.0, -gaps[-1]), abs=1e-12)  # the deepest pair's, reported
 
 
 def test_curled_rod_passes_through_itself_without_self_contact():
