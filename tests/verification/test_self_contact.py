@@ -88,3 +88,22 @@ def test_curled_rod_touches_itself_and_does_not_pass_through(mode):
 def test_curled_rod_passes_through_itself_without_self_contact():
     gaps, failed, _, _ = curl("3d", False)
     assert gaps.min() < -RADIUS               # the centre lines came closer than one radius: interpenetration
+
+
+def test_batched_envs_match_envs_alone_bit_for_bit():
+    """Envs share a thread's work space (candidate list, coupling list): a batch gives each env's bits alone."""
+    m = _model("3d", True)
+    turns = np.array([0.6, 1.25, 1.1])
+
+    def run(idx):
+        sim = Simulator(m, envs=len(idx))
+        st = sim.reset()
+        ctrl = sim.make_control()
+        for k in range(300):
+            ctrl.kappa_bar[:, 1:-1, 0] = (min(1.0, (k + 1) / 150) * 2 * np.pi * turns[idx] / (m.node_count - 2))[:, None]
+            sim.step(st, ctrl)
+        return st.node_pos
+
+    together = run(np.arange(3))
+    for e in range(3):
+        np.testing.assert_array_equal(together[e], run(np.array([e]))[0])
