@@ -62,6 +62,8 @@ def train_main(argv: list[str]) -> int:
                    help="stop (checkpoint + policy) after MIN minutes of wall-clock in this session")
     p.add_argument("--no-replay-checkpoint", action="store_true", help="do not save the replay buffer")
     p.add_argument("--threads", type=int, default=d.torch_threads, help="torch threads")
+    p.add_argument("--bf16", action="store_true",
+                   help="gradient updates under bfloat16 autocast (faster on CPUs with AVX-512 BF16; BENCHMARKS.md §6)")
     p.add_argument("--log-interval", type=float, default=d.log_interval_s, help="seconds between log lines")
     a = p.parse_args(argv)
     if a.resume and not a.run_dir:
@@ -88,7 +90,7 @@ def train_main(argv: list[str]) -> int:
                 log_interval_s=a.log_interval, time_limit_minutes=a.time_limit, init_from=a.init_from,
                 init_ent_coef=a.init_ent_coef, first_checkpoint_minutes=a.first_checkpoint_minutes,
                 eval_minutes=a.eval_minutes, eval_every_steps=a.eval_every_steps, eval_episodes=a.eval_episodes,
-                eval_stochastic=a.eval_stochastic)
+                eval_stochastic=a.eval_stochastic, bf16=a.bf16)
     if a.resume:
         cfg = os.path.join(a.run_dir, "config.json")
         try:

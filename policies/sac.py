@@ -109,6 +109,7 @@ class RodSAC(SAC):
         self.entropy_in_target = entropy_in_target
         self.adam_eps = adam_eps
         self.last_update_time = 0.0
+        self.bf16_updates = False  # the gradient updates under bfloat16 autocast (policies/train.py Args.bf16)
         super().__init__(*args, **kwargs)
 
     def _setup_model(self) -> None:
@@ -139,6 +140,16 @@ class RodSAC(SAC):
 
         stats: dict[str, list[float]] = {"actor_loss": [], "critic_loss": [], "ent_coef": [], "ent_coef_loss": [],
                                          "log_prob": [], "q_mean": []}
+        with th.autocast("cpu", dtype=th.bfloat16, enabled=bool(getattr(self, "bf16_updates", False))):
+            self._updates(gradient_steps, batch_size, stats)
+        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+        for key, vals in stats.items():
+            if vals:
+                self.logger.record(f"train/{key}", float(np.mean(vals)))
+        self.last_update_time = time.perf_counter() - t0
+
+    def _updates(self, gradient_steps: int, batch_size: int, stats: dict[str, list[float]]) -> None:
+        """``gradient_steps`` SAC updates (temperature, critics, actor, target), their statistics into ``stats``."""
         for _ in range(gradient_steps):
             data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
             actions_pi, log_prob = self.actor.action_log_prob(data.observations)
@@ -185,12 +196,6 @@ class RodSAC(SAC):
             if self._n_updates % self.target_update_interval == 0:
                 polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
                 polyak_update(self.batch_norm_stats, self.batch_norm_stats_target, 1.0)
-
-        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
-        for key, vals in stats.items():
-            if vals:
-                self.logger.record(f"train/{key}", float(np.mean(vals)))
-        self.last_update_time = time.perf_counter() - t0
 
 
 # --------------------------------------------------------------------------------------- policy files

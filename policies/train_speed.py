@@ -1,7 +1,9 @@
 """Settings that may make the SAC updates faster on a CPU, for ``rodlab bench train`` to try one at a time.
 
 Nothing here is used by ``rodlab train`` by default; each setting must first be measured on a quiet machine
-(iteration time) and checked to keep the learning curve (docs/training.md). Settings:
+(iteration time) and checked to keep the learning curve (docs/training.md). ``bf16`` is also a training setting
+(``rodlab train --bf16``, ``Args.bf16``; a sweep compares it with float32 on the same seeds:
+``rodlab sweep follow_target --seeds 0,1,2 --set bf16=false,true``). Settings:
 
 * ``compile``: ``torch.compile`` of the actor trunk and of each critic MLP (the modules that do the work;
   SB3's own methods around them stay eager). Needs a C++ compiler for the CPU inductor back-end.
