@@ -3,14 +3,15 @@
 The ghost steps with whatever the page draws: each drawn frame (a replayed episode or the live session) has a
 simulated time, and the ghost shows its own frame nearest to that time (its last frame once it has ended), so two
 recordings play together on one timeline and a live policy runs beside a recorded episode of the same task.
-Vectorised: one batched mesh for the ghost's segments, one for its joints, one marker for its target.
+Vectorised: one batched mesh for the ghost's segments, one for its joints, one marker for its target. A recording of
+several rods (its ``scene.rod_node_offsets``) draws no segment on the edges joining two rods.
 """
 from __future__ import annotations
 
 import numpy as np
 import trimesh
 
-from workbench.frame import quat_z_to
+from workbench.frame import quat_z_to, rod_edges, several_rods
 
 GHOST_COLOR = np.array([30, 90, 255], dtype=np.uint8)
 GHOST_OPACITY = 0.45
@@ -38,6 +39,15 @@ class Ghost:
     def positions(self, i: int) -> np.ndarray:
         return np.asarray(self.ep.positions[i], np.float64)
 
+    @property
+    def rod_offsets(self) -> np.ndarray | None:
+        """Where each rod's nodes start (then N) in a recording of several rods, else None."""
+        return getattr(getattr(self.ep, "scene", None), "rod_node_offsets", None)
+
+    def edges(self) -> np.ndarray:
+        """(E,) the edges drawn as segments: every edge of a rod, none joining two rods."""
+        return rod_edges(self.positions(0).shape[0], self.rod_offsets)
+
     def target(self, i: int) -> np.ndarray | None:
         tp = self.ep.target_pos
         if tp is None or not np.all(np.isfinite(tp[i])):
@@ -51,14 +61,16 @@ class GhostView:
     def __init__(self, server, ghost: Ghost):
         self.server, self.g = server, ghost
         n = ghost.positions(0).shape[0]
+        self.edges = ghost.edges()
+        ne = len(self.edges)
         cyl = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=12)
         sph = trimesh.creation.icosphere(subdivisions=1, radius=1.0)
         self.radius = float(getattr(ghost.ep.scene, "rod_radius", 0.02) or 0.02)
         sc = server.scene
         self.rod = sc.add_batched_meshes_simple(
-            f"{ROOT}/edges", cyl.vertices, cyl.faces, batched_wxyzs=np.tile([1.0, 0, 0, 0], (n - 1, 1)),
-            batched_positions=np.zeros((n - 1, 3)), batched_scales=np.full((n - 1, 3), 1e-3),
-            batched_colors=np.tile(GHOST_COLOR, (n - 1, 1)), opacity=GHOST_OPACITY, lod="off", cast_shadow=False)
+            f"{ROOT}/edges", cyl.vertices, cyl.faces, batched_wxyzs=np.tile([1.0, 0, 0, 0], (ne, 1)),
+            batched_positions=np.zeros((ne, 3)), batched_scales=np.full((ne, 3), 1e-3),
+            batched_colors=np.tile(GHOST_COLOR, (ne, 1)), opacity=GHOST_OPACITY, lod="off", cast_shadow=False)
         self.joints = sc.add_batched_meshes_simple(
             f"{ROOT}/nodes", sph.vertices, sph.faces, batched_wxyzs=np.tile([1.0, 0, 0, 0], (n, 1)),
             batched_positions=np.zeros((n, 3)), batched_scales=np.full(n, 1e-3),
@@ -73,12 +85,13 @@ class GhostView:
             return
         self.g.index = self.shown = i
         x = self.g.positions(i)
-        e = np.diff(x, axis=0)
+        k = self.edges
+        e = x[k + 1] - x[k]
         length = np.linalg.norm(e, axis=1)
         r = self.radius
         tg = self.g.target(i)
         with self.server.atomic():
-            self.rod.batched_positions = 0.5 * (x[:-1] + x[1:])
+            self.rod.batched_positions = 0.5 * (x[k] + x[k + 1])
             self.rod.batched_wxyzs = quat_z_to(e / np.maximum(length, 1e-12)[:, None])
             self.rod.batched_scales = np.stack([np.full_like(length, r), np.full_like(length, r), length], 1)
             self.joints.batched_positions = x
@@ -97,11 +110,12 @@ class PolicyEpisode:
     """One episode of a task run headless under a policy, every sim step kept (what :class:`Ghost` needs of an
     ``EpisodeData``: ``positions``, ``sim_time``, ``target_pos``, ``scene.rod_radius``)."""
 
-    def __init__(self, positions, sim_time, target_pos, rod_radius: float, meta: dict):
+    def __init__(self, positions, sim_time, target_pos, rod_radius: float, meta: dict, rod_node_offsets=None):
         self.positions = np.asarray(positions, np.float64)
         self.sim_time = np.asarray(sim_time, np.float64)
         self.target_pos = None if target_pos is None else np.asarray(target_pos, np.float64)
-        self.scene = type("Scene", (), {"rod_radius": float(rod_radius)})()
+        self.scene = type("Scene", (), {"rod_radius": float(rod_radius),
+                                        "rod_node_offsets": several_rods(rod_node_offsets)})()
         self.meta = meta
 
 
@@ -128,4 +142,5 @@ def policy_episode(task: str, policy: str, *, seed: int = 0, max_sim_steps: int 
             break
     pos, t, tg = zip(*frames)
     return PolicyEpisode(np.stack(pos), np.array(t), None if tg[0] is None else np.stack(tg),
-                         float(core.model.radius), {"task": s.task, "policy": s.name})
+                         float(core.model.radius), {"task": s.task, "policy": s.name},
+                         getattr(core.model, "rod_node_offsets", None))

@@ -337,7 +337,8 @@ class Workbench:
                     "scene": str(self.scene_path or ""), "source": "workbench"}
             self.recorder = SessionRecorder(path, meta=meta, obstacles=lambda: self.obstacles,
                                             rod_radius=self.live.rod_radius,
-                                            planar=getattr(self.live.model, "mode", "3d") == "2d")
+                                            planar=getattr(self.live.model, "mode", "3d") == "2d",
+                                            rod_names=lambda: getattr(self.live.model, "rod_names", ()))
             return self.recorder.path
 
     def stop_recording(self) -> Path | None:

@@ -30,7 +30,7 @@ from sim import atomicio
 
 from .export_page import PAGE
 
-__all__ = ["ExportError", "load_episode", "pack_episode", "episode_html", "unpack_html", "export_html",
+__all__ = ["ExportError", "load_episode", "rod_offsets", "pack_episode", "episode_html", "unpack_html", "export_html",
            "export_to_folder", "main"]
 
 DEFAULT_MAX_FRAMES = 5000
@@ -107,9 +107,17 @@ def frame_indices(n_frames: int, max_frames: int) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, n_frames - 1, max_frames)).astype(np.int64))
 
 
+def rod_offsets(ep: EpisodeData) -> list[int]:
+    """Where each rod's nodes start in the episode's centreline, then N (``[0, N]``: one rod, also for a
+    recording that stores no rod layout); the edge from one rod's last node to the next rod's first is not drawn."""
+    off = getattr(ep.scene, "rod_node_offsets", None)
+    n = int(np.asarray(ep.positions).shape[1])
+    return [0, n] if off is None else [int(k) for k in off]
+
+
 def pack_episode(ep: EpisodeData, *, max_frames: int = DEFAULT_MAX_FRAMES, title: str = "") -> dict[str, Any]:
     """The JSON payload of an export: float32 positions (S, N, 3) in base64, times, target, a few scalar
-    series and the static obstacles."""
+    series, the static obstacles and the rod layout (``rod_offsets``, :func:`rod_offsets`)."""
     pos = np.asarray(ep.positions, np.float32)
     if pos.ndim != 3 or pos.shape[2] != 3 or pos.shape[0] == 0:
         raise ExportError(f"episode positions have shape {pos.shape}, expected (frames, nodes, 3)")
@@ -134,6 +142,7 @@ def pack_episode(ep: EpisodeData, *, max_frames: int = DEFAULT_MAX_FRAMES, title
         "target": None if tg is None else _b64(tg),
         "series": series,
         "rod_radius": float(ep.scene.rod_radius), "planar": bool(ep.scene.planar),
+        "rod_offsets": rod_offsets(ep),
         "obstacles": _obstacles(ep.scene),
     }
 

@@ -13,7 +13,7 @@ import numpy as np
 from policies.recording.schema import EpisodeData
 from sim import atomicio
 
-from .export import ExportError, _check_out, _mesh_edges, _obstacles
+from .export import ExportError, _check_out, _mesh_edges, _obstacles, rod_offsets
 
 __all__ = ["export_png", "export_gif", "render_frame"]
 
@@ -95,7 +95,10 @@ def _figure(ep: EpisodeData, frame: int, width: int, height: int) -> Any:
     ax.plot(*xy(tip), color=(0.9, 0.55, 0.12, 0.6), lw=1.2)
     rx, ry = xy(pos[frame])
     n = len(rx)
+    joints = {int(j) - 1 for j in rod_offsets(ep)[1:-1]}  # edges joining two rods: not drawn
     for k in range(n - 1):
+        if k in joints:
+            continue
         t = k / max(1, n - 2)
         col = tuple((np.array([24, 54, 140]) + t * (np.array([60, 190, 210]) - np.array([24, 54, 140]))) / 255)
         ax.plot(rx[k:k + 2], ry[k:k + 2], color=col, lw=max(3.0, 2 * sc.rod_radius * pts_per_m),

@@ -51,6 +51,8 @@ function f32(b64) {
   return new Float32Array(u.buffer);
 }
 const S = D.n_frames, N = D.n_nodes, P = f32(D.positions), T = D.time, TG = f32(D.target);
+// several rods: the edge from one rod's last node to the next rod's first joins them and is not drawn
+const ROD0 = new Set((D.rod_offsets || [0, N]).slice(1, -1));
 const OB = D.obstacles, MESH = (OB.meshes || []).map(m => ({v: f32(m.v), e: m.e}));
 const cv = document.getElementById("cv"), ctx = cv.getContext("2d");
 const slider = document.getElementById("frame"), playBtn = document.getElementById("play");
@@ -149,7 +151,7 @@ function draw() {
   ctx.lineCap = "round";
   const pts = [];
   for (let n = 0; n < N; n++) pts.push(proj(P[base + 3 * n], P[base + 3 * n + 1], P[base + 3 * n + 2]));
-  for (let n = 0; n + 1 < N; n++) line(pts[n], pts[n + 1], w, rodColor(n / Math.max(1, N - 2)));
+  for (let n = 0; n + 1 < N; n++) if (!ROD0.has(n + 1)) line(pts[n], pts[n + 1], w, rodColor(n / Math.max(1, N - 2)));
   ctx.fillStyle = "#111"; ctx.fillRect(pts[0][0] - 4 * dpr, pts[0][1] - 4 * dpr, 8 * dpr, 8 * dpr);
   if (TG) {
     const i = 3 * frame;

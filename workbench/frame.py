@@ -79,9 +79,38 @@ def rpy_deg_from_quat(wxyz) -> np.ndarray:
     return np.degrees(np.array([roll, pitch, yaw]))
 
 
-def integrated_curvature(node_pos: np.ndarray) -> np.ndarray:
-    """|κb_i| = 2 tan(φ_i/2) at every node (ends 0). node_pos (..., N, 3) -> (..., N)."""
-    return np.linalg.norm(curvature_binormal(node_pos), axis=-1)
+def integrated_curvature(node_pos: np.ndarray, rod_offsets=None) -> np.ndarray:
+    """|κb_i| = 2 tan(φ_i/2) at every node (ends 0). node_pos (..., N, 3) -> (..., N). With ``rod_offsets`` (several
+    rods, see :class:`Frame`) each rod's end nodes are 0 too: the edge joining two rods bends nothing."""
+    k = np.linalg.norm(curvature_binormal(node_pos), axis=-1)
+    inner = np.asarray(rod_offsets if rod_offsets is not None else (), np.int64)[1:-1]
+    if len(inner):
+        k[..., inner - 1] = 0.0
+        k[..., inner] = 0.0
+    return k
+
+
+def several_rods(rod_offsets) -> np.ndarray | None:
+    """``rod_offsets`` as int64 when they split the nodes into several rods, else None (one rod: drawn whole)."""
+    if rod_offsets is None:
+        return None
+    off = np.asarray(rod_offsets, np.int64)
+    return off if len(off) > 2 else None
+
+
+def joint_edges(rod_offsets) -> np.ndarray:
+    """(R-1,) indices of the edges that join two rods (from a rod's last node to the next rod's first; no part of
+    either rod), for ``rod_offsets`` (R+1,) or None (one rod: none)."""
+    off = several_rods(rod_offsets)
+    return np.zeros(0, np.int64) if off is None else off[1:-1] - 1
+
+
+def rod_edges(n_nodes: int, rod_offsets=None) -> np.ndarray:
+    """(E,) indices of the edges that belong to a rod (all N-1 but the joint edges)."""
+    keep = np.ones(max(int(n_nodes) - 1, 0), dtype=bool)
+    j = joint_edges(rod_offsets)
+    keep[j[(j >= 0) & (j < len(keep))]] = False
+    return np.flatnonzero(keep)
 
 
 def edge_strain(node_pos: np.ndarray, rest_length: np.ndarray) -> np.ndarray:

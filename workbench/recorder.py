@@ -20,8 +20,10 @@ SCALAR_NAMES = {"reward": "reward", "tip_error": "tip_error", "ori_error": "ori_
                 "contact_force": "contact/max_normal_force", "max_penetration": "contact/max_penetration"}
 
 
-def static_scene(edits: list[ObstacleEdit], rod_radius: float, *, planar: bool = False):
-    """``StaticScene`` (world frame) of the workbench obstacles."""
+def static_scene(edits: list[ObstacleEdit], rod_radius: float, *, planar: bool = False, rod_offsets=None,
+                 rod_names=()):
+    """``StaticScene`` (world frame) of the workbench obstacles; ``rod_offsets`` (R+1,) and ``rod_names`` (R,): the
+    layout of a scene of several rods (None: one rod)."""
     from policies.recording.schema import StaticScene
 
     caps, crad, sc, sr, bc, bh, bq, meshes = [], [], [], [], [], [], [], []
@@ -48,7 +50,9 @@ def static_scene(edits: list[ObstacleEdit], rod_radius: float, *, planar: bool =
     return StaticScene(rod_radius=rod_radius, capsules=arr(caps, (-1, 2, 3)), capsule_radii=arr(crad, (-1,)),
                        sphere_centers=arr(sc, (-1, 3)), sphere_radii=arr(sr, (-1,)),
                        box_centers=arr(bc, (-1, 3)), box_half_sizes=arr(bh, (-1, 3)), box_quats=arr(bq, (-1, 4)),
-                       meshes=tuple(meshes), planar=planar)
+                       meshes=tuple(meshes), planar=planar,
+                       rod_node_offsets=None if rod_offsets is None else np.asarray(rod_offsets, np.int64),
+                       rod_names=tuple(rod_names) if rod_offsets is not None else ())
 
 
 class SessionRecorder:
@@ -59,9 +63,12 @@ class SessionRecorder:
         meta: episode metadata (task, policy, scene, ...).
         obstacles: callable returning the current obstacle list (for each episode's static scene).
         planar: a 2-D rod (the episode is marked planar and its one in-plane natural curvature is logged).
+        rod_names: callable returning the names of the scene's rods; an episode of several rods (the frames'
+            ``rod_offsets``) stores its layout with them, and a frame of another layout starts a new episode.
     """
 
-    def __init__(self, path: str | Path, *, meta: dict, obstacles, rod_radius: float, planar: bool = False):
+    def __init__(self, path: str | Path, *, meta: dict, obstacles, rod_radius: float, planar: bool = False,
+                 rod_names=None):
         from policies.recording import Recorder
 
         self.path = Path(path)
@@ -74,6 +81,8 @@ class SessionRecorder:
         self._t_last = -np.inf
         self._step = 0
         self._open = False
+        self._rod_names = rod_names
+        self._layout: tuple[int, ...] | None = None  # the open episode's rod offsets (None: one rod)
 
     @staticmethod
     def default_path(root: str | Path) -> Path:
@@ -86,12 +95,18 @@ class SessionRecorder:
             self._open = False
 
     def log(self, fr: Frame) -> None:
-        if self._open and fr.time < self._t_last:
+        off = getattr(fr, "rod_offsets", None)
+        layout = None if off is None or len(off) <= 2 else tuple(int(k) for k in off)
+        if self._open and (fr.time < self._t_last or layout != self._layout):
             self.new_episode()
         if not self._open:
-            self.rec.begin_episode(self.meta, static_scene(self._obstacles(), self.rod_radius,
-                                                             planar=self.planar))
+            names = tuple(self._rod_names()) if layout is not None and self._rod_names is not None else ()
+            if layout is not None and len(names) != len(layout) - 1:
+                names = ()
+            self.rec.begin_episode(self.meta, static_scene(self._obstacles(), self.rod_radius, planar=self.planar,
+                                                             rod_offsets=layout, rod_names=names))
             self._open = True
+            self._layout = layout
             self._step = 0
         kw = {}
         if fr.m1 is not None and fr.m2 is not None:

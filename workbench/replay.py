@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.frame import Frame, edge_strain, integrated_curvature, quat_z_to
+from workbench.frame import Frame, edge_strain, integrated_curvature, quat_z_to, several_rods
 from workbench.obstacles import ObstacleEdit
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -87,6 +87,8 @@ class ReplaySession:
         x0 = np.asarray(self.ep.positions[0], dtype=np.float64)
         self._rest = np.maximum(np.linalg.norm(np.diff(x0, axis=0), axis=1), 1e-9)
         self.obstacles = obstacles_of(self.ep.scene)
+        # several rods: each drawn as its own tube (an older recording has no layout: one rod)
+        self.rod_offsets = several_rods(getattr(self.ep.scene, "rod_node_offsets", None))
 
     @property
     def length(self) -> int:
@@ -146,7 +148,9 @@ class ReplaySession:
         for name, v in ep.scalars.items():
             if name.startswith("reward_terms/") and np.isfinite(v[i]):
                 scalars[name.replace("reward_terms/", "r_")] = float(v[i])
+        off = self.rod_offsets
         return Frame(node_pos=x, rod_radius=float(ep.scene.rod_radius), m1=unit(ep.m1), m2=unit(ep.m2),
-                     node_curvature=integrated_curvature(x), edge_strain=edge_strain(x, self._rest),
+                     node_curvature=integrated_curvature(x, off), edge_strain=edge_strain(x, self._rest),
                      contact_points=cp, contact_forces=cf, targets=targets, target_wxyz=twxyz,
-                     time=float(ep.sim_time[i]), scalars=scalars)
+                     time=float(ep.sim_time[i]), scalars=scalars,
+                     rod_offsets=None if off is None else off.copy())

@@ -191,10 +191,7 @@ class LiveSim:
         sc = {**self.step_scalars(), **(scalars or {})}
         kb = getattr(self.ctrl, "kappa_bar", None)
         off = self.rod_offsets
-        curv = integrated_curvature(x)
-        if off is not None:  # each rod's end nodes bend nothing (the edge joining two rods is no part of either)
-            curv[off[1:-1] - 1] = 0.0
-            curv[off[1:-1]] = 0.0
+        curv = integrated_curvature(x, off)  # each rod's end nodes bend nothing (the joint edge is no rod's)
         return Frame(node_pos=x.copy(), rod_radius=self.rod_radius, node_radius=self.node_radius, m1=m1, m2=m2,
                      kappa_bar=None if kb is None else np.asarray(kb[0], dtype=np.float64).copy(),
                      node_curvature=curv, edge_strain=edge_strain(x, self.rest_length),

@@ -13,7 +13,7 @@ import trimesh
 import viser
 
 from workbench import coloring
-from workbench.frame import Frame, quat_from_matrix
+from workbench.frame import Frame, quat_from_matrix, rod_edges
 from workbench.obstacles import ObstacleEdit, mesh_for_edit
 from workbench.view_boundary import Boundary, BoundaryView
 from workbench.view_rod import RodView
@@ -44,6 +44,19 @@ def arrow_vectors(forces: np.ndarray, mode: str, scale: float) -> np.ndarray:
     else:
         length = ARROW_MAX * np.log1p(mag / ARROW_F0) / np.log1p(top / ARROW_F0)
     return unit * length[:, None]
+
+
+def material_frame_poses(x: np.ndarray, m1: np.ndarray, m2: np.ndarray, rod_offsets=None) -> tuple[np.ndarray, np.ndarray]:
+    """(edge midpoints (E, 3), wxyz (E, 4) of the frames (m1, m2, t)) of the material-frame overlay at node positions
+    x (N, 3): one per edge of a rod; with ``rod_offsets`` (several rods) none on the edges joining two rods."""
+    x = np.asarray(x, np.float64)
+    k = rod_edges(len(x), rod_offsets)
+    e = x[k + 1] - x[k]
+    t = e / np.maximum(np.linalg.norm(e, axis=1), 1e-12)[:, None]
+    R = np.stack([np.asarray(m1, np.float64)[k], np.asarray(m2, np.float64)[k], t], axis=-1)
+    return 0.5 * (x[k] + x[k + 1]), quat_from_matrix(R)
+
+
 LOOK_AT = (0.1, 0.0, 0.45)
 #: camera presets (position, look-at) [m]; "front" faces the x-z plane of the 2-D tasks
 CAMERAS = {"front": ((0.1, -2.2, 0.45), LOOK_AT), "side": ((2.2, 0.0, 0.45), LOOK_AT),
@@ -114,9 +127,6 @@ class SceneView:
         """Push one frame (all node updates in one atomic message batch); ``boundary``: the frame is of the live
         scene, whose fixes and loads are drawn (when their overlay is on)."""
         x = fr.node_pos
-        e = np.diff(x, axis=0)
-        length = np.linalg.norm(e, axis=1)
-        t = e / np.maximum(length, 1e-12)[:, None]
         ov = self.overlays
         vals = coloring.node_values(fr, ov.color_by)
         if vals is not None:
@@ -131,9 +141,9 @@ class SceneView:
             self.boundary.render(x, fr.time, ov.boundary and boundary,
                                  lambda f: arrow_vectors(f, ov.arrows, ov.force_scale))
             if ov.frames and fr.m1 is not None and fr.m2 is not None:
-                R = np.stack([fr.m1, fr.m2, t], axis=-1)
-                self.frames.batched_positions = 0.5 * (x[:-1] + x[1:])
-                self.frames.batched_wxyzs = quat_from_matrix(R)
+                pos, wxyz = material_frame_poses(x, fr.m1, fr.m2, getattr(fr, "rod_offsets", None))
+                self.frames.batched_positions = pos
+                self.frames.batched_wxyzs = wxyz
                 self.frames.visible = True
             elif self.frames.visible:
                 self.frames.visible = False

@@ -21,6 +21,7 @@ split ``policies.evaluate`` uses). Attach it before the env's first ``reset``::
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
@@ -122,8 +123,21 @@ def scene_from_specs(specs: Any, *, rod_radius: float = 0.05, planar: bool = Fal
 def task_static_scene(core: Any, env: int) -> StaticScene:
     """Obstacles of env ``env`` of a task core as a :class:`StaticScene`: the per-env fence of the 3-D
     obstacle task, else the model's scene obstacles, else the task's ``scene_capsules()``; with the
-    model's rod radius and the planar flag."""
+    model's rod radius, the planar flag and, for a scene of several rods, the rod layout."""
     model = getattr(core, "model", None) or getattr(core.sim, "model", None)
+    return dataclasses.replace(_task_obstacles(core, env, model), **_rod_layout(model))
+
+
+def _rod_layout(model: Any) -> dict[str, Any]:
+    """``rod_node_offsets``/``rod_names`` of a model of several rods (nothing for one rod)."""
+    off = getattr(model, "rod_node_offsets", None)
+    if off is None or len(off) <= 2:
+        return {}
+    names = tuple(getattr(model, "rod_names", ()) or ())
+    return {"rod_node_offsets": np.asarray(off, np.int64), "rod_names": names if len(names) == len(off) - 1 else ()}
+
+
+def _task_obstacles(core: Any, env: int, model: Any) -> StaticScene:
     radius = float(getattr(model, "radius", 0.05))
     planar = bool(getattr(core, "planar", False))
     specs = getattr(getattr(model, "spec", None), "obstacles", None)

@@ -114,6 +114,8 @@ def _scalar_value(v: Any) -> Any:
 def _read_store(reader, entry) -> EpisodeData:
     ents: dict[str, _Entity] = defaultdict(_Entity)
     props: dict[str, Any] = {}
+    rods: dict[str, Any] = {}
+    rods_path = f"/__properties/{S.RODS_PROPERTY}"
     for chunk in reader.stream(store=entry).to_chunks():
         path = chunk.entity_path
         rb = chunk.to_record_batch()
@@ -121,7 +123,10 @@ def _read_store(reader, entry) -> EpisodeData:
             for name in rb.schema.names:
                 if name.startswith("rerun.controls"):
                     continue
-                props[name.split(":")[-1]] = _scalar_value(rb.column(name)[rb.num_rows - 1])
+                if path == rods_path:  # arrays, kept whole (a one-element list stays a list)
+                    rods[name.split(":")[-1]] = rb.column(name)[rb.num_rows - 1].as_py()
+                else:
+                    props[name.split(":")[-1]] = _scalar_value(rb.column(name)[rb.num_rows - 1])
             continue
         e = ents[path.lstrip("/")]
         if chunk.is_static:
@@ -143,7 +148,11 @@ def _read_store(reader, entry) -> EpisodeData:
     nf = len(keys)
     n = P.shape[1]
     ks = np.array(keys, np.int64).reshape(nf, 3)
-    ep = EpisodeData(meta=meta, scene=_scene(ents, meta), control_step=ks[:, 0], sim_time=ks[:, 1] * 1e-9,
+    scene = _scene(ents, meta, rods)
+    if scene.rod_node_offsets is not None and int(scene.rod_node_offsets[-1]) != n:
+        raise RecordingError(f"recording {entry.recording_id}: rod node offsets {scene.rod_node_offsets.tolist()} "
+                             f"do not end at the centreline's {n} nodes")
+    ep = EpisodeData(meta=meta, scene=scene, control_step=ks[:, 0], sim_time=ks[:, 1] * 1e-9,
                      positions=P[order], sim_step=ks[:, 2] if has_ss else None,
                      recording_id=entry.recording_id)
     fscale = float(meta.get("frame_scale", S.DEFAULT_FRAME_SCALE))
@@ -231,8 +240,10 @@ def _read_contacts(ep: EpisodeData, ents, rows_of, nf: int, fscale: float, force
             setattr(ep, attr, np.full((nf, 0), -1, np.int64))
 
 
-def _scene(ents: dict[str, _Entity], meta: dict[str, Any]) -> StaticScene:
+def _scene(ents: dict[str, _Entity], meta: dict[str, Any], rods: dict[str, Any] | None = None) -> StaticScene:
     kw: dict[str, Any] = {"rod_radius": float(meta.get("rod_radius", 0.05)), "planar": bool(meta.get("planar", False))}
+    if rods and rods.get("node_offsets") is not None:  # several rods; a recording without the property: one rod
+        kw["rod_node_offsets"], kw["rod_names"] = S.check_rod_layout(rods["node_offsets"], rods.get("names") or ())
     o = S.OBSTACLES
     cap = ents.get(f"{o}/capsules")
     if cap is not None and "axis_points" in cap.static:

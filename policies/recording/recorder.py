@@ -220,7 +220,8 @@ class Recorder:
     # ------------------------------------------------------------------ episodes
     def begin_episode(self, meta: Mapping[str, Any], scene: StaticScene | None = None, *, env: int = 0) -> int:
         """Start an episode for ``env``; returns its index in the file. ``meta``: task, seed, policy,
-        scene (TOML text or path), ... (str/int/float/bool values). ``scene``: static geometry."""
+        scene (TOML text or path), ... (str/int/float/bool values). ``scene``: static geometry (and the rod
+        layout of a scene of several rods, stored as the ``rods`` property)."""
         self._check_open()
         if env in self._open:
             raise RecordingError(f"begin_episode: env {env} already has an open episode (call end_episode)")
@@ -241,6 +242,11 @@ class Recorder:
         rec.set_log_time_enabled(False)
         rec.send_recording_name(f"{full['task'] or 'episode'} ep{index} env{env}")
         rec.send_property(S.META_PROPERTY, rr.AnyValues(**full))
+        if scene.rod_node_offsets is not None:
+            rods: dict[str, Any] = {"node_offsets": scene.rod_node_offsets}
+            if scene.rod_names:
+                rods["names"] = list(scene.rod_names)
+            rec.send_property(S.RODS_PROPERTY, rr.AnyValues(**rods))
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         self._log_scene(rec, scene)
         self._open[env] = _Episode(rec, part, env, index, full, scene)
@@ -302,6 +308,10 @@ class Recorder:
         if ep.n_nodes is None:
             if pos.shape[0] < 2:
                 raise RecordingError(f"log_step: node_pos: need at least 2 nodes, got {pos.shape[0]}")
+            off = ep.scene.rod_node_offsets
+            if off is not None and int(off[-1]) != pos.shape[0]:
+                raise RecordingError(f"log_step: node_pos: {pos.shape[0]} nodes, but the scene's rod_node_offsets "
+                                     f"{off.tolist()} end at {int(off[-1])}")
             ep.n_nodes = pos.shape[0]
             ep.sim_step = [] if sim_step is not None else None
         n = ep.n_nodes

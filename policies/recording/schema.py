@@ -13,8 +13,14 @@ Inside every recording (all positions in metres, world frame, z up):
 ==================================  ===========================================================
 ``/__properties/episode``           metadata: task, seed, policy, scene, env, episode,
                                     rodlab_version, git_commit, force_scale, frame_scale, ...
+``/__properties/rods``              layout of a scene of several rods (docs/physics.md §1.7):
+                                    ``node_offsets`` (R+1,) int64, each rod's first node in the
+                                    centreline, then N; ``names`` (R,) str. Absent: one rod
+                                    (older recordings have none)
 ``world/obstacles/{capsules,spheres,boxes}``, ``world/obstacles/mesh_<i>``  static geometry
-``world/rod``                       LineStrips3D: centreline (N, 3), radius = rod radius
+``world/rod``                       LineStrips3D: centreline (N, 3), radius = rod radius; with
+                                    several rods the one chain of all their nodes (the edge
+                                    between two rods is a joint, not rod: split at node_offsets)
 ``world/rod/m1``, ``world/rod/m2``  Arrows3D at edge midpoints: material directors x frame_scale
 ``world/rod/d1``, ``world/rod/d2``  same for the reference frame (optional)
 ``world/contacts``                  Points3D at the rod contact points + raw ``normal_force`` [N],
@@ -64,6 +70,7 @@ CURVATURE = "curvature"
 CURVATURE_KINDS = ("kappa1", "kappa2", "twist")
 SCALARS = "scalars"
 META_PROPERTY = "episode"
+RODS_PROPERTY = "rods"       # /__properties/rods: node_offsets, names (absent: one rod)
 
 #: Scalar names the recorder documents (others are allowed; names are ``[A-Za-z0-9_./-]``).
 STANDARD_SCALARS = (
@@ -97,7 +104,9 @@ class StaticScene:
     spheres: ``sphere_centers`` (K, 3), ``sphere_radii`` (K,);
     boxes: ``box_centers`` (K, 3), ``box_half_sizes`` (K, 3), ``box_quats`` (K, 4) x y z w or None;
     meshes: tuple of (vertices (V, 3) float, faces (F, 3) int);
-    rod_radius: cross-section radius of the rod [m]; planar: True for the x-z 2D tasks.
+    rod_radius: cross-section radius of the rod [m]; planar: True for the x-z 2D tasks;
+    rod_node_offsets: (R+1,) int where each rod's nodes start in the centreline, then N
+    (``sim.Model.rod_node_offsets``), or None for one rod; rod_names: (R,) names of the rods (may be empty).
     """
 
     rod_radius: float = 0.05
@@ -110,6 +119,8 @@ class StaticScene:
     box_quats: np.ndarray | None = None
     meshes: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
     planar: bool = False
+    rod_node_offsets: np.ndarray | None = None
+    rod_names: tuple[str, ...] = ()
 
     def validated(self) -> "StaticScene":
         """Return a copy with float64/int arrays of checked shapes (RecordingError otherwise)."""
@@ -146,14 +157,36 @@ class StaticScene:
         r = float(self.rod_radius)
         if not np.isfinite(r) or r <= 0:
             raise RecordingError(f"StaticScene.rod_radius: must be > 0, got {self.rod_radius!r}")
+        off, names = check_rod_layout(self.rod_node_offsets, self.rod_names)
         return StaticScene(rod_radius=r, capsules=caps, capsule_radii=crad, sphere_centers=sc, sphere_radii=sr,
                            box_centers=bc, box_half_sizes=bh, box_quats=bq, meshes=tuple(meshes),
-                           planar=bool(self.planar))
+                           planar=bool(self.planar), rod_node_offsets=off, rod_names=names)
 
     @property
     def n_obstacles(self) -> int:
         return sum(0 if a is None else len(a) for a in (self.capsules, self.sphere_centers, self.box_centers)) \
             + len(self.meshes)
+
+
+def check_rod_layout(offsets: Any, names: Any = ()) -> tuple[np.ndarray | None, tuple[str, ...]]:
+    """``(offsets as int64 (R+1,) or None, names as a tuple)`` of a rod layout, checked: offsets start at 0 and
+    grow by at least 2 nodes per rod; names empty or one per rod. RecordingError otherwise."""
+    names = tuple(str(n) for n in (names or ()))
+    if offsets is None:
+        if len(names) > 1:
+            raise RecordingError("StaticScene.rod_names: several names need rod_node_offsets")
+        return None, names
+    try:
+        off = np.array(offsets, dtype=np.int64, copy=True)
+    except (TypeError, ValueError):
+        raise RecordingError(f"StaticScene.rod_node_offsets: not integers ({offsets!r})") from None
+    if off.ndim != 1 or len(off) < 2 or off[0] != 0 or np.any(np.diff(off) < 2):
+        raise RecordingError("StaticScene.rod_node_offsets: expected (R+1,) node indices starting at 0, at least "
+                             f"2 nodes per rod, got {off.tolist()}")
+    if names and len(names) != len(off) - 1:
+        raise RecordingError(f"StaticScene.rod_names: {len(names)} names for {len(off) - 1} rods")
+    off.setflags(write=False)
+    return off, names
 
 
 @dataclass
@@ -198,6 +231,13 @@ class EpisodeData:
     def steps(self) -> int:
         """Number of frames S."""
         return int(self.positions.shape[0])
+
+    @property
+    def rod_node_offsets(self) -> np.ndarray:
+        """(R+1,) where each rod's nodes start in ``positions``, then N: the recorded layout, or ``[0, N]`` (one
+        rod) for a recording without one."""
+        off = self.scene.rod_node_offsets
+        return np.array([0, self.positions.shape[1]], np.int64) if off is None else np.asarray(off, np.int64)
 
     @property
     def episode_return(self) -> float:
