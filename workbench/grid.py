@@ -95,6 +95,10 @@ class GridSession:
         """(n, N, 3) node positions in the page (each env shifted to its cell) [m]."""
         return np.asarray(self.core.state.node_pos, np.float64) + self.offsets[:, None, :]
 
+    def times(self) -> np.ndarray:
+        """(n,) simulated time of each env since its episode began [s] (what a load's window is measured in)."""
+        return np.broadcast_to(np.asarray(self.core.state.time, np.float64).reshape(-1), (self.n,)).copy()
+
     def targets(self) -> np.ndarray | None:
         """(n, 3) targets in the page [m], or None (a task without a target)."""
         from policies.recording.probe import task_target

@@ -1,6 +1,8 @@
 """Drawing of a :class:`workbench.grid.GridSession`: every env in its own cell, vectorised (one batched mesh for all
-rod segments of all envs, one for the joints, one for the targets, one merged mesh for all obstacles), so N envs
-cost a handful of scene nodes. A click on a rod or a target focuses that env (``on_focus(env)``)."""
+rod segments of all envs, one for the joints, one for the targets, one merged mesh for all obstacles, and the fixed
+nodes, fixed twists and point loads of ``workbench.view_boundary`` in one batched node per kind of glyph, with the
+focused env's load labels), so N envs cost a handful of scene nodes. The glyphs follow the main view's "Fixes and
+loads" toggle and arrow scale (``overlays``). A click on a rod or a target focuses that env (``on_focus(env)``)."""
 from __future__ import annotations
 
 from typing import Callable
@@ -11,7 +13,8 @@ import viser
 
 from workbench.frame import quat_z_to
 from workbench.obstacles import mesh_for_edit
-from workbench.view_scene import CAMERAS, ROD_COLOR
+from workbench.view_boundary import Boundary, BoundaryView, boundary_of
+from workbench.view_scene import CAMERAS, ROD_COLOR, Overlays, arrow_vectors
 
 FOCUS_COLOR = np.array([40, 110, 230], dtype=np.uint8)
 ROOT = "/grid"
@@ -38,8 +41,14 @@ def obstacle_mesh(session) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 class GridView:
-    def __init__(self, server: viser.ViserServer, session, on_focus: Callable[[int], None] | None = None):
+    """Scene nodes of a grid session. ``overlays``: the main view's display toggles (the boundary glyphs follow its
+    ``boundary`` toggle and contact-arrow scale; default: a fresh ``Overlays``); ``boundary``: the glyphs' source
+    (default: ``boundary_of`` the session's model)."""
+
+    def __init__(self, server: viser.ViserServer, session, on_focus: Callable[[int], None] | None = None, *,
+                 overlays: Overlays | None = None, boundary: Boundary | None = None):
         self.server, self.s = server, session
+        self.overlays = overlays if overlays is not None else Overlays()
         sc = server.scene
         n, N = session.n, session.n_nodes
         self.n_edges = n * (N - 1)
@@ -66,6 +75,8 @@ class GridView:
                        for e in range(n)]
         self.obstacles = None
         self._obst_version = -1
+        self.boundary = BoundaryView(server, name=f"{ROOT}/boundary")
+        self.boundary.set_boundary(boundary if boundary is not None else boundary_of(session.core.model), envs=n)
         if on_focus is not None:
             self.rods.on_click(lambda ev: on_focus(int(ev.instance_index) // (N - 1))
                                if ev.instance_index is not None else None)
@@ -127,6 +138,9 @@ class GridView:
             self.joints.batched_scales = np.full(len(x.reshape(-1, 3)), r)
             if tg is not None:
                 self.targets.batched_positions = tg
+            ov = self.overlays
+            self.boundary.render(x, s.times(), ov.boundary, lambda f: arrow_vectors(f, ov.arrows, ov.force_scale),
+                                 label_env=self.focus)
             if s.obstacles_version != self._obst_version:
                 self._obst_version = s.obstacles_version
                 mesh = obstacle_mesh(s)
@@ -139,6 +153,6 @@ class GridView:
         self.frames += 1
 
     def remove(self) -> None:
-        for h in (self.rods, self.joints, self.targets, self.obstacles, *self.labels):
+        for h in (self.rods, self.joints, self.targets, self.obstacles, *self.labels, *self.boundary.nodes):
             if h is not None:
                 h.remove()

@@ -138,7 +138,7 @@ class GridPanel:
         app.wb.set_playing(False)
         app.controls.set_quiet(app.controls.playing, False)
         self.session = session
-        self.view = GridView(app.server, session, on_focus=self.set_focus)
+        self.view = GridView(app.server, session, on_focus=self.set_focus, overlays=app.view.overlays)
         self.view.render()
         self._syncing = True
         try:

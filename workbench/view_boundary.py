@@ -11,7 +11,9 @@ frame at the rod's current nodes, in at most three batched nodes plus one label 
 - point loads: an arrow from the node along the force (length: the contact arrows' scale, ``view_scene``) and a
   label with the force [N] (and the torque about the tangent [N·m]); a load is hidden outside [start, stop).
 
-A scene with neither creates no scene node.
+A scene with neither creates no scene node. The grid of envs (``workbench.grid_view``) draws the glyphs of all its
+envs with the same three batched nodes (``set_boundary(b, envs=n)``, ``render`` with (n, N, 3) positions and one
+time per env); the load labels are those of one env (the focused one).
 """
 from __future__ import annotations
 
@@ -105,9 +107,11 @@ def load_active(b: Boundary, time: float) -> np.ndarray:
 
 
 def ring_poses(b: Boundary, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(midpoints (T, 3), wxyz (T, 4) taking +z along the edge) of the fixed-twist edges at node positions x."""
+    """(midpoints (T, 3), wxyz (T, 4) taking +z along the edge) of the fixed-twist edges at node positions x (N, 3);
+    x (B, N, 3) of B envs: (B·T, 3), (B·T, 4), env by env."""
     e = b.twist_edges
-    return 0.5 * (x[e] + x[e + 1]), quat_z_to(x[e + 1] - x[e])
+    a, c = x[..., e, :].reshape(-1, 3), x[..., e + 1, :].reshape(-1, 3)
+    return 0.5 * (a + c), quat_z_to(c - a)
 
 
 def load_arrows(b: Boundary, x: np.ndarray, time: float, vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -116,6 +120,17 @@ def load_arrows(b: Boundary, x: np.ndarray, time: float, vectors: np.ndarray) ->
     k = np.flatnonzero(load_active(b, time) & (np.abs(b.load_force).max(axis=1) > 0.0))
     p = x[b.load_nodes[k]]
     return k, np.stack([p, p + vectors[k]], 1)
+
+
+def batched_load_arrows(b: Boundary, x: np.ndarray, times: np.ndarray,
+                        vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`load_arrows` of B envs at once: node positions x (B, N, 3), each env's time (B,) [s]. Returns
+    (env (K,), load index (K,), arrows (K, 2, 3)) of the active loads with a force, env by env."""
+    t = np.asarray(times, np.float64).reshape(-1, 1)
+    act = (b.load_window[:, 0] <= t) & (t < b.load_window[:, 1]) & (np.abs(b.load_force).max(axis=1) > 0.0)
+    env, k = np.nonzero(act)  # (B, L) -> row-major: env by env
+    p = x[env, b.load_nodes[k]]
+    return env, k, np.stack([p, p + vectors[k]], 1).reshape(-1, 2, 3)
 
 
 def load_text(force, torque: float) -> str:
@@ -133,6 +148,7 @@ class BoundaryView:
         self.b: Boundary | None = None
         self.fixed = self.rings = self.arrows = None
         self.labels: list = []
+        self.envs = 1
         self._sent: dict[str, np.ndarray] = {}
         self._box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
         self._torus = trimesh.creation.torus(1.0, 0.12, major_sections=24, minor_sections=8)
@@ -142,26 +158,28 @@ class BoundaryView:
         """Every scene node of the glyphs."""
         return [h for h in (self.fixed, self.rings, self.arrows) if h is not None] + self.labels
 
-    def set_boundary(self, b: Boundary | None) -> None:
-        """Replace the glyphs (None or an empty ``Boundary``: none)."""
+    def set_boundary(self, b: Boundary | None, *, envs: int = 1) -> None:
+        """Replace the glyphs (None or an empty ``Boundary``: none); ``envs``: how many envs of the scene are drawn
+        (the grid of envs; each env's glyphs at its own nodes, in the same batched nodes)."""
         for h in self.nodes:
             h.remove()
         self.fixed = self.rings = self.arrows = None
         self.labels = []
         self._sent = {}
+        self.envs = max(int(envs), 1)
         self.b = None if b is None or b.empty else b
         if self.b is None:
             return
-        b, sc, s = self.b, self.server.scene, self.b.size
+        b, sc, s, m = self.b, self.server.scene, self.b.size, self.envs
         if len(b.fixed_nodes):
-            n = len(b.fixed_nodes)
+            n = m * len(b.fixed_nodes)
             self.fixed = sc.add_batched_meshes_simple(
                 f"{self.name}/fixed_nodes", self._box.vertices, self._box.faces,
                 batched_wxyzs=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), batched_positions=np.zeros((n, 3)),
-                batched_scales=np.full(n, s), batched_colors=KIND_COLORS[b.fixed_kind], lod="off",
+                batched_scales=np.full(n, s), batched_colors=np.tile(KIND_COLORS[b.fixed_kind], (m, 1)), lod="off",
                 flat_shading=True, visible=False)
         if len(b.twist_edges):
-            n = len(b.twist_edges)
+            n = m * len(b.twist_edges)
             self.rings = sc.add_batched_meshes_simple(
                 f"{self.name}/twist_edges", self._torus.vertices, self._torus.faces,
                 batched_wxyzs=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), batched_positions=np.zeros((n, 3)),
@@ -185,39 +203,46 @@ class BoundaryView:
         if handle.visible != on:
             handle.visible = on
 
-    def render(self, x: np.ndarray, time: float, on: bool,
-               arrow_vectors: Callable[[np.ndarray], np.ndarray]) -> None:
+    def render(self, x: np.ndarray, time, on: bool, arrow_vectors: Callable[[np.ndarray], np.ndarray], *,
+               label_env: int = 0) -> None:
         """Follow node positions x (N, 3) [m] at ``time`` [s]; ``on``: the overlay's toggle; ``arrow_vectors``:
-        forces (L, 3) [N] -> arrow vectors [m]."""
+        forces (L, 3) [N] -> arrow vectors [m]. Several envs (``set_boundary(..., envs=B)``): x (B, N, 3) and
+        ``time`` one per env (B,); the load labels are env ``label_env``'s."""
         b = self.b
         if b is None:
             return
-        x = np.asarray(x, np.float64)
-        ok = bool(on) and len(x) == b.n_nodes
+        X = np.asarray(x, np.float64).reshape(-1, *np.shape(x)[-2:])  # (B, N, 3)
+        times = np.broadcast_to(np.asarray(time, np.float64).reshape(-1), (len(X),))
+        ok = bool(on) and X.shape[1:] == (b.n_nodes, 3) and len(X) == self.envs
         if self.fixed is not None:
             if ok:
-                self._send(self.fixed, "batched_positions", "fixed", x[b.fixed_nodes])
+                self._send(self.fixed, "batched_positions", "fixed", X[:, b.fixed_nodes].reshape(-1, 3))
             self._show(self.fixed, ok)
         if self.rings is not None:
             if ok:
-                p, q = ring_poses(b, x)
+                p, q = ring_poses(b, X)
                 self._send(self.rings, "batched_positions", "rings", p)
                 self._send(self.rings, "batched_wxyzs", "rings_q", q)
             self._show(self.rings, ok)
         if self.arrows is None:
             return
-        k, pts = load_arrows(b, x, time, arrow_vectors(b.load_force)) if ok else (np.zeros(0, np.int64), None)
+        if ok:
+            env, k, pts = batched_load_arrows(b, X, times, arrow_vectors(b.load_force))
+        else:
+            env = k = np.zeros(0, np.int64)
         if len(k):
             self._send(self.arrows, "points", "arrows", pts)
         self._show(self.arrows, len(k) > 0)
-        act = np.flatnonzero(load_active(b, time)) if ok else np.zeros(0, np.int64)
+        e = int(np.clip(label_env, 0, len(X) - 1))
+        act = np.flatnonzero(load_active(b, float(times[e]))) if ok else np.zeros(0, np.int64)
         act = act[np.argsort(-np.linalg.norm(b.load_force[act], axis=1), kind="stable")]
-        tips = {int(i): pts[j, 1] for j, i in enumerate(k)}
+        tips = {int(i): pts[j, 1] for j, i in enumerate(k) if env[j] == e}
         for j, lab in enumerate(self.labels):
             if j < len(act):
                 i = int(act[j])
                 text = load_text(b.load_force[i], float(b.load_torque[i]))
                 if lab.text != text:
                     lab.text = text
-                self._send(lab, "position", f"label_{j}", np.asarray(tips.get(i, x[b.load_nodes[i]]), np.float64))
+                self._send(lab, "position", f"label_{j}",
+                           np.asarray(tips.get(i, X[e, b.load_nodes[i]]), np.float64))
             self._show(lab, j < len(act))

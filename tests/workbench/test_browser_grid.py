@@ -1,5 +1,6 @@
 """Real browser: the Grid of envs runs N envs of a task under a policy, each in its own cell (N rods drawn in the
-page, each with its own target), and a click on one rod focuses that env (colour, camera, readouts)."""
+page, each with its own target, every env's clamp glyphs in one batched node per kind, hidden by the Display tab's
+"Fixes and loads"), and a click on one rod focuses that env (colour, camera, readouts)."""
 from __future__ import annotations
 
 import io
@@ -31,6 +32,12 @@ def _near(img: np.ndarray, uv, pred, r: int = 5) -> bool:
     u, v = int(round(uv[0])), int(round(uv[1]))
     patch = img[max(v - r, 0):v + r + 1, max(u - r, 0):u + r + 1]
     return bool(pred(patch).any())
+
+
+#: the page's scene nodes under /grid/boundary: name -> visibility set by the server
+GLYPHS_JS = """() => Object.fromEntries(Object.entries(window.__viserSceneTree?.getState() ?? {})
+    .filter(([name, node]) => name.startsWith('/grid/boundary/') && node && node.message)
+    .map(([name, node]) => [name, node.visibility !== false]))"""
 
 
 def _orange(p):
@@ -80,6 +87,19 @@ def test_grid_shows_n_rods_and_click_focuses(wb_page):
         wait_for(lambda: np.allclose(cam.look_at, view.cell_camera(k)[1], atol=1e-3), what="camera on env 3")
         wait_for(lambda: f"env {k} ·" in app.grid.msg.content, what="env 3's readouts")
         assert img.std() > 5
+        # the arm's clamp in every cell: one batched node per kind of glyph, n instances each
+        glyphs = ("/grid/boundary/fixed_nodes", "/grid/boundary/twist_edges")
+        wait_for(lambda: page.evaluate(GLYPHS_JS) == dict.fromkeys(glyphs, True), what="the grid's glyphs shown")
+        assert len(view.boundary.fixed.batched_positions) == n * len(view.boundary.b.fixed_nodes)
+        page.get_by_text("Display", exact=True).first.click()  # (not expand_folder: "Stop grid" matches "top")
+        box = page.get_by_label("Fixes and loads")
+        box.wait_for(state="visible", timeout=10000)
+        box.click()
+        try:
+            wait_for(lambda: page.evaluate(GLYPHS_JS) == dict.fromkeys(glyphs, False), what="the grid's glyphs hidden")
+        finally:
+            box.click()
+        wait_for(lambda: page.evaluate(GLYPHS_JS) == dict.fromkeys(glyphs, True), what="the grid's glyphs shown again")
     finally:
         app.grid.stop()
     assert app.grid.session is None
