@@ -78,8 +78,8 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                 for b in range(a if sym else 0, 6):
                     ab[o + a, kl + b - a] += H6[a, b]
     ec = 0.0
-    if prm.n_obstacles > 0:  # IMC contact and friction in the plane y = plane_y (docs/physics.md §4)
-        pos, pos0, cg, ch = w.pos, w.pos0, w.cg, w.ch
+    pos, pos0 = w.pos, w.pos0
+    if prm.n_obstacles > 0 or prm.rod_pairs > 0:  # contact acts on the nodes in 3-D, in the plane y = plane_y
         py = prm.plane_y
         for k in range(N):
             pos[k, 0] = x[2 * k]
@@ -88,6 +88,8 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
             pos0[k, 0] = x0[2 * k]
             pos0[k, 1] = py
             pos0[k, 2] = x0[2 * k + 1]
+    if prm.n_obstacles > 0:  # IMC contact and friction (docs/physics.md §4)
+        cg, ch = w.cg, w.ch
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
         ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
@@ -105,15 +107,6 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                         c = 2 * j + b
                         ab[r, kl + c - r] += ch[j, la, lb]
     if prm.rod_pairs > 0:  # edges touching edges in the plane (sim/contact_rod.py)
-        pos, pos0 = w.pos, w.pos0
-        py = prm.plane_y
-        for k in range(N):
-            pos[k, 0] = x[2 * k]
-            pos[k, 1] = py
-            pos[k, 2] = x[2 * k + 1]
-            pos0[k, 0] = x0[2 * k]
-            pos0[k, 1] = py
-            pos0[k, 2] = x0[2 * k + 1]
         if with_jac:
             reset_coupling(w.wb_slot, w.wb_dof, w.wb_n, w.wb_M)
         ec += rod_pairs_accumulate(rod.pairs, w.rp_cand, w.rp_n, pos, pos0, h, 2, fixed, rod.radius, prm.contact_k,

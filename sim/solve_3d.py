@@ -107,11 +107,13 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                 for b in range(a if sym else 0, 11):
                     ab[r, kl + b - a] += H11[a, b]
     ec = 0.0
-    if prm.n_obstacles > 0:  # IMC contact and friction (docs/physics.md §4)
-        pos0, cg, ch = w.pos0, w.cg, w.ch
+    pos0 = w.pos0
+    if prm.n_obstacles > 0 or prm.rod_pairs > 0:  # the sub-step start's nodes (friction velocities)
         for k in range(N):
             for a in range(3):
                 pos0[k, a] = x0[4 * k + a]
+    if prm.n_obstacles > 0:  # IMC contact and friction (docs/physics.md §4)
+        cg, ch = w.cg, w.ch
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
         ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
@@ -127,10 +129,6 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                         c = 4 * j + b if b < 3 else 4 * j + 1 + b
                         ab[r, kl + c - r] += ch[j, a, b]
     if prm.rod_pairs > 0:  # edges touching edges (sim/contact_rod.py): in-band blocks into ab, the rest listed
-        pos0 = w.pos0
-        for k in range(N):
-            for a in range(3):
-                pos0[k, a] = x0[4 * k + a]
         if with_jac:
             reset_coupling(w.wb_slot, w.wb_dof, w.wb_n, w.wb_M)
         ec += rod_pairs_accumulate(rod.pairs, w.rp_cand, w.rp_n, pos, pos0, h, 4, fixed, rod.radius, prm.contact_k,
