@@ -88,19 +88,20 @@ def _ragged(col: pa.ChunkedArray, width: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _strips(col: pa.ChunkedArray, width: int) -> np.ndarray:
-    """list<list<fixed_size_list[width]>> with one strip per row -> (R, n, width)."""
+    """list<list<fixed_size_list[width]>> -> (R, n, width): the points of each row's strips in order (one strip
+    per frame, or one per rod of a scene of several rods); every row must hold the same number of points."""
     out = []
     for ch in col.chunks:
         offs = ch.offsets.to_numpy()
-        if np.any(np.diff(offs) != 1):
-            raise RecordingError("expected exactly one line strip per frame")
+        if np.any(np.diff(offs) < 1):
+            raise RecordingError("a frame without a line strip")
         inner = ch.values.slice(offs[0], offs[-1] - offs[0])
         ioffs = inner.offsets.to_numpy()
-        lens = np.diff(ioffs)
-        if len(lens) and np.any(lens != lens[0]):
+        per_row = ioffs[offs[1:] - offs[0]] - ioffs[offs[:-1] - offs[0]]  # points of each row
+        if len(per_row) and np.any(per_row != per_row[0]):
             raise RecordingError("line strips of different lengths in one episode")
         pts = inner.values.slice(ioffs[0], ioffs[-1] - ioffs[0]).flatten().to_numpy(zero_copy_only=False)
-        out.append(np.asarray(pts, np.float32).reshape(len(lens), -1, width))
+        out.append(np.asarray(pts, np.float32).reshape(len(per_row), -1, width))
     return np.concatenate(out) if out else np.zeros((0, 0, width), np.float32)
 
 

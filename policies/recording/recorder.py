@@ -442,14 +442,23 @@ class Recorder:
 
         n = ep.n_nodes
         P = np.stack(ep.pos)                                     # (S, N, 3)
+        off = ep.scene.rod_node_offsets
         rec.log(S.ROD, rr.LineStrips3D.from_fields(radii=[ep.scene.rod_radius], colors=[_ROD_COLOR]), static=True)
-        rec.send_columns(S.ROD, indexes=idx(), columns=rr.LineStrips3D.columns(strips=P))
+        if off is None or len(off) <= 2:
+            rec.send_columns(S.ROD, indexes=idx(), columns=rr.LineStrips3D.columns(strips=P))
+        else:  # one strip per rod in each frame: the viewer draws no line across a joint edge
+            strips = [P[f, int(a):int(b)] for f in range(P.shape[0]) for a, b in zip(off[:-1], off[1:])]
+            rec.send_columns(S.ROD, indexes=idx(), columns=rr.LineStrips3D.columns(strips=strips).partition(
+                [len(off) - 1] * P.shape[0]))
+        joints = [] if off is None else [int(b) - 1 for b in off[1:-1]]  # edges between two rods: no frame
         mid = 0.5 * (P[:, 1:] + P[:, :-1])                       # (S, N-1, 3)
         for name in S.FRAME_ENTITIES:
             if name not in ep.rows:
                 continue
             fr, vals = ep.rows[name]
             V = np.stack(vals) * self.frame_scale
+            if joints:
+                V[:, joints] = 0.0  # zero-length arrows keep one arrow per edge (the reader's layout)
             path = f"{S.ROD}/{name}"
             rec.log(path, rr.Arrows3D.from_fields(colors=[_FRAME_COLORS[name]]), static=True)
             rec.send_columns(path, indexes=idx(fr), columns=rr.Arrows3D.columns(

@@ -19,9 +19,10 @@ Inside every recording (all positions in metres, world frame, z up):
                                     (older recordings have none)
 ``world/obstacles/{capsules,spheres,boxes}``, ``world/obstacles/mesh_<i>``  static geometry
 ``world/rod``                       LineStrips3D: centreline (N, 3), radius = rod radius; with
-                                    several rods the one chain of all their nodes (the edge
-                                    between two rods is a joint, not rod: split at node_offsets)
+                                    several rods one strip per rod (node_offsets), whose points
+                                    in order are the chain of all their nodes
 ``world/rod/m1``, ``world/rod/m2``  Arrows3D at edge midpoints: material directors x frame_scale
+                                    (one per edge; zero length on the joint edges between rods)
 ``world/rod/d1``, ``world/rod/d2``  same for the reference frame (optional)
 ``world/contacts``                  Points3D at the rod contact points + raw ``normal_force`` [N],
                                     ``edge``, ``obstacle`` (AnyValues components)

@@ -39,6 +39,18 @@ def test_two_rod_layout_round_trips_through_a_file(tmp_path, verify):
     assert two.scene.rod_node_offsets.dtype == np.int64 and two.scene.rod_names == ("base", "cross")
     np.testing.assert_array_equal(two.rod_node_offsets, [0, 5, 9])
     np.testing.assert_allclose(two.positions[3], _chain(3), atol=1e-6)
+    # in the file, one line strip per rod (the rerun viewer draws no line across the joint) and no frame arrow on
+    # the joint edge (edge 4, between node 4 of "base" and node 5 of "cross")
+    import rerun as rr
+
+    reader = rr.chunk.RrdReader(str(out))
+    store = next(e for e in reader.recordings() if e.recording_id == two.recording_id)
+    strips = []
+    for chunk in reader.stream(store=store).to_chunks():
+        if chunk.entity_path.lstrip("/") == "world/rod" and not chunk.is_static:
+            strips += chunk.to_record_batch().column("LineStrips3D:strips").to_pylist()
+    assert [len(s) for s in strips] == [2, 2, 2, 2] and [len(p) for p in strips[0]] == [5, 4]
+    assert np.allclose(two.m1[0][4], 0.0) and np.allclose(two.m1[0][3], [0.0, 0.0, 1.0])
     assert "node_offsets" not in two.meta and "names" not in two.meta  # the layout is not episode metadata
     assert one.scene.rod_node_offsets is None and one.scene.rod_names == ()
     np.testing.assert_array_equal(one.rod_node_offsets, [0, 5])
