@@ -190,7 +190,7 @@ def _clear_outputs(out, e):  # a call, not inlined: the outputs are written insi
     out.failed[e] = False
 
 
-@njit(parallel=True, **_OPT_ALLOC)
+@njit(parallel=True, nogil=True, **_OPT_ALLOC)  # nogil: other Python threads (e.g. SAC updates) run meanwhile
 def step_kernel(state, ctl, rod, prm_arr, cd, crep, out):
     """Advance all non-failed envs of ``state`` (:class:`sim.solve_params.StateArrays`, dof/vel (B, n)) by prm.dt
     under ``ctl`` (:class:`sim.solve_params.ControlArrays`); per-env results into ``out``

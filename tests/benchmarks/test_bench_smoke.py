@@ -70,3 +70,26 @@ def test_throughput_time_sim_tiny():
     r = time_sim(arm_doc(nodes=11), envs=2, steps=1, repeats=1)
     assert {"ms_per_step", "cpu_ms_per_step", "us_per_env_step", "iters_mean", "load"} <= set(r)
     assert r["nan"] == 0 and r["ms_per_step"] > 0
+
+
+def test_bench_train_tiny_sequential_and_overlapped():
+    from policies.cli import bench_train
+
+    for overlap in (False, True):
+        r = bench_train("follow_target", envs=8, iters=2, warmup=1, overlap=overlap)
+        assert r["iteration_ms"] > 0 and r["update_ms"] > 0 and r["env_step_ms"] >= 0
+        assert r["speed_settings"].endswith(",overlap") is overlap
+
+
+def test_throughput_pairs_tiny():
+    from benchmarks.throughput_pairs import part_pairs
+
+    res = part_pairs(quick=True, repeats=1)
+    for name in ("curl_0.75_turn_no_contact", "curl_1.25_turns_resting_on_itself", "two_rods_apart",
+                 "two_rods_apart_rod_contact_off", "two_rods_crossed_resting"):
+        assert res[name]["failed_envs"] == 0 and res[name]["nan"] == 0 and res[name]["ms_per_step"] > 0
+    assert res["curl_0.75_turn_no_contact"]["contact_energy_mean"] == 0.0
+    assert res["curl_1.25_turns_resting_on_itself"]["contact_energy_mean"] > 0.0
+    # the rods apart touch only the floor: the same contact energy with rod contact on and off
+    assert res["two_rods_apart"]["contact_energy_mean"] == res["two_rods_apart_rod_contact_off"]["contact_energy_mean"]
+    assert res["ratio_rod_contact_on_over_off_apart"] > 0 and res["ratio_self_contact_on_over_off"] > 0
