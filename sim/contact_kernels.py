@@ -75,6 +75,14 @@ def imc_energy(g, k, delta):
     return k * L * L / (K1 * K1), -2.0 * k * L * sig / K1, 2.0 * k * (sig * sig + L * sig * (1.0 - sig))
 
 
+@njit(inline="always", **_OPT_CONTACT)
+def friction_tangent_entry(a1, dgam, gam, vtn, t, n, mu, d2E, i, j):
+    """Entry (i, j) of smooth Coulomb friction's 3×3 Jacobian block before the nodal weights (docs/physics.md §4.6):
+    a1 [γ' t tᵀ + γ/|v_t| (P − t tᵀ)] − μ E'' γ t nᵀ with a1 = μ λ / dt, P = I − n nᵀ (t, n unit 3-vectors)."""
+    P = (1.0 if i == j else 0.0) - n[i] * n[j]
+    return a1 * (dgam * t[i] * t[j] + gam / vtn * (P - t[i] * t[j])) - mu * d2E * gam * t[i] * n[j]
+
+
 @njit(**_OPT_CONTACT)
 def friction_block(va, vb, s, n, lam, d2E, mu, nu, dt, fr, J):
     """Smooth Coulomb friction of one contact on edge nodes (a, b), weights (1-s, s).
@@ -112,8 +120,7 @@ def friction_block(va, vb, s, n, lam, d2E, mu, nu, dt, fr, J):
     a1 = mu * lam / dt
     for i in range(3):
         for j in range(3):
-            P = (1.0 if i == j else 0.0) - n[i] * n[j]
-            blk = a1 * (dgam * t[i] * t[j] + gam / vtn * (P - t[i] * t[j])) - mu * d2E * gam * t[i] * n[j]
+            blk = friction_tangent_entry(a1, dgam, gam, vtn, t, n, mu, d2E, i, j)
             for kk in range(2):
                 for ll in range(2):
                     J[3 * kk + i, 3 * ll + j] = blk * w[kk] * w[ll]

@@ -32,7 +32,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .contact_kernels import imc_energy
+from .contact_kernels import friction_tangent_entry, imc_energy
 from .geometry_distance import closest_seg_seg, vcross, vdot, vlerp, vsub
 from .solve_params import _OPT_CONTACT
 
@@ -406,8 +406,7 @@ def rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, dpn, fixed, radius, 
             a1 = mu * lam / dt
             for a in range(3):
                 for b in range(3):
-                    P = (1.0 if a == b else 0.0) - nhat[a] * nhat[b]
-                    blk = a1 * (dgam * tv[a] * tv[b] + gam / vtn * (P - tv[a] * tv[b])) - mu * d2E * gam * tv[a] * nhat[b]
+                    blk = friction_tangent_entry(a1, dgam, gam, vtn, tv, nhat, mu, d2E, a, b)
                     for q in range(4):
                         for p in range(4):
                             H12[3 * q + a, 3 * p + b] += blk * cw[q] * cw[p]
