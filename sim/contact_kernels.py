@@ -76,6 +76,17 @@ def imc_energy(g, k, delta):
 
 
 @njit(inline="always", **_OPT_CONTACT)
+def coulomb_factor(vtn, nu):
+    """Smooth Coulomb factor γ(|v_t|) and its derivative γ' (docs/physics.md §4.6): 1 and 0 when sliding
+    (|v_t| > ν), else tanh(K2 |v_t| / 2) with K2 = 15/ν."""
+    if vtn > nu:
+        return 1.0, 0.0
+    K2 = 15.0 / nu
+    gam = 2.0 / (1.0 + math.exp(-K2 * vtn)) - 1.0
+    return gam, 0.5 * K2 * (1.0 - gam * gam)
+
+
+@njit(inline="always", **_OPT_CONTACT)
 def friction_tangent_entry(a1, dgam, gam, vtn, t, n, mu, d2E, i, j):
     """Entry (i, j) of smooth Coulomb friction's 3×3 Jacobian block before the nodal weights (docs/physics.md §4.6):
     a1 [γ' t tᵀ + γ/|v_t| (P − t tᵀ)] − μ E'' γ t nᵀ with a1 = μ λ / dt, P = I − n nᵀ (t, n unit 3-vectors)."""
@@ -104,13 +115,7 @@ def friction_block(va, vb, s, n, lam, d2E, mu, nu, dt, fr, J):
     if vtn <= 1e-15 or lam <= 0.0 or mu <= 0.0:
         return (0.0, 0.0, 0.0)
     t = (vt[0] / vtn, vt[1] / vtn, vt[2] / vtn)
-    if vtn > nu:
-        gam = 1.0
-        dgam = 0.0
-    else:
-        K2 = 15.0 / nu
-        gam = 2.0 / (1.0 + math.exp(-K2 * vtn)) - 1.0
-        dgam = 0.5 * K2 * (1.0 - gam * gam)
+    gam, dgam = coulomb_factor(vtn, nu)
     w = (w0, w1)
     c = mu * lam * gam
     for kk in range(2):

@@ -32,7 +32,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .contact_kernels import friction_tangent_entry, imc_energy
+from .contact_kernels import _edge_radius, _row3, coulomb_factor, friction_tangent_entry, imc_energy
 from .geometry_distance import closest_seg_seg, vcross, vdot, vlerp, vsub
 from .solve_params import _OPT_CONTACT
 
@@ -214,23 +214,12 @@ def seg_seg_derivs(a, b, p, q, grad, hess, nhat, ws):
     return dd, s, t
 
 
-@njit(inline="always", **_OPT_CONTACT)
-def _radius(radius, j):
-    """Radius [m] of edge j (``radius`` (1,) for one radius, else (E,) per edge)."""
-    return radius[min(j, radius.shape[0] - 1)]
-
-
-@njit(inline="always", **_OPT_CONTACT)
-def _row(x, k):
-    return (x[k, 0], x[k, 1], x[k, 2])
-
-
 @njit(**_OPT_CONTACT)
 def _edge_boxes(x_start, x_end, radius, margin, box):
     """box (E, 6): each edge's axis-aligned box over its positions at the start and the end of the motion, grown
     by its radius and half the margin (two boxes overlap iff the grown-by-the-whole-margin test would pass)."""
     for j in range(box.shape[0]):
-        g = _radius(radius, j) + 0.5 * margin
+        g = _edge_radius(radius, j) + 0.5 * margin
         for a in range(3):
             lo = min(x_start[j, a], x_start[j + 1, a], x_end[j, a], x_end[j + 1, a])
             hi = max(x_start[j, a], x_start[j + 1, a], x_end[j, a], x_end[j + 1, a])
@@ -313,13 +302,13 @@ def _slot(wb_slot, wb_dof, wb_n, d):
 @njit(inline="always", **_OPT_CONTACT)
 def _gap(x, radius, i, j):
     """Gap [m] of edges i and j at node positions x."""
-    a = _row(x, i)
-    b = _row(x, i + 1)
-    p = _row(x, j)
-    q = _row(x, j + 1)
+    a = _row3(x, i)
+    b = _row3(x, i + 1)
+    p = _row3(x, j)
+    q = _row3(x, j + 1)
     s, t = closest_seg_seg(a, b, p, q)
     u = vsub(vlerp(a, b, s), vlerp(p, q, t))
-    return math.sqrt(vdot(u, u)) - _radius(radius, i) - _radius(radius, j)
+    return math.sqrt(vdot(u, u)) - _edge_radius(radius, i) - _edge_radius(radius, j)
 
 
 @njit(**_OPT_CONTACT)
@@ -347,8 +336,8 @@ def rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, dpn, fixed, radius, 
         j = pairs[cand[m], 1]
         if _gap(x, radius, i, j) >= delta:  # the cheap test first: most candidates are not in touch
             continue
-        rs = _radius(radius, i) + _radius(radius, j)
-        dd, s, t = seg_seg_derivs(_row(x, i), _row(x, i + 1), _row(x, j), _row(x, j + 1), g12, H12, nhat, ws)
+        rs = _edge_radius(radius, i) + _edge_radius(radius, j)
+        dd, s, t = seg_seg_derivs(_row3(x, i), _row3(x, i + 1), _row3(x, j), _row3(x, j + 1), g12, H12, nhat, ws)
         gap = dd - rs
         E, dE, d2E = imc_energy(gap, k, delta)
         energy += E
@@ -383,12 +372,7 @@ def rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, dpn, fixed, radius, 
                 tv0 = v0 / vtn
                 tv1 = v1 / vtn
                 tv2 = v2 / vtn
-                if vtn > nu:
-                    gam = 1.0
-                else:
-                    K2 = 15.0 / nu
-                    gam = 2.0 / (1.0 + math.exp(-K2 * vtn)) - 1.0
-                    dgam = 0.5 * K2 * (1.0 - gam * gam)
+                gam, dgam = coulomb_factor(vtn, nu)
         tv = (tv0, tv1, tv2)
         cf = mu * lam * gam
         for q in range(4):
@@ -482,8 +466,8 @@ def rod_pairs_step_limit(pairs, cand, ncand, x, dxp, radius, delta):
         D = Di + Dj
         if D <= 0.0:
             continue
-        rs = _radius(radius, i) + _radius(radius, j)
-        g = _pair_distance(x, dxp, 0.0, i, j) - rs
+        rs = _edge_radius(radius, i) + _edge_radius(radius, j)
+        g = _gap(x, radius, i, j)
         floor = min(g, 0.0) - delta
         if floor < -rs:
             floor = -rs * (1.0 - 1e-3)  # never let the centre lines meet

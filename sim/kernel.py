@@ -134,17 +134,17 @@ def _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
     es, eb, et = _energies(planar, xs, d1s, ts, bs, kb, tb, rod, prm, w)
     ec = 0.0
     pos, pos0 = w.pos, w.pos0
+    if prm.n_obstacles > 0 or prm.rod_pairs > 0:
+        _positions(planar, xs, pos, prm.plane_y)
     if prm.n_obstacles > 0:
         # candidates of the state actually kept (a guard fallback or a restored state is not the configuration
         # the last sub-step's list was built for): energy and report see every pair near it
-        _positions(planar, xs, pos, prm.plane_y)
         contact_broadphase(e, cd, pos, pos, prm.contact_margin, rod.link)
         w.cg[:, :] = 0.0
         w.ch[:, :, :] = 0.0
         ec = contact_accumulate(e, cd, pos, pos, prm.dt, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
                                 prm.friction_nu, prm.friction_on > 0, w.cg, w.ch, rod.link)
     if prm.rod_pairs > 0:  # edge pairs near the state kept
-        _positions(planar, xs, pos, prm.plane_y)
         rod_pairs_broadphase(rod.pairs, pos, pos, rod.radius, prm.contact_margin, w.rp_box, w.rp_cand, w.rp_n)
         ec += rod_pairs_energy(rod.pairs, w.rp_cand, w.rp_n, pos, rod.radius, prm.contact_k, prm.contact_delta)
     ek = 0.0
