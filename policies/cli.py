@@ -65,6 +65,9 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--bf16", action="store_true",
                    help="gradient updates under bfloat16 autocast (faster on CPUs with AVX-512 BF16; BENCHMARKS.md §6)")
     p.add_argument("--log-interval", type=float, default=d.log_interval_s, help="seconds between log lines")
+    p.add_argument("--device", default=d.device,
+                   help="torch device of the SAC networks and replay sampling: cpu (default), cuda or cuda:N; the "
+                        "simulator always runs on the CPU")
     a = p.parse_args(argv)
     if a.resume and not a.run_dir:
         p.error("--resume needs --run-dir")
@@ -90,7 +93,7 @@ def train_main(argv: list[str]) -> int:
                 log_interval_s=a.log_interval, time_limit_minutes=a.time_limit, init_from=a.init_from,
                 init_ent_coef=a.init_ent_coef, first_checkpoint_minutes=a.first_checkpoint_minutes,
                 eval_minutes=a.eval_minutes, eval_every_steps=a.eval_every_steps, eval_episodes=a.eval_episodes,
-                eval_stochastic=a.eval_stochastic, bf16=a.bf16)
+                eval_stochastic=a.eval_stochastic, bf16=a.bf16, device=a.device)
     if a.resume:
         cfg = os.path.join(a.run_dir, "config.json")
         try:
@@ -187,7 +190,7 @@ def eval_main(argv: list[str]) -> int:
 
 # ----------------------------------------------------------------------------------------- bench train
 def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3, seed: int = 0,
-                threads: int = 1, speed=None, overlap: bool = False) -> dict:
+                threads: int = 1, speed=None, overlap: bool = False, device: str = "cpu") -> dict:
     """Time training iterations (one batched env step + ``updates`` gradient updates of batch 1024).
 
     Returns ms per iteration split into policy (action sampling), env step, buffer add and updates.
@@ -199,10 +202,11 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
     import numpy as np
     import torch
 
-    from policies.train import Args, build_sac, make_sb3_env
+    from policies.train import Args, build_sac, check_device, make_sb3_env
 
     torch.set_num_threads(threads)
-    args = Args(task=task, num_envs=envs, total_steps=max(envs * (iters + warmup + 10), 20_000), seed=seed)
+    args = Args(task=task, num_envs=envs, total_steps=max(envs * (iters + warmup + 10), 20_000), seed=seed,
+                device=check_device(device))
     t_build = time.perf_counter()
     env = make_sb3_env(task, envs, seed)
     model = build_sac(args, env)
@@ -238,12 +242,14 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
             t3 = time.perf_counter()
             with update_ctx():
                 model.train(gradient_steps=args.updates_per_iter, batch_size=args.batch_size)
+            _sync(model)
             t4 = time.perf_counter()
             row = (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t4 - t0)
         else:
             fut = pool.submit(env.step, act)
             with update_ctx():
                 model.train(gradient_steps=args.updates_per_iter, batch_size=args.batch_size)
+            _sync(model)
             t2 = time.perf_counter()
             nobs, rew, done, infos = fut.result()
             t3 = time.perf_counter()
@@ -259,13 +265,22 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
     r = 1e3 * np.array(rows)
     names = ["policy_ms", "env_step_ms", "buffer_add_ms", "update_ms", "iteration_ms"]
     out = {"task": task, "envs": envs, "iters": iters, "updates_per_iter": args.updates_per_iter,
-           "batch_size": args.batch_size, "torch_threads": threads, "setup_s": round(build_s, 2),
+           "batch_size": args.batch_size, "torch_threads": threads, "device": args.device,
+           "setup_s": round(build_s, 2),
            "speed_settings": speed.label() + (",overlap" if overlap else "")}
     for j, nm in enumerate(names):
         out[nm] = round(float(np.median(r[:, j])), 2)
         out[nm.replace("_ms", "_ms_mean")] = round(float(r[:, j].mean()), 2)
     out["env_steps_per_s"] = round(envs / (out["iteration_ms"] / 1e3), 1)
     return out
+
+
+def _sync(model) -> None:
+    """Wait for the GPU's queued work (the updates' kernels) so that the timer sees it."""
+    if model.device.type == "cuda":
+        import torch
+
+        torch.cuda.synchronize(model.device)
 
 
 def bench_train_main(argv: list[str]) -> int:
@@ -282,6 +297,7 @@ def bench_train_main(argv: list[str]) -> int:
     p.add_argument("--adam", choices=("fused", "foreach", "plain"), default="fused", help="Adam implementation")
     p.add_argument("--overlap", action="store_true",
                    help="run the env step in a second thread during the updates (its transition is added after them)")
+    p.add_argument("--device", default="cpu", help="torch device of the updates: cpu (default), cuda or cuda:N")
     p.add_argument("--json", action="store_true")
     a = p.parse_args(argv)
     from policies.train import TrainError
@@ -289,7 +305,8 @@ def bench_train_main(argv: list[str]) -> int:
 
     try:
         res = bench_train(a.task, envs=a.envs, iters=a.iters, warmup=a.warmup, threads=a.threads,
-                          speed=SpeedSettings(compile=a.compile, bf16=a.bf16, adam=a.adam), overlap=a.overlap)
+                          speed=SpeedSettings(compile=a.compile, bf16=a.bf16, adam=a.adam), overlap=a.overlap,
+                          device=a.device)
     except TrainError as exc:
         print(f"rodlab bench train: {exc}", file=sys.stderr)
         return 2

@@ -140,7 +140,7 @@ class RodSAC(SAC):
 
         stats: dict[str, list[float]] = {"actor_loss": [], "critic_loss": [], "ent_coef": [], "ent_coef_loss": [],
                                          "log_prob": [], "q_mean": []}
-        with th.autocast("cpu", dtype=th.bfloat16, enabled=bool(getattr(self, "bf16_updates", False))):
+        with th.autocast(self.device.type, dtype=th.bfloat16, enabled=bool(getattr(self, "bf16_updates", False))):
             self._updates(gradient_steps, batch_size, stats)
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         for key, vals in stats.items():

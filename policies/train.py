@@ -86,7 +86,7 @@ class Args:
     time_limit_minutes: float = 0.0         # >0: stop (checkpoint + policy) after this wall time in this session
     save_replay_buffer: bool = True
     log_interval_s: float = 15.0
-    device: str = "cpu"
+    device: str = "cpu"                     # torch device of the networks and replay sampling: cpu, cuda, cuda:N
     # deterministic evaluation during training (policies/train_monitor.py); 0 disables a trigger
     eval_minutes: float = 3.0               # wall-clock between evaluations
     eval_every_steps: int = 0               # env steps between evaluations (tests, step-based curves)
@@ -304,6 +304,24 @@ def _buffer_size(args: Args) -> int:
     return max(min(args.buffer_size, args.total_steps), args.num_envs * 2)
 
 
+def check_device(name: str) -> str:
+    """``name`` as a torch device string; raises ``TrainError`` for a malformed name or an absent GPU."""
+    import torch as th
+
+    try:
+        dev = th.device(name)
+    except (RuntimeError, TypeError) as exc:
+        raise TrainError(f"--device: {name!r} is not a torch device (cpu, cuda, cuda:N): {exc}") from None
+    if dev.type == "cuda":
+        if not th.cuda.is_available():
+            raise TrainError(f"--device {name}: this torch ({th.__version__}) sees no CUDA GPU")
+        if dev.index is not None and dev.index >= th.cuda.device_count():
+            raise TrainError(f"--device {name}: only {th.cuda.device_count()} CUDA device(s)")
+    elif dev.type != "cpu":
+        raise TrainError(f"--device {name}: only cpu and cuda devices are supported")
+    return str(dev)
+
+
 # ------------------------------------------------------------------------------------ main entry
 def train(args: Args, *, resume: bool = False) -> Path:
     """Train (or resume) a run; returns the run directory. Writes policy.zip at the end or on stop."""
@@ -324,6 +342,7 @@ def train(args: Args, *, resume: bool = False) -> Path:
             raise TrainError(f"--resume: run in {run_dir} trains task {saved.task!r}, not {args.task!r}")
         saved.total_steps = args.total_steps
         saved.time_limit_minutes = args.time_limit_minutes
+        saved.device = args.device  # a run may continue on another device (the checkpoint maps its tensors)
         saved.run_dir = str(run_dir)
         args = saved
     else:
@@ -333,6 +352,7 @@ def train(args: Args, *, resume: bool = False) -> Path:
             raise TrainError(f"{run_dir} already holds a checkpoint; pass --resume or choose another --run-dir")
         if args.init_from and not Path(args.init_from).is_file():  # fail before creating the run directory
             raise TrainError(f"--init-from: policy file not found: {args.init_from}")
+    args.device = check_device(args.device)  # before the run directory is made
     run_dir.mkdir(parents=True, exist_ok=True)
 
     state = read_state(run_dir) if resume else None

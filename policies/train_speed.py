@@ -66,5 +66,5 @@ def apply_speed_settings(model, settings: SpeedSettings):
         for i, q in enumerate(list(pol.critic_target.q_networks)):
             pol.critic_target.q_networks[i] = th.compile(q)
     if settings.bf16:
-        return lambda: th.autocast("cpu", dtype=th.bfloat16)
+        return lambda: th.autocast(model.device.type, dtype=th.bfloat16)
     return contextlib.nullcontext
