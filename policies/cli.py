@@ -25,7 +25,7 @@ def _threads_env() -> None:
 # ----------------------------------------------------------------------------------------- train
 def train_main(argv: list[str]) -> int:
     _threads_env()
-    from policies.train import Args, TrainError, train
+    from policies.train import Args, TrainError, check_device, train
 
     d = Args()
     p = argparse.ArgumentParser(prog="rodlab train", description="Train SAC on a rodlab task (headless). "
@@ -82,6 +82,11 @@ def train_main(argv: list[str]) -> int:
     from sim.validate import check_output_path
 
     try:  # before any work: a run directory that cannot be written loses nothing
+        check_device(a.device)
+    except TrainError as exc:
+        print(f"rodlab train: {exc}", file=sys.stderr)
+        return 2
+    try:
         check_output_path(a.run_dir or "runs", folder=True)
     except ValueError as exc:
         print(f"rodlab train: --run-dir: {exc}", file=sys.stderr)

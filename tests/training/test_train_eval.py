@@ -126,3 +126,28 @@ def test_cli_reports_bad_input_without_traceback(tmp_path, capsys):
                          timeout=120)
     assert out.returncode == 2
     assert "Traceback" not in out.stderr and "not a readable policy zip" in out.stderr
+
+
+def test_device_is_checked_before_any_work(tmp_path, capsys):
+    """`--device` names a torch device this machine has; otherwise a one-line error and no run directory."""
+    import torch
+
+    from policies.cli import bench_train_main, train_main
+    from policies.train import check_device
+
+    assert check_device("cpu") == "cpu"
+    with pytest.raises(TrainError, match="not a torch device"):
+        check_device("gpu0")
+    with pytest.raises(TrainError, match="only cpu and cuda"):
+        check_device("meta")
+    run = tmp_path / "run"
+    assert train_main(["Pendulum-v1", "--steps", "100", "--run-dir", str(run), "--device", "gpu0"]) == 2
+    assert "--device" in capsys.readouterr().err and not run.exists()
+    if not torch.cuda.is_available():
+        with pytest.raises(TrainError, match="sees no CUDA GPU"):
+            check_device("cuda")
+        assert bench_train_main(["--task", "ik4d", "--envs", "2", "--device", "cuda:0"]) == 2
+        assert "sees no CUDA GPU" in capsys.readouterr().err
+    else:  # a GPU machine: an index past the last device is refused
+        with pytest.raises(TrainError, match="CUDA device"):
+            check_device(f"cuda:{torch.cuda.device_count()}")
