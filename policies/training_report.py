@@ -5,9 +5,12 @@
 
 ``plot`` reads each run's ``metrics.csv`` (written by policies/train.py) and draws the training
 average discounted return (alf metric, stochastic policy) against env steps and against wall-clock.
-``ship`` copies ``RUN_DIR/policy.zip`` to ``policies/pretrained/<name>.zip`` and writes
-``<name>.json`` beside it: task, training config + summary, evaluation of the policy and of a random
-policy on the same seeds, and the paper's reference figure (Table II, DisMech -> DisMech).
+``ship`` copies ``RUN_DIR/policy.zip`` (``--policy best``: ``RUN_DIR/policy_best.zip``, the policy of the run's
+best evaluation during training) to ``policies/pretrained/<name>.zip`` and writes ``<name>.json`` beside it: task,
+training config + summary, where the policy came from, evaluation of the policy and of a random policy on the same
+seeds, and the paper's reference figure (Table II, DisMech -> DisMech). ``--only-if-better`` first evaluates the
+candidate and the policy already shipped under that name on the same episodes and replaces it only when the
+candidate's average discounted return is at least as high (the rule for replacing a shipped policy, docs/training.md).
 """
 from __future__ import annotations
 
@@ -82,31 +85,63 @@ def plot_training_curves(run_dirs: list[str | Path], out_png: str | Path, *, tit
     return out
 
 
-def ship(run_dir: str | Path, name: str, *, episodes: int = 50, seed: int = 100, num_envs: int | None = None) -> dict:
-    """Copy the run's policy into policies/pretrained/<name>.zip and write <name>.json (with evaluation)."""
+class ShipError(Exception):
+    """The policy cannot be shipped (missing file, or not better than the shipped one with only_if_better)."""
+
+
+POLICY_FILES = {"final": "policy.zip", "best": "policy_best.zip"}
+
+
+def ship(run_dir: str | Path, name: str, *, episodes: int = 50, seed: int = 100, num_envs: int | None = None,
+         policy: str = "final", only_if_better: bool = False, dest_dir: str | Path | None = None) -> dict:
+    """Copy the run's policy into ``dest_dir`` (policies/pretrained/) as <name>.zip and write <name>.json.
+
+    Returns the JSON written. With ``only_if_better`` and a policy already shipped as <name>.zip, both are first
+    evaluated on the same ``episodes`` (seed ``seed``); a candidate with a lower average discounted return raises
+    ``ShipError`` and nothing is written.
+    """
     from sim.atomicio import write_bytes
 
     from policies.evaluate import evaluate
 
     run_dir = Path(run_dir)
-    src = run_dir / "policy.zip"
-    PRETRAINED.mkdir(parents=True, exist_ok=True)
-    dst = PRETRAINED / f"{name}.zip"
+    if policy not in POLICY_FILES:
+        raise ShipError(f"policy must be one of {sorted(POLICY_FILES)}, got {policy!r}")
+    src = run_dir / POLICY_FILES[policy]
+    for f in (src, run_dir / "config.json"):
+        if not f.is_file():
+            raise ShipError(f"{f} not found")
+    dest = Path(dest_dir) if dest_dir is not None else PRETRAINED
+    dest.mkdir(parents=True, exist_ok=True)
+    dst = dest / f"{name}.zip"
+    compared = None
+    if only_if_better and dst.is_file():
+        cand = evaluate(src, episodes=episodes, seed=seed, num_envs=num_envs)
+        cur = evaluate(dst, episodes=episodes, seed=seed, num_envs=num_envs)
+        compared = {"candidate": cand["avg_discounted_return_mean"], "shipped": cur["avg_discounted_return_mean"],
+                    "episodes": episodes, "seed": seed}
+        if cand["avg_discounted_return_mean"] < cur["avg_discounted_return_mean"]:
+            raise ShipError(f"{src} evaluates {cand['avg_discounted_return_mean']:.2f} on {episodes} episodes (seed "
+                            f"{seed}), below the shipped {dst.name} ({cur['avg_discounted_return_mean']:.2f}): not "
+                            "replaced")
     tmp = dst.with_suffix(".zip.tmp")
     shutil.copyfile(src, tmp)
     tmp.replace(dst)
-    side = json.loads((run_dir / "policy.json").read_text())
+    side_path = run_dir / "policy.json"
+    side = json.loads(side_path.read_text()) if side_path.is_file() else {}
     cfg = json.loads((run_dir / "config.json").read_text())
     ev = evaluate(dst, episodes=episodes, seed=seed, num_envs=num_envs)
     rnd = evaluate("random", ev["task"], episodes=episodes, seed=seed, num_envs=num_envs)
     out = {
         "task": ev["task"], "policy_file": dst.name, "git_commit": cfg.get("git_commit"),
+        "source": {"run": run_dir.name, "file": src.name, "from_scratch": not cfg["args"].get("init_from"),
+                   "compared_with_shipped": compared},
         "config": cfg["args"], "training": side.get("training"), "target_entropy": cfg.get("target_entropy"),
         "evaluation": ev, "random_policy_evaluation": rnd,
         "paper_table_ii_dismech": PAPER_TABLE_II.get(ev["task"]),
         "eval_command": f"rodlab eval policies/pretrained/{name}.zip --episodes {episodes} --seed {seed} --json",
     }
-    write_bytes(PRETRAINED / f"{name}.json", json.dumps(out, indent=1).encode())
+    write_bytes(dest / f"{name}.json", json.dumps(out, indent=1).encode())
     return out
 
 
@@ -123,6 +158,11 @@ def main(argv: list[str] | None = None) -> int:
     ps.add_argument("--episodes", type=int, default=50)
     ps.add_argument("--seed", type=int, default=100)
     ps.add_argument("--envs", type=int, default=None)
+    ps.add_argument("--policy", choices=sorted(POLICY_FILES), default="final",
+                    help="final: RUN/policy.zip; best: RUN/policy_best.zip (best evaluation during training)")
+    ps.add_argument("--only-if-better", action="store_true",
+                    help="replace a shipped policy of that name only if this one evaluates at least as well on the "
+                         "same episodes")
     a = p.parse_args(argv)
     if a.cmd == "plot":
         print(plot_training_curves(a.runs, a.out, title=a.title))
@@ -130,7 +170,12 @@ def main(argv: list[str] | None = None) -> int:
         import torch
 
         torch.set_num_threads(1)
-        res = ship(a.run, a.name, episodes=a.episodes, seed=a.seed, num_envs=a.envs)
+        try:
+            res = ship(a.run, a.name, episodes=a.episodes, seed=a.seed, num_envs=a.envs, policy=a.policy,
+                       only_if_better=a.only_if_better)
+        except ShipError as exc:
+            print(f"ship: {exc}", file=sys.stderr)
+            return 1
         ev, rnd = res["evaluation"], res["random_policy_evaluation"]
         print(f"{a.name}: avg disc return {ev['avg_discounted_return_mean']:.2f} ± {ev['avg_discounted_return_std']:.2f} "
               f"(random {rnd['avg_discounted_return_mean']:.2f}); paper {res['paper_table_ii_dismech']}")

@@ -151,3 +151,43 @@ def test_device_is_checked_before_any_work(tmp_path, capsys):
     else:  # a GPU machine: an index past the last device is refused
         with pytest.raises(TrainError, match="CUDA device"):
             check_device(f"cuda:{torch.cuda.device_count()}")
+
+
+def test_ship_copies_and_refuses_a_worse_policy(tmp_path, monkeypatch):
+    """training_report ship: final or best policy into a pretrained folder with its source; --only-if-better keeps
+    the shipped file when the candidate evaluates lower on the same episodes."""
+    import policies.evaluate as ev_mod
+    from policies.training_report import ShipError, main, ship
+
+    run = tmp_path / "run"
+    train(_args(run, 120, task="Pendulum-v1", eval_every_steps=40, eval_episodes=2, eval_envs=2))
+    assert (run / "policy_best.zip").is_file()
+    dest = tmp_path / "pretrained"
+    out = ship(run, "pend", episodes=2, seed=3, dest_dir=dest)
+    assert (dest / "pend.zip").read_bytes() == (run / "policy.zip").read_bytes()
+    js = json.loads((dest / "pend.json").read_text())
+    assert js == json.loads(json.dumps(out)) and js["source"] == {"run": "run", "file": "policy.zip",
+                                                                   "from_scratch": True, "compared_with_shipped": None}
+    assert np.isfinite(js["evaluation"]["avg_discounted_return_mean"])
+
+    real = ev_mod.evaluate
+    scores = {"policy_best.zip": -5.0, "pend.zip": -1.0}
+
+    def fake(policy, *a, **kw):
+        res = real(policy, *a, **kw)
+        res["avg_discounted_return_mean"] = scores.get(Path(str(policy)).name, res["avg_discounted_return_mean"])
+        return res
+
+    monkeypatch.setattr(ev_mod, "evaluate", fake)
+    before = (dest / "pend.zip").read_bytes()
+    with pytest.raises(ShipError, match="below the shipped"):
+        ship(run, "pend", episodes=2, seed=3, dest_dir=dest, policy="best", only_if_better=True)
+    assert (dest / "pend.zip").read_bytes() == before
+    scores["policy_best.zip"] = -1.0  # as good as the shipped one: replaced
+    out = ship(run, "pend", episodes=2, seed=3, dest_dir=dest, policy="best", only_if_better=True)
+    assert (dest / "pend.zip").read_bytes() == (run / "policy_best.zip").read_bytes()
+    assert out["source"]["file"] == "policy_best.zip"
+    assert out["source"]["compared_with_shipped"] == {"candidate": -1.0, "shipped": -1.0, "episodes": 2, "seed": 3}
+    with pytest.raises(ShipError, match="not found"):
+        ship(tmp_path / "nothing", "pend", dest_dir=dest)
+    assert main(["ship", str(tmp_path / "nothing"), "--name", "x"]) == 1
