@@ -108,7 +108,7 @@ class PlotsPanel:
         with wb.lock:
             items = wb.history._items[-LIVE_WINDOW:]
             dt = float(wb.live.dt)
-        curv = curvature_plot(live_curves(wb) or {})
+        curv = curvature_plot(live_curves(wb))
         head = [curv] if curv is not None else []
         if len(items) < 2:
             self.show(head)

@@ -63,16 +63,13 @@ def curves(x, m1, m2, *, kappa_bar=None, tau_bar=None, planar: int | None = None
     return out
 
 
-def live_curves(wb) -> dict[str, tuple[np.ndarray | None, np.ndarray | None]] | None:
-    """The live rod's curves (None before the simulator can give material frames)."""
+def live_curves(wb) -> dict[str, tuple[np.ndarray | None, np.ndarray | None]]:
+    """The live rod's curves (commanded and actual curvature and twist)."""
     with wb.lock:
         live = wb.live
         x = np.asarray(live.state.node_pos[0], np.float64).copy()
-        try:
-            mf = live.sim.material_frames(live.state)
-            m1, m2 = np.asarray(mf[0][0], np.float64), np.asarray(mf[1][0], np.float64)
-        except Exception:  # noqa: BLE001 - a simulator without frames: commanded values only
-            m1 = m2 = None
+        mf = live.sim.material_frames(live.state)
+        m1, m2 = np.asarray(mf[0][0], np.float64), np.asarray(mf[1][0], np.float64)
         kb = np.asarray(live.ctrl.kappa_bar[0], np.float64).copy()
         tb = np.asarray(live.ctrl.tau_bar[0], np.float64).copy()
         planar = int(live.model.planar_component) if getattr(live.model, "mode", "3d") == "2d" else None

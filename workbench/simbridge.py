@@ -181,12 +181,8 @@ class LiveSim:
     # ---------------------------------------------------------------- drawing
     def frame(self, *, targets: np.ndarray | None = None, scalars: dict | None = None) -> Frame:
         x = np.asarray(self.state.node_pos[0], dtype=np.float64)
-        m1 = m2 = None
-        try:
-            mf = self.sim.material_frames(self.state)
-            m1, m2 = np.asarray(mf[0][0]), np.asarray(mf[1][0])
-        except Exception:  # noqa: BLE001 - frames are an optional overlay
-            pass
+        mf = self.sim.material_frames(self.state)  # an error here is a simulator defect: it is not hidden
+        m1, m2 = np.asarray(mf[0][0]), np.asarray(mf[1][0])
         cp, cf, cn, cfn = contacts_from_stats(self.last_stats)
         sc = {**self.step_scalars(), **(scalars or {})}
         kb = getattr(self.ctrl, "kappa_bar", None)
