@@ -269,10 +269,7 @@ def bench_rl(*, quick: bool, repeats: int) -> dict | None:
 
 
 def bench_contact(*, quick: bool, peer: bool, repeats: int) -> dict | None:
-    """Arm pressed into an obstacle (needs the contact model; see accuracy_contact)."""
-    try:
-        from . import accuracy_contact
-    except ImportError as exc:
-        print(f"contact: skipped ({exc})")
-        return None
+    """Arm pressed into an obstacle (benchmarks/accuracy_contact.py)."""
+    from . import accuracy_contact
+
     return accuracy_contact.bench(quick=quick, peer=peer, repeats=repeats)

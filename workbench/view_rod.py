@@ -193,12 +193,8 @@ def scene_info(wb) -> tuple[np.ndarray | None, tuple[int, ...]]:
     configuration, and the control points of the task's action converter (teleop: ``workbench.teleop``)."""
     from workbench.teleop import CONTROL_NODES
 
-    rest = None
-    try:
-        with wb.lock:
-            rest = np.asarray(wb.live.sim.reset().node_pos[0], np.float64).copy()
-    except Exception:  # noqa: BLE001 - the rest shape is an optional overlay
-        rest = None
+    with wb.lock:
+        rest = np.asarray(wb.live.sim.reset().node_pos[0], np.float64).copy()
     nodes = CONTROL_NODES
     pol = getattr(wb, "policy", None)
     try:

@@ -303,11 +303,8 @@ class TaskProbe:
         core = self.core
         sim, state, ctrl = core.sim, core.state, core.ctrl
         pos = np.asarray(state.node_pos)
-        try:
-            m1, m2, _t = sim.material_frames(state)
-            m1, m2 = np.asarray(m1), np.asarray(m2)
-        except Exception:
-            m1 = m2 = None
+        m1, m2, _t = sim.material_frames(state)  # every back-end has them; a failure is not recorded as "no frames"
+        m1, m2 = np.asarray(m1), np.asarray(m2)
         planar = bool(getattr(core, "planar", False))
         model = getattr(core, "model", None) or sim.model
         pc = int(getattr(model, "planar_component", 0))
