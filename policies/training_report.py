@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 import shutil
 import sys
 from pathlib import Path
@@ -135,14 +136,44 @@ def ship(run_dir: str | Path, name: str, *, episodes: int = 50, seed: int = 100,
     out = {
         "task": ev["task"], "policy_file": dst.name, "git_commit": cfg.get("git_commit"),
         "source": {"run": run_dir.name, "file": src.name, "from_scratch": not cfg["args"].get("init_from"),
+                   "selected_at": _best_eval_row(run_dir) if policy == "best" else None,
                    "compared_with_shipped": compared},
         "config": cfg["args"], "training": side.get("training"), "target_entropy": cfg.get("target_entropy"),
         "evaluation": ev, "random_policy_evaluation": rnd,
         "paper_table_ii_dismech": PAPER_TABLE_II.get(ev["task"]),
         "eval_command": f"rodlab eval policies/pretrained/{name}.zip --episodes {episodes} --seed {seed} --json",
     }
-    write_bytes(dest / f"{name}.json", json.dumps(out, indent=1).encode())
+    out = _finite(out)
+    write_bytes(dest / f"{name}.json", json.dumps(out, indent=1, allow_nan=False).encode())
     return out
+
+
+def _best_eval_row(run_dir: Path) -> dict | None:
+    """Env steps and figure of the best deterministic evaluation in RUN/eval.csv (where policy_best.zip was saved)."""
+    best = None
+    path = run_dir / "eval.csv"
+    if not path.is_file():
+        return None
+    with open(path, newline="") as fh:
+        for row in csv.DictReader(fh):
+            try:
+                v = float(row["eval_avg_disc_return_mean"])
+            except (KeyError, ValueError):
+                continue
+            if math.isfinite(v) and (best is None or v > best["eval_avg_disc_return_mean"]):
+                best = {"env_steps": int(float(row["env_steps"])), "eval_avg_disc_return_mean": v}
+    return best
+
+
+def _finite(obj):
+    """``obj`` with every non-finite float replaced by None (the JSON written is strict)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -166,8 +166,9 @@ def test_ship_copies_and_refuses_a_worse_policy(tmp_path, monkeypatch):
     out = ship(run, "pend", episodes=2, seed=3, dest_dir=dest)
     assert (dest / "pend.zip").read_bytes() == (run / "policy.zip").read_bytes()
     js = json.loads((dest / "pend.json").read_text())
-    assert js == json.loads(json.dumps(out)) and js["source"] == {"run": "run", "file": "policy.zip",
-                                                                   "from_scratch": True, "compared_with_shipped": None}
+    assert js == out and js["source"] == {"run": "run", "file": "policy.zip", "from_scratch": True,
+                                          "selected_at": None, "compared_with_shipped": None}
+    json.loads((dest / "pend.json").read_text(), parse_constant=lambda c: pytest.fail(f"{c} in the JSON"))
     assert np.isfinite(js["evaluation"]["avg_discounted_return_mean"])
 
     real = ev_mod.evaluate
@@ -187,6 +188,12 @@ def test_ship_copies_and_refuses_a_worse_policy(tmp_path, monkeypatch):
     out = ship(run, "pend", episodes=2, seed=3, dest_dir=dest, policy="best", only_if_better=True)
     assert (dest / "pend.zip").read_bytes() == (run / "policy_best.zip").read_bytes()
     assert out["source"]["file"] == "policy_best.zip"
+    import csv
+
+    rows = list(csv.DictReader(open(run / "eval.csv")))
+    top = max(rows, key=lambda r: float(r["eval_avg_disc_return_mean"]))
+    assert out["source"]["selected_at"] == {"env_steps": int(top["env_steps"]),
+                                            "eval_avg_disc_return_mean": float(top["eval_avg_disc_return_mean"])}
     assert out["source"]["compared_with_shipped"] == {"candidate": -1.0, "shipped": -1.0, "episodes": 2, "seed": 3}
     with pytest.raises(ShipError, match="not found"):
         ship(tmp_path / "nothing", "pend", dest_dir=dest)
