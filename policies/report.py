@@ -1,4 +1,4 @@
-"""``rodlab report SWEEP_DIR``: the paper's Fig. 2 for a sweep, and a time-to-plateau table.
+"""``rodlab report SWEEP_DIR [SWEEP_DIR ...]``: the paper's Fig. 2 for a sweep (or several), and a time-to-plateau table.
 
 Reads every run directory under SWEEP_DIR (``rodlab sweep`` trials or ``rodlab train`` runs: config.json,
 metrics.csv, eval.csv) and groups the seeds of one task and setting (the directory name without its
@@ -266,16 +266,25 @@ def plot(rows: list[dict], out_png: Path) -> Path:
     return out_png
 
 
-def report(sweep_dir: str | Path, out_dir: str | Path | None = None,
+def report(sweep_dir: str | Path | list, out_dir: str | Path | None = None,
            iteration_ms: dict[str, float] | None = None) -> dict:
+    """Report of one sweep directory, or of several (one figure and table over all their runs; ``out_dir`` needed)."""
     from sim.atomicio import write_bytes
 
-    sweep_dir = Path(sweep_dir)
-    if not sweep_dir.is_dir():
-        raise ReportError(f"{sweep_dir} is not a directory")
-    runs = [load_run(p) for p in find_runs(sweep_dir)]
-    if not runs:
-        raise ReportError(f"no run directories (with config.json) in {sweep_dir}")
+    dirs = [Path(d) for d in sweep_dir] if isinstance(sweep_dir, (list, tuple)) else [Path(sweep_dir)]
+    if not dirs:
+        raise ReportError("no sweep directory given")
+    if len(dirs) > 1 and out_dir is None:
+        raise ReportError("several sweep directories need --out (the report's folder)")
+    runs = []
+    for d in dirs:
+        if not d.is_dir():
+            raise ReportError(f"{d} is not a directory")
+        found = find_runs(d)
+        if not found:
+            raise ReportError(f"no run directories (with config.json) in {d}")
+        runs += [load_run(p) for p in found]
+    sweep_dir = dirs[0]
     rows = summarize(runs, iteration_ms)
     out = Path(out_dir) if out_dir else sweep_dir / "report"
     out.mkdir(parents=True, exist_ok=True)
@@ -290,8 +299,9 @@ def report(sweep_dir: str | Path, out_dir: str | Path | None = None,
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="rodlab report", description="Learning curves (mean ± std over seeds, "
                                 "against env steps and wall-clock) and time-to-plateau table of a sweep.")
-    p.add_argument("sweep_dir", help="sweep directory (rodlab sweep --out) or one run directory")
-    p.add_argument("--out", default=None, help="output directory (default SWEEP_DIR/report)")
+    p.add_argument("sweep_dir", nargs="+", help="sweep directory (rodlab sweep --out) or one run directory; several "
+                   "make one report over all their runs (with --out)")
+    p.add_argument("--out", default=None, help="output directory (default SWEEP_DIR/report for one directory)")
     p.add_argument("--iteration-ms", action="append", default=[], metavar="TASK=MS",
                    help="also give the time to plateau at MS ms per iteration for TASK (a quiet-machine "
                         "measurement, e.g. rodlab bench train); repeatable")

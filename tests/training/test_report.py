@@ -88,3 +88,20 @@ def test_report_errors(tmp_path, capsys):
         report(tmp_path)
     assert main([str(tmp_path / "missing")]) == 2
     assert "is not a directory" in capsys.readouterr().err
+
+
+def test_report_over_several_sweep_directories(tmp_path, capsys):
+    """One figure and table over the runs of several sweeps (one sweep per task, as `rodlab sweep` writes them)."""
+    for seed, scale in enumerate((150.0, 250.0)):
+        _fake_run(tmp_path / "ft", "follow_target", seed, rate=1000.0, scale=scale)
+    _fake_run(tmp_path / "ik", "ik4d", 0, rate=800.0, scale=10.0)
+    out = tmp_path / "all"
+    res = report([tmp_path / "ft", tmp_path / "ik"], out)
+    assert [g["group"] for g in res["groups"]] == ["follow_target", "ik4d"]
+    assert res["groups"][0]["seeds"] == [0, 1] and (out / "fig2.png").is_file()
+    with pytest.raises(ReportError, match="need --out"):
+        report([tmp_path / "ft", tmp_path / "ik"])
+    with pytest.raises(ReportError, match="no run directories"):
+        report([tmp_path / "ft", tmp_path], out)
+    assert main([str(tmp_path / "ft"), str(tmp_path / "ik"), "--out", str(out)]) == 0
+    assert "| ik4d | 1 |" in capsys.readouterr().out
