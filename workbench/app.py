@@ -147,6 +147,11 @@ class WorkbenchApp:
             self.view.set_camera("front" if planar else "iso")
         self.sync_obstacle_view()
         self.sync_boundary_view()
+        self.controls.set_rods(self.wb.teleop_rods(), self.wb.teleop_rod)
+        self.refresh_rod_scene()
+
+    def refresh_rod_scene(self) -> None:
+        """Redraw the rest shape and control points of the live scene (the steered rod's)."""
         self.view.set_rod_scene(*scene_info(self.wb), self.wb.live.rod_radius, self.wb.live.rod_offsets)
         self.request_render()
 

@@ -40,7 +40,9 @@ class Workbench:
         self.lock = threading.RLock()
         self.scene_path = Path(scene_path) if scene_path else None
         self.live = LiveSim(spec)
-        self.teleop = Teleop(n_nodes=_first_rod_nodes(self.live), substeps=substeps)  # steers the first rod
+        self.teleop_rod = 0  # the rod the teleop sliders steer (index into teleop_rods())
+        self._teleops: dict[int, Teleop] = {}  # the other rods' teleop state, kept for switching back
+        self.teleop = _teleop_for(self.live, 0, substeps)
         self.mode: Mode = "teleop"
         self.playing = True
         self.history = History(history)
@@ -111,6 +113,8 @@ class Workbench:
         with self.lock:
             self.live.reset()
             self.teleop.reset()
+            for tel in self._teleops.values():  # the other rods are back at rest too
+                tel.reset()
             if self.policy is not None:
                 self.policy.reset(self.live)
                 self._sync_policy_obstacles()
@@ -173,6 +177,29 @@ class Workbench:
     def set_teleop_value(self, k: int, comp: int, value: float) -> None:
         with self.lock:
             self.teleop.set_value(k, comp, value)
+
+    def teleop_rods(self) -> list[str]:
+        """Names of the rods teleop can steer (the live scene's rods)."""
+        with self.lock:
+            names = list(getattr(self.live.model, "rod_names", ()) or ())
+            off = self.live.rod_offsets
+            n = 1 if off is None else len(off) - 1
+            return names if len(names) == n else [f"rod {i}" for i in range(n)]
+
+    def set_teleop_rod(self, index: int) -> None:
+        """Steer rod ``index`` of the live scene; the rod left keeps its last control and its slider values
+        come back when it is chosen again. Raises ValueError for an index the scene does not have."""
+        with self.lock:
+            n = len(self.teleop_rods())
+            if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or not 0 <= int(index) < n:
+                raise ValueError(f"teleop rod must be an index in [0, {n}), got {index!r}")
+            index = int(index)
+            if index == self.teleop_rod:
+                return
+            self._teleops[self.teleop_rod] = self.teleop
+            tel = self._teleops.pop(index, None) or _teleop_for(self.live, index, self.teleop.substeps)
+            tel.set_mode(self.teleop.mode)
+            self.teleop, self.teleop_rod = tel, index
 
     def start_policy(self, session) -> None:
         """Hand the rod to a ``PolicySession``: the page shows its task's simulator and episode."""
@@ -260,9 +287,13 @@ class Workbench:
         if self.recorder is not None:
             self.recorder.new_episode()
         self.live.set_spec(spec, keep_state=keep_state)
-        n0 = _first_rod_nodes(self.live)
-        if n0 != self.teleop.n_nodes:  # another rod to steer (a scene of other node counts)
-            self.teleop = Teleop(n_nodes=n0, substeps=self.teleop.substeps)
+        first, n = _rod_span(self.live, self.teleop_rod)
+        if n is None:  # the scene lost the steered rod: back to the first one
+            self.teleop_rod, self._teleops = 0, {}
+            self.teleop = _teleop_for(self.live, 0, self.teleop.substeps)
+        elif (first, n) != (self.teleop.first_node, self.teleop.n_nodes):  # another layout of rods
+            self._teleops = {}
+            self.teleop = _teleop_for(self.live, self.teleop_rod, self.teleop.substeps)
         self.obstacles = obst.edits_from_spec(spec)
         for cb in list(self.on_scene_changed):
             cb()
@@ -348,7 +379,16 @@ class Workbench:
         return rec.close() if rec is not None else None
 
 
-def _first_rod_nodes(live) -> int:
-    """The node count of the live scene's first rod (teleop steers it; all nodes in a one-rod scene)."""
+def _rod_span(live, index: int) -> tuple[int, int | None]:
+    """(first node, node count) of rod ``index`` of the live scene; (0, None) when it has no such rod."""
     off = live.rod_offsets
-    return int(live.n_nodes if off is None else off[1])
+    if off is None:
+        return (0, int(live.n_nodes)) if index == 0 else (0, None)
+    if not 0 <= index < len(off) - 1:
+        return 0, None
+    return int(off[index]), int(off[index + 1] - off[index])
+
+
+def _teleop_for(live, index: int, substeps: int) -> Teleop:
+    first, n = _rod_span(live, index)
+    return Teleop(n_nodes=n, substeps=substeps, first_node=first)

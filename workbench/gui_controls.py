@@ -93,6 +93,11 @@ class ControlsPanel:
                                            hint="the camera looks at the tip every frame, keeping its distance "
                                                 "and direction (orbit and zoom still work)")
         with app.tabs["Teleop"]:
+            rods = wb.teleop_rods()
+            self.rod = gui.add_dropdown("Rod", rods, initial_value=rods[wb.teleop_rod],
+                                        hint="the rod the sliders steer (a scene of several rods); the others keep "
+                                             "the curvature they were last given")
+            self.rod.visible = len(rods) > 1
             self.mode = gui.add_dropdown("Teleop mode", ("absolute", "delta"), initial_value="absolute",
                                          hint="absolute: sliders are the natural curvature; delta: actions as a "
                                               "policy sends them")
@@ -107,7 +112,7 @@ class ControlsPanel:
                 self.sliders.append(row)
             self.zero_btn = gui.add_button("Zero sliders", hint="every slider back to 0")
         self._syncing = False
-        for h in (self.speed, self.color_by, self.color_range, self.color_max, self.arrows, self.force_scale, self.mode, *(s for row in self.sliders for s in row)):
+        for h in (self.speed, self.color_by, self.color_range, self.color_max, self.arrows, self.force_scale, self.mode, self.rod, *(s for row in self.sliders for s in row)):
             app.checks.track(h)
         self._wire()
 
@@ -202,6 +207,14 @@ class ControlsPanel:
             wb.set_teleop_mode(self.mode.value)
             self.sync_sliders()
 
+        @self.rod.on_update
+        def _(_e) -> None:
+            if self._syncing or not ok.option(self.rod, self._say):
+                return
+            wb.set_teleop_rod(list(self.rod.options).index(self.rod.value))
+            self.sync_sliders()
+            app.refresh_rod_scene()
+
         for k in range(5):
             for c in range(3):
                 s = self.sliders[k][c]
@@ -224,6 +237,19 @@ class ControlsPanel:
                     for c in range(3):
                         wb.set_teleop_value(k, c, 0.0)
             self.sync_sliders()
+
+    def set_rods(self, names: list[str], current: int) -> None:
+        """The rods of the live scene in the Rod dropdown (shown only with several rods)."""
+        self._syncing = True
+        try:
+            if tuple(self.rod.options) != tuple(names):
+                self.rod.options = tuple(names)
+            if self.rod.value != names[current]:
+                self.rod.value = names[current]
+        finally:
+            self._syncing = False
+        self.rod.visible = len(names) > 1
+        self.app.checks.accept(self.rod)
 
     def set_planar(self, planar: bool) -> None:
         """2-D tasks: only the in-plane (κ1) sliders are shown."""

@@ -35,10 +35,12 @@ class Teleop:
     Args:
         n_nodes: nodes of the rod.
         substeps: sim steps per control step (delta mode applies increments over these).
+        first_node: index of the rod's first node in the scene's chain of nodes (a scene of several rods).
     """
 
-    def __init__(self, *, n_nodes: int = 21, substeps: int = 2):
+    def __init__(self, *, n_nodes: int = 21, substeps: int = 2, first_node: int = 0):
         self.n_nodes = n_nodes
+        self.first_node = int(first_node)
         self.substeps = substeps
         self.mode: TeleopMode = "absolute"
         self.values = np.zeros((5, 3))  # absolute: K1, K2, T per control point; delta: action in [-1, 1]
@@ -78,6 +80,10 @@ class Teleop:
         lim = (TWIST_LIMIT if comp == 2 else KAPPA_LIMIT) if self.mode == "absolute" else 1.0
         self.values[k, comp] = float(np.clip(value, -lim, lim))
 
+    def control_nodes(self) -> tuple[int, ...]:
+        """The steered rod's control points as indices into the scene's chain of nodes."""
+        return tuple(self.first_node + int(c) for c in self.converter.cfg.control_points)
+
     def accumulated(self) -> np.ndarray:
         """(5, 3) the natural (κ1, κ2, twist) per control point currently commanded."""
         if self.mode == "absolute":
@@ -92,10 +98,11 @@ class Teleop:
     # ---------------------------------------------------------------- apply
     def apply(self, ctrl, rest=None) -> None:
         """Write this sim step's control into ``ctrl`` (a sim ``Control`` with B = 1); ``rest``: the
-        rest-shape control (absolute values are added to it). In a scene of several rods teleop steers the
-        first rod (its ``n_nodes`` nodes, the first in the chain); the others keep their rest control."""
+        rest-shape control (absolute values are added to it). In a scene of several rods teleop steers one rod
+        (``n_nodes`` nodes from ``first_node`` in the chain); the others keep the control they last had."""
         if ctrl.kappa_bar.shape[1] > self.n_nodes:
-            ctrl, rest = _first_rod(ctrl, self.n_nodes), None if rest is None else _first_rod(rest, self.n_nodes)
+            a, b = self.first_node, self.first_node + self.n_nodes
+            ctrl, rest = _rod_view(ctrl, a, b), None if rest is None else _rod_view(rest, a, b)
         if self.mode == "absolute":
             self._set_converter(self.values[:, :2], self.values[:, 2])
             kappa, tau = self.converter.natural_values()
@@ -110,6 +117,6 @@ class Teleop:
         self._sub += 1
 
 
-def _first_rod(ctrl, n: int) -> types.SimpleNamespace:
-    """Views of a Control's first ``n`` nodes (writes reach ``ctrl``)."""
-    return types.SimpleNamespace(kappa_bar=ctrl.kappa_bar[:, :n], tau_bar=ctrl.tau_bar[:, :n])
+def _rod_view(ctrl, a: int, b: int) -> types.SimpleNamespace:
+    """Views of a Control's nodes a..b-1 (writes reach ``ctrl``)."""
+    return types.SimpleNamespace(kappa_bar=ctrl.kappa_bar[:, a:b], tau_bar=ctrl.tau_bar[:, a:b])

@@ -191,11 +191,9 @@ class RodView:
 def scene_info(wb) -> tuple[np.ndarray | None, tuple[int, ...]]:
     """(rest node positions (N, 3), control nodes) of the live rod of a ``Workbench``: the simulator's reset
     configuration, and the control points of the task's action converter (teleop: ``workbench.teleop``)."""
-    from workbench.teleop import CONTROL_NODES
-
     with wb.lock:
         rest = np.asarray(wb.live.sim.reset().node_pos[0], np.float64).copy()
-    nodes = CONTROL_NODES
+        nodes = wb.teleop.control_nodes()  # the steered rod's, in the scene's chain of nodes
     pol = getattr(wb, "policy", None)
     try:
         if pol is not None:

@@ -148,3 +148,39 @@ def test_gravity_toggle_keeps_state_and_removes_sag(wb):
     wb.set_gravity(True)
     run(wb, 60)
     assert 1.0 - wb.tip[2] == pytest.approx(sag, rel=0.2)
+
+
+def test_teleop_steers_the_chosen_rod_of_a_two_rod_scene():
+    """In a scene of several rods the sliders steer the rod chosen; the rod left keeps its last control, its slider
+    values come back when it is chosen again, and a reset or a bad index are handled."""
+    from pathlib import Path
+
+    wb = Workbench.builtin()
+    wb.load_scene(Path(__file__).resolve().parents[2] / "assets" / "scenes" / "two_rods.toml")
+    assert wb.teleop_rods() == ["base", "cross"] and wb.teleop_rod == 0
+    n0 = int(wb.live.rod_offsets[1])
+    assert wb.teleop.control_nodes() == tuple(int(c) for c in wb.teleop.converter.cfg.control_points)
+    rest = wb.live.rest_ctrl.kappa_bar.copy()
+    wb.set_teleop_rod(1)
+    assert wb.teleop.first_node == n0 and all(c >= n0 for c in wb.teleop.control_nodes())
+    wb.set_teleop_value(2, 0, 1.0)
+    run(wb, 3)
+    kb = np.asarray(wb.live.ctrl.kappa_bar)
+    assert np.allclose(kb[:, :n0], rest[:, :n0])  # the first rod is not steered
+    moved = np.abs(kb[:, n0:] - rest[:, n0:]).max()
+    assert moved > 0.1
+    wb.set_teleop_rod(0)  # rod 1 keeps its curvature; rod 0's sliders are its own (zero)
+    assert np.allclose(wb.teleop.values, 0.0)
+    run(wb, 2)
+    assert np.allclose(np.asarray(wb.live.ctrl.kappa_bar)[:, n0:], kb[:, n0:])
+    wb.set_teleop_rod(1)
+    assert wb.teleop.values[2, 0] == 1.0
+    for bad in (2, -1, "1", 1.0, True):
+        with pytest.raises(ValueError, match="teleop rod"):
+            wb.set_teleop_rod(bad)
+    wb.reset()
+    assert np.allclose(wb.teleop.values, 0.0)
+    wb.set_teleop_rod(0)
+    wb.load_scene(Path(__file__).resolve().parents[2] / "assets" / "scenes" / "default.toml")
+    assert wb.teleop_rods() == ["rod"]
+    assert wb.teleop_rod == 0 and wb.teleop.first_node == 0

@@ -74,5 +74,12 @@ def test_two_rod_scene_loads_and_draws_two_tubes(wb_page):
         assert wb.live.model.rod_names == ("base", "cross")
         page.wait_for_timeout(300)
         assert np.isfinite(app.view.rod.last_mesh.vertices).all()
+        # the Teleop tab offers the two rods; choosing "cross" in the page makes the sliders steer it
+        page.get_by_role("tab", name="Teleop", exact=True).click()
+        wait_for(lambda: app.controls.rod.visible, what="the Rod dropdown")
+        page.get_by_role("combobox", name="Rod", exact=True).click()
+        page.get_by_role("option", name="cross", exact=True).click()
+        wait_for(lambda: wb.teleop_rod == 1, what="the page to choose rod 'cross'")
+        assert wb.teleop.first_node == int(wb.live.rod_offsets[1])
     finally:
         wb.load_scene(SCENES / "default.toml")
