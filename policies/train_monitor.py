@@ -48,9 +48,10 @@ def evaluate_model(model, args, *, deterministic: bool = True) -> dict:
                     gamma=float(args.gamma))
 
 
-def _best_logged_eval(path: Path) -> float:
-    """Best deterministic evaluation already in eval.csv (a resumed run keeps its policy_best.zip)."""
-    best = -math.inf
+def best_logged_eval(path: Path) -> dict | None:
+    """The best deterministic evaluation in eval.csv (where policy_best.zip was saved): its ``env_steps`` and
+    ``eval_avg_disc_return_mean``; None when the file holds none."""
+    best = None
     if path.is_file():
         with open(path, newline="") as f:
             for r in csv.DictReader(f):
@@ -58,8 +59,8 @@ def _best_logged_eval(path: Path) -> float:
                     v = float(r.get("eval_avg_disc_return_mean", "nan"))
                 except ValueError:
                     continue
-                if math.isfinite(v):
-                    best = max(best, v)
+                if math.isfinite(v) and (best is None or v > best["eval_avg_disc_return_mean"]):
+                    best = {"env_steps": int(float(r["env_steps"])), "eval_avg_disc_return_mean": v}
     return best
 
 
@@ -100,7 +101,8 @@ def monitor_callback(args, run_dir: Path, wall_offset: float, stop_flag: dict, e
             self.win_rew_sum, self.win_rew_n = 0.0, 0
             self.last = {"ret": math.nan, "dret": math.nan}
             self.last_eval_result: dict | None = None
-            self.best_eval = _best_logged_eval(run_dir / "eval.csv")
+            logged = best_logged_eval(run_dir / "eval.csv")  # a resumed run keeps its policy_best.zip
+            self.best_eval = -math.inf if logged is None else logged["eval_avg_disc_return_mean"]
             self.bar = None
             if sys.stderr.isatty():
                 from tqdm import tqdm

@@ -104,6 +104,7 @@ def ship(run_dir: str | Path, name: str, *, episodes: int = 50, seed: int = 100,
     from sim.atomicio import write_bytes
 
     from policies.evaluate import evaluate
+    from policies.train_monitor import best_logged_eval
 
     run_dir = Path(run_dir)
     if policy not in POLICY_FILES:
@@ -115,7 +116,7 @@ def ship(run_dir: str | Path, name: str, *, episodes: int = 50, seed: int = 100,
     dest = Path(dest_dir) if dest_dir is not None else PRETRAINED
     dest.mkdir(parents=True, exist_ok=True)
     dst = dest / f"{name}.zip"
-    compared = None
+    compared = ev = None
     if only_if_better and dst.is_file():
         cand = evaluate(src, episodes=episodes, seed=seed, num_envs=num_envs)
         cur = evaluate(dst, episodes=episodes, seed=seed, num_envs=num_envs)
@@ -125,18 +126,20 @@ def ship(run_dir: str | Path, name: str, *, episodes: int = 50, seed: int = 100,
             raise ShipError(f"{src} evaluates {cand['avg_discounted_return_mean']:.2f} on {episodes} episodes (seed "
                             f"{seed}), below the shipped {dst.name} ({cur['avg_discounted_return_mean']:.2f}): not "
                             "replaced")
+        ev = {**cand, "policy": str(dst)}  # the file shipped is the candidate: its evaluation is not run again
     tmp = dst.with_suffix(".zip.tmp")
     shutil.copyfile(src, tmp)
     tmp.replace(dst)
     side_path = run_dir / "policy.json"
     side = json.loads(side_path.read_text()) if side_path.is_file() else {}
     cfg = json.loads((run_dir / "config.json").read_text())
-    ev = evaluate(dst, episodes=episodes, seed=seed, num_envs=num_envs)
+    if ev is None:
+        ev = evaluate(dst, episodes=episodes, seed=seed, num_envs=num_envs)
     rnd = evaluate("random", ev["task"], episodes=episodes, seed=seed, num_envs=num_envs)
     out = {
         "task": ev["task"], "policy_file": dst.name, "git_commit": cfg.get("git_commit"),
         "source": {"run": run_dir.name, "file": src.name, "from_scratch": not cfg["args"].get("init_from"),
-                   "selected_at": _best_eval_row(run_dir) if policy == "best" else None,
+                   "selected_at": best_logged_eval(run_dir / "eval.csv") if policy == "best" else None,
                    "compared_with_shipped": compared},
         "config": cfg["args"], "training": side.get("training"), "target_entropy": cfg.get("target_entropy"),
         "evaluation": ev, "random_policy_evaluation": rnd,
@@ -146,23 +149,6 @@ def ship(run_dir: str | Path, name: str, *, episodes: int = 50, seed: int = 100,
     out = _finite(out)
     write_bytes(dest / f"{name}.json", json.dumps(out, indent=1, allow_nan=False).encode())
     return out
-
-
-def _best_eval_row(run_dir: Path) -> dict | None:
-    """Env steps and figure of the best deterministic evaluation in RUN/eval.csv (where policy_best.zip was saved)."""
-    best = None
-    path = run_dir / "eval.csv"
-    if not path.is_file():
-        return None
-    with open(path, newline="") as fh:
-        for row in csv.DictReader(fh):
-            try:
-                v = float(row["eval_avg_disc_return_mean"])
-            except (KeyError, ValueError):
-                continue
-            if math.isfinite(v) and (best is None or v > best["eval_avg_disc_return_mean"]):
-                best = {"env_steps": int(float(row["env_steps"])), "eval_avg_disc_return_mean": v}
-    return best
 
 
 def _finite(obj):
