@@ -96,12 +96,17 @@ def load_run(run: Path) -> dict:
             "num_envs": args.get("num_envs")}
 
 
-def seed_mean(curves: list[tuple[np.ndarray, np.ndarray]], n: int = GRID_POINTS):
-    """Common axis (0 .. the shortest curve's end) -> (x, mean, std, seeds per point); NaN before a curve starts."""
+def seed_mean(curves: list[tuple[np.ndarray, np.ndarray]], n: int = GRID_POINTS, *, hold_last: bool = False):
+    """Common axis -> (x, mean, std, seeds per point); NaN before a curve starts.
+
+    The axis ends where the shortest curve ends, or with ``hold_last`` where the longest does, each shorter curve
+    then held at its last value (a finished run's policy no longer changes: used for the wall-clock axis, on which
+    seeds that ran at different speeds end at different times).
+    """
     curves = [(x, y) for x, y in curves if x.size]
     if not curves:
         return None
-    end = min(float(x.max()) for x, _ in curves)
+    end = (max if hold_last else min)(float(x.max()) for x, _ in curves)
     start = min(float(x.min()) for x, _ in curves)
     if end <= start:
         xs = np.array([end])
@@ -110,7 +115,13 @@ def seed_mean(curves: list[tuple[np.ndarray, np.ndarray]], n: int = GRID_POINTS)
     ys = np.full((len(curves), xs.size), np.nan)
     for i, (x, y) in enumerate(curves):
         order = np.argsort(x, kind="stable")
-        ys[i] = np.interp(xs, x[order], y[order], left=np.nan, right=np.nan)
+        xo, yo = x[order], y[order]
+        if hold_last:
+            ok = np.isfinite(yo)
+            right = float(yo[ok][-1]) if ok.any() else np.nan
+        else:
+            right = np.nan
+        ys[i] = np.interp(xs, xo, yo, left=np.nan, right=right)
     count = np.isfinite(ys).sum(axis=0)
     with np.errstate(invalid="ignore"):
         mean = np.where(count > 0, np.nanmean(np.where(np.isfinite(ys), ys, np.nan), axis=0), np.nan) \
@@ -153,17 +164,19 @@ def summarize(runs: list[dict], iteration_ms: dict[str, float] | None = None) ->
                "paper_iter_ms": PAPER_ITER_MS.get(task), "curves": {}}
         for kind in ("train", "eval"):
             for axis in ("steps", "hours"):
-                sm = seed_mean([(r[kind][axis], r[kind]["ret"]) for r in rs])
+                sm = seed_mean([(r[kind][axis], r[kind]["ret"]) for r in rs], hold_last=axis == "hours")
                 if sm is None:
                     continue
                 xs, mean, std, n = sm
                 row["curves"][f"{kind}_{axis}"] = {"x": xs.tolist(), "mean": _nan_list(mean), "std": _nan_list(std)}
                 reach = first_reach(xs, mean, level) if paper else math.nan
                 row[f"{kind}_{'env_steps' if axis == 'steps' else 'hours'}_to_plateau"] = _num(reach)
-                fin = mean[np.isfinite(mean)]
-                row[f"{kind}_final_mean"] = _num(float(fin[-1])) if fin.size else None
-                sfin = std[np.isfinite(std)]
-                row[f"{kind}_final_std"] = _num(float(sfin[-1])) if sfin.size else None
+                if axis == "steps":  # the final return: at the env steps every seed reached
+                    fin = mean[np.isfinite(mean)]
+                    row[f"{kind}_final_mean"] = _num(float(fin[-1])) if fin.size else None
+                    sfin = std[np.isfinite(std)]
+                    row[f"{kind}_final_std"] = _num(float(sfin[-1])) if sfin.size else None
+                    row[f"{kind}_final_env_steps"] = _num(float(xs[np.isfinite(mean)][-1])) if fin.size else None
         for key in ("iter_ms", "env_step_ms", "update_ms"):
             v = [r["timing"][key] for r in rs if math.isfinite(r["timing"][key])]
             row[key] = _num(float(np.median(v))) if v else None
@@ -193,10 +206,16 @@ def _fmt(v, spec: str = ".2f", none: str = "not reached") -> str:
     return none if v is None else format(v, spec)
 
 
+def _at_steps(r: dict) -> str:
+    steps = [r.get(f"{k}_final_env_steps") for k in ("train", "eval")]
+    steps = [v for v in steps if v is not None]
+    return f" (at {min(steps) / 1e6:.2f} M)" if steps else ""
+
+
 def markdown(rows: list[dict]) -> str:
     lines = ["| task / setting | seeds | envs | time to plateau, training [h] | time to plateau, eval [h] | "
              "env steps to plateau, training | env steps to plateau, eval | final training / eval return "
-             "(seed mean ± std) | iteration [ms] | env step [ms] | updates [ms] | paper: plateau (Table II) | "
+             "(seed mean ± std; at env steps) | iteration [ms] | env step [ms] | updates [ms] | paper: plateau (Table II) | "
              "paper: wall-clock to 5 M steps [h] | paper: iteration [ms] |",
              "|" + "---|" * 14]
     for r in rows:
@@ -206,7 +225,8 @@ def markdown(rows: list[dict]) -> str:
             f"{_fmt(r.get('eval_hours_to_plateau'), '.3f')} | {_fmt(r.get('train_env_steps_to_plateau'), ',.0f')} | "
             f"{_fmt(r.get('eval_env_steps_to_plateau'), ',.0f')} | "
             f"{_fmt(r.get('train_final_mean'), '.2f', '—')} ± {_fmt(r.get('train_final_std'), '.2f', '—')} / "
-            f"{_fmt(r.get('eval_final_mean'), '.2f', '—')} ± {_fmt(r.get('eval_final_std'), '.2f', '—')} | "
+            f"{_fmt(r.get('eval_final_mean'), '.2f', '—')} ± {_fmt(r.get('eval_final_std'), '.2f', '—')}"
+            f"{_at_steps(r)} | "
             f"{_fmt(r['iter_ms'], '.1f', '—')} | {_fmt(r['env_step_ms'], '.1f', '—')} | {_fmt(r['update_ms'], '.1f', '—')} | "
             f"{paper} | {_fmt(r['paper_wallclock_h'], '.2f', '—')} | {_fmt(r['paper_iter_ms'], '.0f', '—')} |")
     proj = [r for r in rows if r.get("projected_iter_ms")]
@@ -220,7 +240,9 @@ def markdown(rows: list[dict]) -> str:
                          f"{_fmt(r['paper_wallclock_h'], '.2f', '—')} |")
     lines += ["", "Time to plateau: first point at which the seed-mean curve reaches the paper's Table II value "
               "minus its std (DisMech -> DisMech); 'not reached' within the runs. Training curve: stochastic policy, "
-              "episodes finished in each log window; eval curve: deterministic policy on fixed seeds. Wall-clock "
+              "episodes finished in each log window; eval curve: deterministic policy on fixed seeds. Final return: "
+              "at the last env step every seed reached. On the wall-clock axis a seed that finished earlier is held "
+              "at its last value (seeds that ran at different speeds end at different times). Wall-clock "
               "includes the evaluations during training (their share: report.json eval_share_of_wallclock). Paper wall-clock: docs/tasks.md §8.5."
               + (" 'At that rate': env steps to plateau / envs x the given iteration time, divided by (1 - the runs' "
                  "evaluation share): the wall-clock of these learning curves at a measured quiet-machine "

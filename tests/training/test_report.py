@@ -13,7 +13,8 @@ from policies.train_monitor import EVAL_COLUMNS, METRICS_COLUMNS
 from policies.training_report import PAPER_TABLE_II
 
 
-def _fake_run(root: Path, task: str, seed: int, *, rate: float, scale: float, envs: int = 500) -> Path:
+def _fake_run(root: Path, task: str, seed: int, *, rate: float, scale: float, envs: int = 500,
+              minutes: int = 60) -> Path:
     """Return R(t) = scale * t / 3600 [1/h] linear in wall-clock, env steps = rate * t."""
     run = root / f"{task}__s{seed}"
     run.mkdir(parents=True)
@@ -21,7 +22,7 @@ def _fake_run(root: Path, task: str, seed: int, *, rate: float, scale: float, en
     with open(run / "metrics.csv", "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(METRICS_COLUMNS)
-        for k in range(1, 61):
+        for k in range(1, minutes + 1):
             t = 60.0 * k
             ret = scale * t / 3600.0
             # the episode return is logged only in some windows (NaN in the others), as in real runs
@@ -30,7 +31,7 @@ def _fake_run(root: Path, task: str, seed: int, *, rate: float, scale: float, en
     with open(run / "eval.csv", "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(EVAL_COLUMNS)
-        for k in range(1, 21):
+        for k in range(1, minutes // 3 + 1):
             t = 180.0 * k
             row = {c: 0.0 for c in EVAL_COLUMNS}
             row.update(env_steps=int(rate * t), wall_s=t, eval_avg_disc_return_mean=0.5 * scale * t / 3600.0)
@@ -81,6 +82,26 @@ def test_report_projects_time_to_plateau_at_a_given_iteration_time(tmp_path):
     assert ft["train_projected_hours_to_plateau"] == pytest.approx(steps / 500 * 0.160 / 3600, rel=1e-5)  # rounded to 1e-6 h
     assert "| follow_target | 160 |" in res["table"]
     assert main([str(root), "--iteration-ms", "follow_target=fast"]) == 2
+
+
+def test_report_on_seeds_that_ran_at_different_speeds(tmp_path):
+    """Seed 1 steps twice as fast and stops after 30 min: the final return is read at the env steps both seeds
+    reached, and on the wall-clock axis the finished seed is held at its last value, so the seed mean still
+    crosses the plateau after that seed ended."""
+    root = tmp_path / "sweep"
+    mean, std = PAPER_TABLE_II["follow_target"]
+    level = mean - std
+    _fake_run(root, "follow_target", 0, rate=1000.0, scale=240.0)               # 3.6 M steps in 1 h, R = 240
+    _fake_run(root, "follow_target", 1, rate=2000.0, scale=60.0, minutes=30)    # 3.6 M steps in 0.5 h, R = 30
+    ft = report(root)["groups"][0]
+    assert ft["train_final_env_steps"] == pytest.approx(3.6e6)
+    assert ft["train_final_mean"] == pytest.approx((240.0 + 30.0) / 2, rel=1e-3)
+    assert ft["train_final_std"] == pytest.approx((240.0 - 30.0) / 2, rel=1e-3)
+    # mean over wall-clock: 150 t before 0.5 h (below the level), (240 t + 30) / 2 after
+    t_reach = (2 * level - 30.0) / 240.0
+    assert 0.5 < t_reach < 1.0
+    assert t_reach <= ft["train_hours_to_plateau"] <= t_reach + 1.0 / 399 + 1e-9
+    assert ft["train_env_steps_to_plateau"] is not None
 
 
 def test_report_errors(tmp_path, capsys):
