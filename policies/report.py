@@ -172,11 +172,11 @@ def summarize(runs: list[dict], iteration_ms: dict[str, float] | None = None) ->
                 reach = first_reach(xs, mean, level) if paper else math.nan
                 row[f"{kind}_{'env_steps' if axis == 'steps' else 'hours'}_to_plateau"] = _num(reach)
                 if axis == "steps":  # the final return: at the env steps every seed reached
-                    fin = mean[np.isfinite(mean)]
-                    row[f"{kind}_final_mean"] = _num(float(fin[-1])) if fin.size else None
+                    ok = np.isfinite(mean)
+                    row[f"{kind}_final_mean"] = _num(float(mean[ok][-1])) if ok.any() else None
                     sfin = std[np.isfinite(std)]
                     row[f"{kind}_final_std"] = _num(float(sfin[-1])) if sfin.size else None
-                    row[f"{kind}_final_env_steps"] = _num(float(xs[np.isfinite(mean)][-1])) if fin.size else None
+                    row[f"{kind}_final_env_steps"] = _num(float(xs[ok][-1])) if ok.any() else None
         for key in ("iter_ms", "env_step_ms", "update_ms"):
             v = [r["timing"][key] for r in rs if math.isfinite(r["timing"][key])]
             row[key] = _num(float(np.median(v))) if v else None
@@ -207,9 +207,9 @@ def _fmt(v, spec: str = ".2f", none: str = "not reached") -> str:
 
 
 def _at_steps(r: dict) -> str:
-    steps = [r.get(f"{k}_final_env_steps") for k in ("train", "eval")]
-    steps = [v for v in steps if v is not None]
-    return f" (at {min(steps) / 1e6:.2f} M)" if steps else ""
+    """" (at 3.26 M)", or " (at 3.26 / 3.30 M)" when the training and evaluation curves end at different steps."""
+    steps = [f"{v / 1e6:.2f}" for v in (r.get("train_final_env_steps"), r.get("eval_final_env_steps")) if v is not None]
+    return f" (at {' / '.join(dict.fromkeys(steps))} M)" if steps else ""
 
 
 def markdown(rows: list[dict]) -> str:

@@ -93,8 +93,10 @@ def test_report_on_seeds_that_ran_at_different_speeds(tmp_path):
     level = mean - std
     _fake_run(root, "follow_target", 0, rate=1000.0, scale=240.0)               # 3.6 M steps in 1 h, R = 240
     _fake_run(root, "follow_target", 1, rate=2000.0, scale=60.0, minutes=30)    # 3.6 M steps in 0.5 h, R = 30
-    ft = report(root)["groups"][0]
+    res = report(root)
+    ft = res["groups"][0]
     assert ft["train_final_env_steps"] == pytest.approx(3.6e6)
+    assert "(at 3.60 M)" in res["table"]  # training and evaluation curves end at the same env step here
     assert ft["train_final_mean"] == pytest.approx((240.0 + 30.0) / 2, rel=1e-3)
     assert ft["train_final_std"] == pytest.approx((240.0 - 30.0) / 2, rel=1e-3)
     # mean over wall-clock: 150 t before 0.5 h (below the level), (240 t + 30) / 2 after
