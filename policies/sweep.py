@@ -16,7 +16,8 @@
   child process (numba and torch threads = CPUs of the trial) and waits for it.
 * **Resume.** Re-running the same command continues every unfinished trial from its checkpoint (finished trials,
   those with ``trial_done.json``, are not re-run). A trial is finished when it reached ``--steps`` env steps or
-  used its ``--time-limit`` minutes of training wall-clock (summed over resumes). On Ctrl-C the local trials are
+  used its ``--time-limit`` minutes of training wall-clock (summed over resumes); re-running with a larger
+  ``--steps`` or ``--time-limit`` continues a trial that stopped at the smaller one. On Ctrl-C the local trials are
   sent SIGTERM and write a checkpoint before the sweep exits; a trial whose process was killed outright resumes
   from its last periodic checkpoint.
 * **--set key=v1,v2** sets any ``Args`` field (policies/train.py), several values make a grid (the product of
@@ -185,7 +186,21 @@ def _csv_rows(path: Path) -> list[dict]:
 
 
 def is_done(trial: Trial) -> bool:
-    return (trial.run_dir / "trial_done.json").is_file()
+    """Finished within this command's budget: ``trial_done.json`` is there and its env steps reach ``--steps`` or
+    its wall-clock reaches ``--time-limit``. A trial finished under a smaller budget (fewer steps, a shorter time
+    limit) is continued when the command raises it."""
+    path = trial.run_dir / "trial_done.json"
+    if not path.is_file():
+        return False
+    try:
+        rec = json.loads(path.read_text())
+        steps, wall_s = int(rec["env_steps"]), float(rec["wall_s"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise SweepError(f"{path}: unreadable ({exc}); delete it to continue the trial") from None
+    if steps >= int(trial.args["total_steps"]):
+        return True
+    limit = float(trial.time_limit_minutes)
+    return limit > 0 and wall_s >= 60.0 * limit - 1.0
 
 
 def _write_json(path: Path, data: dict) -> None:

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from policies.checkpoint import read_state
-from policies.sweep import SweepError, make_trials, parse_seeds, parse_sets
+from policies.sweep import SweepError, is_done, make_trials, parse_seeds, parse_sets
 
 REPO = Path(__file__).resolve().parents[2]
 TINY = ["--set", "net_arch=32:32", "--set", "batch_size=32", "--set", "learning_starts=16",
@@ -54,6 +54,27 @@ def test_parsing_and_grid(tmp_path):
             parse_sets(bad)
     with pytest.raises(SweepError, match="unknown task"):
         make_trials(["nope"], [0], {}, tmp_path, envs=1, steps=1, time_limit_minutes=0, cpus_per_trial=1)
+
+
+def test_finished_trial_continues_under_a_larger_budget(tmp_path):
+    """A trial stopped by a 26-minute limit counts as finished for that limit, not for a larger one or for more
+    --steps; one that reached its steps stays finished."""
+    def trial(steps, limit):
+        return make_trials(["follow_target"], [0], {}, tmp_path, envs=4, steps=steps, time_limit_minutes=limit,
+                           cpus_per_trial=1)[0]
+
+    t = trial(5000, 26.0)
+    assert not is_done(t)  # no trial_done.json yet
+    t.run_dir.mkdir(parents=True)
+    done = t.run_dir / "trial_done.json"
+    done.write_text(json.dumps({"env_steps": 1000, "wall_s": 26.0 * 60 - 0.5, "time": "x"}))
+    assert is_done(t) and is_done(trial(5000, 20.0))
+    assert not is_done(trial(5000, 120.0)) and not is_done(trial(5000, 0.0))
+    done.write_text(json.dumps({"env_steps": 5000, "wall_s": 60.0, "time": "x"}))
+    assert is_done(trial(5000, 120.0)) and is_done(trial(4000, 0.0)) and not is_done(trial(6000, 0.0))
+    done.write_text("{not json")
+    with pytest.raises(SweepError, match="trial_done.json: unreadable"):
+        is_done(t)
 
 
 def test_two_trial_local_sweep_end_to_end(tmp_path):
