@@ -13,6 +13,9 @@ What SB3's ``SAC`` lacks and how it is added here (nothing else is changed):
   call, so with 4 updates per call and interval 8 it would update every 4th update).
 * **Adam eps 1e-7** for all three optimizers (AdamTF); SB3 keeps three Adam instances where the
   reference shares one. Adam is element-wise, so this is the same update rule.
+* **bfloat16 updates** (``RodSAC.bf16_updates``, ``rodlab train --bf16``): the updates run under
+  ``torch.autocast(dtype=bfloat16)`` with the output heads kept in float32 (``Float32Linear``), so Q values,
+  log-probabilities and losses are not rounded to bfloat16's 8-bit mantissa.
 * **Timing**: ``last_update_time`` [s] of the most recent ``train()`` call, for logging/benchmarks.
 
 Policy-only files (``save_policy`` / ``load_policy``) are a small zip holding ``meta.json`` (task id,
@@ -57,6 +60,27 @@ class InplaceReLU(nn.ReLU):
         super().__init__(inplace=True)
 
 
+class Float32Linear(nn.Linear):
+    """``nn.Linear`` computed in float32 even inside a bfloat16 autocast region (same parameters and state_dict
+    keys as ``nn.Linear``). Used for the output heads, the critics' Q and the actor's mean and log-std: a Q
+    value of 100 in bfloat16 is rounded to a multiple of 0.5, coarser than the one-step TD errors the critic
+    learns from, so ``--bf16`` runs the hidden layers in bfloat16 and the heads, log-probabilities and losses in
+    float32 (docs/training.md)."""
+
+    def forward(self, x: th.Tensor) -> th.Tensor:
+        with th.autocast(x.device.type, enabled=False):
+            return F.linear(x.float(), self.weight, self.bias)
+
+
+def _float32_head(layer: nn.Module) -> nn.Module:
+    """Make an existing ``nn.Linear`` a ``Float32Linear`` in place (no new parameters, so no random numbers are
+    drawn and the initialisation of a seed is unchanged)."""
+    if type(layer) is not nn.Linear:
+        raise TypeError(f"expected an nn.Linear output head, found {type(layer).__name__}")
+    layer.__class__ = Float32Linear
+    return layer
+
+
 class LayerNormSACPolicy(SACPolicy):
     """SB3 ``SACPolicy`` whose actor trunk and critics use Linear -> LayerNorm -> ReLU blocks.
 
@@ -76,6 +100,7 @@ class LayerNormSACPolicy(SACPolicy):
             for head in (actor.mu, actor.log_std):
                 nn.init.xavier_uniform_(head.weight, gain=self.head_init_gain)
                 nn.init.zeros_(head.bias)
+                _float32_head(head)
         return actor.to(self.device)
 
     def make_critic(self, features_extractor=None):
@@ -87,6 +112,7 @@ class LayerNormSACPolicy(SACPolicy):
         for idx in range(critic.n_critics):
             q_net = nn.Sequential(*create_mlp(in_dim, 1, arch, self.net_args["activation_fn"],
                                               post_linear_modules=[nn.LayerNorm]))
+            _float32_head(q_net[-1])
             critic.add_module(f"qf{idx}", q_net)  # replaces the plain MLP registered by SB3
             critic.q_networks.append(q_net)
         return critic.to(self.device)

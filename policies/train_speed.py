@@ -7,8 +7,9 @@ Nothing here is used by ``rodlab train`` by default; each setting must first be 
 
 * ``compile``: ``torch.compile`` of the actor trunk and of each critic MLP (the modules that do the work;
   SB3's own methods around them stay eager). Needs a C++ compiler for the CPU inductor back-end.
-* ``bf16``: the gradient updates run under ``torch.autocast("cpu", dtype=torch.bfloat16)`` (matrix products
-  in bfloat16, LayerNorm and the losses in float32 by autocast's CPU rules).
+* ``bf16``: the gradient updates run under ``torch.autocast("cpu", dtype=torch.bfloat16)`` (hidden-layer
+  matrix products in bfloat16; LayerNorm and the losses in float32 by autocast's CPU rules; the output heads in
+  float32 by ``policies.sac.Float32Linear``).
 * ``adam``: ``"fused"`` (default of policies/train.py), ``"foreach"`` or ``"plain"`` (one kernel per tensor)
   for the actor, critic and entropy-coefficient optimizers, rebuilt with the same lr and eps.
 * torch threads: ``torch.set_num_threads`` (``rodlab bench train --threads``).

@@ -93,3 +93,34 @@ def test_bf16_is_a_training_setting():
     from policies.train import Args
 
     assert Args().bf16 is False and Args.from_json({**Args().to_json(), "bf16": True}).bf16 is True
+
+
+def test_bf16_keeps_q_values_and_log_probabilities_in_float32():
+    """Under --bf16 the hidden layers run in bfloat16 but the heads do not: a Q value of about 100 is not rounded
+    to bfloat16's grid (multiples of 0.5 there), and the actor's log-probabilities are float32 too."""
+    from policies.sac import Float32Linear
+
+    model = _model()
+    critic, actor = model.critic, model.actor
+    assert isinstance(actor.mu, Float32Linear) and isinstance(actor.log_std, Float32Linear)
+    assert all(isinstance(q[-1], Float32Linear) for q in critic.q_networks)
+    with torch.no_grad():
+        for q in critic.q_networks:
+            q[-1].bias.fill_(100.0)
+    g = torch.Generator().manual_seed(3)
+    obs = torch.randn(256, *model.observation_space.shape, generator=g)
+    act = torch.rand(256, *model.action_space.shape, generator=g) * 2 - 1
+    with torch.no_grad():
+        q32 = critic(obs, act)[0]
+        a32, logp32 = actor.action_log_prob(obs)
+        with torch.autocast("cpu", dtype=torch.bfloat16):
+            q16 = critic(obs, act)[0]
+            torch.manual_seed(0)
+            _, logp16 = actor.action_log_prob(obs)
+    assert q16.dtype == torch.float32 and logp16.dtype == torch.float32
+    assert not torch.equal(q16, q32)  # the hidden layers did run in bfloat16
+    assert (q16 - q32).abs().max() < 0.05 * (q32 - 100.0).abs().max() + 1e-3
+    off_grid = (2 * q16 - torch.round(2 * q16)).abs()
+    assert off_grid.max() > 0.05  # bfloat16 outputs would all sit on the 0.5 grid
+    # the state_dict keys are those of plain Linear heads, so policy files written before load unchanged
+    assert "actor.mu.weight" in model.policy.state_dict() and "critic.qf0.6.weight" in model.policy.state_dict()
