@@ -14,8 +14,9 @@ What SB3's ``SAC`` lacks and how it is added here (nothing else is changed):
 * **Adam eps 1e-7** for all three optimizers (AdamTF); SB3 keeps three Adam instances where the
   reference shares one. Adam is element-wise, so this is the same update rule.
 * **bfloat16 updates** (``RodSAC.bf16_updates``, ``rodlab train --bf16``): the updates run under
-  ``torch.autocast(dtype=bfloat16)`` with the output heads kept in float32 (``Float32Linear``), so Q values,
-  log-probabilities and losses are not rounded to bfloat16's 8-bit mantissa.
+  ``torch.autocast(dtype=bfloat16)`` with the input and output layers and the LayerNorms kept in float32
+  (``Float32Linear``, ``Float32LayerNorm``): only the hidden 256x256 products run in bfloat16, so observations,
+  actions, Q values and log-probabilities are not rounded to bfloat16's 8-bit mantissa.
 * **Timing**: ``last_update_time`` [s] of the most recent ``train()`` call, for logging/benchmarks.
 
 Policy-only files (``save_policy`` / ``load_policy``) are a small zip holding ``meta.json`` (task id,
@@ -62,23 +63,47 @@ class InplaceReLU(nn.ReLU):
 
 class Float32Linear(nn.Linear):
     """``nn.Linear`` computed in float32 even inside a bfloat16 autocast region (same parameters and state_dict
-    keys as ``nn.Linear``). Used for the output heads, the critics' Q and the actor's mean and log-std: a Q
-    value of 100 in bfloat16 is rounded to a multiple of 0.5, coarser than the one-step TD errors the critic
-    learns from, so ``--bf16`` runs the hidden layers in bfloat16 and the heads, log-probabilities and losses in
-    float32 (docs/training.md)."""
+    keys as ``nn.Linear``; without autocast it is ``nn.Linear``)."""
 
     def forward(self, x: th.Tensor) -> th.Tensor:
         with th.autocast(x.device.type, enabled=False):
             return F.linear(x.float(), self.weight, self.bias)
 
 
-def _float32_head(layer: nn.Module) -> nn.Module:
-    """Make an existing ``nn.Linear`` a ``Float32Linear`` in place (no new parameters, so no random numbers are
-    drawn and the initialisation of a seed is unchanged)."""
-    if type(layer) is not nn.Linear:
-        raise TypeError(f"expected an nn.Linear output head, found {type(layer).__name__}")
-    layer.__class__ = Float32Linear
+class Float32LayerNorm(nn.LayerNorm):
+    """``nn.LayerNorm`` computed in float32 even inside a bfloat16 autocast region (CPU autocast would run it in
+    bfloat16; its backward subtracts means and loses the small gradients there)."""
+
+    def forward(self, x: th.Tensor) -> th.Tensor:
+        with th.autocast(x.device.type, enabled=False):
+            return F.layer_norm(x.float(), self.normalized_shape, self.weight, self.bias, self.eps)
+
+
+_FLOAT32_CLASSES = {nn.Linear: Float32Linear, nn.LayerNorm: Float32LayerNorm}
+
+
+def _keep_float32(layer: nn.Module) -> nn.Module:
+    """Make an existing ``nn.Linear`` / ``nn.LayerNorm`` its float32 variant in place (no new parameters, so no
+    random numbers are drawn and a seed's initialisation is unchanged)."""
+    cls = _FLOAT32_CLASSES.get(type(layer))
+    if cls is None:
+        raise TypeError(f"expected nn.Linear or nn.LayerNorm, found {type(layer).__name__}")
+    layer.__class__ = cls
     return layer
+
+
+def _bf16_guard(mlp: nn.Sequential, *, output_layer: bool) -> None:
+    """Keep in float32 what bfloat16 (8-bit mantissa) would spoil in an MLP: the input layer (observations and
+    actions rounded to bfloat16 shift Q by ~0.05 and turn dQ/da by ~20 %), the LayerNorms and the output layer
+    (a Q of 100 in bfloat16 is a multiple of 0.5). Only the hidden 256x256 products, most of the work, run in
+    bfloat16 under ``--bf16``."""
+    linears = [m for m in mlp if isinstance(m, nn.Linear)]
+    _keep_float32(linears[0])
+    if output_layer:
+        _keep_float32(linears[-1])
+    for m in mlp:
+        if isinstance(m, nn.LayerNorm):
+            _keep_float32(m)
 
 
 class LayerNormSACPolicy(SACPolicy):
@@ -100,7 +125,8 @@ class LayerNormSACPolicy(SACPolicy):
             for head in (actor.mu, actor.log_std):
                 nn.init.xavier_uniform_(head.weight, gain=self.head_init_gain)
                 nn.init.zeros_(head.bias)
-                _float32_head(head)
+                _keep_float32(head)
+        _bf16_guard(actor.latent_pi, output_layer=False)
         return actor.to(self.device)
 
     def make_critic(self, features_extractor=None):
@@ -112,7 +138,7 @@ class LayerNormSACPolicy(SACPolicy):
         for idx in range(critic.n_critics):
             q_net = nn.Sequential(*create_mlp(in_dim, 1, arch, self.net_args["activation_fn"],
                                               post_linear_modules=[nn.LayerNorm]))
-            _float32_head(q_net[-1])
+            _bf16_guard(q_net, output_layer=True)
             critic.add_module(f"qf{idx}", q_net)  # replaces the plain MLP registered by SB3
             critic.q_networks.append(q_net)
         return critic.to(self.device)

@@ -96,13 +96,18 @@ def test_bf16_is_a_training_setting():
 
 
 def test_bf16_keeps_q_values_and_log_probabilities_in_float32():
-    """Under --bf16 the hidden layers run in bfloat16 but the heads do not: a Q value of about 100 is not rounded
-    to bfloat16's grid (multiples of 0.5 there), and the actor's log-probabilities are float32 too."""
-    from policies.sac import Float32Linear
+    """Under --bf16 the hidden products run in bfloat16 but the input and output layers and the LayerNorms do not:
+    a Q value of about 100 is not rounded to bfloat16's grid (multiples of 0.5 there), and the actor's
+    log-probabilities are float32 too."""
+    from policies.sac import Float32LayerNorm, Float32Linear
 
     model = _model()
     critic, actor = model.critic, model.actor
     assert isinstance(actor.mu, Float32Linear) and isinstance(actor.log_std, Float32Linear)
+    for mlp in [actor.latent_pi, *critic.q_networks]:  # input layer and LayerNorms float32, hidden products not
+        linears = [m for m in mlp if isinstance(m, torch.nn.Linear)]
+        assert isinstance(linears[0], Float32Linear) and type(linears[1]) is torch.nn.Linear
+        assert all(isinstance(m, Float32LayerNorm) for m in mlp if isinstance(m, torch.nn.LayerNorm))
     assert all(isinstance(q[-1], Float32Linear) for q in critic.q_networks)
     with torch.no_grad():
         for q in critic.q_networks:
