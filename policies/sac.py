@@ -192,20 +192,26 @@ class RodSAC(SAC):
 
         stats: dict[str, list[float]] = {"actor_loss": [], "critic_loss": [], "ent_coef": [], "ent_coef_loss": [],
                                          "log_prob": [], "q_mean": []}
-        with th.autocast(self.device.type, dtype=th.bfloat16, enabled=bool(getattr(self, "bf16_updates", False))):
-            self._updates(gradient_steps, batch_size, stats)
+        self._updates(gradient_steps, batch_size, stats)
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         for key, vals in stats.items():
             if vals:
                 self.logger.record(f"train/{key}", float(np.mean(vals)))
         self.last_update_time = time.perf_counter() - t0
 
+    def _amp(self):
+        """The autocast region of one forward pass (bfloat16 when ``bf16_updates``). Each forward pass gets its own
+        region, closed before its optimizer step: autocast caches the bfloat16 copies of the weights until the
+        region ends, so a region spanning several steps would run the later forward passes with stale weights."""
+        return th.autocast(self.device.type, dtype=th.bfloat16, enabled=bool(getattr(self, "bf16_updates", False)))
+
     def _updates(self, gradient_steps: int, batch_size: int, stats: dict[str, list[float]]) -> None:
         """``gradient_steps`` SAC updates (temperature, critics, actor, target), their statistics into ``stats``."""
         for _ in range(gradient_steps):
             data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
-            actions_pi, log_prob = self.actor.action_log_prob(data.observations)
-            log_prob = log_prob.reshape(-1, 1)
+            with self._amp():
+                actions_pi, log_prob = self.actor.action_log_prob(data.observations)
+            log_prob = log_prob.float().reshape(-1, 1)
 
             # alpha (temperature) step
             if self.ent_coef_optimizer is not None:
@@ -220,9 +226,10 @@ class RodSAC(SAC):
             stats["ent_coef"].append(alpha.item())
 
             # critic step
-            target_q = self.td_target(data, alpha)
-            current_q = self.critic(data.observations, data.actions)
-            critic_loss = 0.5 * sum(F.mse_loss(q, target_q) for q in current_q)
+            with self._amp():
+                target_q = self.td_target(data, alpha)
+                current_q = self.critic(data.observations, data.actions)
+                critic_loss = 0.5 * sum(F.mse_loss(q.float(), target_q.float()) for q in current_q)
             self.critic.optimizer.zero_grad()
             critic_loss.backward()
             self.critic.optimizer.step()
@@ -233,8 +240,9 @@ class RodSAC(SAC):
             critic_params = [p for p in self.critic.parameters() if p.requires_grad]
             for p in critic_params:
                 p.requires_grad_(False)
-            q_pi = th.min(th.cat(self.critic(data.observations, actions_pi), dim=1), dim=1, keepdim=True).values
-            actor_loss = (alpha * log_prob - q_pi).mean()
+            with self._amp():
+                q_pi = th.min(th.cat(self.critic(data.observations, actions_pi), dim=1), dim=1, keepdim=True).values
+            actor_loss = (alpha * log_prob - q_pi.float()).mean()
             self.actor.optimizer.zero_grad()
             actor_loss.backward()
             self.actor.optimizer.step()

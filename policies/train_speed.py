@@ -7,9 +7,9 @@ Nothing here is used by ``rodlab train`` by default; each setting must first be 
 
 * ``compile``: ``torch.compile`` of the actor trunk and of each critic MLP (the modules that do the work;
   SB3's own methods around them stay eager). Needs a C++ compiler for the CPU inductor back-end.
-* ``bf16``: the gradient updates run under ``torch.autocast("cpu", dtype=torch.bfloat16)`` (hidden-layer
-  matrix products in bfloat16; LayerNorm and the losses in float32 by autocast's CPU rules; the output heads in
-  float32 by ``policies.sac.Float32Linear``).
+* ``bf16``: ``RodSAC.bf16_updates``: each forward pass of the updates runs under
+  ``torch.autocast("cpu", dtype=torch.bfloat16)``, with the hidden 256x256 products in bfloat16 and the input
+  and output layers, LayerNorms and losses in float32 (policies/sac.py).
 * ``adam``: ``"fused"`` (default of policies/train.py), ``"foreach"`` or ``"plain"`` (one kernel per tensor)
   for the actor, critic and entropy-coefficient optimizers, rebuilt with the same lr and eps.
 * torch threads: ``torch.set_num_threads`` (``rodlab bench train --threads``).
@@ -66,6 +66,5 @@ def apply_speed_settings(model, settings: SpeedSettings):
             pol.critic.q_networks[i] = cq
         for i, q in enumerate(list(pol.critic_target.q_networks)):
             pol.critic_target.q_networks[i] = th.compile(q)
-    if settings.bf16:
-        return lambda: th.autocast(model.device.type, dtype=th.bfloat16)
+    model.bf16_updates = bool(settings.bf16)  # RodSAC opens one autocast region per forward pass
     return contextlib.nullcontext

@@ -129,3 +129,28 @@ def test_bf16_keeps_q_values_and_log_probabilities_in_float32():
     assert off_grid.max() > 0.05  # bfloat16 outputs would all sit on the 0.5 grid
     # the state_dict keys are those of plain Linear heads, so policy files written before load unchanged
     assert "actor.mu.weight" in model.policy.state_dict() and "critic.qf0.6.weight" in model.policy.state_dict()
+
+
+def test_bf16_updates_see_the_weights_of_the_previous_update():
+    """Two bf16 updates in one train() call give the same weights as two calls of one update: every forward pass
+    uses the weights the previous optimizer step left (autocast caches its bfloat16 weight copies until its region
+    ends, so one region around several updates would run the later ones with the first update's weights)."""
+    def run(calls: int, steps: int):
+        torch.manual_seed(0)
+        np.random.seed(0)
+        model = _model()
+        model.bf16_updates = True
+        torch.manual_seed(1)
+        np.random.seed(1)
+        for _ in range(calls):
+            model.train(gradient_steps=steps, batch_size=64)
+        return _params(model)
+
+    th_state, np_state = torch.get_rng_state(), np.random.get_state()
+    try:
+        one_call, two_calls = run(1, 3), run(3, 1)
+    finally:
+        torch.set_rng_state(th_state)
+        np.random.set_state(np_state)
+    assert torch.isfinite(one_call).all()
+    assert torch.equal(one_call, two_calls)
