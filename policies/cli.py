@@ -63,7 +63,7 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--no-replay-checkpoint", action="store_true", help="do not save the replay buffer")
     p.add_argument("--threads", type=int, default=d.torch_threads, help="torch threads")
     p.add_argument("--bf16", action="store_true",
-                   help="gradient updates under bfloat16 autocast (faster on CPUs with AVX-512 BF16; BENCHMARKS.md §6)")
+                   help="hidden products of the updates in bfloat16 (keeps the learning curve; no faster on the 2-core test CPU: BENCHMARKS.md §6)")
     p.add_argument("--log-interval", type=float, default=d.log_interval_s, help="seconds between log lines")
     p.add_argument("--device", default=d.device,
                    help="torch device of the SAC networks and replay sampling: cpu (default), cuda or cuda:N; the "

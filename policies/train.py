@@ -77,8 +77,8 @@ class Args:
     target_entropy_scale: float = 0.1       # target entropy = sum ln(scale * (high - low)) = -1.609 * dim
     init_ent_coef: float = 1.0
     init_from: str = ""                     # warm start: policy .zip to copy the weights from (fresh runs only)
-    bf16: bool = False                      # gradient updates under bfloat16 autocast (BENCHMARKS.md §6: faster on
-                                            # CPUs with AVX-512 BF16; its learning curve is checked by a sweep)
+    bf16: bool = False                      # hidden products of the updates in bfloat16 (docs/training.md;
+                                            # BENCHMARKS.md §6: same learning curve, no faster here)
     # runtime
     torch_threads: int = 1
     checkpoint_minutes: float = 5.0
