@@ -46,22 +46,25 @@ def _observations(policy, task: str, envs: int = 64, steps: int = 120, every: in
 
 
 def _layout(critic, name: str) -> None:
-    """Set the critic's layers' classes for ``name`` (parameters untouched)."""
+    """Set the critic's layers' classes for ``name`` (parameters untouched); ``rodlab`` is the policy's own
+    ``_bf16_guard``."""
     from torch import nn
 
-    from policies.sac import Float32LayerNorm, Float32Linear
+    from policies.sac import _bf16_guard, _keep_float32
 
     for q in critic.q_networks:
-        linears = [m for m in q if isinstance(m, nn.Linear)]
-        norms = [m for m in q if isinstance(m, nn.LayerNorm)]
-        for m in linears:
-            m.__class__ = nn.Linear
-        for m in norms:
-            m.__class__ = nn.LayerNorm if name == "all" else Float32LayerNorm
-        if name != "all":
-            linears[-1].__class__ = Float32Linear
+        for m in q:
+            if isinstance(m, nn.Linear):
+                m.__class__ = nn.Linear
+            elif isinstance(m, nn.LayerNorm):
+                m.__class__ = nn.LayerNorm
         if name == "rodlab":
-            linears[0].__class__ = Float32Linear
+            _bf16_guard(q, output_layer=True)
+        elif name == "f32_heads":
+            _keep_float32(q[-1])
+            for m in q:
+                if isinstance(m, nn.LayerNorm):
+                    _keep_float32(m)
 
 
 def measure(policy_path: str) -> dict:

@@ -218,7 +218,7 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
     from policies.train_speed import SpeedSettings, apply_speed_settings
 
     speed = speed or SpeedSettings()
-    update_ctx = apply_speed_settings(model, speed)  # settings to try (policies/train_speed.py)
+    apply_speed_settings(model, speed)  # settings to try (policies/train_speed.py)
     from stable_baselines3.common.logger import configure
 
     model.set_logger(configure(None, [""]))
@@ -245,15 +245,13 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
             t2 = time.perf_counter()
             rb.add(obs, nobs, model.policy.scale_action(act), rew, done, infos)
             t3 = time.perf_counter()
-            with update_ctx():
-                model.train(gradient_steps=args.updates_per_iter, batch_size=args.batch_size)
+            model.train(gradient_steps=args.updates_per_iter, batch_size=args.batch_size)
             _sync(model)
             t4 = time.perf_counter()
             row = (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t4 - t0)
         else:
             fut = pool.submit(env.step, act)
-            with update_ctx():
-                model.train(gradient_steps=args.updates_per_iter, batch_size=args.batch_size)
+            model.train(gradient_steps=args.updates_per_iter, batch_size=args.batch_size)
             _sync(model)
             t2 = time.perf_counter()
             nobs, rew, done, infos = fut.result()

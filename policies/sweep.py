@@ -185,6 +185,11 @@ def _csv_rows(path: Path) -> list[dict]:
         return []
 
 
+def _budget_reached(env_steps: int, wall_s: float, total_steps: int, limit_minutes: float) -> bool:
+    """A trial's budget is spent: ``total_steps`` env steps, or ``limit_minutes`` of training (0: no limit)."""
+    return env_steps >= total_steps or (limit_minutes > 0 and wall_s >= 60.0 * limit_minutes - 1.0)
+
+
 def is_done(trial: Trial) -> bool:
     """Finished within this command's budget: ``trial_done.json`` is there and its env steps reach ``--steps`` or
     its wall-clock reaches ``--time-limit``. A trial finished under a smaller budget (fewer steps, a shorter time
@@ -197,10 +202,7 @@ def is_done(trial: Trial) -> bool:
         steps, wall_s = int(rec["env_steps"]), float(rec["wall_s"])
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise SweepError(f"{path}: unreadable ({exc}); delete it to continue the trial") from None
-    if steps >= int(trial.args["total_steps"]):
-        return True
-    limit = float(trial.time_limit_minutes)
-    return limit > 0 and wall_s >= 60.0 * limit - 1.0
+    return _budget_reached(steps, wall_s, int(trial.args["total_steps"]), float(trial.time_limit_minutes))
 
 
 def _write_json(path: Path, data: dict) -> None:
@@ -230,8 +232,8 @@ def run_trial_process(run_dir: Path) -> int:
         st = read_state(run_dir)
         side = json.loads((run_dir / "policy.json").read_text())
         training = side.get("training", {})
-        done = st["num_timesteps"] >= args.total_steps or (
-            limit > 0 and training.get("stopped_by_time_limit") and st["wall_s"] >= 60.0 * limit - 1.0)
+        done = _budget_reached(int(st["num_timesteps"]), float(st["wall_s"]), args.total_steps,
+                               limit if training.get("stopped_by_time_limit") else 0.0)
         if done and not training.get("stopped_early"):
             _write_json(run_dir / "trial_done.json", {"env_steps": st["num_timesteps"], "wall_s": st["wall_s"],
                                                       "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())})

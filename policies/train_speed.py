@@ -16,7 +16,6 @@ Nothing here is used by ``rodlab train`` by default; each setting must first be 
 """
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
 
 __all__ = ["SpeedSettings", "apply_speed_settings", "ADAM_KINDS"]
@@ -46,8 +45,8 @@ def _adam(params, lr, eps, kind: str):
     return th.optim.Adam(params, lr=lr, eps=eps, **kw)
 
 
-def apply_speed_settings(model, settings: SpeedSettings):
-    """Apply ``settings`` to a fresh ``RodSAC`` in place; returns a context manager for the update calls."""
+def apply_speed_settings(model, settings: SpeedSettings) -> None:
+    """Apply ``settings`` to a fresh ``RodSAC`` in place."""
     import torch as th
 
     pol = model.policy
@@ -67,4 +66,3 @@ def apply_speed_settings(model, settings: SpeedSettings):
         for i, q in enumerate(list(pol.critic_target.q_networks)):
             pol.critic_target.q_networks[i] = th.compile(q)
     model.bf16_updates = bool(settings.bf16)  # RodSAC opens one autocast region per forward pass
-    return contextlib.nullcontext
