@@ -13,18 +13,37 @@ import sys
 import time
 
 
-def _threads_env() -> None:
-    # one thread per process: the machine is shared and training runs two processes at most
-    # (only before numba is loaded: changing NUMBA_NUM_THREADS after its thread pool started makes numba
-    # raise on its next configuration reload, e.g. when this runs inside a test process)
+def _threads_env(argv: list[str] | None = None) -> None:
+    """Thread counts of OpenMP, MKL and numba, set before torch and numba load them: the command's ``--threads``
+    (default 1: the machine is shared and training runs two processes at most). They must match ``--threads``:
+    ``torch.set_num_threads`` after an import under ``OMP_NUM_THREADS=1`` leaves part of the work (MKL's float32
+    products, oneDNN's bfloat16 ones) on one thread (BENCHMARKS.md §6). A variable already set is kept.
+    (NUMBA_NUM_THREADS only before numba is loaded: changing it after its thread pool started makes numba raise on
+    its next configuration reload, e.g. when this runs inside a test process.)"""
+    threads = _argv_threads(argv or [])
     names = ["OMP_NUM_THREADS", "MKL_NUM_THREADS"] + ([] if "numba" in sys.modules else ["NUMBA_NUM_THREADS"])
     for var in names:
-        os.environ.setdefault(var, "1")
+        os.environ.setdefault(var, str(threads))
+
+
+def _argv_threads(argv: list[str]) -> int:
+    """The value of ``--threads N`` / ``--threads=N`` in ``argv`` (1 when absent or not a positive integer; argparse
+    reports a bad value later)."""
+    for i, arg in enumerate(argv):
+        text = argv[i + 1] if arg == "--threads" and i + 1 < len(argv) else (
+            arg.split("=", 1)[1] if arg.startswith("--threads=") else None)
+        if text is not None:
+            try:
+                return max(1, int(text))
+            except ValueError:
+                return 1
+    return 1
 
 
 # ----------------------------------------------------------------------------------------- train
 def train_main(argv: list[str]) -> int:
-    _threads_env()
+    _threads_env(argv)
+    from policies.sac import BF16_LAYOUTS
     from policies.train import Args, TrainError, check_device, train
 
     d = Args()
@@ -64,6 +83,9 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--threads", type=int, default=d.torch_threads, help="torch threads")
     p.add_argument("--bf16", action="store_true",
                    help="hidden products of the updates in bfloat16 (keeps the learning curve; no faster on the 2-core test CPU: BENCHMARKS.md §6)")
+    p.add_argument("--bf16-layout", choices=BF16_LAYOUTS, default=d.bf16_layout,
+                   help="with --bf16: float32_io keeps input/output layers and LayerNorms in float32, all runs every "
+                        "layer in bfloat16 (BENCHMARKS.md §6)")
     p.add_argument("--log-interval", type=float, default=d.log_interval_s, help="seconds between log lines")
     p.add_argument("--device", default=d.device,
                    help="torch device of the SAC networks and replay sampling: cpu (default), cuda or cuda:N; the "
@@ -98,7 +120,8 @@ def train_main(argv: list[str]) -> int:
                 log_interval_s=a.log_interval, time_limit_minutes=a.time_limit, init_from=a.init_from,
                 init_ent_coef=a.init_ent_coef, first_checkpoint_minutes=a.first_checkpoint_minutes,
                 eval_minutes=a.eval_minutes, eval_every_steps=a.eval_every_steps, eval_episodes=a.eval_episodes,
-                eval_stochastic=a.eval_stochastic, bf16=a.bf16, device=a.device)
+                eval_stochastic=a.eval_stochastic, bf16=a.bf16, bf16_layout=a.bf16_layout,
+                device=a.device)
     if a.resume:
         cfg = os.path.join(a.run_dir, "config.json")
         try:
@@ -287,7 +310,9 @@ def _sync(model) -> None:
 
 
 def bench_train_main(argv: list[str]) -> int:
-    _threads_env()
+    _threads_env(argv)
+    from policies.sac import BF16_LAYOUTS
+
     p = argparse.ArgumentParser(prog="rodlab bench train", description="Time one training iteration "
                                 "(batched env step + 4 SAC updates of batch 1024), split into env/update time.")
     p.add_argument("--task", required=True)
@@ -297,6 +322,8 @@ def bench_train_main(argv: list[str]) -> int:
     p.add_argument("--threads", type=int, default=1, help="torch threads")
     p.add_argument("--compile", action="store_true", help="torch.compile the actor trunk and critic MLPs")
     p.add_argument("--bf16", action="store_true", help="updates under bfloat16 autocast")
+    p.add_argument("--bf16-layout", choices=BF16_LAYOUTS, default="float32_io",
+                   help="with --bf16: which layers stay float32 (as rodlab train --bf16-layout)")
     p.add_argument("--adam", choices=("fused", "foreach", "plain"), default="fused", help="Adam implementation")
     p.add_argument("--overlap", action="store_true",
                    help="run the env step in a second thread during the updates (its transition is added after them)")
@@ -308,7 +335,7 @@ def bench_train_main(argv: list[str]) -> int:
 
     try:
         res = bench_train(a.task, envs=a.envs, iters=a.iters, warmup=a.warmup, threads=a.threads,
-                          speed=SpeedSettings(compile=a.compile, bf16=a.bf16, adam=a.adam), overlap=a.overlap,
+                          speed=SpeedSettings(compile=a.compile, bf16=a.bf16, bf16_layout=a.bf16_layout, adam=a.adam), overlap=a.overlap,
                           device=a.device)
     except TrainError as exc:
         print(f"rodlab bench train: {exc}", file=sys.stderr)

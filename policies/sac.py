@@ -16,7 +16,8 @@ What SB3's ``SAC`` lacks and how it is added here (nothing else is changed):
 * **bfloat16 updates** (``RodSAC.bf16_updates``, ``rodlab train --bf16``): the updates run under
   ``torch.autocast(dtype=bfloat16)`` with the input and output layers and the LayerNorms kept in float32
   (``Float32Linear``, ``Float32LayerNorm``): only the hidden 256x256 products run in bfloat16, so observations,
-  actions, Q values and log-probabilities are not rounded to bfloat16's 8-bit mantissa.
+  actions, Q values and log-probabilities are not rounded to bfloat16's 8-bit mantissa. ``set_bf16_layout(policy,
+  "all")`` (``rodlab train --bf16 --bf16-layout all``) turns them back into plain layers: every product in bfloat16.
 * **Timing**: ``last_update_time`` [s] of the most recent ``train()`` call, for logging/benchmarks.
 
 Policy-only files (``save_policy`` / ``load_policy``) are a small zip holding ``meta.json`` (task id,
@@ -80,6 +81,11 @@ class Float32LayerNorm(nn.LayerNorm):
 
 
 _FLOAT32_CLASSES = {nn.Linear: Float32Linear, nn.LayerNorm: Float32LayerNorm}
+_PLAIN_CLASSES = {v: k for k, v in _FLOAT32_CLASSES.items()}
+
+#: where ``--bf16`` uses bfloat16: ``float32_io`` keeps the input/output layers and LayerNorms in float32 (only the
+#: hidden products in bfloat16), ``all`` runs every layer in bfloat16 (docs/training.md, "bfloat16 updates")
+BF16_LAYOUTS = ("float32_io", "all")
 
 
 def _keep_float32(layer: nn.Module) -> nn.Module:
@@ -89,7 +95,23 @@ def _keep_float32(layer: nn.Module) -> nn.Module:
     if cls is None:
         raise TypeError(f"expected nn.Linear or nn.LayerNorm, found {type(layer).__name__}")
     layer.__class__ = cls
+    layer._bf16_guarded = True  # remembered by set_bf16_layout (a plain attribute: not in the state_dict)
     return layer
+
+
+def set_bf16_layout(policy: nn.Module, layout: str) -> None:
+    """Switch the guarded layers of ``policy`` between their float32 variants (``float32_io``) and plain layers
+    that autocast runs in bfloat16 (``all``), in place. Parameters, state_dict and seeds are unchanged; without
+    autocast both layouts compute the same float32 network."""
+    if layout not in BF16_LAYOUTS:
+        raise ValueError(f"bf16 layout must be one of {', '.join(BF16_LAYOUTS)}, got {layout!r}")
+    for m in policy.modules():
+        if not getattr(m, "_bf16_guarded", False):
+            continue
+        if layout == "all" and type(m) in _PLAIN_CLASSES:
+            m.__class__ = _PLAIN_CLASSES[type(m)]
+        elif layout == "float32_io" and type(m) in _FLOAT32_CLASSES:
+            m.__class__ = _FLOAT32_CLASSES[type(m)]
 
 
 def _bf16_guard(mlp: nn.Sequential, *, output_layer: bool) -> None:

@@ -256,7 +256,8 @@ def _set_parent_death_signal() -> None:
 
 def launch_trial(run_dir: str, cpus: int) -> dict:
     """Body of the Ray task: run the trial's training in a child process and wait for it."""
-    env = dict(os.environ, NUMBA_NUM_THREADS=str(cpus), OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    # every library's threads = the trial's cores (policies/cli.py _threads_env)
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(cpus), OMP_NUM_THREADS=str(cpus), MKL_NUM_THREADS=str(cpus))
     root = str(Path(__file__).resolve().parent.parent)
     env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
     with open(Path(run_dir) / "train.log", "ab") as log:

@@ -44,7 +44,7 @@ from sim.atomicio import write_bytes
 
 from policies.checkpoint import find_checkpoint, read_state, resume_seed
 from policies.checkpoint import save_checkpoint as _save_checkpoint
-from policies.sac import PolicyLoadError, save_policy
+from policies.sac import BF16_LAYOUTS, PolicyLoadError, save_policy, set_bf16_layout
 from policies.train_monitor import monitor_callback
 
 
@@ -79,6 +79,8 @@ class Args:
     init_from: str = ""                     # warm start: policy .zip to copy the weights from (fresh runs only)
     bf16: bool = False                      # hidden products of the updates in bfloat16 (docs/training.md;
                                             # BENCHMARKS.md §6: same learning curve, no faster here)
+    bf16_layout: str = "float32_io"         # with bf16: float32_io (input/output layers, LayerNorms in float32)
+                                            # or all (every layer in bfloat16); policies/sac.py BF16_LAYOUTS
     # runtime
     torch_threads: int = 1
     checkpoint_minutes: float = 5.0
@@ -353,6 +355,8 @@ def train(args: Args, *, resume: bool = False) -> Path:
         if args.init_from and not Path(args.init_from).is_file():  # fail before creating the run directory
             raise TrainError(f"--init-from: policy file not found: {args.init_from}")
     args.device = check_device(args.device)  # before the run directory is made
+    if args.bf16_layout not in BF16_LAYOUTS:
+        raise TrainError(f"--bf16-layout: expected one of {', '.join(BF16_LAYOUTS)}, got {args.bf16_layout!r}")
     run_dir.mkdir(parents=True, exist_ok=True)
 
     state = read_state(run_dir) if resume else None
@@ -368,6 +372,7 @@ def train(args: Args, *, resume: bool = False) -> Path:
     else:
         model, wall_offset = build_sac(args, env), 0.0
     model.bf16_updates = bool(args.bf16)
+    set_bf16_layout(model.policy, args.bf16_layout)
     init_info = None
     if args.init_from and not resume:
         try:

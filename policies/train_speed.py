@@ -27,14 +27,20 @@ ADAM_KINDS = ("fused", "foreach", "plain")
 class SpeedSettings:
     compile: bool = False
     bf16: bool = False
+    bf16_layout: str = "float32_io"
     adam: str = "fused"
 
     def __post_init__(self):
         if self.adam not in ADAM_KINDS:
             raise ValueError(f"adam must be one of {ADAM_KINDS}, got {self.adam!r}")
+        from policies.sac import BF16_LAYOUTS
+
+        if self.bf16_layout not in BF16_LAYOUTS:
+            raise ValueError(f"bf16_layout must be one of {BF16_LAYOUTS}, got {self.bf16_layout!r}")
 
     def label(self) -> str:
-        return ",".join([f"adam={self.adam}"] + (["compile"] if self.compile else []) + (["bf16"] if self.bf16 else []))
+        return ",".join([f"adam={self.adam}"] + (["compile"] if self.compile else []) + (
+            [f"bf16={self.bf16_layout}"] if self.bf16 else []))
 
 
 def _adam(params, lr, eps, kind: str):
@@ -48,6 +54,8 @@ def _adam(params, lr, eps, kind: str):
 def apply_speed_settings(model, settings: SpeedSettings) -> None:
     """Apply ``settings`` to a fresh ``RodSAC`` in place."""
     import torch as th
+
+    from policies.sac import set_bf16_layout
 
     pol = model.policy
     for holder in (pol.actor, pol.critic):
@@ -66,3 +74,4 @@ def apply_speed_settings(model, settings: SpeedSettings) -> None:
         for i, q in enumerate(list(pol.critic_target.q_networks)):
             pol.critic_target.q_networks[i] = th.compile(q)
     model.bf16_updates = bool(settings.bf16)  # RodSAC opens one autocast region per forward pass
+    set_bf16_layout(pol, settings.bf16_layout)

@@ -3,6 +3,8 @@
 No timing is asserted (speed is measured on a quiet machine)."""
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 import torch
@@ -151,3 +153,70 @@ def test_bf16_updates_see_the_weights_of_the_previous_update():
         np.random.set_state(np_state)
     assert torch.isfinite(one_call).all()
     assert torch.equal(one_call, three_calls)
+
+
+def test_bf16_layout_all_runs_every_layer_in_bfloat16_and_switches_back():
+    """``set_bf16_layout(policy, "all")`` (``--bf16-layout all``) turns the float32 layers into plain ones: under
+    autocast Q and the actor's mean come out in bfloat16; ``float32_io`` restores the float32 layers. Parameters,
+    state_dict and the float32 network (no autocast) are the same in both layouts."""
+    from policies.sac import Float32Linear, set_bf16_layout
+
+    model = _model()
+    policy, critic, actor = model.policy, model.critic, model.actor
+    keys = list(policy.state_dict())
+    g = torch.Generator().manual_seed(5)
+    obs = torch.randn(64, *model.observation_space.shape, generator=g)
+    act = torch.rand(64, *model.action_space.shape, generator=g) * 2 - 1
+
+    def forward(autocast: bool):
+        with torch.no_grad(), torch.autocast("cpu", dtype=torch.bfloat16, enabled=autocast):
+            return critic(obs, act)[0], actor.mu(actor.latent_pi(obs))
+
+    q32, mu32 = forward(False)
+    set_bf16_layout(policy, "all")
+    assert not any(isinstance(m, Float32Linear) for m in policy.modules())
+    assert list(policy.state_dict()) == keys
+    q_all, mu_all = forward(True)
+    assert q_all.dtype == torch.bfloat16 and mu_all.dtype == torch.bfloat16
+    assert torch.equal(forward(False)[0], q32) and torch.equal(forward(False)[1], mu32)
+    set_bf16_layout(policy, "float32_io")
+    assert isinstance(actor.mu, Float32Linear) and all(isinstance(q[-1], Float32Linear) for q in critic.q_networks)
+    q_io, mu_io = forward(True)
+    assert q_io.dtype == torch.float32 and mu_io.dtype == torch.float32
+    with pytest.raises(ValueError, match="bf16 layout must be one of"):
+        set_bf16_layout(policy, "half")
+
+
+def test_bf16_layout_is_a_training_and_speed_setting(tmp_path):
+    """``rodlab train --bf16-layout all`` reaches the model (the trained layers are plain ones); an unknown layout is
+    refused before a run directory is made."""
+    from policies.sac import Float32Linear
+    from policies.train import TrainError, train
+
+    assert Args().bf16_layout == "float32_io"
+    assert Args.from_json({**Args().to_json(), "bf16_layout": "all"}).bf16_layout == "all"
+    with pytest.raises(TrainError, match="--bf16-layout: expected one of float32_io, all"):
+        train(Args(task="ik4d", bf16=True, bf16_layout="half", run_dir=str(tmp_path / "bad")))
+    assert not (tmp_path / "bad").exists()
+    with pytest.raises(ValueError, match="bf16_layout must be one of"):
+        SpeedSettings(bf16=True, bf16_layout="half")
+    model = _model()
+    apply_speed_settings(model, SpeedSettings(bf16=True, bf16_layout="all"))
+    assert model.bf16_updates and not any(isinstance(m, Float32Linear) for m in model.policy.modules())
+    assert SpeedSettings(bf16=True, bf16_layout="all").label() == "adam=fused,bf16=all"
+
+
+@pytest.mark.parametrize(("argv", "threads"), [([], "1"), (["ik4d", "--threads", "2"], "2"), (["--threads=3"], "3"),
+                                              (["--threads", "x"], "1")])
+def test_library_threads_follow_the_threads_option(monkeypatch, argv, threads):
+    """``--threads N`` sets OpenMP's and MKL's thread counts to N before torch loads them (with 1 there, part of the
+    products stays on one thread whatever torch.set_num_threads says); a value set by the user is kept."""
+    from policies.cli import _threads_env
+
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        monkeypatch.delenv(var, raising=False)
+    _threads_env(argv)
+    assert (os.environ["OMP_NUM_THREADS"], os.environ["MKL_NUM_THREADS"]) == (threads, threads)
+    monkeypatch.setenv("OMP_NUM_THREADS", "7")
+    _threads_env(["--threads", "2"])
+    assert os.environ["OMP_NUM_THREADS"] == "7"
