@@ -1,0 +1,102 @@
+"""Where the time of the SAC updates goes: torch.profiler self-time of one update, grouped by kind of operation.
+
+    .venv/bin/python benchmarks/update_profile.py [--task follow_target] [--threads 2] [--updates 24] [--json]
+
+The model is the one ``rodlab train`` builds (table A.1 network, batch 1024), its replay buffer filled with random
+transitions of the task; per precision setting (float32, ``--bf16``, ``--bf16 --bf16-layout all``) 8 warm-up
+updates, then ``--updates`` updates under the profiler. Groups (self CPU time per update, ms): ``products``
+(addmm, mm, bmm), ``layer_norm`` (forward and backward), ``relu`` (forward and backward), ``casts`` (copy_,
+_to_copy: dtype casts and the bias broadcast of addmm), ``reductions`` (sum, mean: bias gradients, losses),
+``adam``, ``other``. The profiler adds its own overhead, so the total exceeds ``rodlab bench train``'s update
+time a little; the shares are what matter. Written to ``docs/bench/summary/update_profile_<task>.json``.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.common import DEFAULT_OUT, base_parser, machine_info, write_json  # noqa: E402
+
+GROUPS = {
+    "products": ("aten::addmm", "aten::mm", "aten::bmm", "aten::baddbmm"),
+    "layer_norm": ("aten::native_layer_norm", "aten::native_layer_norm_backward"),
+    "relu": ("aten::clamp_min_", "aten::clamp_min", "aten::relu", "aten::relu_", "aten::threshold_backward"),
+    "casts": ("aten::copy_", "aten::_to_copy"),
+    "reductions": ("aten::sum", "aten::mean"),
+    "adam": ("aten::_fused_adam_", "aten::_foreach_add_", "aten::_foreach_mul_", "aten::_foreach_addcmul_",
+             "aten::_foreach_addcdiv_", "aten::_foreach_sqrt", "aten::_foreach_div_", "aten::_foreach_lerp_"),
+}
+SETTINGS = {"float32": {}, "bf16": {"bf16": True}, "bf16_all": {"bf16": True, "bf16_layout": "all"}}
+
+
+def _model(task: str, setting: dict):
+    import numpy as np
+
+    from policies.train import Args, build_sac, make_sb3_env
+    from policies.train_speed import SpeedSettings, apply_speed_settings
+
+    envs = 16
+    env = make_sb3_env(task, envs, 0)
+    model = build_sac(Args(task=task, num_envs=envs, total_steps=100_000), env)
+    apply_speed_settings(model, SpeedSettings(**setting))
+    from stable_baselines3.common.logger import configure
+
+    model.set_logger(configure(None, [""]))
+    obs = env.reset()
+    rng = np.random.default_rng(0)
+    for _ in range(80):  # 1280 transitions: more than one batch
+        act = rng.uniform(-1, 1, (envs, *env.action_space.shape)).astype(np.float32)
+        nobs, rew, done, infos = env.step(act)
+        model.replay_buffer.add(obs, nobs, act, rew, done, infos)
+        obs = nobs
+    env.close()
+    return model
+
+
+def profile_setting(task: str, setting: dict, updates: int) -> dict:
+    from torch.profiler import ProfilerActivity, profile
+
+    model = _model(task, setting)
+    model.train(gradient_steps=8, batch_size=1024)
+    with profile(activities=[ProfilerActivity.CPU]) as prof:
+        model.train(gradient_steps=updates, batch_size=1024)
+    ms = {g: 0.0 for g in GROUPS} | {"other": 0.0}
+    owner = {op: g for g, ops in GROUPS.items() for op in ops}
+    for ev in prof.key_averages():
+        if not ev.key.startswith("aten::"):
+            continue  # autograd/optimizer wrappers: their self time is bookkeeping, the aten ops hold the work
+        ms[owner.get(ev.key, "other")] += ev.self_cpu_time_total / 1e3 / updates
+    total = sum(ms.values())
+    return {"ms_per_update": ms, "total_ms_per_update": total,
+            "share": {g: v / total for g, v in ms.items()} if total > 0 else {}}
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = base_parser("update_profile", __doc__.split("\n")[0])
+    p.add_argument("--task", default="follow_target")
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--updates", type=int, default=24)
+    a = p.parse_args(argv)
+    import torch
+
+    torch.set_num_threads(a.threads)
+    res = {"task": a.task, "threads": a.threads, "updates": a.updates, "batch_size": 1024,
+           "settings": {name: profile_setting(a.task, s, a.updates) for name, s in SETTINGS.items()}}
+    res["machine"] = machine_info()
+    for name, r in res["settings"].items():
+        parts = "  ".join(f"{g} {v:.1f}" for g, v in r["ms_per_update"].items())
+        print(f"{name:9s} {r['total_ms_per_update']:6.1f} ms/update:  {parts}")
+    out_dir = a.out if a.out != DEFAULT_OUT else DEFAULT_OUT / "summary"
+    path = write_json(out_dir, f"update_profile_{a.task}.json", res)
+    print(f"wrote {path}")
+    if a.json:
+        import json
+
+        print(json.dumps(res, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
