@@ -82,10 +82,11 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--no-replay-checkpoint", action="store_true", help="do not save the replay buffer")
     p.add_argument("--threads", type=int, default=d.torch_threads, help="torch threads")
     p.add_argument("--bf16", action="store_true",
-                   help="hidden products of the updates in bfloat16 (keeps the learning curve; no faster on the 2-core test CPU: BENCHMARKS.md §6)")
+                   help="the updates in bfloat16 (keeps the learning curve; with --bf16-layout all 0.76x the float32 iteration "
+                        "time on the 2-core test CPU: BENCHMARKS.md §6)")
     p.add_argument("--bf16-layout", choices=BF16_LAYOUTS, default=d.bf16_layout,
-                   help="with --bf16: float32_io keeps input/output layers and LayerNorms in float32, all runs every "
-                        "layer in bfloat16 (BENCHMARKS.md §6)")
+                   help="with --bf16: float32_io keeps input/output layers and LayerNorms in float32 (0.85x), all runs "
+                        "every layer in bfloat16 (0.76x; BENCHMARKS.md §6)")
     p.add_argument("--log-interval", type=float, default=d.log_interval_s, help="seconds between log lines")
     p.add_argument("--device", default=d.device,
                    help="torch device of the SAC networks and replay sampling: cpu (default), cuda or cuda:N; the "

@@ -184,7 +184,7 @@ def summarize(runs: list[dict], iteration_ms: dict[str, float] | None = None) ->
         row["eval_share_of_wallclock"] = _num(float(np.mean(share))) if share else None
         row["env_steps_max"] = max(r["final_steps"] for r in rs)
         row["hours_max"] = max(r["final_hours"] for r in rs)
-        ims = (iteration_ms or {}).get(task)
+        ims = (iteration_ms or {}).get(name, (iteration_ms or {}).get(task))  # a setting's own, else its task's
         if ims:
             row["projected_iter_ms"] = float(ims)
             for kind in ("train", "eval"):
@@ -326,7 +326,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", default=None, help="output directory (default SWEEP_DIR/report for one directory)")
     p.add_argument("--iteration-ms", action="append", default=[], metavar="TASK=MS",
                    help="also give the time to plateau at MS ms per iteration for TASK (a quiet-machine "
-                        "measurement, e.g. rodlab bench train); repeatable")
+                        "measurement, e.g. rodlab bench train); TASK may also name one group (a setting, e.g. "
+                        "follow_target__bf16), which then takes its own value; repeatable")
     a = p.parse_args(argv)
     try:
         ims = {}

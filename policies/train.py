@@ -78,7 +78,7 @@ class Args:
     init_ent_coef: float = 1.0
     init_from: str = ""                     # warm start: policy .zip to copy the weights from (fresh runs only)
     bf16: bool = False                      # hidden products of the updates in bfloat16 (docs/training.md;
-                                            # BENCHMARKS.md §6: same learning curve, no faster here)
+                                            # BENCHMARKS.md §6: same learning curve, faster on a CPU)
     bf16_layout: str = "float32_io"         # with bf16: float32_io (input/output layers, LayerNorms in float32)
                                             # or all (every layer in bfloat16); policies/sac.py BF16_LAYOUTS
     # runtime

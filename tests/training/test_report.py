@@ -82,6 +82,14 @@ def test_report_projects_time_to_plateau_at_a_given_iteration_time(tmp_path):
     assert ft["train_projected_hours_to_plateau"] == pytest.approx(steps / 500 * 0.160 / 3600, rel=1e-5)  # rounded to 1e-6 h
     assert "| follow_target | 160 |" in res["table"]
     assert main([str(root), "--iteration-ms", "follow_target=fast"]) == 2
+    # a group of another setting of the same task takes its own iteration time when one is given
+    for seed in (0, 1):
+        (root / f"follow_target__s{seed}").rename(root / f"follow_target__fast__s{seed}")
+    _fake_run(root, "follow_target", 0, rate=1000.0, scale=200.0)
+    res = report(root, iteration_ms={"follow_target": 160.0, "follow_target__fast": 80.0})
+    groups = {g["group"]: g for g in res["groups"]}
+    assert groups["follow_target__fast"]["projected_iter_ms"] == 80.0
+    assert groups["follow_target"]["projected_iter_ms"] == 160.0
 
 
 def test_report_on_seeds_that_ran_at_different_speeds(tmp_path):
