@@ -23,7 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.common import DEFAULT_OUT, base_parser, machine_info, write_json  # noqa: E402
+from benchmarks.common import base_parser, machine_info, write_summary  # noqa: E402
 
 
 def _observations(policy, task: str, envs: int = 64, steps: int = 120, every: int = 10):
@@ -114,13 +114,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {name:10s} |dQ| mean {r['q_abs_err_mean']:.3f} max {r['q_abs_err_max']:.3f}   dQ/da relative error "
               f"{r['dq_da_rel_err']:.3f} (cosine {r['dq_da_cos_mean']:.3f})   parameter-gradient cosine "
               f"{r['param_grad_cos']:.4f}")
-    out_dir = a.out if a.out != DEFAULT_OUT else DEFAULT_OUT / "summary"
-    path = write_json(out_dir, "bf16_precision.json", res)
-    print(f"wrote {path}")
-    if a.json:
-        import json
-
-        print(json.dumps(res, indent=1))
+    write_summary(a, "bf16_precision.json", res)
     return 0
 
 

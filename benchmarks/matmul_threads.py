@@ -19,7 +19,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.common import DEFAULT_OUT, base_parser, machine_info, write_json  # noqa: E402
+from benchmarks.common import base_parser, machine_info, write_summary  # noqa: E402
 
 SETTINGS = {"unset": {}, "omp1_mkl1": {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}}
 _VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS")
@@ -67,11 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     for name, r in res["settings"].items():
         print(f"{name:10s} " + "   ".join(f"{dt} {r[dt]['ms_median']:.3f} ms (cpu/wall {r[dt]['cpu_per_wall']:.2f})"
                                           for dt in ("float32", "bfloat16")))
-    out_dir = a.out if a.out != DEFAULT_OUT else DEFAULT_OUT / "summary"
-    path = write_json(out_dir, "matmul_threads.json", res)
-    print(f"wrote {path}")
-    if a.json:
-        print(json.dumps(res, indent=1))
+    write_summary(a, "matmul_threads.json", res)
     return 0
 
 

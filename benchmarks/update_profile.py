@@ -17,7 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.common import DEFAULT_OUT, base_parser, machine_info, write_json  # noqa: E402
+from benchmarks.common import base_parser, machine_info, write_summary  # noqa: E402
 
 GROUPS = {
     "products": ("aten::addmm", "aten::mm", "aten::bmm", "aten::baddbmm"),
@@ -88,13 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     for name, r in res["settings"].items():
         parts = "  ".join(f"{g} {v:.1f}" for g, v in r["ms_per_update"].items())
         print(f"{name:9s} {r['total_ms_per_update']:6.1f} ms/update:  {parts}")
-    out_dir = a.out if a.out != DEFAULT_OUT else DEFAULT_OUT / "summary"
-    path = write_json(out_dir, f"update_profile_{a.task}.json", res)
-    print(f"wrote {path}")
-    if a.json:
-        import json
-
-        print(json.dumps(res, indent=1))
+    write_summary(a, f"update_profile_{a.task}.json", res)
     return 0
 
 
