@@ -16,8 +16,8 @@ import time
 def _threads_env(argv: list[str] | None = None) -> None:
     """Thread counts of OpenMP, MKL and numba, set before torch and numba load them: the command's ``--threads``
     (default 1: the machine is shared and training runs two processes at most). They must match ``--threads``:
-    ``torch.set_num_threads`` after an import under ``OMP_NUM_THREADS=1`` leaves part of the work (MKL's float32
-    products, oneDNN's bfloat16 ones) on one thread (BENCHMARKS.md §6). A variable already set is kept.
+    with all three at 1 and only ``torch.set_num_threads(2)``, a two-thread Follow Target iteration took 1.3-1.5x
+    as long, its env step on one core (BENCHMARKS.md §6). A variable already set is kept.
     (NUMBA_NUM_THREADS only before numba is loaded: changing it after its thread pool started makes numba raise on
     its next configuration reload, e.g. when this runs inside a test process.)"""
     threads = _argv_threads(argv or [])
