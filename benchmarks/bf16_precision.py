@@ -46,21 +46,16 @@ def _observations(policy, task: str, envs: int = 64, steps: int = 120, every: in
 
 
 def _layout(critic, name: str) -> None:
-    """Set the critic's layers' classes for ``name`` (parameters untouched); ``rodlab`` is the policy's own
-    ``_bf16_guard``."""
+    """Set the critic's layers' classes for ``name`` (parameters untouched): ``all`` and ``rodlab`` are the
+    policy's own layouts (``set_bf16_layout`` ``all`` / ``float32_io``); ``f32_heads`` keeps only the output layers
+    and LayerNorms in float32."""
     from torch import nn
 
-    from policies.sac import _bf16_guard, _keep_float32
+    from policies.sac import _keep_float32, set_bf16_layout
 
-    for q in critic.q_networks:
-        for m in q:
-            if isinstance(m, nn.Linear):
-                m.__class__ = nn.Linear
-            elif isinstance(m, nn.LayerNorm):
-                m.__class__ = nn.LayerNorm
-        if name == "rodlab":
-            _bf16_guard(q, output_layer=True)
-        elif name == "f32_heads":
+    set_bf16_layout(critic, "float32_io" if name == "rodlab" else "all")
+    if name == "f32_heads":
+        for q in critic.q_networks:
             _keep_float32(q[-1])
             for m in q:
                 if isinstance(m, nn.LayerNorm):

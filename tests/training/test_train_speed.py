@@ -209,8 +209,8 @@ def test_bf16_layout_is_a_training_and_speed_setting(tmp_path):
 @pytest.mark.parametrize(("argv", "threads"), [([], "1"), (["ik4d", "--threads", "2"], "2"), (["--threads=3"], "3"),
                                               (["--threads", "x"], "1")])
 def test_library_threads_follow_the_threads_option(monkeypatch, argv, threads):
-    """``--threads N`` sets OpenMP's and MKL's thread counts to N before torch loads them (with 1 there, part of the
-    products stays on one thread whatever torch.set_num_threads says); a value set by the user is kept."""
+    """``--threads N`` sets OpenMP's and MKL's thread counts to N before torch loads them (with them at 1 a two-thread
+    iteration took 1.3-1.5x as long, BENCHMARKS.md §6); a value set by the user is kept."""
     from policies.cli import _threads_env
 
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS"):
