@@ -8,7 +8,10 @@ updates, then ``--updates`` updates under the profiler. Groups (self CPU time pe
 (addmm, mm, bmm), ``layer_norm`` (forward and backward), ``relu`` (forward and backward), ``casts`` (copy_,
 _to_copy: dtype casts and the bias broadcast of addmm), ``reductions`` (sum, mean: bias gradients, losses),
 ``adam``, ``other``. The profiler adds its own overhead, so the total exceeds ``rodlab bench train``'s update
-time a little; the shares are what matter. Written to ``docs/bench/summary/update_profile_<task>.json``.
+time a little; the shares are what matter. Beside the profile, the same number of updates is timed without the
+profiler (``wall_ms_per_update``) and once more under cProfile, whose own time of Python functions
+(``python_ms_per_update``: SB3, the SAC code, torch's Python layers, without the C++ operators they call) tells how
+much of the wall time is Python. Written to ``docs/bench/summary/update_profile_<task>.json``.
 """
 from __future__ import annotations
 
@@ -70,7 +73,26 @@ def profile_setting(task: str, setting: dict, updates: int) -> dict:
         ms[owner.get(ev.key, "other")] += ev.self_cpu_time_total / 1e3 / updates
     total = sum(ms.values())
     return {"ms_per_update": ms, "total_ms_per_update": total,
-            "share": {g: v / total for g, v in ms.items()} if total > 0 else {}}
+            "share": {g: v / total for g, v in ms.items()} if total > 0 else {},
+            **_wall_and_python(model, updates)}
+
+
+def _wall_and_python(model, updates: int) -> dict:
+    """Wall time per update without a profiler, and the own time of Python functions per update (cProfile;
+    built-in and C functions, whose file name pstats gives as ``~``, excluded)."""
+    import cProfile
+    import pstats
+    import time
+
+    t0 = time.perf_counter()
+    model.train(gradient_steps=updates, batch_size=1024)
+    wall = (time.perf_counter() - t0) / updates
+    prof = cProfile.Profile()
+    prof.enable()
+    model.train(gradient_steps=updates, batch_size=1024)
+    prof.disable()
+    own = sum(row[2] for (filename, _, _), row in pstats.Stats(prof).stats.items() if filename != "~")
+    return {"wall_ms_per_update": 1e3 * wall, "python_ms_per_update": 1e3 * own / updates}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -87,7 +109,8 @@ def main(argv: list[str] | None = None) -> int:
     res["machine"] = machine_info()
     for name, r in res["settings"].items():
         parts = "  ".join(f"{g} {v:.1f}" for g, v in r["ms_per_update"].items())
-        print(f"{name:9s} {r['total_ms_per_update']:6.1f} ms/update:  {parts}")
+        print(f"{name:9s} {r['total_ms_per_update']:6.1f} ms/update:  {parts}   (wall {r['wall_ms_per_update']:.1f}, "
+              f"Python {r['python_ms_per_update']:.1f})")
     write_summary(a, f"update_profile_{a.task}.json", res)
     return 0
 

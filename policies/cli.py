@@ -44,7 +44,7 @@ def _argv_threads(argv: list[str]) -> int:
 def train_main(argv: list[str]) -> int:
     _threads_env(argv)
     from policies.sac import BF16_LAYOUTS
-    from policies.train import Args, TrainError, check_device, train
+    from policies.train import Args, TrainError, check_compiler, check_device, train
 
     d = Args()
     p = argparse.ArgumentParser(prog="rodlab train", description="Train SAC on a rodlab task (headless). "
@@ -87,6 +87,9 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--bf16-layout", choices=BF16_LAYOUTS, default=d.bf16_layout,
                    help="with --bf16: float32_io keeps input/output layers and LayerNorms in float32 (0.85x), all runs "
                         "every layer in bfloat16 (0.76x; BENCHMARKS.md §6)")
+    p.add_argument("--compile", action="store_true",
+                   help="run the updates' network work through torch.compile (needs a C++ compiler; about half a "
+                        "minute of compiling at the start; BENCHMARKS.md §6)")
     p.add_argument("--log-interval", type=float, default=d.log_interval_s, help="seconds between log lines")
     p.add_argument("--device", default=d.device,
                    help="torch device of the SAC networks and replay sampling: cpu (default), cuda or cuda:N; the "
@@ -106,6 +109,8 @@ def train_main(argv: list[str]) -> int:
 
     try:  # before any work: a run directory that cannot be written loses nothing
         check_device(a.device)
+        if a.compile:
+            check_compiler()
     except TrainError as exc:
         print(f"rodlab train: {exc}", file=sys.stderr)
         return 2
@@ -122,7 +127,7 @@ def train_main(argv: list[str]) -> int:
                 init_ent_coef=a.init_ent_coef, first_checkpoint_minutes=a.first_checkpoint_minutes,
                 eval_minutes=a.eval_minutes, eval_every_steps=a.eval_every_steps, eval_episodes=a.eval_episodes,
                 eval_stochastic=a.eval_stochastic, bf16=a.bf16, bf16_layout=a.bf16_layout,
-                device=a.device)
+                compile_updates=a.compile, device=a.device)
     if a.resume:
         cfg = os.path.join(a.run_dir, "config.json")
         try:
@@ -321,7 +326,8 @@ def bench_train_main(argv: list[str]) -> int:
     p.add_argument("--iters", type=int, default=20)
     p.add_argument("--warmup", type=int, default=3)
     p.add_argument("--threads", type=int, default=1, help="torch threads")
-    p.add_argument("--compile", action="store_true", help="torch.compile the actor trunk and critic MLPs")
+    p.add_argument("--compile", action="store_true",
+                   help="the updates' network work through torch.compile (as rodlab train --compile)")
     p.add_argument("--bf16", action="store_true", help="updates under bfloat16 autocast")
     p.add_argument("--bf16-layout", choices=BF16_LAYOUTS, default="float32_io",
                    help="with --bf16: which layers stay float32 (as rodlab train --bf16-layout)")
@@ -331,10 +337,12 @@ def bench_train_main(argv: list[str]) -> int:
     p.add_argument("--device", default="cpu", help="torch device of the updates: cpu (default), cuda or cuda:N")
     p.add_argument("--json", action="store_true")
     a = p.parse_args(argv)
-    from policies.train import TrainError
+    from policies.train import TrainError, check_compiler
     from policies.train_speed import SpeedSettings
 
     try:
+        if a.compile:
+            check_compiler()
         res = bench_train(a.task, envs=a.envs, iters=a.iters, warmup=a.warmup, threads=a.threads,
                           speed=SpeedSettings(compile=a.compile, bf16=a.bf16, bf16_layout=a.bf16_layout, adam=a.adam), overlap=a.overlap,
                           device=a.device)

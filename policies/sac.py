@@ -184,6 +184,8 @@ class RodSAC(SAC):
         self.adam_eps = adam_eps
         self.last_update_time = 0.0
         self.bf16_updates = False  # the gradient updates under bfloat16 autocast (policies/train.py Args.bf16)
+        self.compile_updates = False  # the updates' network work through torch.compile (Args.compile_updates)
+        self._compiled_fns = None
         super().__init__(*args, **kwargs)
 
     def _setup_model(self) -> None:
@@ -227,13 +229,49 @@ class RodSAC(SAC):
         region ends, so a region spanning several steps would run the later forward passes with stale weights."""
         return th.autocast(self.device.type, dtype=th.bfloat16, enabled=bool(getattr(self, "bf16_updates", False)))
 
+    # The three pieces of one update that do the network work. ``_updates`` calls them directly, or their
+    # ``torch.compile`` versions when ``compile_updates`` is set (``_update_fns``): one source for both.
+    def _sample_policy(self, obs: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """a ~ pi(s) (reparameterised, differentiable) and log pi(a|s) as float32 (batch, 1)."""
+        with self._amp():
+            actions_pi, log_prob = self.actor.action_log_prob(obs)
+        return actions_pi, log_prob.float().reshape(-1, 1)
+
+    def _critic_loss(self, data, alpha: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """0.5 * sum_i MSE(Q_i(s, a), TD target) and the batch mean of Q_1 (a statistic)."""
+        with self._amp():
+            target_q = self.td_target(data, alpha)
+            current_q = self.critic(data.observations, data.actions)
+            loss = 0.5 * sum(F.mse_loss(q.float(), target_q.float()) for q in current_q)
+        return loss, current_q[0].float().mean()
+
+    def _actor_loss(self, obs: th.Tensor, actions_pi: th.Tensor, log_prob: th.Tensor,
+                    alpha: th.Tensor) -> th.Tensor:
+        """mean(alpha * log pi(a|s) - min_i Q_i(s, a)), a ~ pi(s)."""
+        with self._amp():
+            q_pi = th.min(th.cat(self.critic(obs, actions_pi), dim=1), dim=1, keepdim=True).values
+        return (alpha * log_prob - q_pi.float()).mean()
+
+    def _update_fns(self):
+        """(sample_policy, critic_loss, actor_loss): the methods themselves, or once compiled when
+        ``compile_updates`` (docs/training.md, "Compiled updates"). Optimizer steps and the target update stay
+        eager."""
+        if not getattr(self, "compile_updates", False):
+            return self._sample_policy, self._critic_loss, self._actor_loss
+        if getattr(self, "_compiled_fns", None) is None:
+            self._compiled_fns = tuple(th.compile(f) for f in (self._sample_policy, self._critic_loss,
+                                                               self._actor_loss))
+        return self._compiled_fns
+
+    def _excluded_save_params(self) -> list[str]:
+        return [*super()._excluded_save_params(), "_compiled_fns"]
+
     def _updates(self, gradient_steps: int, batch_size: int, stats: dict[str, list[float]]) -> None:
         """``gradient_steps`` SAC updates (temperature, critics, actor, target), their statistics into ``stats``."""
+        sample_policy, critic_loss_fn, actor_loss_fn = self._update_fns()
         for _ in range(gradient_steps):
             data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
-            with self._amp():
-                actions_pi, log_prob = self.actor.action_log_prob(data.observations)
-            log_prob = log_prob.float().reshape(-1, 1)
+            actions_pi, log_prob = sample_policy(data.observations)
 
             # alpha (temperature) step
             if self.ent_coef_optimizer is not None:
@@ -248,23 +286,18 @@ class RodSAC(SAC):
             stats["ent_coef"].append(alpha.item())
 
             # critic step
-            with self._amp():
-                target_q = self.td_target(data, alpha)
-                current_q = self.critic(data.observations, data.actions)
-                critic_loss = 0.5 * sum(F.mse_loss(q.float(), target_q.float()) for q in current_q)
+            critic_loss, q_mean = critic_loss_fn(data, alpha)
             self.critic.optimizer.zero_grad()
             critic_loss.backward()
             self.critic.optimizer.step()
             stats["critic_loss"].append(critic_loss.item())
-            stats["q_mean"].append(current_q[0].mean().item())
+            stats["q_mean"].append(q_mean.item())
 
             # actor step (critic weights frozen meanwhile: their gradients would be discarded anyway)
             critic_params = [p for p in self.critic.parameters() if p.requires_grad]
             for p in critic_params:
                 p.requires_grad_(False)
-            with self._amp():
-                q_pi = th.min(th.cat(self.critic(data.observations, actions_pi), dim=1), dim=1, keepdim=True).values
-            actor_loss = (alpha * log_prob - q_pi.float()).mean()
+            actor_loss = actor_loss_fn(data.observations, actions_pi, log_prob, alpha)
             self.actor.optimizer.zero_grad()
             actor_loss.backward()
             self.actor.optimizer.step()

@@ -81,6 +81,8 @@ class Args:
                                             # BENCHMARKS.md §6: same learning curve, faster on a CPU)
     bf16_layout: str = "float32_io"         # with bf16: float32_io (input/output layers, LayerNorms in float32)
                                             # or all (every layer in bfloat16); policies/sac.py BF16_LAYOUTS
+    compile_updates: bool = False           # the updates' network work through torch.compile (docs/training.md,
+                                            # "Compiled updates"; needs a C++ compiler)
     # runtime
     torch_threads: int = 1
     checkpoint_minutes: float = 5.0
@@ -178,6 +180,17 @@ def _timed(env):
 def target_entropy(action_space, scale: float) -> float:
     """alf default: sum over action dims of ln(scale * (high - low)); -1.609*dim for [-1, 1], scale 0.1."""
     return float(np.sum(np.log(scale * (action_space.high - action_space.low))))
+
+
+def check_compiler() -> str:
+    """The C++ compiler that torch.compile's CPU back-end will call; ``TrainError`` when there is none."""
+    import shutil
+
+    for name in (os.environ.get("CXX", ""), "g++", "c++", "clang++"):
+        if name and shutil.which(name):
+            return shutil.which(name)
+    raise TrainError("--compile: torch.compile needs a C++ compiler on the PATH (g++, c++ or clang++; set CXX to "
+                     "choose one); install one (Debian: apt-get install g++) or train without --compile")
 
 
 def build_sac(args: Args, env):
@@ -357,6 +370,8 @@ def train(args: Args, *, resume: bool = False) -> Path:
     args.device = check_device(args.device)  # before the run directory is made
     if args.bf16_layout not in BF16_LAYOUTS:
         raise TrainError(f"--bf16-layout: expected one of {', '.join(BF16_LAYOUTS)}, got {args.bf16_layout!r}")
+    if args.compile_updates:
+        check_compiler()
     run_dir.mkdir(parents=True, exist_ok=True)
 
     state = read_state(run_dir) if resume else None
@@ -372,6 +387,7 @@ def train(args: Args, *, resume: bool = False) -> Path:
     else:
         model, wall_offset = build_sac(args, env), 0.0
     model.bf16_updates = bool(args.bf16)
+    model.compile_updates = bool(args.compile_updates)
     set_bf16_layout(model.policy, args.bf16_layout)
     init_info = None
     if args.init_from and not resume:

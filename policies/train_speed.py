@@ -5,8 +5,9 @@ Nothing here is used by ``rodlab train`` by default; each setting must first be 
 (``rodlab train --bf16``, ``Args.bf16``; a sweep compares it with float32 on the same seeds:
 ``rodlab sweep follow_target --seeds 0,1,2 --set bf16=false,true``). Settings:
 
-* ``compile``: ``torch.compile`` of the actor trunk and of each critic MLP (the modules that do the work;
-  SB3's own methods around them stay eager). Needs a C++ compiler for the CPU inductor back-end.
+* ``compile``: ``RodSAC.compile_updates`` (also ``rodlab train --compile``): the policy sample, the critic loss
+  (with its TD target) and the actor loss of each update go through ``torch.compile``, forward and backward; the
+  optimizer steps and the target update stay eager. Needs a C++ compiler for the CPU inductor back-end.
 * ``bf16``: ``RodSAC.bf16_updates``: each forward pass of the updates runs under
   ``torch.autocast("cpu", dtype=torch.bfloat16)``, with the hidden 256x256 products in bfloat16 and the input
   and output layers, LayerNorms and losses in float32 (policies/sac.py).
@@ -53,7 +54,6 @@ def _adam(params, lr, eps, kind: str):
 
 def apply_speed_settings(model, settings: SpeedSettings) -> None:
     """Apply ``settings`` to a fresh ``RodSAC`` in place."""
-    import torch as th
 
     from policies.sac import set_bf16_layout
 
@@ -66,12 +66,6 @@ def apply_speed_settings(model, settings: SpeedSettings) -> None:
     if model.ent_coef_optimizer is not None:
         g = model.ent_coef_optimizer.param_groups[0]
         model.ent_coef_optimizer = _adam([model.log_ent_coef], g["lr"], g["eps"], settings.adam)
-    if settings.compile:
-        pol.actor.latent_pi = th.compile(pol.actor.latent_pi)
-        for i, q in enumerate(list(pol.critic.q_networks)):
-            cq = th.compile(q)
-            pol.critic.q_networks[i] = cq
-        for i, q in enumerate(list(pol.critic_target.q_networks)):
-            pol.critic_target.q_networks[i] = th.compile(q)
+    model.compile_updates = bool(settings.compile)
     model.bf16_updates = bool(settings.bf16)  # RodSAC opens one autocast region per forward pass
     set_bf16_layout(pol, settings.bf16_layout)

@@ -18,4 +18,5 @@ def test_profile_groups_the_work_of_the_updates(tmp_path, capsys):
         assert ms["products"] > 0 and ms["layer_norm"] > 0 and ms["relu"] > 0 and ms["adam"] > 0
         assert sum(r["share"].values()) == pytest.approx(1.0)
         assert r["total_ms_per_update"] == pytest.approx(sum(ms.values()))
+        assert 0 < r["python_ms_per_update"] < r["wall_ms_per_update"]
     assert "bf16_all" in capsys.readouterr().out
