@@ -24,11 +24,16 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
-# System packages the browser tests need (Debian's Chromium; Playwright never downloads a browser).
+# System packages the tests need: Debian's Chromium for the browser tests (Playwright never downloads a browser)
+# and a C++ compiler for the compiled-update tests (torch.compile's CPU back-end; `rodlab train --compile`).
 system-deps:
 	@if [ ! -x /usr/bin/chromium ]; then \
 	  echo "installing Debian chromium for the browser tests"; \
 	  $(SUDO) apt-get update && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y chromium chromium-driver fonts-liberation; \
+	fi
+	@if ! command -v g++ >/dev/null && ! command -v c++ >/dev/null; then \
+	  echo "installing g++ for torch.compile (the compiled-update tests)"; \
+	  $(SUDO) apt-get update && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y g++; \
 	fi
 
 # Compile (or load from cache) the numba kernels once, visibly.
