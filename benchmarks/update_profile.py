@@ -34,7 +34,9 @@ GROUPS = {
 SETTINGS = {"float32": {}, "bf16": {"bf16": True}, "bf16_all": {"bf16": True, "bf16_layout": "all"}}
 
 
-def _model(task: str, setting: dict):
+def sac_model(task: str, setting: dict):
+    """The model `rodlab train` builds for `task` with the speed `setting` (SpeedSettings keywords), its replay
+    buffer holding 1280 random transitions."""
     import numpy as np
 
     from policies.train import Args, build_sac, make_sb3_env
@@ -61,7 +63,7 @@ def _model(task: str, setting: dict):
 def profile_setting(task: str, setting: dict, updates: int) -> dict:
     from torch.profiler import ProfilerActivity, profile
 
-    model = _model(task, setting)
+    model = sac_model(task, setting)
     model.train(gradient_steps=8, batch_size=1024)
     with profile(activities=[ProfilerActivity.CPU]) as prof:
         model.train(gradient_steps=updates, batch_size=1024)
