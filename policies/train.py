@@ -187,8 +187,9 @@ def check_compiler() -> str:
     import shutil
 
     for name in (os.environ.get("CXX", ""), "g++", "c++", "clang++"):
-        if name and shutil.which(name):
-            return shutil.which(name)
+        path = shutil.which(name) if name else None
+        if path:
+            return path
     raise TrainError("--compile: torch.compile needs a C++ compiler on the PATH (g++, c++ or clang++; set CXX to "
                      "choose one); install one (Debian: apt-get install g++) or train without --compile")
 
