@@ -49,6 +49,7 @@ from stable_baselines3.common.torch_layers import create_mlp
 from stable_baselines3.common.utils import polyak_update
 from stable_baselines3.sac.policies import Actor, SACPolicy
 from torch import nn
+from torch.func import functional_call, grad_and_value
 
 POLICY_FORMAT = "rodlab-sac-policy/1"
 
@@ -174,6 +175,59 @@ class LayerNormSACPolicy(SACPolicy):
         return data
 
 
+# --------------------------------------------------------------------------------------- compiled-update helpers
+class _BoundMethod(nn.Module):
+    """``module.<method>`` as this module's forward, so ``torch.func.functional_call`` can run a method other than
+    ``forward`` with other parameters (their names prefixed ``module.``)."""
+
+    def __init__(self, module: nn.Module, method: str):
+        super().__init__()
+        self.module = module
+        self.method = method
+
+    def forward(self, *args: Any) -> Any:
+        return getattr(self.module, self.method)(*args)
+
+
+def _adam_state(opt: th.optim.Optimizer) -> None:
+    """Check that ``opt`` is the Adam that ``_adam_`` writes out and create its per-parameter state as
+    ``torch.optim.Adam`` does at its first step (float32 step counter, zero moments)."""
+    if type(opt) is not th.optim.Adam or len(opt.param_groups) != 1:
+        raise ValueError(f"compiled updates need one torch.optim.Adam parameter group, found {type(opt).__name__} "
+                         f"with {len(opt.param_groups)} group(s)")
+    group = opt.param_groups[0]
+    unsupported = {k: group.get(k) for k in ("weight_decay", "amsgrad", "maximize", "differentiable")
+                   if group.get(k)}
+    if unsupported:
+        raise ValueError(f"compiled updates write out plain Adam; this optimizer sets {unsupported}")
+    for p in group["params"]:
+        state = opt.state[p]
+        if not state:
+            state["step"] = th.zeros((), dtype=th.float32, device=p.device)
+            state["exp_avg"] = th.zeros_like(p, memory_format=th.preserve_format)
+            state["exp_avg_sq"] = th.zeros_like(p, memory_format=th.preserve_format)
+
+
+def _adam_(opt: th.optim.Optimizer, grads: dict[str, th.Tensor], params: dict[str, th.Tensor],
+           lr: th.Tensor) -> None:
+    """One ``torch.optim.Adam`` step (no weight decay, no AMSGrad) of ``params`` with ``grads`` (same keys), in place
+    on the optimizer's own state, so the optimizer, its checkpoints and an eager resume see the usual state:
+    m <- b1 m + (1 - b1) g, v <- b2 v + (1 - b2) g^2, p <- p - lr/(1 - b1^t) m / (sqrt(v / (1 - b2^t)) + eps)."""
+    group = opt.param_groups[0]
+    beta1, beta2 = group["betas"]
+    eps = group["eps"]
+    for name, p in params.items():
+        g = grads[name]
+        state = opt.state[p]
+        step, m, v = state["step"], state["exp_avg"], state["exp_avg_sq"]
+        step.add_(1)
+        m.lerp_(g, 1 - beta1)
+        v.mul_(beta2).addcmul_(g, g, value=1 - beta2)
+        step_size = lr / (1 - beta1 ** step)
+        denom = (v.sqrt() / (1 - beta2 ** step).sqrt()).add_(eps)
+        p.sub_(step_size * m / denom)
+
+
 # --------------------------------------------------------------------------------------- algorithm
 class RodSAC(SAC):
     """SB3 SAC with the reference's critic target and target-update cadence (see module docstring).
@@ -197,13 +251,14 @@ class RodSAC(SAC):
             self.ent_coef_optimizer = th.optim.Adam([self.log_ent_coef], lr=self.lr_schedule(1), eps=self.adam_eps)
 
     @th.no_grad()
-    def td_target(self, data, alpha: th.Tensor) -> th.Tensor:
+    def td_target(self, data, alpha: th.Tensor, noise: th.Tensor | None = None) -> th.Tensor:
         """TD target (batch, 1): r + gamma (1 - done) min_i Q'_i(s', a'), a' ~ pi(s');
-        minus alpha * log pi(a'|s') inside the bracket only when ``entropy_in_target``."""
-        next_a, next_logp = self.actor.action_log_prob(data.next_observations)
+        minus alpha * log pi(a'|s') inside the bracket only when ``entropy_in_target``. ``noise``: the standard
+        normal draw behind a' (drawn here when None)."""
+        next_a, next_logp = self._sample_policy(data.next_observations, noise)
         next_q = th.min(th.cat(self.critic_target(data.next_observations, next_a), dim=1), dim=1, keepdim=True).values
         if self.entropy_in_target:
-            next_q = next_q - alpha * next_logp.reshape(-1, 1)
+            next_q = next_q - alpha * next_logp
         discounts = data.discounts if data.discounts is not None else self.gamma
         return data.rewards + (1.0 - data.dones) * discounts * next_q
 
@@ -232,19 +287,43 @@ class RodSAC(SAC):
         region ends, so a region spanning several steps would run the later forward passes with stale weights."""
         return th.autocast(self.device.type, dtype=th.bfloat16, enabled=bool(getattr(self, "bf16_updates", False)))
 
-    # The three pieces of one update that do the network work. ``_updates`` calls them directly, or their
-    # ``torch.compile`` versions when ``compile_updates`` is set (``_update_fns``): one source for both.
-    def _sample_policy(self, obs: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        """a ~ pi(s) (reparameterised, differentiable) and log pi(a|s) as float32 (batch, 1)."""
+    # The pieces of one update. ``_updates`` runs them with autograd and the torch.optim steps (the default), or,
+    # with ``compile_updates``, inside one compiled function per update (``_fused_update``): one source for both.
+    def _sample_policy(self, obs: th.Tensor, noise: th.Tensor | None = None,
+                       actor_params: dict[str, th.Tensor] | None = None) -> tuple[th.Tensor, th.Tensor]:
+        """a ~ pi(s) (reparameterised, differentiable) and log pi(a|s) as float32 (batch, 1): SB3's squashed
+        Gaussian (``actor.action_log_prob``) written out without its side effect (the distribution object keeps the
+        last sample), so it can run inside a ``torch.func`` transform. ``noise``: the standard normal draw (drawn
+        here, as SB3 draws it, when None); ``actor_params``: parameters to use instead of the actor's own."""
         with self._amp():
-            actions_pi, log_prob = self.actor.action_log_prob(obs)
-        return actions_pi, log_prob.float().reshape(-1, 1)
+            if actor_params is None:
+                mean, log_std, _ = self.actor.get_action_dist_params(obs)
+            else:
+                mean, log_std, _ = functional_call(self._compiled_fns["actor_dist_params"],
+                                                   {f"module.{k}": v for k, v in actor_params.items()}, (obs,))
+            std = th.ones_like(mean) * log_std.exp()
+            dist = th.distributions.Normal(mean, std, validate_args=False if noise is not None else None)
+            gaussian = dist.rsample() if noise is None else mean + noise.to(mean.dtype) * std
+            actions = th.tanh(gaussian)
+            log_prob = dist.log_prob(gaussian).sum(dim=1) - th.log(1 - actions ** 2
+                                                                   + self.actor.action_dist.epsilon).sum(dim=1)
+        return actions, log_prob.float().reshape(-1, 1)
 
-    def _critic_loss(self, data, alpha: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        """0.5 * sum_i MSE(Q_i(s, a), TD target) and the batch mean of Q_1 (a statistic)."""
+
+    def _alpha_loss(self, log_ent_coef: th.Tensor, log_prob: th.Tensor) -> th.Tensor:
+        """-mean(log alpha * (log pi(a|s) + target entropy)), log pi held fixed."""
+        return -(log_ent_coef * (log_prob + self.target_entropy).detach()).mean()
+
+    def _critic_loss(self, data, alpha: th.Tensor, noise: th.Tensor | None = None,
+                     critic_params: dict[str, th.Tensor] | None = None) -> tuple[th.Tensor, th.Tensor]:
+        """0.5 * sum_i MSE(Q_i(s, a), TD target) and the batch mean of Q_1 (a statistic). ``noise``: the draw
+        behind the TD target's a'; ``critic_params``: parameters to use instead of the critic's own."""
         with self._amp():
-            target_q = self.td_target(data, alpha)
-            current_q = self.critic(data.observations, data.actions)
+            target_q = self.td_target(data, alpha, noise)
+            if critic_params is None:
+                current_q = self.critic(data.observations, data.actions)
+            else:
+                current_q = functional_call(self.critic, critic_params, (data.observations, data.actions))
             loss = 0.5 * sum(F.mse_loss(q.float(), target_q.float()) for q in current_q)
         return loss, current_q[0].float().mean()
 
@@ -255,31 +334,22 @@ class RodSAC(SAC):
             q_pi = th.min(th.cat(self.critic(obs, actions_pi), dim=1), dim=1, keepdim=True).values
         return (alpha * log_prob - q_pi.float()).mean()
 
-    def _update_fns(self):
-        """(sample_policy, critic_loss, actor_loss): the methods themselves, or once compiled when
-        ``compile_updates`` (docs/training.md, "Compiled updates"). Optimizer steps and the target update stay
-        eager."""
-        if not getattr(self, "compile_updates", False):
-            return self._sample_policy, self._critic_loss, self._actor_loss
-        if getattr(self, "_compiled_fns", None) is None:
-            self._compiled_fns = tuple(th.compile(f) for f in (self._sample_policy, self._critic_loss,
-                                                               self._actor_loss))
-        return self._compiled_fns
-
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "_compiled_fns"]
 
     def _updates(self, gradient_steps: int, batch_size: int, stats: dict[str, list[float]]) -> None:
         """``gradient_steps`` SAC updates (temperature, critics, actor, target), their statistics into ``stats``."""
-        sample_policy, critic_loss_fn, actor_loss_fn = self._update_fns()
+        if getattr(self, "compile_updates", False):
+            self._compiled_updates(gradient_steps, batch_size, stats)
+            return
         for _ in range(gradient_steps):
             data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
-            actions_pi, log_prob = sample_policy(data.observations)
+            actions_pi, log_prob = self._sample_policy(data.observations)
 
             # alpha (temperature) step
             if self.ent_coef_optimizer is not None:
                 alpha = th.exp(self.log_ent_coef.detach())
-                alpha_loss = -(self.log_ent_coef * (log_prob + self.target_entropy).detach()).mean()
+                alpha_loss = self._alpha_loss(self.log_ent_coef, log_prob)
                 self.ent_coef_optimizer.zero_grad()
                 alpha_loss.backward()
                 self.ent_coef_optimizer.step()
@@ -289,7 +359,7 @@ class RodSAC(SAC):
             stats["ent_coef"].append(alpha.item())
 
             # critic step
-            critic_loss, q_mean = critic_loss_fn(data, alpha)
+            critic_loss, q_mean = self._critic_loss(data, alpha)
             self.critic.optimizer.zero_grad()
             critic_loss.backward()
             self.critic.optimizer.step()
@@ -300,7 +370,7 @@ class RodSAC(SAC):
             critic_params = [p for p in self.critic.parameters() if p.requires_grad]
             for p in critic_params:
                 p.requires_grad_(False)
-            actor_loss = actor_loss_fn(data.observations, actions_pi, log_prob, alpha)
+            actor_loss = self._actor_loss(data.observations, actions_pi, log_prob, alpha)
             self.actor.optimizer.zero_grad()
             actor_loss.backward()
             self.actor.optimizer.step()
@@ -308,12 +378,90 @@ class RodSAC(SAC):
                 p.requires_grad_(True)
             stats["actor_loss"].append(actor_loss.item())
             stats["log_prob"].append(log_prob.mean().item())
+            self._target_update()
 
-            # target update, every `target_update_interval` updates counted over the whole run
-            self._n_updates += 1
-            if self._n_updates % self.target_update_interval == 0:
-                polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
-                polyak_update(self.batch_norm_stats, self.batch_norm_stats_target, 1.0)
+    def _target_update(self) -> None:
+        """Count the update; every ``target_update_interval`` updates, counted over the whole run, soft-update the
+        target critics."""
+        self._n_updates += 1
+        if self._n_updates % self.target_update_interval == 0:
+            polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
+            polyak_update(self.batch_norm_stats, self.batch_norm_stats_target, 1.0)
+
+    # ----------------------------------------------------------------------------- compiled updates
+    _STAT_KEYS = ("actor_loss", "critic_loss", "ent_coef", "ent_coef_loss", "log_prob", "q_mean")
+
+    def _compiled_updates(self, gradient_steps: int, batch_size: int, stats: dict[str, list[float]]) -> None:
+        """The updates of ``_updates`` with ``compile_updates``: each one a single call of the compiled
+        ``_fused_update`` (built once, not saved), the target update eager (docs/training.md, "Compiled updates")."""
+        if getattr(self, "_compiled_fns", None) is None:
+            for opt in self._optimizers():
+                _adam_state(opt)  # created eagerly, as torch.optim would at its first step
+            self._compiled_fns = {"actor_dist_params": _BoundMethod(self.actor, "get_action_dist_params"),
+                                  "update": th.compile(self._fused_update, dynamic=False)}
+        fused = self._compiled_fns["update"]
+        lrs = [th.tensor(opt.param_groups[0]["lr"], dtype=th.float32, device=self.device)
+               for opt in self._optimizers()]
+        # The parameters stop requiring grad meanwhile (the gradients come from torch.func): the compiled code then
+        # writes the Adam steps straight into them instead of copying each updated tensor back afterwards.
+        trained = [p for opt in self._optimizers() for p in opt.param_groups[0]["params"] if p.requires_grad]
+        try:
+            for p in trained:
+                p.requires_grad_(False)
+            for _ in range(gradient_steps):
+                data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
+                values = fused(data, *lrs).tolist()
+                for key, value in zip(self._STAT_KEYS, values):
+                    if key != "ent_coef_loss" or self.ent_coef_optimizer is not None:
+                        stats[key].append(value)
+                self._target_update()
+        finally:
+            for p in trained:
+                p.requires_grad_(True)
+
+    def _optimizers(self) -> list[th.optim.Optimizer]:
+        """actor, critic and (with a learned temperature) entropy-coefficient optimizers."""
+        return [self.actor.optimizer, self.critic.optimizer,
+                *([self.ent_coef_optimizer] if self.ent_coef_optimizer is not None else [])]
+
+    @th.no_grad()
+    def _fused_update(self, data, lr_actor: th.Tensor, lr_critic: th.Tensor,
+                      lr_ent_coef: th.Tensor | None = None) -> th.Tensor:
+        """One SAC update as one function for ``torch.compile``: the same losses as ``_updates``, their gradients
+        by ``torch.func.grad_and_value`` and the Adam steps written out (``_adam_``) on the optimizers' own
+        state, so the whole update is one graph with no autograd engine or optimizer code in between. Order and
+        values as in ``_updates``: alpha before its step in every loss, the actor loss on the critic after its
+        step. Returns the statistics in ``_STAT_KEYS`` order."""
+        obs = data.observations
+        noise = th.randn(obs.shape[0], *self.action_space.shape, device=obs.device)  # a ~ pi(s), drawn first
+        next_noise = th.randn_like(noise)  # a' ~ pi(s') of the TD target
+        learn_alpha = self.ent_coef_optimizer is not None
+        alpha = th.exp(self.log_ent_coef.detach()) if learn_alpha else self.ent_coef_tensor
+
+        # critic step
+        critic_params = dict(self.critic.named_parameters())
+        grads, (critic_loss, q_mean) = grad_and_value(
+            lambda p: self._critic_loss(data, alpha, next_noise, p), has_aux=True)(
+                {k: v.detach() for k, v in critic_params.items()})
+        _adam_(self.critic.optimizer, grads, critic_params, lr_critic)
+
+        # actor step on the stepped critic (its weights are constants here)
+        def actor_loss(p):
+            actions_pi, log_prob = self._sample_policy(obs, noise, p)
+            return self._actor_loss(obs, actions_pi, log_prob, alpha), log_prob.detach()
+
+        actor_params = dict(self.actor.named_parameters())
+        grads, (actor_loss_value, log_prob) = grad_and_value(actor_loss, has_aux=True)(
+            {k: v.detach() for k, v in actor_params.items()})
+        _adam_(self.actor.optimizer, grads, actor_params, lr_actor)
+
+        # alpha (temperature) step
+        if learn_alpha:
+            grad, alpha_loss = grad_and_value(lambda le: self._alpha_loss(le, log_prob))(self.log_ent_coef.detach())
+            _adam_(self.ent_coef_optimizer, {"": grad}, {"": self.log_ent_coef}, lr_ent_coef)
+        else:
+            alpha_loss = th.zeros((), device=obs.device)
+        return th.stack([actor_loss_value, critic_loss, alpha.reshape(()), alpha_loss, log_prob.mean(), q_mean])
 
 
 # --------------------------------------------------------------------------------------- policy files

@@ -69,10 +69,22 @@ def _twin_models():
     return a, b
 
 
+def _adam_moments(model):
+    """Every optimizer's per-parameter state (step, first and second moments), flattened in a fixed order."""
+    parts = []
+    for opt in (model.actor.optimizer, model.critic.optimizer, model.ent_coef_optimizer):
+        for p in opt.param_groups[0]["params"]:
+            st = opt.state[p]
+            parts += [st["step"].reshape(1).float(), st["exp_avg"].flatten(), st["exp_avg_sq"].flatten()]
+    return torch.cat(parts)
+
+
 def test_compiled_updates_match_eager_updates(fresh_dynamo):
-    """``compile_updates`` computes the same SAC update as the eager code: with inductor drawing its random
-    numbers as eager torch does (``fallback_random``), the weights after two updates agree to float32 rounding,
-    and the logged statistics too. Compiles three small functions (tens of seconds on the 2-core CI machine)."""
+    """``compile_updates`` computes the same SAC update as the eager code (autograd + torch.optim.Adam): with
+    inductor drawing its random numbers as eager torch does (``fallback_random``), the weights, the temperature
+    and the optimizers' moments after three updates agree to float32 rounding, and the logged statistics too;
+    the parameters require grad again afterwards. Compiles one function (tens of seconds on the 2-core CI
+    machine)."""
     from torch._inductor import config as inductor_config
 
     eager, compiled = _twin_models()
@@ -84,17 +96,67 @@ def test_compiled_updates_match_eager_updates(fresh_dynamo):
         torch.manual_seed(7)
         np.random.seed(7)
         with inductor_config.patch(fallback_random=True):
-            model.train(gradient_steps=2, batch_size=64)
+            model.train(gradient_steps=3, batch_size=64)
         logs.append(dict(model.logger.name_to_value))
     assert compiled._compiled_fns is not None and eager._compiled_fns is None
     pe, pc = _params(eager), _params(compiled)
     moved = (pe - initial).abs().max()
     assert moved > 1e-4  # the updates changed the weights ...
     torch.testing.assert_close(pc, pe, rtol=1e-4, atol=1e-5)  # ... and both ways alike
-    for key in ("train/critic_loss", "train/actor_loss", "train/ent_coef", "train/q_mean"):
+    torch.testing.assert_close(compiled.log_ent_coef.detach(), eager.log_ent_coef.detach(), rtol=1e-5, atol=1e-6)
+    assert float(eager.log_ent_coef.detach()) != 0.0  # the temperature moved (it starts at log 1)
+    me, mc = _adam_moments(eager), _adam_moments(compiled)
+    assert me[0] == 3  # three Adam steps counted
+    torch.testing.assert_close(mc, me, rtol=1e-4, atol=1e-6)
+    for key in ("train/critic_loss", "train/actor_loss", "train/ent_coef", "train/ent_coef_loss", "train/q_mean",
+                "train/log_prob"):
         assert logs[1][key] == pytest.approx(logs[0][key], rel=1e-4, abs=1e-5), key
+    assert all(p.requires_grad for p in compiled.policy.parameters() if p is not None)
+    assert compiled.log_ent_coef.requires_grad
     # the compiled functions are not part of a saved model (SB3 pickles the rest of the attributes)
     assert "_compiled_fns" in compiled._excluded_save_params()
+
+
+def test_compiled_update_is_one_graph(fresh_dynamo):
+    """The compiled update (losses, gradients, Adam steps) is traced as one graph without breaks: nothing of it
+    falls back to Python between kernels."""
+    model = _model()
+    model.compile_updates = True
+    model.train(gradient_steps=0, batch_size=64)  # sets up the compiled-update state without updating
+    data = model.replay_buffer.sample(64)
+    lrs = [torch.tensor(1e-3)] * 3
+    for p in model.policy.parameters():
+        p.requires_grad_(False)
+    explanation = torch._dynamo.explain(model._fused_update)(data, *lrs)
+    assert explanation.graph_count == 1 and explanation.graph_break_count == 0, explanation.break_reasons
+
+
+def test_sample_policy_is_sb3s_squashed_gaussian():
+    """``_sample_policy`` (side-effect free, usable inside torch.func) draws the same actions and log-probabilities
+    as SB3's ``actor.action_log_prob`` from the same seed; with explicit noise it is that draw."""
+    model = _model()
+    obs = model.replay_buffer.sample(64).observations
+    torch.manual_seed(3)
+    a_ref, logp_ref = model.actor.action_log_prob(obs)
+    torch.manual_seed(3)
+    a, logp = model._sample_policy(obs)
+    assert torch.equal(a, a_ref) and torch.equal(logp, logp_ref.reshape(-1, 1))
+    torch.manual_seed(3)
+    noise = torch.randn_like(a)
+    a2, logp2 = model._sample_policy(obs, noise)
+    assert torch.equal(a2, a_ref) and torch.equal(logp2, logp)
+
+
+def test_compiled_updates_refuse_an_adam_they_do_not_write_out():
+    """The compiled Adam step is plain Adam: an optimizer with AMSGrad (or another class) is refused by name."""
+    from policies.sac import _adam_state
+
+    model = _model()
+    opt = torch.optim.Adam(model.actor.parameters(), lr=1e-3, amsgrad=True)
+    with pytest.raises(ValueError, match="amsgrad"):
+        _adam_state(opt)
+    with pytest.raises(ValueError, match="SGD"):
+        _adam_state(torch.optim.SGD(model.actor.parameters(), lr=1e-3))
 
 
 def test_compiled_updates_are_reproducible(fresh_dynamo):
