@@ -88,8 +88,8 @@ def train_main(argv: list[str]) -> int:
                    help="with --bf16: float32_io keeps input/output layers and LayerNorms in float32 (0.85x), all runs "
                         "every layer in bfloat16 (0.76x; BENCHMARKS.md §6)")
     p.add_argument("--compile", action="store_true",
-                   help="run the updates' network work through torch.compile (needs a C++ compiler; about half a "
-                        "minute of compiling at the start; BENCHMARKS.md §6)")
+                   help="run each SAC update (losses, gradients, Adam steps) as one torch.compile-d function (needs "
+                        "a C++ compiler; about a minute of compiling at the start; BENCHMARKS.md §6)")
     p.add_argument("--log-interval", type=float, default=d.log_interval_s, help="seconds between log lines")
     p.add_argument("--device", default=d.device,
                    help="torch device of the SAC networks and replay sampling: cpu (default), cuda or cuda:N; the "
@@ -327,7 +327,7 @@ def bench_train_main(argv: list[str]) -> int:
     p.add_argument("--warmup", type=int, default=3)
     p.add_argument("--threads", type=int, default=1, help="torch threads")
     p.add_argument("--compile", action="store_true",
-                   help="the updates' network work through torch.compile (as rodlab train --compile)")
+                   help="each SAC update as one torch.compile-d function (as rodlab train --compile)")
     p.add_argument("--bf16", action="store_true", help="updates under bfloat16 autocast")
     p.add_argument("--bf16-layout", choices=BF16_LAYOUTS, default="float32_io",
                    help="with --bf16: which layers stay float32 (as rodlab train --bf16-layout)")

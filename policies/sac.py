@@ -18,9 +18,9 @@ What SB3's ``SAC`` lacks and how it is added here (nothing else is changed):
   (``Float32Linear``, ``Float32LayerNorm``): only the hidden 256x256 products run in bfloat16, so observations,
   actions, Q values and log-probabilities are not rounded to bfloat16's 8-bit mantissa. ``set_bf16_layout(policy,
   "all")`` (``rodlab train --bf16 --bf16-layout all``) turns them back into plain layers: every product in bfloat16.
-* **Compiled updates** (``RodSAC.compile_updates``, ``rodlab train --compile``): the policy sample, the critic loss
-  and the actor loss of an update are methods (``_sample_policy``, ``_critic_loss``, ``_actor_loss``) that
-  ``_updates`` calls directly or, with the setting, through ``torch.compile`` (built once, not saved).
+* **Compiled updates** (``RodSAC.compile_updates``, ``rodlab train --compile``): each update is one call of
+  ``_fused_update`` through ``torch.compile``: the same loss methods as the eager updates, gradients by
+  ``torch.func.grad_and_value`` and the Adam steps written out on the optimizers' own state (docs/training.md).
 * **Timing**: ``last_update_time`` [s] of the most recent ``train()`` call, for logging/benchmarks.
 
 Policy-only files (``save_policy`` / ``load_policy``) are a small zip holding ``meta.json`` (task id,
@@ -241,7 +241,7 @@ class RodSAC(SAC):
         self.adam_eps = adam_eps
         self.last_update_time = 0.0
         self.bf16_updates = False  # the gradient updates under bfloat16 autocast (policies/train.py Args.bf16)
-        self.compile_updates = False  # the updates' network work through torch.compile (Args.compile_updates)
+        self.compile_updates = False  # each update one torch.compile-d function (Args.compile_updates)
         self._compiled_fns = None
         super().__init__(*args, **kwargs)
 

@@ -81,7 +81,7 @@ class Args:
                                             # BENCHMARKS.md §6: same learning curve, faster on a CPU)
     bf16_layout: str = "float32_io"         # with bf16: float32_io (input/output layers, LayerNorms in float32)
                                             # or all (every layer in bfloat16); policies/sac.py BF16_LAYOUTS
-    compile_updates: bool = False           # the updates' network work through torch.compile (docs/training.md,
+    compile_updates: bool = False           # each update one torch.compile-d function (docs/training.md,
                                             # "Compiled updates"; needs a C++ compiler)
     # runtime
     torch_threads: int = 1

@@ -5,9 +5,9 @@ Nothing here is used by ``rodlab train`` by default; each setting must first be 
 (``rodlab train --bf16``, ``Args.bf16``; a sweep compares it with float32 on the same seeds:
 ``rodlab sweep follow_target --seeds 0,1,2 --set bf16=false,true``). Settings:
 
-* ``compile``: ``RodSAC.compile_updates`` (also ``rodlab train --compile``): the policy sample, the critic loss
-  (with its TD target) and the actor loss of each update go through ``torch.compile``, forward and backward; the
-  optimizer steps and the target update stay eager. Needs a C++ compiler for the CPU inductor back-end.
+* ``compile``: ``RodSAC.compile_updates`` (also ``rodlab train --compile``): each SAC update (losses, their
+  gradients, the Adam steps) runs as one ``torch.compile``d function; the target update stays eager. Needs a C++
+  compiler for the CPU inductor back-end.
 * ``bf16``: ``RodSAC.bf16_updates``: each forward pass of the updates runs under
   ``torch.autocast("cpu", dtype=torch.bfloat16)``, with the hidden 256x256 products in bfloat16 and the input
   and output layers, LayerNorms and losses in float32 (policies/sac.py).
