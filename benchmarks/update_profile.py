@@ -1,13 +1,15 @@
 """Where the time of the SAC updates goes: torch.profiler self-time of one update, grouped by kind of operation.
 
-    .venv/bin/python benchmarks/update_profile.py [--task follow_target] [--threads 2] [--updates 24] [--json]
+    .venv/bin/python benchmarks/update_profile.py [--task follow_target] [--threads 2] [--updates 24]
+        [--settings float32,bf16,bf16_all,bf16_all_compiled] [--json]
 
 The model is the one ``rodlab train`` builds (table A.1 network, batch 1024), its replay buffer filled with random
-transitions of the task; per precision setting (float32, ``--bf16``, ``--bf16 --bf16-layout all``) 8 warm-up
+transitions of the task; per setting (float32, ``--bf16``, ``--bf16 --bf16-layout all``, the last with ``--compile``) 8 warm-up
 updates, then ``--updates`` updates under the profiler. Groups (self CPU time per update, ms): ``products``
 (addmm, mm, bmm), ``layer_norm`` (forward and backward), ``relu`` (forward and backward), ``casts`` (copy_,
 _to_copy: dtype casts and the bias broadcast of addmm), ``reductions`` (sum, mean: bias gradients, losses),
-``adam``, ``other``. The profiler adds its own overhead, so the total exceeds ``rodlab bench train``'s update
+``adam``, ``fused`` (the generated loops of ``--compile``, which hold the elementwise work, LayerNorm, ReLU and
+Adam of a compiled update), ``other``. The profiler adds its own overhead, so the total exceeds ``rodlab bench train``'s update
 time a little; the shares are what matter. Beside the profile, the same number of updates is timed without the
 profiler (``wall_ms_per_update``) and once more under cProfile, whose own time of Python functions
 (``python_ms_per_update``: SB3, the SAC code, torch's Python layers, without the C++ operators they call) tells how
@@ -31,7 +33,10 @@ GROUPS = {
     "adam": ("aten::_fused_adam_", "aten::_foreach_add_", "aten::_foreach_mul_", "aten::_foreach_addcmul_",
              "aten::_foreach_addcdiv_", "aten::_foreach_sqrt", "aten::_foreach_div_", "aten::_foreach_lerp_"),
 }
-SETTINGS = {"float32": {}, "bf16": {"bf16": True}, "bf16_all": {"bf16": True, "bf16_layout": "all"}}
+SETTINGS = {"float32": {}, "bf16": {"bf16": True}, "bf16_all": {"bf16": True, "bf16_layout": "all"},
+            "bf16_all_compiled": {"bf16": True, "bf16_layout": "all", "compile": True}}
+#: the generated loops of a compiled update (inductor's kernel profile names them ``graph_<n>_cpp_fused_...``)
+FUSED_MARK = "cpp_fused"
 
 
 def sac_model(task: str, setting: dict):
@@ -67,9 +72,12 @@ def profile_setting(task: str, setting: dict, updates: int) -> dict:
     model.train(gradient_steps=8, batch_size=1024)
     with profile(activities=[ProfilerActivity.CPU]) as prof:
         model.train(gradient_steps=updates, batch_size=1024)
-    ms = {g: 0.0 for g in GROUPS} | {"other": 0.0}
+    ms = {g: 0.0 for g in GROUPS} | {"fused": 0.0, "other": 0.0}
     owner = {op: g for g, ops in GROUPS.items() for op in ops}
     for ev in prof.key_averages():
+        if FUSED_MARK in ev.key:
+            ms["fused"] += ev.self_cpu_time_total / 1e3 / updates
+            continue
         if not ev.key.startswith("aten::"):
             continue  # autograd/optimizer wrappers: their self time is bookkeeping, the aten ops hold the work
         ms[owner.get(ev.key, "other")] += ev.self_cpu_time_total / 1e3 / updates
@@ -102,12 +110,22 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--task", default="follow_target")
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--updates", type=int, default=24)
+    p.add_argument("--settings", default=",".join(SETTINGS), help=f"some of {', '.join(SETTINGS)}")
     a = p.parse_args(argv)
+    chosen = [name for name in a.settings.split(",") if name]
+    unknown = sorted(set(chosen) - set(SETTINGS))
+    if unknown or not chosen:
+        p.error(f"--settings: unknown {', '.join(unknown) or '(none given)'}; known: {', '.join(SETTINGS)}")
     import torch
 
     torch.set_num_threads(a.threads)
+    from torch._inductor import config as inductor_config
+
     res = {"task": a.task, "threads": a.threads, "updates": a.updates, "batch_size": 1024,
-           "settings": {name: profile_setting(a.task, s, a.updates) for name, s in SETTINGS.items()}}
+           "settings": {}}
+    with inductor_config.patch({"cpp.enable_kernel_profile": True}):  # the compiled setting's loops in the profile
+        for name in chosen:
+            res["settings"][name] = profile_setting(a.task, SETTINGS[name], a.updates)
     res["machine"] = machine_info()
     for name, r in res["settings"].items():
         parts = "  ".join(f"{g} {v:.1f}" for g, v in r["ms_per_update"].items())
