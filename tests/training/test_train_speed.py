@@ -117,6 +117,27 @@ def test_compiled_updates_match_eager_updates(fresh_dynamo):
     assert "_compiled_fns" in compiled._excluded_save_params()
 
 
+def test_compiled_updates_with_a_fixed_temperature(fresh_dynamo):
+    """A fixed entropy coefficient (SB3's ``ent_coef=<float>``: no temperature optimizer) goes through the compiled
+    update too: same weights as eager, the coefficient unchanged, no temperature loss logged."""
+    from torch._inductor import config as inductor_config
+
+    models = _twin_models()
+    for model in models:
+        model.ent_coef_optimizer = None
+        model.ent_coef_tensor = torch.tensor(0.05)
+    eager, compiled = models
+    compiled.compile_updates = True
+    for model in models:
+        torch.manual_seed(7)
+        np.random.seed(7)
+        with inductor_config.patch(fallback_random=True):
+            model.train(gradient_steps=2, batch_size=64)
+    torch.testing.assert_close(_params(compiled), _params(eager), rtol=1e-4, atol=1e-5)
+    assert compiled.logger.name_to_value["train/ent_coef"] == pytest.approx(0.05)
+    assert "train/ent_coef_loss" not in compiled.logger.name_to_value
+
+
 def test_compiled_update_is_one_graph(fresh_dynamo):
     """The compiled update (losses, gradients, Adam steps) is traced as one graph without breaks: nothing of it
     falls back to Python between kernels."""
