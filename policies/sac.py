@@ -397,6 +397,9 @@ class RodSAC(SAC):
         if getattr(self, "_compiled_fns", None) is None:
             for opt in self._optimizers():
                 _adam_state(opt)  # created eagerly, as torch.optim would at its first step
+            for name, module in (("actor", self.actor), ("critic", self.critic)):
+                if {id(p) for p in module.parameters()} != {id(p) for p in module.optimizer.param_groups[0]["params"]}:
+                    raise ValueError(f"compiled updates step every {name} parameter; its optimizer holds others")
             self._compiled_fns = {"actor_dist_params": _BoundMethod(self.actor, "get_action_dist_params"),
                                   "update": th.compile(self._fused_update, dynamic=False)}
         fused = self._compiled_fns["update"]
