@@ -33,6 +33,19 @@ def _pause(app) -> None:
              what="the paused frame drawn")
 
 
+def _offset_at_rest(cam) -> np.ndarray:
+    """The camera's offset from its look-at point once the page has stopped reporting changes (after a preset view
+    the page's camera controls may still settle and send a slightly different camera)."""
+    seen: list[np.ndarray] = []
+
+    def at_rest() -> bool:
+        seen.append(np.asarray(cam.position) - np.asarray(cam.look_at))
+        return len(seen) >= 3 and np.allclose(seen[-1], seen[-3], atol=1e-9)
+
+    wait_for(at_rest, interval=0.3, what="the camera at rest")
+    return seen[-1]
+
+
 def test_follow_tip(wb_page):
     app, page = wb_page
     wb, view = app.wb, app.view
@@ -41,7 +54,7 @@ def test_follow_tip(wb_page):
     expand_folder(page, "Display", "top")
     page.get_by_role("button", name="iso", exact=True).click()
     wait_for(lambda: view.overlays.follow_tip is False, what="follow off at the start")
-    offset0 = np.asarray(cam.position) - np.asarray(cam.look_at)
+    offset0 = _offset_at_rest(cam)
     page.get_by_label("Follow tip").click()
     wait_for(lambda: view.overlays.follow_tip, what="follow on")
     try:
