@@ -309,7 +309,6 @@ class RodSAC(SAC):
                                                                    + self.actor.action_dist.epsilon).sum(dim=1)
         return actions, log_prob.float().reshape(-1, 1)
 
-
     def _alpha_loss(self, log_ent_coef: th.Tensor, log_prob: th.Tensor) -> th.Tensor:
         """-mean(log alpha * (log pi(a|s) + target entropy)), log pi held fixed."""
         return -(log_ent_coef * (log_prob + self.target_entropy).detach()).mean()
