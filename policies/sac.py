@@ -31,6 +31,7 @@ unpickles: a full SB3 checkpoint (which holds cloudpickled objects) is refused u
 """
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import os
@@ -189,6 +190,20 @@ class _BoundMethod(nn.Module):
         return getattr(self.module, self.method)(*args)
 
 
+@contextlib.contextmanager
+def _frozen(params):
+    """Inside the block the parameters of ``params`` that required grad do not; afterwards (also after an error)
+    they do again."""
+    changed = [p for p in params if p.requires_grad]
+    for p in changed:
+        p.requires_grad_(False)
+    try:
+        yield
+    finally:
+        for p in changed:
+            p.requires_grad_(True)
+
+
 def _adam_state(opt: th.optim.Optimizer) -> None:
     """Check that ``opt`` is the Adam that ``_adam_`` writes out and create its per-parameter state as
     ``torch.optim.Adam`` does at its first step (float32 step counter, zero moments)."""
@@ -267,13 +282,9 @@ class RodSAC(SAC):
 
         t0 = time.perf_counter()
         self.policy.set_training_mode(True)
-        optimizers = [self.actor.optimizer, self.critic.optimizer]
-        if self.ent_coef_optimizer is not None:
-            optimizers.append(self.ent_coef_optimizer)
-        self._update_learning_rate(optimizers)
+        self._update_learning_rate(self._optimizers())
 
-        stats: dict[str, list[float]] = {"actor_loss": [], "critic_loss": [], "ent_coef": [], "ent_coef_loss": [],
-                                         "log_prob": [], "q_mean": []}
+        stats: dict[str, list[float]] = {key: [] for key in self._STAT_KEYS}
         self._updates(gradient_steps, batch_size, stats)
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         for key, vals in stats.items():
@@ -366,15 +377,11 @@ class RodSAC(SAC):
             stats["q_mean"].append(q_mean.item())
 
             # actor step (critic weights frozen meanwhile: their gradients would be discarded anyway)
-            critic_params = [p for p in self.critic.parameters() if p.requires_grad]
-            for p in critic_params:
-                p.requires_grad_(False)
-            actor_loss = self._actor_loss(data.observations, actions_pi, log_prob, alpha)
-            self.actor.optimizer.zero_grad()
-            actor_loss.backward()
-            self.actor.optimizer.step()
-            for p in critic_params:
-                p.requires_grad_(True)
+            with _frozen(self.critic.parameters()):
+                actor_loss = self._actor_loss(data.observations, actions_pi, log_prob, alpha)
+                self.actor.optimizer.zero_grad()
+                actor_loss.backward()
+                self.actor.optimizer.step()
             stats["actor_loss"].append(actor_loss.item())
             stats["log_prob"].append(log_prob.mean().item())
             self._target_update()
@@ -404,22 +411,16 @@ class RodSAC(SAC):
         fused = self._compiled_fns["update"]
         lrs = [th.tensor(opt.param_groups[0]["lr"], dtype=th.float32, device=self.device)
                for opt in self._optimizers()]
+        keys = [k for k in self._STAT_KEYS if k != "ent_coef_loss" or self.ent_coef_optimizer is not None]
         # The parameters stop requiring grad meanwhile (the gradients come from torch.func): the compiled code then
         # writes the Adam steps straight into them instead of copying each updated tensor back afterwards.
-        trained = [p for opt in self._optimizers() for p in opt.param_groups[0]["params"] if p.requires_grad]
-        try:
-            for p in trained:
-                p.requires_grad_(False)
+        with _frozen(p for opt in self._optimizers() for p in opt.param_groups[0]["params"]):
             for _ in range(gradient_steps):
                 data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)
-                values = fused(data, *lrs).tolist()
-                for key, value in zip(self._STAT_KEYS, values):
-                    if key != "ent_coef_loss" or self.ent_coef_optimizer is not None:
-                        stats[key].append(value)
+                values = dict(zip(self._STAT_KEYS, fused(data, *lrs).tolist()))
+                for key in keys:
+                    stats[key].append(values[key])
                 self._target_update()
-        finally:
-            for p in trained:
-                p.requires_grad_(True)
 
     def _optimizers(self) -> list[th.optim.Optimizer]:
         """actor, critic and (with a learned temperature) entropy-coefficient optimizers."""
