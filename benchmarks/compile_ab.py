@@ -7,7 +7,9 @@ float32 and ``--bf16 --bf16-layout all``, each eager and compiled. After warm-up
 training iteration's updates (``model.train(4, 1024)``) of each model in turn, ``--rounds`` times: every model sees
 the same drifts of a shared machine, which whole-command runs minutes apart do not (their iteration times spread by
 ±15 % on the 2-core VM). Reports the median ms per iteration's updates and compiled/eager per precision.
-Written to ``docs/bench/summary/compile_ab.json``.
+With ``--variants ...,bf16_all_compiled_unsplit`` (or ``float32_compiled_unsplit``) it also times the compiled
+updates without the graph pass ``SplitThinProducts`` (policies/compile_passes.py) and reports split/unsplit.
+Written to ``docs/bench/summary/compile_ab.json`` (or ``--out DIR``).
 """
 from __future__ import annotations
 
@@ -26,11 +28,15 @@ VARIANTS = {
     "float32_compiled": {"compile": True},
     "bf16_all": {"bf16": True, "bf16_layout": "all"},
     "bf16_all_compiled": {"bf16": True, "bf16_layout": "all", "compile": True},
+    # the compiled updates without the graph pass SplitThinProducts (policies/compile_passes.py)
+    "float32_compiled_unsplit": {"compile": True, "split_products": False},
+    "bf16_all_compiled_unsplit": {"bf16": True, "bf16_layout": "all", "compile": True, "split_products": False},
 }
+DEFAULT_VARIANTS = ("float32", "float32_compiled", "bf16_all", "bf16_all_compiled")
 UPDATES, BATCH = 4, 1024
 
 
-def compare(task: str, rounds: int, warmup: int = 3, variants: tuple[str, ...] = tuple(VARIANTS)) -> dict:
+def compare(task: str, rounds: int, warmup: int = 3, variants: tuple[str, ...] = DEFAULT_VARIANTS) -> dict:
     models = {name: sac_model(task, VARIANTS[name]) for name in variants}
     t0 = time.perf_counter()
     for model in models.values():
@@ -46,7 +52,10 @@ def compare(task: str, rounds: int, warmup: int = 3, variants: tuple[str, ...] =
     med = {name: statistics.median(v) for name, v in times.items()}
     ratios = {eager: med[f"{eager}_compiled"] / med[eager] for eager in ("float32", "bf16_all")
               if eager in med and f"{eager}_compiled" in med}
-    out = {"updates_ms_median": med, "updates_ms_runs": times, "warmup_s": warm_s, "compiled_over_eager": ratios}
+    split = {prec: med[f"{prec}_compiled"] / med[f"{prec}_compiled_unsplit"] for prec in ("float32", "bf16_all")
+             if f"{prec}_compiled" in med and f"{prec}_compiled_unsplit" in med}
+    out = {"updates_ms_median": med, "updates_ms_runs": times, "warmup_s": warm_s, "compiled_over_eager": ratios,
+           "split_over_unsplit": split}
     if "bf16_all_compiled" in med and "float32" in med:
         out["bf16_all_compiled_over_float32"] = med["bf16_all_compiled"] / med["float32"]
     return out
@@ -57,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tasks", default="follow_target,ik4d,tight_obstacles_2d,random_obstacles_3d")
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--rounds", type=int, default=20)
-    p.add_argument("--variants", default=",".join(VARIANTS), help=f"some of {', '.join(VARIANTS)}")
+    p.add_argument("--variants", default=",".join(DEFAULT_VARIANTS), help=f"some of {', '.join(VARIANTS)}")
     a = p.parse_args(argv)
     variants = tuple(v for v in a.variants.split(",") if v)
     unknown = sorted(set(variants) - set(VARIANTS))
@@ -74,7 +83,8 @@ def main(argv: list[str] | None = None) -> int:
         m = r["updates_ms_median"]
         print(f"{task}: updates of one iteration, median of {a.rounds} [ms]: "
               + ", ".join(f"{k} {v:.1f}" for k, v in m.items())
-              + "".join(f"; compiled/eager {k} {v:.2f}" for k, v in r["compiled_over_eager"].items()), flush=True)
+              + "".join(f"; compiled/eager {k} {v:.2f}" for k, v in r["compiled_over_eager"].items())
+              + "".join(f"; split/unsplit {k} {v:.2f}" for k, v in r["split_over_unsplit"].items()), flush=True)
     res["machine"] = machine_info()
     write_summary(a, "compile_ab.json", res)
     return 0

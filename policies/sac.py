@@ -20,7 +20,8 @@ What SB3's ``SAC`` lacks and how it is added here (nothing else is changed):
   "all")`` (``rodlab train --bf16 --bf16-layout all``) turns them back into plain layers: every product in bfloat16.
 * **Compiled updates** (``RodSAC.compile_updates``, ``rodlab train --compile``): each update is one call of
   ``_fused_update`` through ``torch.compile``: the same loss methods as the eager updates, gradients by
-  ``torch.func.grad_and_value`` and the Adam steps written out on the optimizers' own state (docs/training.md).
+  ``torch.func.grad_and_value`` and the Adam steps written out on the optimizers' own state (docs/training.md);
+  inductor compiles it with the graph pass ``SplitThinProducts`` (policies/compile_passes.py).
 * **Timing**: ``last_update_time`` [s] of the most recent ``train()`` call, for logging/benchmarks.
 
 Policy-only files (``save_policy`` / ``load_policy``) are a small zip holding ``meta.json`` (task id,
@@ -257,6 +258,7 @@ class RodSAC(SAC):
         self.last_update_time = 0.0
         self.bf16_updates = False  # the gradient updates under bfloat16 autocast (policies/train.py Args.bf16)
         self.compile_updates = False  # each update one torch.compile-d function (Args.compile_updates)
+        self.compile_split_products = True  # with the graph pass of policies/compile_passes.py (False: for A/B)
         self._compiled_fns = None
         super().__init__(*args, **kwargs)
 
@@ -406,8 +408,12 @@ class RodSAC(SAC):
             for name, module in (("actor", self.actor), ("critic", self.critic)):
                 if {id(p) for p in module.parameters()} != {id(p) for p in module.optimizer.param_groups[0]["params"]}:
                     raise ValueError(f"compiled updates step every {name} parameter; its optimizer holds others")
+            from policies.compile_passes import SplitThinProducts
+
+            split = getattr(self, "compile_split_products", True)  # absent in models saved before it existed
+            options = {"post_grad_custom_post_pass": SplitThinProducts()} if split else {}
             self._compiled_fns = {"actor_dist_params": _BoundMethod(self.actor, "get_action_dist_params"),
-                                  "update": th.compile(self._fused_update, dynamic=False)}
+                                  "update": th.compile(self._fused_update, dynamic=False, options=options)}
         fused = self._compiled_fns["update"]
         lrs = [th.tensor(opt.param_groups[0]["lr"], dtype=th.float32, device=self.device)
                for opt in self._optimizers()]

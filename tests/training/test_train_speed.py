@@ -382,3 +382,45 @@ def test_library_threads_follow_the_threads_option(monkeypatch, argv, threads):
     monkeypatch.setenv("OMP_NUM_THREADS", "7")
     _threads_env(["--threads", "2"])
     assert os.environ["OMP_NUM_THREADS"] == "7"
+
+
+def _critic_like(x, params):
+    """A small critic: Linear -> LayerNorm -> ReLU -> Linear(., 1), squared error against 1 (its gradients take
+    every kind of product the pass rewrites: biases, a one-column output, an outer product, a column sum)."""
+    h = torch.nn.functional.linear(x, params["w1"], params["b1"])
+    h = torch.relu(torch.nn.functional.layer_norm(h, (h.shape[-1],)))
+    q = torch.nn.functional.linear(h, params["w2"], params["b2"])
+    return ((q - 1.0) ** 2).mean()
+
+
+@pytest.mark.parametrize("bf16", [False, True])
+def test_split_thin_products_rewrites_and_keeps_the_gradients(fresh_dynamo, bf16):
+    """``SplitThinProducts`` (policies/compile_passes.py) replaces the biased and the unit-dimension bfloat16
+    products of a critic's loss and gradients by loops and leaves float32 ones alone; the compiled gradients equal
+    the eager ones (float32 to rounding, bfloat16 to its precision)."""
+    from policies.compile_passes import SplitThinProducts
+
+    gen = torch.Generator().manual_seed(0)
+    params = {"w1": torch.randn(32, 12, generator=gen) / 4, "b1": torch.randn(32, generator=gen),
+              "w2": torch.randn(1, 32, generator=gen) / 4, "b2": torch.randn(1, generator=gen)}
+    x = torch.randn(64, 12, generator=gen)
+
+    def grads(p, x):
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+            return torch.func.grad_and_value(lambda q: _critic_like(x, q))(p)
+
+    split = SplitThinProducts()
+    compiled = torch.compile(grads, dynamic=False, options={"post_grad_custom_post_pass": split,
+                                                              "fx_graph_cache": False})
+    (g_c, loss_c), (g_e, loss_e) = compiled(params, x), grads(params, x)
+    # bfloat16 forward: 2 biased products; backward: the output layer's input gradient (outer) and weight gradient
+    # (column sum), the one-column output (a dot product per row)
+    if bf16:
+        assert split.rewritten["addmm"] == 2 and split.rewritten["dot_rows"] == 1
+        assert split.rewritten["outer"] == 1 and split.rewritten["sum_rows"] == 1
+    else:
+        assert not split.rewritten
+    tol = {"rtol": 2e-2, "atol": 2e-2} if bf16 else {"rtol": 1e-5, "atol": 1e-6}
+    torch.testing.assert_close(loss_c, loss_e, **tol)
+    for k in params:
+        torch.testing.assert_close(g_c[k], g_e[k], **tol)
