@@ -7,8 +7,8 @@ float32 and ``--bf16 --bf16-layout all``, each eager and compiled. After warm-up
 training iteration's updates (``model.train(4, 1024)``) of each model in turn, ``--rounds`` times: every model sees
 the same drifts of a shared machine, which whole-command runs minutes apart do not (their iteration times spread by
 ±15 % on the 2-core VM). Reports the median ms per iteration's updates and compiled/eager per precision.
-With ``--variants ...,bf16_all_compiled_unsplit`` (or ``float32_compiled_unsplit``) it also times the compiled
-updates without the graph pass ``SplitThinProducts`` (policies/compile_passes.py) and reports split/unsplit.
+With ``--variants ...,bf16_all_compiled_split`` (or ``float32_compiled_split``) it also times the compiled
+updates with the graph pass ``SplitThinProducts`` (policies/compile_passes.py) and reports split/unsplit.
 Written to ``docs/bench/summary/compile_ab.json`` (or ``--out DIR``).
 """
 from __future__ import annotations
@@ -28,9 +28,9 @@ VARIANTS = {
     "float32_compiled": {"compile": True},
     "bf16_all": {"bf16": True, "bf16_layout": "all"},
     "bf16_all_compiled": {"bf16": True, "bf16_layout": "all", "compile": True},
-    # the compiled updates without the graph pass SplitThinProducts (policies/compile_passes.py)
-    "float32_compiled_unsplit": {"compile": True, "split_products": False},
-    "bf16_all_compiled_unsplit": {"bf16": True, "bf16_layout": "all", "compile": True, "split_products": False},
+    # the compiled updates with the graph pass SplitThinProducts (policies/compile_passes.py)
+    "float32_compiled_split": {"compile": True, "split_products": True},
+    "bf16_all_compiled_split": {"bf16": True, "bf16_layout": "all", "compile": True, "split_products": True},
 }
 DEFAULT_VARIANTS = ("float32", "float32_compiled", "bf16_all", "bf16_all_compiled")
 UPDATES, BATCH = 4, 1024
@@ -52,8 +52,8 @@ def compare(task: str, rounds: int, warmup: int = 3, variants: tuple[str, ...] =
     med = {name: statistics.median(v) for name, v in times.items()}
     ratios = {eager: med[f"{eager}_compiled"] / med[eager] for eager in ("float32", "bf16_all")
               if eager in med and f"{eager}_compiled" in med}
-    split = {prec: med[f"{prec}_compiled"] / med[f"{prec}_compiled_unsplit"] for prec in ("float32", "bf16_all")
-             if f"{prec}_compiled" in med and f"{prec}_compiled_unsplit" in med}
+    split = {prec: med[f"{prec}_compiled_split"] / med[f"{prec}_compiled"] for prec in ("float32", "bf16_all")
+             if f"{prec}_compiled" in med and f"{prec}_compiled_split" in med}
     out = {"updates_ms_median": med, "updates_ms_runs": times, "warmup_s": warm_s, "compiled_over_eager": ratios,
            "split_over_unsplit": split}
     if "bf16_all_compiled" in med and "float32" in med:

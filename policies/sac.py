@@ -21,7 +21,8 @@ What SB3's ``SAC`` lacks and how it is added here (nothing else is changed):
 * **Compiled updates** (``RodSAC.compile_updates``, ``rodlab train --compile``): each update is one call of
   ``_fused_update`` through ``torch.compile``: the same loss methods as the eager updates, gradients by
   ``torch.func.grad_and_value`` and the Adam steps written out on the optimizers' own state (docs/training.md);
-  inductor compiles it with the graph pass ``SplitThinProducts`` (policies/compile_passes.py).
+  with ``compile_split_products`` inductor compiles it with the graph pass ``SplitThinProducts``
+  (policies/compile_passes.py).
 * **Timing**: ``last_update_time`` [s] of the most recent ``train()`` call, for logging/benchmarks.
 
 Policy-only files (``save_policy`` / ``load_policy``) are a small zip holding ``meta.json`` (task id,
@@ -258,7 +259,7 @@ class RodSAC(SAC):
         self.last_update_time = 0.0
         self.bf16_updates = False  # the gradient updates under bfloat16 autocast (policies/train.py Args.bf16)
         self.compile_updates = False  # each update one torch.compile-d function (Args.compile_updates)
-        self.compile_split_products = True  # with the graph pass of policies/compile_passes.py (False: for A/B)
+        self.compile_split_products = False  # with the graph pass of policies/compile_passes.py (Args)
         self._compiled_fns = None
         super().__init__(*args, **kwargs)
 
@@ -410,7 +411,7 @@ class RodSAC(SAC):
                     raise ValueError(f"compiled updates step every {name} parameter; its optimizer holds others")
             from policies.compile_passes import SplitThinProducts
 
-            split = getattr(self, "compile_split_products", True)  # absent in models saved before it existed
+            split = getattr(self, "compile_split_products", False)  # absent in models saved before it existed
             options = {"post_grad_custom_post_pass": SplitThinProducts()} if split else {}
             self._compiled_fns = {"actor_dist_params": _BoundMethod(self.actor, "get_action_dist_params"),
                                   "update": th.compile(self._fused_update, dynamic=False, options=options)}

@@ -83,6 +83,8 @@ class Args:
                                             # or all (every layer in bfloat16); policies/sac.py BF16_LAYOUTS
     compile_updates: bool = False           # each update one torch.compile-d function (docs/training.md,
                                             # "Compiled updates"; needs a C++ compiler)
+    compile_split_products: bool = False    # with compile_updates: the graph pass of policies/compile_passes.py
+                                            # (faster; learning curve not yet shown unchanged, BENCHMARKS.md §6)
     # runtime
     torch_threads: int = 1
     checkpoint_minutes: float = 5.0
@@ -316,6 +318,15 @@ def load_checkpoint(args: Args, run_dir: Path, env):
         raise TrainError(f"--resume: {exc}") from None
 
 
+def configure_updates(model, args: Args) -> None:
+    """The run's update settings on a new or loaded model: bfloat16 and its layout, compiled updates and their
+    graph pass (none of them is part of a checkpoint, so a resumed run takes them from its config)."""
+    model.bf16_updates = bool(args.bf16)
+    model.compile_updates = bool(args.compile_updates)
+    model.compile_split_products = bool(args.compile_split_products)
+    set_bf16_layout(model.policy, args.bf16_layout)
+
+
 def _buffer_size(args: Args) -> int:
     return max(min(args.buffer_size, args.total_steps), args.num_envs * 2)
 
@@ -387,9 +398,7 @@ def train(args: Args, *, resume: bool = False) -> Path:
         model.set_random_seed(env_seed)  # SB3's load re-seeds the env with the run's seed: use the derived one
     else:
         model, wall_offset = build_sac(args, env), 0.0
-    model.bf16_updates = bool(args.bf16)
-    model.compile_updates = bool(args.compile_updates)
-    set_bf16_layout(model.policy, args.bf16_layout)
+    configure_updates(model, args)
     init_info = None
     if args.init_from and not resume:
         try:

@@ -7,8 +7,8 @@ Nothing here is used by ``rodlab train`` by default; each setting must first be 
 
 * ``compile``: ``RodSAC.compile_updates`` (also ``rodlab train --compile``): each SAC update (losses, their
   gradients, the Adam steps) runs as one ``torch.compile``d function; the target update stays eager. Needs a C++
-  compiler for the CPU inductor back-end. ``split_products=False`` compiles it without the graph pass
-  ``SplitThinProducts`` (policies/compile_passes.py), for measuring what the pass gives.
+  compiler for the CPU inductor back-end. ``split_products=True`` compiles it with the graph pass
+  ``SplitThinProducts`` (policies/compile_passes.py; ``rodlab train --split-products``).
 * ``bf16``: ``RodSAC.bf16_updates``: each forward pass of the updates runs under
   ``torch.autocast("cpu", dtype=torch.bfloat16)``, with the hidden 256x256 products in bfloat16 and the input
   and output layers, LayerNorms and losses in float32 (policies/sac.py).
@@ -31,7 +31,7 @@ class SpeedSettings:
     bf16: bool = False
     bf16_layout: str = "float32_io"
     adam: str = "fused"
-    split_products: bool = True
+    split_products: bool = False
 
     def __post_init__(self):
         if self.adam not in ADAM_KINDS:
@@ -43,7 +43,7 @@ class SpeedSettings:
 
     def label(self) -> str:
         return ",".join([f"adam={self.adam}"] + (["compile"] if self.compile else []) + (
-            ["unsplit"] if self.compile and not self.split_products else []) + (
+            ["split"] if self.compile and self.split_products else []) + (
             [f"bf16={self.bf16_layout}"] if self.bf16 else []))
 
 

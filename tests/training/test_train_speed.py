@@ -424,3 +424,19 @@ def test_split_thin_products_rewrites_and_keeps_the_gradients(fresh_dynamo, bf16
     torch.testing.assert_close(loss_c, loss_e, **tol)
     for k in params:
         torch.testing.assert_close(g_c[k], g_e[k], **tol)
+
+
+def test_run_settings_reach_the_model():
+    """``configure_updates`` puts a run's update settings (``Args``: bf16, its layout, compiled updates and their
+    graph pass) on the model, and the defaults take them off again."""
+    from policies.sac import Float32Linear
+    from policies.train import configure_updates
+
+    model = _model()
+    configure_updates(model, Args(task="ik4d", bf16=True, bf16_layout="all", compile_updates=True,
+                                  compile_split_products=True))
+    assert model.bf16_updates and model.compile_updates and model.compile_split_products
+    assert not any(isinstance(m, Float32Linear) for m in model.policy.modules())  # every layer in bfloat16
+    configure_updates(model, Args(task="ik4d"))
+    assert not model.bf16_updates and not model.compile_updates and not model.compile_split_products
+    assert any(isinstance(m, Float32Linear) for m in model.policy.modules())
