@@ -1,4 +1,5 @@
-"""A graph pass for the compiled SAC updates (``rodlab train --compile``; docs/training.md, "Compiled updates").
+"""A graph pass for the compiled SAC updates (``rodlab train --compile --split-products``, off by default;
+docs/training.md, "Compiled updates").
 
 Inductor on the CPU keeps every matrix product of the traced update a library call (oneDNN/MKL) and fuses only
 the elementwise work around it. Two kinds of product cost more as library calls than as fused loops:
