@@ -36,6 +36,7 @@ GROUPS = {
 SETTINGS = {"float32": {}, "bf16": {"bf16": True}, "bf16_all": {"bf16": True, "bf16_layout": "all"},
             "bf16_all_compiled": {"bf16": True, "bf16_layout": "all", "compile": True},
             "bf16_all_compiled_split": {"bf16": True, "bf16_layout": "all", "compile": True, "split_products": True}}
+DEFAULT_SETTINGS = ("float32", "bf16", "bf16_all", "bf16_all_compiled")
 #: the generated loops of a compiled update (inductor's kernel profile names them ``graph_<n>_cpp_fused_...``)
 FUSED_MARK = "cpp_fused"
 
@@ -111,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--task", default="follow_target")
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--updates", type=int, default=24)
-    p.add_argument("--settings", default="float32,bf16,bf16_all,bf16_all_compiled", help=f"some of {', '.join(SETTINGS)}")
+    p.add_argument("--settings", default=",".join(DEFAULT_SETTINGS), help=f"some of {', '.join(SETTINGS)}")
     a = p.parse_args(argv)
     chosen = [name for name in a.settings.split(",") if name]
     unknown = sorted(set(chosen) - set(SETTINGS))

@@ -263,6 +263,16 @@ class RodSAC(SAC):
         self._compiled_fns = None
         super().__init__(*args, **kwargs)
 
+    def set_update_settings(self, *, bf16: bool, bf16_layout: str, compile_updates: bool,
+                            split_products: bool) -> None:
+        """How the gradient updates run: under bfloat16 autocast with ``bf16_layout`` (``set_bf16_layout``), as
+        compiled functions, with the graph pass of policies/compile_passes.py. Used by ``rodlab train`` (from its
+        ``Args``) and ``rodlab bench train`` (from its ``SpeedSettings``)."""
+        self.bf16_updates = bool(bf16)
+        self.compile_updates = bool(compile_updates)
+        self.compile_split_products = bool(split_products)
+        set_bf16_layout(self.policy, bf16_layout)
+
     def _setup_model(self) -> None:
         super()._setup_model()
         if self.ent_coef_optimizer is not None:  # same eps as the other optimizers
@@ -409,10 +419,11 @@ class RodSAC(SAC):
             for name, module in (("actor", self.actor), ("critic", self.critic)):
                 if {id(p) for p in module.parameters()} != {id(p) for p in module.optimizer.param_groups[0]["params"]}:
                     raise ValueError(f"compiled updates step every {name} parameter; its optimizer holds others")
-            from policies.compile_passes import SplitThinProducts
+            options = {}
+            if getattr(self, "compile_split_products", False):  # absent in models saved before it existed
+                from policies.compile_passes import SplitThinProducts
 
-            split = getattr(self, "compile_split_products", False)  # absent in models saved before it existed
-            options = {"post_grad_custom_post_pass": SplitThinProducts()} if split else {}
+                options["post_grad_custom_post_pass"] = SplitThinProducts()
             self._compiled_fns = {"actor_dist_params": _BoundMethod(self.actor, "get_action_dist_params"),
                                   "update": th.compile(self._fused_update, dynamic=False, options=options)}
         fused = self._compiled_fns["update"]

@@ -44,7 +44,7 @@ from sim.atomicio import write_bytes
 
 from policies.checkpoint import find_checkpoint, read_state, resume_seed
 from policies.checkpoint import save_checkpoint as _save_checkpoint
-from policies.sac import BF16_LAYOUTS, PolicyLoadError, save_policy, set_bf16_layout
+from policies.sac import BF16_LAYOUTS, PolicyLoadError, save_policy
 from policies.train_monitor import monitor_callback
 
 
@@ -321,10 +321,8 @@ def load_checkpoint(args: Args, run_dir: Path, env):
 def configure_updates(model, args: Args) -> None:
     """The run's update settings on a new or loaded model: bfloat16 and its layout, compiled updates and their
     graph pass (none of them is part of a checkpoint, so a resumed run takes them from its config)."""
-    model.bf16_updates = bool(args.bf16)
-    model.compile_updates = bool(args.compile_updates)
-    model.compile_split_products = bool(args.compile_split_products)
-    set_bf16_layout(model.policy, args.bf16_layout)
+    model.set_update_settings(bf16=args.bf16, bf16_layout=args.bf16_layout, compile_updates=args.compile_updates,
+                              split_products=args.compile_split_products)
 
 
 def _buffer_size(args: Args) -> int:

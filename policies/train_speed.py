@@ -57,9 +57,6 @@ def _adam(params, lr, eps, kind: str):
 
 def apply_speed_settings(model, settings: SpeedSettings) -> None:
     """Apply ``settings`` to a fresh ``RodSAC`` in place."""
-
-    from policies.sac import set_bf16_layout
-
     pol = model.policy
     for holder in (pol.actor, pol.critic):
         opt = holder.optimizer
@@ -69,7 +66,5 @@ def apply_speed_settings(model, settings: SpeedSettings) -> None:
     if model.ent_coef_optimizer is not None:
         g = model.ent_coef_optimizer.param_groups[0]
         model.ent_coef_optimizer = _adam([model.log_ent_coef], g["lr"], g["eps"], settings.adam)
-    model.compile_updates = bool(settings.compile)
-    model.compile_split_products = bool(settings.split_products)
-    model.bf16_updates = bool(settings.bf16)  # RodSAC opens one autocast region per forward pass
-    set_bf16_layout(pol, settings.bf16_layout)
+    model.set_update_settings(bf16=settings.bf16, bf16_layout=settings.bf16_layout, compile_updates=settings.compile,
+                              split_products=settings.split_products)
