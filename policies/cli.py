@@ -108,6 +108,10 @@ def train_main(argv: list[str]) -> int:
         p.error("TASK is required")
     if a.steps < 1 or (a.envs is not None and a.envs < 1):
         p.error("--steps and --envs must be positive")
+    if a.split_products and not a.compile:
+        from policies.train import SPLIT_NEEDS_COMPILE
+
+        p.error(SPLIT_NEEDS_COMPILE)
     from sim.validate import check_output_path
 
     try:  # before any work: a run directory that cannot be written loses nothing
@@ -342,8 +346,11 @@ def bench_train_main(argv: list[str]) -> int:
     p.add_argument("--device", default="cpu", help="torch device of the updates: cpu (default), cuda or cuda:N")
     p.add_argument("--json", action="store_true")
     a = p.parse_args(argv)
-    from policies.train import TrainError, check_compiler
+    from policies.train import SPLIT_NEEDS_COMPILE, TrainError, check_compiler
     from policies.train_speed import SpeedSettings
+
+    if a.split_products and not a.compile:
+        p.error(SPLIT_NEEDS_COMPILE)
 
     try:
         if a.compile:

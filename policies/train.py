@@ -318,6 +318,10 @@ def load_checkpoint(args: Args, run_dir: Path, env):
         raise TrainError(f"--resume: {exc}") from None
 
 
+SPLIT_NEEDS_COMPILE = ("--split-products is a pass over the compiled update graph: add --compile "
+                       "(in a sweep: --set compile_updates=true)")
+
+
 def configure_updates(model, args: Args) -> None:
     """The run's update settings on a new or loaded model: bfloat16 and its layout, compiled updates and their
     graph pass (none of them is part of a checkpoint, so a resumed run takes them from its config)."""
@@ -380,6 +384,8 @@ def train(args: Args, *, resume: bool = False) -> Path:
     args.device = check_device(args.device)  # before the run directory is made
     if args.bf16_layout not in BF16_LAYOUTS:
         raise TrainError(f"--bf16-layout: expected one of {', '.join(BF16_LAYOUTS)}, got {args.bf16_layout!r}")
+    if args.compile_split_products and not args.compile_updates:
+        raise TrainError(SPLIT_NEEDS_COMPILE)
     if args.compile_updates:
         check_compiler()
     run_dir.mkdir(parents=True, exist_ok=True)

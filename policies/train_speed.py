@@ -40,6 +40,8 @@ class SpeedSettings:
 
         if self.bf16_layout not in BF16_LAYOUTS:
             raise ValueError(f"bf16_layout must be one of {BF16_LAYOUTS}, got {self.bf16_layout!r}")
+        if self.split_products and not self.compile:
+            raise ValueError("split_products is a pass over the compiled update graph: it needs compile=True")
 
     def label(self) -> str:
         return ",".join([f"adam={self.adam}"] + (["compile"] if self.compile else []) + (

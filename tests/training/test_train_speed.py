@@ -440,3 +440,25 @@ def test_run_settings_reach_the_model():
     configure_updates(model, Args(task="ik4d"))
     assert not model.bf16_updates and not model.compile_updates and not model.compile_split_products
     assert any(isinstance(m, Float32Linear) for m in model.policy.modules())
+
+
+def test_split_products_without_compile_is_refused(tmp_path, capsys):
+    """The thin-product pass works on the compiled update graph: asking for it without compiled updates is refused
+    with a message naming --compile (rodlab train, a sweep's --set, rodlab bench train, SpeedSettings), before a
+    run directory is made."""
+    from policies.cli import bench_train_main, train_main
+    from policies.train import TrainError, train
+
+    with pytest.raises(TrainError, match="--split-products .* add --compile"):
+        train(Args(task="ik4d", num_envs=2, total_steps=100, run_dir=str(tmp_path / "run"), bf16=True,
+                   compile_split_products=True))
+    assert not (tmp_path / "run").exists()
+    for main, argv in ((train_main, ["ik4d", "--bf16", "--split-products", "--run-dir", str(tmp_path / "cli")]),
+                       (bench_train_main, ["--task", "ik4d", "--bf16", "--split-products"])):
+        with pytest.raises(SystemExit) as exc:
+            main(argv)
+        assert exc.value.code == 2
+        assert "--split-products is a pass over the compiled update graph: add --compile" in capsys.readouterr().err
+    assert not (tmp_path / "cli").exists()
+    with pytest.raises(ValueError, match="needs compile=True"):
+        SpeedSettings(bf16=True, split_products=True)

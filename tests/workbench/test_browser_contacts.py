@@ -34,7 +34,7 @@ def test_contact_force_labels_and_total(wb_page):
     x = wb.live.state.node_pos[0]
     c = x[12] + np.array([0.09, 0.0, 0.0])  # a sphere of radius 0.08 pressing on the rod's side
     wb.add_obstacle(ObstacleEdit(kind="sphere", position=c, radius=0.08, name="press"))
-    wait_for(lambda: app.view.last_frame is not None and len(app.view.last_frame.contact_points) > 0, timeout=30,
+    wait_for(lambda: app.view.last_frame is not None and len(app.view.last_frame.contact_points) > 0, timeout=90,
              what="contacts")
     wait_for(lambda: app.view.force_labels[0].visible, what="force label")
     fr = app.view.last_frame
