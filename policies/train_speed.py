@@ -58,7 +58,11 @@ def _adam(params, lr, eps, kind: str):
 
 
 def apply_speed_settings(model, settings: SpeedSettings) -> None:
-    """Apply ``settings`` to a fresh ``RodSAC`` in place."""
+    """Apply ``settings`` to a fresh ``RodSAC`` in place; ``TrainError`` for ``compile`` without a C++ compiler."""
+    if settings.compile:
+        from policies.train import check_compiler
+
+        check_compiler()
     pol = model.policy
     for holder in (pol.actor, pol.critic):
         opt = holder.optimizer

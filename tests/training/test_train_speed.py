@@ -220,6 +220,10 @@ def test_compile_without_a_compiler_is_refused(monkeypatch, tmp_path, capsys):
     assert train_main(["ik4d", "--compile", "--steps", "100", "--run-dir", str(tmp_path / "cli")]) == 2
     assert "--compile: torch.compile needs a C++ compiler" in capsys.readouterr().err
     assert not (tmp_path / "cli").exists()
+    model = _model()
+    with pytest.raises(TrainError, match="C\\+\\+ compiler"):  # the Python entry of the benchmarks too
+        apply_speed_settings(model, SpeedSettings(compile=True))
+    assert not model.compile_updates
 
 
 def test_bad_adam_kind():
