@@ -92,7 +92,7 @@ def train_main(argv: list[str]) -> int:
                         "a C++ compiler; about a minute of compiling at the start; BENCHMARKS.md §6)")
     p.add_argument("--split-products", action="store_true",
                    help="with --compile --bf16: bfloat16 products with a bias or a unit dimension as fused loops "
-                        "(faster updates; its learning curve is still being checked, BENCHMARKS.md §6)")
+                        "(faster updates, but runs with it learned more slowly: BENCHMARKS.md §6)")
     p.add_argument("--log-interval", type=float, default=d.log_interval_s, help="seconds between log lines")
     p.add_argument("--device", default=d.device,
                    help="torch device of the SAC networks and replay sampling: cpu (default), cuda or cuda:N; the "

@@ -84,7 +84,7 @@ class Args:
     compile_updates: bool = False           # each update one torch.compile-d function (docs/training.md,
                                             # "Compiled updates"; needs a C++ compiler)
     compile_split_products: bool = False    # with compile_updates: the graph pass of policies/compile_passes.py
-                                            # (faster; learning curve not yet shown unchanged, BENCHMARKS.md §6)
+                                            # (faster, but learned more slowly: BENCHMARKS.md §6)
     # runtime
     torch_threads: int = 1
     checkpoint_minutes: float = 5.0
