@@ -123,7 +123,7 @@ def group_name(task: str, grid: dict) -> str:
 
 def make_trials(tasks: list[str], seeds: list[int], sets: dict[str, list], out: Path, *, envs: int, steps: int,
                 time_limit_minutes: float, cpus_per_trial: int) -> list[Trial]:
-    from policies.train import Args, TrainError, task_short_name
+    from policies.train import Args, TrainError, check_update_settings, task_short_name
 
     if not tasks:
         raise SweepError("no task given")
@@ -148,6 +148,10 @@ def make_trials(tasks: list[str], seeds: list[int], sets: dict[str, list], out: 
                          torch_threads=cpus_per_trial)
                 for k, v in grid.items():
                     setattr(a, k, v)
+                try:  # before Ray starts: a setting no trial could run with
+                    check_update_settings(a)
+                except TrainError as exc:
+                    raise SweepError(f"{name}: {exc}") from None
                 trials.append(Trial(name, run_dir, a.to_json(), grid, float(time_limit_minutes)))
     return trials
 

@@ -322,6 +322,15 @@ SPLIT_NEEDS_COMPILE = ("--split-products is a pass over the compiled update grap
                        "(in a sweep: --set compile_updates=true)")
 
 
+def check_update_settings(args: Args) -> None:
+    """``TrainError`` naming the option when the update settings name nothing or contradict each other (checked by
+    ``train`` and, for every trial before any starts, by ``rodlab sweep``)."""
+    if args.bf16_layout not in BF16_LAYOUTS:
+        raise TrainError(f"--bf16-layout: expected one of {', '.join(BF16_LAYOUTS)}, got {args.bf16_layout!r}")
+    if args.compile_split_products and not args.compile_updates:
+        raise TrainError(SPLIT_NEEDS_COMPILE)
+
+
 def configure_updates(model, args: Args) -> None:
     """The run's update settings on a new or loaded model: bfloat16 and its layout, compiled updates and their
     graph pass (none of them is part of a checkpoint, so a resumed run takes them from its config)."""
@@ -382,10 +391,7 @@ def train(args: Args, *, resume: bool = False) -> Path:
         if args.init_from and not Path(args.init_from).is_file():  # fail before creating the run directory
             raise TrainError(f"--init-from: policy file not found: {args.init_from}")
     args.device = check_device(args.device)  # before the run directory is made
-    if args.bf16_layout not in BF16_LAYOUTS:
-        raise TrainError(f"--bf16-layout: expected one of {', '.join(BF16_LAYOUTS)}, got {args.bf16_layout!r}")
-    if args.compile_split_products and not args.compile_updates:
-        raise TrainError(SPLIT_NEEDS_COMPILE)
+    check_update_settings(args)
     if args.compile_updates:
         check_compiler()
     run_dir.mkdir(parents=True, exist_ok=True)

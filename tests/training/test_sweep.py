@@ -54,6 +54,13 @@ def test_parsing_and_grid(tmp_path):
             parse_sets(bad)
     with pytest.raises(SweepError, match="unknown task"):
         make_trials(["nope"], [0], {}, tmp_path, envs=1, steps=1, time_limit_minutes=0, cpus_per_trial=1)
+    # update settings no trial could run with are refused before any trial (or Ray) starts
+    for bad, msg in ((["compile_split_products=true"], "--split-products is a pass over the compiled update graph"),
+                     (["bf16_layout=half"], "--bf16-layout: expected one of")):
+        with pytest.raises(SweepError, match=msg):
+            make_trials(["ik4d"], [0], parse_sets(bad), tmp_path, envs=1, steps=1, time_limit_minutes=0,
+                        cpus_per_trial=1)
+    assert not any(tmp_path.iterdir())
 
 
 def test_finished_trial_continues_under_a_larger_budget(tmp_path):
