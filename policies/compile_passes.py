@@ -17,8 +17,8 @@ the elementwise work around it. Two kinds of product cost more as library calls 
 post_grad_custom_post_pass``) where they compute in bfloat16 (or float16) on the CPU, as under ``--bf16``;
 float32 products and everything else are left to inductor (in float32 the split measured no faster). The results
 are the same sums in another order (the product of a bfloat16 ``mm`` is rounded before the bias is added instead of
-after). Measured in BENCHMARKS.md §6: 0.88 of the compiled update time, but whole runs with the pass learned more
-slowly than without it (seven seeds each), hence off by default.
+after). Measured in BENCHMARKS.md §6: 0.88–1.02 of the compiled update time, and whole runs with the pass learned
+more slowly than without it (seven seeds each), hence off by default.
 """
 from __future__ import annotations
 
