@@ -1,24 +1,24 @@
-"""A graph pass for the compiled SAC updates (``rodlab train --compile --split-products``, off by default;
-docs/training.md, "Compiled updates").
+"""Graph passes for the compiled SAC updates (``rodlab train --compile``; docs/training.md, "Compiled updates").
 
 Inductor on the CPU keeps every matrix product of the traced update a library call (oneDNN/MKL) and fuses only
 the elementwise work around it. Two kinds of product cost more as library calls than as fused loops:
 
-* ``addmm(bias, x, w)``: the library first copies the bias, broadcast to the whole (batch, out) output, and
-  then accumulates the product onto it, one extra pass over a 1024 x 256 tensor per layer. As
-  ``mm(x, w) + bias`` the bias joins the LayerNorm/ReLU loop that reads the product anyway.
 * products with a unit dimension, which the SAC networks have at each critic's output layer (256 -> 1) and in its
   backward pass: ``x @ w`` with one output column is a row-wise dot product (``(x * w^T).sum(1)``), the input
   gradient ``g @ w`` through that layer an outer product (``g * w``), the weight gradient ``g^T @ x`` a column
   sum (``(g^T * x).sum(0)``). A library call for these runs at a fraction of its rate and allocates its output;
   as loops they fuse with their neighbours.
+* ``addmm(bias, x, w)``: the library first copies the bias, broadcast to the whole (batch, out) output, and
+  then accumulates the product onto it, one extra pass over a 1024 x 256 tensor per layer. As
+  ``mm(x, w) + bias`` the bias joins the LayerNorm/ReLU loop that reads the product anyway.
 
-``SplitThinProducts`` rewrites these nodes of the post-grad graph (``torch._inductor.config.
-post_grad_custom_post_pass``) where they compute in bfloat16 (or float16) on the CPU, as under ``--bf16``;
-float32 products and everything else are left to inductor (in float32 the split measured no faster). The results
-are the same sums in another order (the product of a bfloat16 ``mm`` is rounded before the bias is added instead of
-after). Measured in BENCHMARKS.md §6: 0.88–1.02 of the compiled update time, and whole runs with the pass learned
-more slowly than without it (seven seeds each), hence off by default.
+``UnitProductLoops`` (part of ``--compile``) rewrites the first kind only, and keeps the library's precision: the
+loops multiply and sum in float32 and round once to bfloat16, after the bias (the output layer's ``addmm`` becomes
+one dot-plus-bias loop), as the library's bfloat16 product does. ``SplitThinProducts`` (``--split-products``, off
+by default) rewrites both kinds and rounds the split product before its bias is added. Both act where a product
+computes in bfloat16 (or float16) on the CPU, as under ``--bf16``; float32 products and everything else are left to
+inductor (in float32 the split measured no faster). Measured in BENCHMARKS.md §6: ``--split-products`` 0.88–1.02 of
+the compiled update time, and whole runs with it learned more slowly (seven seeds each), hence off by default.
 """
 from __future__ import annotations
 
@@ -42,6 +42,93 @@ def _rewritable(*nodes) -> bool:
                for v in vals)
 
 
+class UnitProductLoops(CustomGraphPass):
+    """Post-grad pass: bfloat16 products with a unit dimension -> float32 loops rounded once (``addmm`` with one
+    output column -> a dot product plus the bias). ``rewritten`` counts the nodes replaced by the last call
+    (``dot_bias``, ``dot_rows``, ``outer``, ``sum_rows``)."""
+
+    def __init__(self) -> None:
+        self.rewritten: Counter = Counter()
+
+    def uuid(self):
+        return get_hash_for_files((__file__,))
+
+    def __call__(self, graph: torch.fx.Graph) -> None:
+        self.rewritten = Counter()
+        for node in list(graph.find_nodes(op="call_function", target=aten.addmm.default)):
+            bias, x, w = node.args[:3]
+            if (node.kwargs.get("beta", 1) != 1 or node.kwargs.get("alpha", 1) != 1 or not _rewritable(node, x, w)
+                    or _meta(w).shape[1] != 1):
+                continue
+            with graph.inserting_before(node):
+                dots = _dot_rows(graph, x, w)
+                out = _cast(graph, _op(graph, aten.add.Tensor, dots, _cast(graph, bias, torch.float32)),
+                            _meta(node).dtype)
+            _replace(graph, node, out, "dot_bias", self.rewritten)
+        for node in list(graph.find_nodes(op="call_function", target=aten.mm.default)):
+            a, b = node.args
+            if not _rewritable(node, a, b):
+                continue
+            (m, k), n = _meta(a).shape, _meta(b).shape[1]
+            dtype = _meta(node).dtype
+            with graph.inserting_before(node):
+                if n == 1:  # (m, k) @ (k, 1): one dot product per row
+                    out, kind = _cast(graph, _dot_rows(graph, a, b), dtype), "dot_rows"
+                elif k == 1:  # (m, 1) @ (1, n): an outer product, one rounding either way
+                    out, kind = _op(graph, aten.mul.Tensor, a, b), "outer"
+                elif m == 1:  # (1, k) @ (k, n): a weighted sum of the rows of b
+                    cols = _op(graph, aten.mul.Tensor, _cast(graph, _op(graph, aten.permute.default, a, [1, 0]),
+                                                              torch.float32), _cast(graph, b, torch.float32))
+                    out, kind = _cast(graph, _op(graph, aten.sum.dim_IntList, cols, [0], True), dtype), "sum_rows"
+                else:
+                    continue
+            _replace(graph, node, out, kind, self.rewritten)
+
+
+def _dot_rows(graph: torch.fx.Graph, x, w):
+    """float32 ``(x * w^T).sum(1, keepdim)`` for a (k, 1) ``w``."""
+    wt = _cast(graph, _op(graph, aten.permute.default, w, [1, 0]), torch.float32)
+    rows = _op(graph, aten.mul.Tensor, _cast(graph, x, torch.float32), wt)
+    return _op(graph, aten.sum.dim_IntList, rows, [1], True)
+
+
+def _cast(graph: torch.fx.Graph, x, dtype: torch.dtype):
+    return _op(graph, torch.ops.prims.convert_element_type.default, x, dtype)
+
+
+def _op(graph: torch.fx.Graph, target, *args):
+    """A new node ``target(*args)`` with its fake value (shape, dtype, device) computed as inductor expects."""
+    node = graph.call_function(target, args)
+    vals = [_meta(a) for a in args]
+    fake_mode = next(v.fake_mode for v in vals if isinstance(v, torch.Tensor))
+    with fake_mode:
+        node.meta["val"] = target(*vals)
+    return node
+
+
+def _replace(graph: torch.fx.Graph, old: torch.fx.Node, new: torch.fx.Node, kind: str, counts: Counter) -> None:
+    """``new`` in place of ``old`` when shape and dtype agree (else the new nodes are dropped again)."""
+    was, now = _meta(old), _meta(new)
+    if tuple(was.shape) != tuple(now.shape) or was.dtype != now.dtype:  # e.g. a bias of another dtype
+        _drop_unused(graph, new)
+        return
+    old.replace_all_uses_with(new)
+    graph.erase_node(old)
+    counts[kind] += 1
+
+
+def _drop_unused(graph: torch.fx.Graph, node: torch.fx.Node) -> None:
+    """Erase ``node`` and the new nodes feeding only it (a rewrite that was not taken)."""
+    todo = [node]
+    while todo:
+        n = todo.pop()
+        if n.users or n.op != "call_function":
+            continue
+        inputs = [a for a in n.args if isinstance(a, torch.fx.Node)]
+        graph.erase_node(n)
+        todo.extend(inputs)
+
+
 class SplitThinProducts(CustomGraphPass):
     """Post-grad pass: ``addmm`` -> ``mm`` + bias; ``mm`` with a unit dimension -> a product and a sum.
     ``rewritten`` counts the nodes replaced by the last call (``addmm``, ``dot_rows``, ``outer``, ``sum_rows``)."""
@@ -59,9 +146,9 @@ class SplitThinProducts(CustomGraphPass):
             if node.kwargs.get("beta", 1) != 1 or node.kwargs.get("alpha", 1) != 1 or not _rewritable(node, x, w):
                 continue
             with graph.inserting_before(node):
-                product = self._op(graph, aten.mm.default, x, w)
-                out = self._op(graph, aten.add.Tensor, product, bias)
-            self._replace(graph, node, out, "addmm")
+                product = _op(graph, aten.mm.default, x, w)
+                out = _op(graph, aten.add.Tensor, product, bias)
+            _replace(graph, node, out, "addmm", self.rewritten)
         for node in list(graph.find_nodes(op="call_function", target=aten.mm.default)):
             a, b = node.args
             if not _rewritable(node, a, b):
@@ -69,47 +156,16 @@ class SplitThinProducts(CustomGraphPass):
             (m, k), n = _meta(a).shape, _meta(b).shape[1]
             with graph.inserting_before(node):
                 if n == 1:  # (m, k) @ (k, 1): one dot product per row
-                    rows = self._op(graph, aten.mul.Tensor, a, self._op(graph, aten.permute.default, b, [1, 0]))
-                    out, kind = self._op(graph, aten.sum.dim_IntList, rows, [1], True), "dot_rows"
+                    rows = _op(graph, aten.mul.Tensor, a, _op(graph, aten.permute.default, b, [1, 0]))
+                    out, kind = _op(graph, aten.sum.dim_IntList, rows, [1], True), "dot_rows"
                 elif k == 1:  # (m, 1) @ (1, n): an outer product
-                    out, kind = self._op(graph, aten.mul.Tensor, a, b), "outer"
+                    out, kind = _op(graph, aten.mul.Tensor, a, b), "outer"
                 elif m == 1:  # (1, k) @ (k, n): a weighted sum of the rows of b
-                    cols = self._op(graph, aten.mul.Tensor, self._op(graph, aten.permute.default, a, [1, 0]), b)
-                    out, kind = self._op(graph, aten.sum.dim_IntList, cols, [0], True), "sum_rows"
+                    cols = _op(graph, aten.mul.Tensor, _op(graph, aten.permute.default, a, [1, 0]), b)
+                    out, kind = _op(graph, aten.sum.dim_IntList, cols, [0], True), "sum_rows"
                 else:
                     continue
-            self._replace(graph, node, out, kind)
-
-    @staticmethod
-    def _op(graph: torch.fx.Graph, target, *args):
-        """A new node ``target(*args)`` with its fake value (shape, dtype, device) computed as inductor expects."""
-        node = graph.call_function(target, args)
-        vals = [_meta(a) for a in args]
-        fake_mode = next(v.fake_mode for v in vals if isinstance(v, torch.Tensor))
-        with fake_mode:
-            node.meta["val"] = target(*vals)
-        return node
-
-    def _replace(self, graph: torch.fx.Graph, old: torch.fx.Node, new: torch.fx.Node, kind: str) -> None:
-        was, now = _meta(old), _meta(new)
-        if tuple(was.shape) != tuple(now.shape) or was.dtype != now.dtype:  # e.g. a bias of another dtype
-            self._drop_unused(graph, new)
-            return
-        old.replace_all_uses_with(new)
-        graph.erase_node(old)
-        self.rewritten[kind] += 1
-
-    @staticmethod
-    def _drop_unused(graph: torch.fx.Graph, node: torch.fx.Node) -> None:
-        """Erase ``node`` and the new nodes feeding only it (a rewrite that was not taken)."""
-        todo = [node]
-        while todo:
-            n = todo.pop()
-            if n.users or n.op != "call_function":
-                continue
-            inputs = [a for a in n.args if isinstance(a, torch.fx.Node)]
-            graph.erase_node(n)
-            todo.extend(inputs)
+            _replace(graph, node, out, kind, self.rewritten)
 
 
-__all__ = ["SplitThinProducts"]
+__all__ = ["SplitThinProducts", "UnitProductLoops"]

@@ -80,13 +80,11 @@ def _adam_moments(model):
 
 
 def test_compiled_updates_match_eager_updates(fresh_dynamo):
-    """``compile_updates`` computes the same SAC update as the eager code (autograd + torch.optim.Adam): with
-    inductor drawing its random numbers as eager torch does (``fallback_random``), the weights, the temperature
-    and the optimizers' moments after three updates agree to float32 rounding, and the logged statistics too;
-    the parameters require grad again afterwards. Compiles one function (tens of seconds on the 2-core CI
-    machine)."""
-    from torch._inductor import config as inductor_config
-
+    """``compile_updates`` computes the same SAC update as the eager code (autograd + torch.optim.Adam): the
+    policy's noise is drawn from torch's generator in the eager order (a ~ pi(s), then the TD target's a'), so
+    from the same seed the weights, the temperature and the optimizers' moments after three updates agree to
+    float32 rounding, and the logged statistics too; the parameters require grad again afterwards. Compiles one
+    function (tens of seconds on the 2-core CI machine)."""
     eager, compiled = _twin_models()
     apply_speed_settings(compiled, SpeedSettings(compile=True))
     assert compiled.compile_updates and not eager.compile_updates
@@ -95,8 +93,7 @@ def test_compiled_updates_match_eager_updates(fresh_dynamo):
     for model in (eager, compiled):
         torch.manual_seed(7)
         np.random.seed(7)
-        with inductor_config.patch(fallback_random=True):
-            model.train(gradient_steps=3, batch_size=64)
+        model.train(gradient_steps=3, batch_size=64)
         logs.append(dict(model.logger.name_to_value))
     assert compiled._compiled_fns is not None and eager._compiled_fns is None
     pe, pc = _params(eager), _params(compiled)
@@ -120,8 +117,6 @@ def test_compiled_updates_match_eager_updates(fresh_dynamo):
 def test_compiled_updates_with_a_fixed_temperature(fresh_dynamo):
     """A fixed entropy coefficient (SB3's ``ent_coef=<float>``: no temperature optimizer) goes through the compiled
     update too: same weights as eager, the coefficient unchanged, no temperature loss logged."""
-    from torch._inductor import config as inductor_config
-
     models = _twin_models()
     for model in models:
         model.ent_coef_optimizer = None
@@ -131,8 +126,7 @@ def test_compiled_updates_with_a_fixed_temperature(fresh_dynamo):
     for model in models:
         torch.manual_seed(7)
         np.random.seed(7)
-        with inductor_config.patch(fallback_random=True):
-            model.train(gradient_steps=2, batch_size=64)
+        model.train(gradient_steps=2, batch_size=64)
     torch.testing.assert_close(_params(compiled), _params(eager), rtol=1e-4, atol=1e-5)
     assert compiled.logger.name_to_value["train/ent_coef"] == pytest.approx(0.05)
     assert "train/ent_coef_loss" not in compiled.logger.name_to_value
@@ -145,10 +139,11 @@ def test_compiled_update_is_one_graph(fresh_dynamo):
     model.compile_updates = True
     model.train(gradient_steps=0, batch_size=64)  # sets up the compiled-update state without updating
     data = model.replay_buffer.sample(64)
+    noise = torch.randn(64, *model.action_space.shape)
     lrs = [torch.tensor(1e-3)] * 3
     for p in model.policy.parameters():
         p.requires_grad_(False)
-    explanation = torch._dynamo.explain(model._fused_update)(data, *lrs)
+    explanation = torch._dynamo.explain(model._fused_update)(data, noise, torch.randn_like(noise), *lrs)
     assert explanation.graph_count == 1 and explanation.graph_break_count == 0, explanation.break_reasons
 
 
@@ -181,7 +176,7 @@ def test_compiled_updates_refuse_an_adam_they_do_not_write_out():
 
 
 def test_compiled_updates_are_reproducible(fresh_dynamo):
-    """With inductor's own random numbers (the default), the same seed gives the same compiled updates."""
+    """The same seed gives the same compiled updates, bit for bit."""
     runs = []
     for model in _twin_models():
         apply_speed_settings(model, SpeedSettings(compile=True))
@@ -466,3 +461,69 @@ def test_split_products_without_compile_is_refused(tmp_path, capsys):
     assert not (tmp_path / "cli").exists()
     with pytest.raises(ValueError, match="needs compile=True"):
         SpeedSettings(bf16=True, split_products=True)
+
+
+@pytest.mark.parametrize("bf16", [False, True])
+def test_unit_product_loops_rewrite_and_keep_the_precision(fresh_dynamo, bf16):
+    """``UnitProductLoops`` (policies/compile_passes.py, part of ``--compile``) turns the bfloat16 products with a
+    unit dimension of a critic's loss and gradients into float32 loops rounded once, leaves the wide products and
+    float32 alone, and is as close to the float32 gradients as the library's bfloat16 products are."""
+    from policies.compile_passes import UnitProductLoops
+
+    gen = torch.Generator().manual_seed(0)
+    params = {"w1": torch.randn(32, 12, generator=gen) / 4, "b1": torch.randn(32, generator=gen),
+              "w2": torch.randn(1, 32, generator=gen) / 4, "b2": torch.randn(1, generator=gen)}
+    x = torch.randn(256, 12, generator=gen)
+
+    def grads(p, x, use_bf16=bf16):
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=use_bf16):
+            return torch.func.grad_and_value(lambda q: _critic_like(x, q))(p)
+
+    loops = UnitProductLoops()
+    compiled = torch.compile(grads, dynamic=False, options={"post_grad_custom_post_pass": loops,
+                                                              "fx_graph_cache": False})
+    (g_c, loss_c), (g_e, loss_e) = compiled(params, x), grads(params, x)
+    if bf16:  # forward: the output layer (dot + bias); backward: its input gradient and its weight gradient
+        assert loops.rewritten == {"dot_bias": 1, "outer": 1, "sum_rows": 1}
+    else:
+        assert not loops.rewritten
+    tol = {"rtol": 2e-2, "atol": 2e-2} if bf16 else {"rtol": 1e-5, "atol": 1e-6}
+    torch.testing.assert_close(loss_c, loss_e, **tol)
+    g_ref, _ = grads(params, x, use_bf16=False)
+    for k in params:
+        torch.testing.assert_close(g_c[k], g_e[k], **tol)
+        if bf16:  # no less precise than the eager bfloat16 gradient (one rounding, like the library)
+            err_c = (g_c[k] - g_ref[k]).norm() / g_ref[k].norm()
+            err_e = (g_e[k] - g_ref[k]).norm() / g_ref[k].norm()
+            assert err_c <= 1.5 * err_e + 1e-3, (k, float(err_c), float(err_e))
+
+
+def test_replay_samples_are_sb3s():
+    """``RodSAC._sample_replay`` draws the same random numbers and returns the same batch (values, dtypes,
+    shapes) as SB3's ``ReplayBuffer.sample``, also from a buffer that has wrapped around and with time-outs
+    that cancel a done; buffers it does not handle go to SB3's method."""
+    model = _model()
+    rb = model.replay_buffer
+    rng = np.random.default_rng(1)
+    n_envs = rb.n_envs
+    for _ in range(rb.buffer_size + 7):  # wraps around
+        obs = rng.standard_normal((n_envs, *rb.obs_shape)).astype(np.float32)
+        done = rng.random(n_envs) < 0.2
+        infos = [{"TimeLimit.truncated": bool(t)} for t in rng.random(n_envs) < 0.5]
+        rb.add(obs, obs + 1, rng.uniform(-1, 1, (n_envs, rb.action_dim)).astype(np.float32),
+               rng.standard_normal(n_envs).astype(np.float32), done, infos)
+    assert rb.full and rb.timeouts.any() and (rb.dones * rb.timeouts).any()
+    for seed in range(3):
+        np.random.seed(seed)
+        ref = rb.sample(64)
+        state_ref = np.random.get_state()[1].copy()
+        np.random.seed(seed)
+        got = model._sample_replay(64)
+        assert np.array_equal(np.random.get_state()[1], state_ref)  # the same draws, no more
+        for field, a, b in zip(ref._fields, ref, got):
+            assert (a is None and b is None) or (a.dtype == b.dtype and a.shape == b.shape and torch.equal(a, b)), field
+    rb.optimize_memory_usage = True  # SB3's own sampling for a buffer that shares observation storage
+    np.random.seed(0)
+    ref = rb.sample(64)
+    np.random.seed(0)
+    assert torch.equal(model._sample_replay(64).observations, ref.observations)
