@@ -21,8 +21,9 @@ What SB3's ``SAC`` lacks and how it is added here (nothing else is changed):
 * **Compiled updates** (``RodSAC.compile_updates``, ``rodlab train --compile``): each update is one call of
   ``_fused_update`` through ``torch.compile``: the same loss methods as the eager updates, gradients by
   ``torch.func.grad_and_value`` and the Adam steps written out on the optimizers' own state (docs/training.md);
-  with ``compile_split_products`` inductor compiles it with the graph pass ``SplitThinProducts``
-  (policies/compile_passes.py).
+  inductor compiles it with the graph pass ``UnitProductLoops``, or ``SplitThinProducts`` with
+  ``compile_split_products`` (policies/compile_passes.py). The policy noise is drawn eagerly and passed in.
+* **Replay batches** (``_sample_replay``): SB3's sampling draws and batch, gathered in one pass per field.
 * **Timing**: ``last_update_time`` [s] of the most recent ``train()`` call, for logging/benchmarks.
 
 Policy-only files (``save_policy`` / ``load_policy``) are a small zip holding ``meta.json`` (task id,

@@ -7,8 +7,8 @@ Nothing here is used by ``rodlab train`` by default; each setting must first be 
 
 * ``compile``: ``RodSAC.compile_updates`` (also ``rodlab train --compile``): each SAC update (losses, their
   gradients, the Adam steps) runs as one ``torch.compile``d function; the target update stays eager. Needs a C++
-  compiler for the CPU inductor back-end. ``split_products=True`` compiles it with the graph pass
-  ``SplitThinProducts`` (policies/compile_passes.py; ``rodlab train --split-products``).
+  compiler for the CPU inductor back-end. It is compiled with the graph pass ``UnitProductLoops``, or with
+  ``split_products=True`` ``SplitThinProducts`` (policies/compile_passes.py; ``rodlab train --split-products``).
 * ``bf16``: ``RodSAC.bf16_updates``: each forward pass of the updates runs under
   ``torch.autocast("cpu", dtype=torch.bfloat16)``, with the hidden 256x256 products in bfloat16 and the input
   and output layers, LayerNorms and losses in float32 (policies/sac.py).
