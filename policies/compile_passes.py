@@ -42,34 +42,49 @@ def _rewritable(*nodes) -> bool:
                for v in vals)
 
 
-class UnitProductLoops(CustomGraphPass):
-    """Post-grad pass: bfloat16 products with a unit dimension -> float32 loops rounded once (``addmm`` with one
-    output column -> a dot product plus the bias). ``rewritten`` counts the nodes replaced by the last call
-    (``dot_bias``, ``dot_rows``, ``outer``, ``sum_rows``)."""
+class _ProductPass(CustomGraphPass):
+    """What the passes share: the count of rewrites, the cache key, the products they may rewrite."""
 
     def __init__(self) -> None:
         self.rewritten: Counter = Counter()
 
     def uuid(self):
-        return get_hash_for_files((__file__,))
+        # inductor's cache keys the compiled graph on this: one key per pass and per version of this file
+        return get_hash_for_files((__file__,)) + type(self).__name__.encode()
+
+    @staticmethod
+    def _biased_products(graph: torch.fx.Graph):
+        """(node, bias, x, w) of each plain ``addmm`` computing in a 16-bit float type on the CPU."""
+        for node in list(graph.find_nodes(op="call_function", target=aten.addmm.default)):
+            bias, x, w = node.args[:3]
+            if node.kwargs.get("beta", 1) == 1 and node.kwargs.get("alpha", 1) == 1 and _rewritable(node, x, w):
+                yield node, bias, x, w
+
+    @staticmethod
+    def _products(graph: torch.fx.Graph):
+        """(node, a, b, (m, k, n)) of each ``mm`` computing in a 16-bit float type on the CPU."""
+        for node in list(graph.find_nodes(op="call_function", target=aten.mm.default)):
+            a, b = node.args
+            if _rewritable(node, a, b):
+                yield node, a, b, (*_meta(a).shape, _meta(b).shape[1])
+
+
+class UnitProductLoops(_ProductPass):
+    """Post-grad pass: bfloat16 products with a unit dimension -> float32 loops rounded once (``addmm`` with one
+    output column -> a dot product plus the bias). ``rewritten`` counts the nodes replaced by the last call
+    (``dot_bias``, ``dot_rows``, ``outer``, ``sum_rows``)."""
 
     def __call__(self, graph: torch.fx.Graph) -> None:
         self.rewritten = Counter()
-        for node in list(graph.find_nodes(op="call_function", target=aten.addmm.default)):
-            bias, x, w = node.args[:3]
-            if (node.kwargs.get("beta", 1) != 1 or node.kwargs.get("alpha", 1) != 1 or not _rewritable(node, x, w)
-                    or _meta(w).shape[1] != 1):
+        for node, bias, x, w in self._biased_products(graph):
+            if _meta(w).shape[1] != 1:
                 continue
             with graph.inserting_before(node):
                 dots = _dot_rows(graph, x, w)
                 out = _cast(graph, _op(graph, aten.add.Tensor, dots, _cast(graph, bias, torch.float32)),
                             _meta(node).dtype)
             _replace(graph, node, out, "dot_bias", self.rewritten)
-        for node in list(graph.find_nodes(op="call_function", target=aten.mm.default)):
-            a, b = node.args
-            if not _rewritable(node, a, b):
-                continue
-            (m, k), n = _meta(a).shape, _meta(b).shape[1]
+        for node, a, b, (m, k, n) in self._products(graph):
             dtype = _meta(node).dtype
             with graph.inserting_before(node):
                 if n == 1:  # (m, k) @ (k, 1): one dot product per row
@@ -129,31 +144,18 @@ def _drop_unused(graph: torch.fx.Graph, node: torch.fx.Node) -> None:
         todo.extend(inputs)
 
 
-class SplitThinProducts(CustomGraphPass):
+class SplitThinProducts(_ProductPass):
     """Post-grad pass: ``addmm`` -> ``mm`` + bias; ``mm`` with a unit dimension -> a product and a sum.
     ``rewritten`` counts the nodes replaced by the last call (``addmm``, ``dot_rows``, ``outer``, ``sum_rows``)."""
 
-    def __init__(self) -> None:
-        self.rewritten: Counter = Counter()
-
-    def uuid(self):
-        return get_hash_for_files((__file__,))
-
     def __call__(self, graph: torch.fx.Graph) -> None:
         self.rewritten = Counter()
-        for node in list(graph.find_nodes(op="call_function", target=aten.addmm.default)):
-            bias, x, w = node.args[:3]
-            if node.kwargs.get("beta", 1) != 1 or node.kwargs.get("alpha", 1) != 1 or not _rewritable(node, x, w):
-                continue
+        for node, bias, x, w in self._biased_products(graph):
             with graph.inserting_before(node):
                 product = _op(graph, aten.mm.default, x, w)
                 out = _op(graph, aten.add.Tensor, product, bias)
             _replace(graph, node, out, "addmm", self.rewritten)
-        for node in list(graph.find_nodes(op="call_function", target=aten.mm.default)):
-            a, b = node.args
-            if not _rewritable(node, a, b):
-                continue
-            (m, k), n = _meta(a).shape, _meta(b).shape[1]
+        for node, a, b, (m, k, n) in self._products(graph):
             with graph.inserting_before(node):
                 if n == 1:  # (m, k) @ (k, 1): one dot product per row
                     rows = _op(graph, aten.mul.Tensor, a, _op(graph, aten.permute.default, b, [1, 0]))

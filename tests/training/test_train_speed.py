@@ -392,6 +392,14 @@ def _critic_like(x, params):
     return ((q - 1.0) ** 2).mean()
 
 
+def _critic_like_inputs(rows: int):
+    """Weights of ``_critic_like`` (12 -> 32 -> 1) and a batch of ``rows`` inputs, from a fixed seed."""
+    gen = torch.Generator().manual_seed(0)
+    params = {"w1": torch.randn(32, 12, generator=gen) / 4, "b1": torch.randn(32, generator=gen),
+              "w2": torch.randn(1, 32, generator=gen) / 4, "b2": torch.randn(1, generator=gen)}
+    return params, torch.randn(rows, 12, generator=gen)
+
+
 @pytest.mark.parametrize("bf16", [False, True])
 def test_split_thin_products_rewrites_and_keeps_the_gradients(fresh_dynamo, bf16):
     """``SplitThinProducts`` (policies/compile_passes.py) replaces the biased and the unit-dimension bfloat16
@@ -399,10 +407,7 @@ def test_split_thin_products_rewrites_and_keeps_the_gradients(fresh_dynamo, bf16
     the eager ones (float32 to rounding, bfloat16 to its precision)."""
     from policies.compile_passes import SplitThinProducts
 
-    gen = torch.Generator().manual_seed(0)
-    params = {"w1": torch.randn(32, 12, generator=gen) / 4, "b1": torch.randn(32, generator=gen),
-              "w2": torch.randn(1, 32, generator=gen) / 4, "b2": torch.randn(1, generator=gen)}
-    x = torch.randn(64, 12, generator=gen)
+    params, x = _critic_like_inputs(64)
 
     def grads(p, x):
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
@@ -468,12 +473,9 @@ def test_unit_product_loops_rewrite_and_keep_the_precision(fresh_dynamo, bf16):
     """``UnitProductLoops`` (policies/compile_passes.py, part of ``--compile``) turns the bfloat16 products with a
     unit dimension of a critic's loss and gradients into float32 loops rounded once, leaves the wide products and
     float32 alone, and is as close to the float32 gradients as the library's bfloat16 products are."""
-    from policies.compile_passes import UnitProductLoops
+    from policies.compile_passes import SplitThinProducts, UnitProductLoops
 
-    gen = torch.Generator().manual_seed(0)
-    params = {"w1": torch.randn(32, 12, generator=gen) / 4, "b1": torch.randn(32, generator=gen),
-              "w2": torch.randn(1, 32, generator=gen) / 4, "b2": torch.randn(1, generator=gen)}
-    x = torch.randn(256, 12, generator=gen)
+    params, x = _critic_like_inputs(256)
 
     def grads(p, x, use_bf16=bf16):
         with torch.autocast("cpu", dtype=torch.bfloat16, enabled=use_bf16):
@@ -485,6 +487,8 @@ def test_unit_product_loops_rewrite_and_keep_the_precision(fresh_dynamo, bf16):
     (g_c, loss_c), (g_e, loss_e) = compiled(params, x), grads(params, x)
     if bf16:  # forward: the output layer (dot + bias); backward: its input gradient and its weight gradient
         assert loops.rewritten == {"dot_bias": 1, "outer": 1, "sum_rows": 1}
+        # the two passes give inductor's cache different keys (a graph compiled with one is never the other's)
+        assert loops.uuid() != SplitThinProducts().uuid() and loops.uuid() == UnitProductLoops().uuid()
     else:
         assert not loops.rewritten
     tol = {"rtol": 2e-2, "atol": 2e-2} if bf16 else {"rtol": 1e-5, "atol": 1e-6}
