@@ -68,6 +68,26 @@ class _ProductPass(CustomGraphPass):
             if _rewritable(node, a, b):
                 yield node, a, b, (*_meta(a).shape, _meta(b).shape[1])
 
+    def _rewrite_unit_products(self, graph: torch.fx.Graph, *, upcast: bool) -> None:
+        """Replace each 16-bit ``mm`` with a unit dimension by a product and a sum (``dot_rows``, ``outer``,
+        ``sum_rows``), counted in ``rewritten``. ``upcast``: multiply and sum in float32 and round the
+        result once (an outer product has no sum: it is one rounding either way); else in the product's own type."""
+        f = _to_float32(graph) if upcast else (lambda x: x)
+        for node, a, b, (m, k, n) in self._products(graph):
+            with graph.inserting_before(node):
+                if n == 1:  # (m, k) @ (k, 1): one dot product per row
+                    out, kind = _dot_rows(graph, a, b, f), "dot_rows"
+                elif k == 1:  # (m, 1) @ (1, n): an outer product
+                    out, kind = _op(graph, aten.mul.Tensor, a, b), "outer"
+                elif m == 1:  # (1, k) @ (k, n): a weighted sum of the rows of b
+                    cols = _op(graph, aten.mul.Tensor, f(_op(graph, aten.permute.default, a, [1, 0])), f(b))
+                    out, kind = _op(graph, aten.sum.dim_IntList, cols, [0], True), "sum_rows"
+                else:
+                    continue
+                if upcast and kind != "outer":
+                    out = _cast(graph, out, _meta(node).dtype)
+            _replace(graph, node, out, kind, self.rewritten)
+
 
 class UnitProductLoops(_ProductPass):
     """Post-grad pass: bfloat16 products with a unit dimension -> float32 loops rounded once (``addmm`` with one
@@ -80,31 +100,22 @@ class UnitProductLoops(_ProductPass):
             if _meta(w).shape[1] != 1:
                 continue
             with graph.inserting_before(node):
-                dots = _dot_rows(graph, x, w)
+                dots = _dot_rows(graph, x, w, _to_float32(graph))
                 out = _cast(graph, _op(graph, aten.add.Tensor, dots, _cast(graph, bias, torch.float32)),
                             _meta(node).dtype)
             _replace(graph, node, out, "dot_bias", self.rewritten)
-        for node, a, b, (m, k, n) in self._products(graph):
-            dtype = _meta(node).dtype
-            with graph.inserting_before(node):
-                if n == 1:  # (m, k) @ (k, 1): one dot product per row
-                    out, kind = _cast(graph, _dot_rows(graph, a, b), dtype), "dot_rows"
-                elif k == 1:  # (m, 1) @ (1, n): an outer product, one rounding either way
-                    out, kind = _op(graph, aten.mul.Tensor, a, b), "outer"
-                elif m == 1:  # (1, k) @ (k, n): a weighted sum of the rows of b
-                    cols = _op(graph, aten.mul.Tensor, _cast(graph, _op(graph, aten.permute.default, a, [1, 0]),
-                                                              torch.float32), _cast(graph, b, torch.float32))
-                    out, kind = _cast(graph, _op(graph, aten.sum.dim_IntList, cols, [0], True), dtype), "sum_rows"
-                else:
-                    continue
-            _replace(graph, node, out, kind, self.rewritten)
+        self._rewrite_unit_products(graph, upcast=True)
 
 
-def _dot_rows(graph: torch.fx.Graph, x, w):
-    """float32 ``(x * w^T).sum(1, keepdim)`` for a (k, 1) ``w``."""
-    wt = _cast(graph, _op(graph, aten.permute.default, w, [1, 0]), torch.float32)
-    rows = _op(graph, aten.mul.Tensor, _cast(graph, x, torch.float32), wt)
+def _dot_rows(graph: torch.fx.Graph, x, w, f):
+    """``(f(x) * f(w^T)).sum(1, keepdim)`` for a (k, 1) ``w``; ``f`` casts the factors (or leaves them)."""
+    wt = f(_op(graph, aten.permute.default, w, [1, 0]))
+    rows = _op(graph, aten.mul.Tensor, f(x), wt)
     return _op(graph, aten.sum.dim_IntList, rows, [1], True)
+
+
+def _to_float32(graph: torch.fx.Graph):
+    return lambda x: _cast(graph, x, torch.float32)
 
 
 def _cast(graph: torch.fx.Graph, x, dtype: torch.dtype):
@@ -155,19 +166,7 @@ class SplitThinProducts(_ProductPass):
                 product = _op(graph, aten.mm.default, x, w)
                 out = _op(graph, aten.add.Tensor, product, bias)
             _replace(graph, node, out, "addmm", self.rewritten)
-        for node, a, b, (m, k, n) in self._products(graph):
-            with graph.inserting_before(node):
-                if n == 1:  # (m, k) @ (k, 1): one dot product per row
-                    rows = _op(graph, aten.mul.Tensor, a, _op(graph, aten.permute.default, b, [1, 0]))
-                    out, kind = _op(graph, aten.sum.dim_IntList, rows, [1], True), "dot_rows"
-                elif k == 1:  # (m, 1) @ (1, n): an outer product
-                    out, kind = _op(graph, aten.mul.Tensor, a, b), "outer"
-                elif m == 1:  # (1, k) @ (k, n): a weighted sum of the rows of b
-                    cols = _op(graph, aten.mul.Tensor, _op(graph, aten.permute.default, a, [1, 0]), b)
-                    out, kind = _op(graph, aten.sum.dim_IntList, cols, [0], True), "sum_rows"
-                else:
-                    continue
-            _replace(graph, node, out, kind, self.rewritten)
+        self._rewrite_unit_products(graph, upcast=False)
 
 
 __all__ = ["SplitThinProducts", "UnitProductLoops"]

@@ -400,6 +400,21 @@ def _critic_like_inputs(rows: int):
     return params, torch.randn(rows, 12, generator=gen)
 
 
+def _critic_grads(bf16: bool):
+    """(params, x) -> (gradients, loss) of ``_critic_like``, under bfloat16 autocast when ``bf16``."""
+    def grads(p, x):
+        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
+            return torch.func.grad_and_value(lambda q: _critic_like(x, q))(p)
+
+    return grads
+
+
+def _compiled_with(fn, graph_pass):
+    """``fn`` compiled with ``graph_pass`` as inductor's post-grad pass (not served from inductor's cache)."""
+    return torch.compile(fn, dynamic=False, options={"post_grad_custom_post_pass": graph_pass,
+                                                     "fx_graph_cache": False})
+
+
 @pytest.mark.parametrize("bf16", [False, True])
 def test_split_thin_products_rewrites_and_keeps_the_gradients(fresh_dynamo, bf16):
     """``SplitThinProducts`` (policies/compile_passes.py) replaces the biased and the unit-dimension bfloat16
@@ -408,15 +423,8 @@ def test_split_thin_products_rewrites_and_keeps_the_gradients(fresh_dynamo, bf16
     from policies.compile_passes import SplitThinProducts
 
     params, x = _critic_like_inputs(64)
-
-    def grads(p, x):
-        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
-            return torch.func.grad_and_value(lambda q: _critic_like(x, q))(p)
-
-    split = SplitThinProducts()
-    compiled = torch.compile(grads, dynamic=False, options={"post_grad_custom_post_pass": split,
-                                                              "fx_graph_cache": False})
-    (g_c, loss_c), (g_e, loss_e) = compiled(params, x), grads(params, x)
+    grads, split = _critic_grads(bf16), SplitThinProducts()
+    (g_c, loss_c), (g_e, loss_e) = _compiled_with(grads, split)(params, x), grads(params, x)
     # bfloat16 forward: 2 biased products; backward: the output layer's input gradient (outer) and weight gradient
     # (column sum), the one-column output (a dot product per row)
     if bf16:
@@ -476,15 +484,8 @@ def test_unit_product_loops_rewrite_and_keep_the_precision(fresh_dynamo, bf16):
     from policies.compile_passes import SplitThinProducts, UnitProductLoops
 
     params, x = _critic_like_inputs(256)
-
-    def grads(p, x, use_bf16=bf16):
-        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=use_bf16):
-            return torch.func.grad_and_value(lambda q: _critic_like(x, q))(p)
-
-    loops = UnitProductLoops()
-    compiled = torch.compile(grads, dynamic=False, options={"post_grad_custom_post_pass": loops,
-                                                              "fx_graph_cache": False})
-    (g_c, loss_c), (g_e, loss_e) = compiled(params, x), grads(params, x)
+    grads, loops = _critic_grads(bf16), UnitProductLoops()
+    (g_c, loss_c), (g_e, loss_e) = _compiled_with(grads, loops)(params, x), grads(params, x)
     if bf16:  # forward: the output layer (dot + bias); backward: its input gradient and its weight gradient
         assert loops.rewritten == {"dot_bias": 1, "outer": 1, "sum_rows": 1}
         # the two passes give inductor's cache different keys (a graph compiled with one is never the other's)
@@ -493,7 +494,7 @@ def test_unit_product_loops_rewrite_and_keep_the_precision(fresh_dynamo, bf16):
         assert not loops.rewritten
     tol = {"rtol": 2e-2, "atol": 2e-2} if bf16 else {"rtol": 1e-5, "atol": 1e-6}
     torch.testing.assert_close(loss_c, loss_e, **tol)
-    g_ref, _ = grads(params, x, use_bf16=False)
+    g_ref, _ = _critic_grads(False)(params, x)
     for k in params:
         torch.testing.assert_close(g_c[k], g_e[k], **tol)
         if bf16:  # no less precise than the eager bfloat16 gradient (one rounding, like the library)
