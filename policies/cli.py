@@ -91,8 +91,9 @@ def train_main(argv: list[str]) -> int:
                    help="run each SAC update (losses, gradients, Adam steps) as one torch.compile-d function (needs "
                         "a C++ compiler; about a minute of compiling at the start; BENCHMARKS.md §6)")
     p.add_argument("--split-products", action="store_true",
-                   help="with --compile --bf16: bfloat16 products with a bias or a unit dimension as fused loops "
-                        "(faster updates, but runs with it learned more slowly: BENCHMARKS.md §6)")
+                   help="with --compile --bf16: also the bfloat16 products with a bias as a product plus an addition "
+                        "(rounded before the bias), beside the unit-dimension loops of --compile (runs with it "
+                        "learned more slowly: BENCHMARKS.md §6)")
     p.add_argument("--log-interval", type=float, default=d.log_interval_s, help="seconds between log lines")
     p.add_argument("--device", default=d.device,
                    help="torch device of the SAC networks and replay sampling: cpu (default), cuda or cuda:N; the "

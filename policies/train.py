@@ -83,8 +83,9 @@ class Args:
                                             # or all (every layer in bfloat16); policies/sac.py BF16_LAYOUTS
     compile_updates: bool = False           # each update one torch.compile-d function (docs/training.md,
                                             # "Compiled updates"; needs a C++ compiler)
-    compile_split_products: bool = False    # with compile_updates: the graph pass of policies/compile_passes.py
-                                            # (faster, but learned more slowly: BENCHMARKS.md §6)
+    compile_split_products: bool = False    # with compile_updates: the pass SplitThinProducts instead of
+                                            # UnitProductLoops (policies/compile_passes.py; learned more slowly:
+                                            # BENCHMARKS.md §6)
     # runtime
     torch_threads: int = 1
     checkpoint_minutes: float = 5.0
