@@ -191,16 +191,28 @@ class SceneView:
             self.follow(fr.tip)
 
     def follow(self, tip) -> None:
-        """Every page's camera looks at ``tip``, keeping its offset from the look-at point."""
+        """Every page's camera looks at ``tip``, keeping its offset from the look-at point.
+
+        The page reports its camera on its own schedule while the server moves it, so the offset is read from one
+        report (position read on both sides of the look-at; a report arriving in between skips that page for this
+        frame) and both new values are set explicitly in one atomic message group: the page applies them in the same
+        frame, so it never draws, nor reports back, a camera with the new position and the old look-at, which would
+        change the kept offset for good."""
         tip = np.asarray(tip, np.float64)
         if not np.all(np.isfinite(tip)):
             return
         for client in self.server.get_clients().values():
             cam = client.camera
             try:
-                delta = tip - np.asarray(cam.look_at)
-                if float(np.abs(delta).max()) > 1e-6:
-                    cam.position = np.asarray(cam.position) + delta  # viser moves the look-at point with it
+                pos = np.array(cam.position, np.float64)
+                look = np.array(cam.look_at, np.float64)
+                if not np.array_equal(pos, np.asarray(cam.position)):
+                    continue  # a report arrived between the two reads
+                if float(np.abs(tip - look).max()) <= 1e-6:
+                    continue
+                with client.atomic():
+                    cam.position = tip + (pos - look)  # viser shifts the look-at with it...
+                    cam.look_at = tip  # ...and this states it exactly, whatever it read meanwhile
             except (AssertionError, ValueError):  # the page has not reported its camera yet
                 continue
 
