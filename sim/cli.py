@@ -41,7 +41,7 @@ def sim_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--every", type=int, default=1, help="record every K-th step (default 1)")
     ap.add_argument("--out", help="write time, node_pos (frames, envs, nodes of all rods, 3), edge_theta, "
                                   "newton_iters, converged, max_penetration, contact_count, contact_force (and "
-                                  "per-contact rows), rod_node_offsets (where each rod's nodes start, then the "
+                                  "per-contact rows: obstacle contacts and edge pairs), rod_node_offsets (where each rod's nodes start, then the "
                                   "total) and rod_names to this .npz; its folder is checked for writing before the "
                                   "simulation starts")
     add_progress_flag(ap)
@@ -89,12 +89,12 @@ def sim_main(argv: list[str] | None = None) -> int:
         print(warn, file=sys.stderr)
     state = sim.reset()
     ctrl = sim.make_control()
-    sim.step(state.copy(), ctrl)  # compile / load kernels outside the timing
+    first = sim.step(state.copy(), ctrl)  # compile / load kernels outside the timing
     t_ready = time.perf_counter() - t0
     frames: dict[str, list] = {"time": [], "node_pos": [], "edge_theta": [], "newton_iters": [], "converged": [],
                                "max_penetration": [], "contact_count": [], "contact_force": []}
-    crow = ("contact_edge", "contact_obstacle", "contact_rod_point", "contact_normal", "contact_normal_force",
-            "contact_friction_force", "contact_gap") if sim.model.obstacles.count else ()
+    crow = ("contact_edge", "contact_obstacle", "contact_partner_edge", "contact_rod_point", "contact_normal",
+            "contact_normal_force", "contact_friction_force", "contact_gap") if first.contact_edge.shape[1] else ()
     for name in crow:
         frames[name] = []
     it_sum, it_max = 0, 0

@@ -37,7 +37,7 @@ from .geometry_distance import closest_seg_seg, vcross, vdot, vlerp, vsub
 from .solve_params import _OPT_CONTACT
 
 __all__ = ["allowed_pairs", "model_pairs", "edge_rods", "seg_seg_derivs", "rod_pairs_broadphase", "rod_pairs_refresh", "rod_pairs_accumulate",
-           "rod_pairs_min_gap", "rod_pairs_energy", "reset_coupling", "rod_pairs_step_limit", "dense_lu_solve"]
+           "rod_pairs_min_gap", "rod_pairs_energy", "rod_pairs_report", "reset_coupling", "rod_pairs_step_limit", "dense_lu_solve"]
 
 _EPS_PARAM = 1e-9  # a closest-point parameter this close to 0 or 1 counts as at the segment's end
 
@@ -322,6 +322,41 @@ def reset_coupling(wb_slot, wb_dof, wb_n, wb_M):
     wb_n[0] = 0
 
 
+@njit(inline="always", **_OPT_CONTACT)
+def _pair_slip(x, x_prev, dt, nodes, cw, nhat, mu, nu, lam):
+    """Friction of a pair in touch (lagged n̂, s, t): (γ, γ', |v_t|, t̂) of the contact points' relative tangential
+    velocity ``v = Σ c_k (x_k − x_prev_k)/dt``; γ = 0 (no friction) for μ = 0, no normal force or no slip."""
+    gam = 0.0
+    dgam = 0.0
+    vtn = 0.0
+    tv0 = 0.0
+    tv1 = 0.0
+    tv2 = 0.0
+    if mu > 0.0 and lam > 0.0:
+        v0 = 0.0
+        v1 = 0.0
+        v2 = 0.0
+        for q in range(4):
+            nd = nodes[q]
+            v0 += cw[q] * (x[nd, 0] - x_prev[nd, 0])
+            v1 += cw[q] * (x[nd, 1] - x_prev[nd, 1])
+            v2 += cw[q] * (x[nd, 2] - x_prev[nd, 2])
+        v0 /= dt
+        v1 /= dt
+        v2 /= dt
+        vn = v0 * nhat[0] + v1 * nhat[1] + v2 * nhat[2]
+        v0 -= vn * nhat[0]
+        v1 -= vn * nhat[1]
+        v2 -= vn * nhat[2]
+        vtn = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+        if vtn > 1e-15:
+            tv0 = v0 / vtn
+            tv1 = v1 / vtn
+            tv2 = v2 / vtn
+            gam, dgam = coulomb_factor(vtn, nu)
+    return gam, dgam, vtn, (tv0, tv1, tv2)
+
+
 @njit(**_OPT_CONTACT)
 def rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, dpn, fixed, radius, k, delta, mu, nu, f, ab, kl, sym,
                          with_jac, wb_slot, wb_dof, wb_n, wb_M, g12, H12, nhat, ws):
@@ -343,37 +378,8 @@ def rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, dpn, fixed, radius, 
         energy += E
         cw = (1.0 - s, s, -(1.0 - t), -t)
         nodes = (i, i + 1, j, j + 1)
-        # friction (lagged n̂, s, t): relative velocity of the two contact points
-        gam = 0.0
-        dgam = 0.0
-        vtn = 0.0
-        tv0 = 0.0
-        tv1 = 0.0
-        tv2 = 0.0
         lam = -dE
-        if mu > 0.0 and lam > 0.0:
-            v0 = 0.0
-            v1 = 0.0
-            v2 = 0.0
-            for q in range(4):
-                nd = nodes[q]
-                v0 += cw[q] * (x[nd, 0] - x_prev[nd, 0])
-                v1 += cw[q] * (x[nd, 1] - x_prev[nd, 1])
-                v2 += cw[q] * (x[nd, 2] - x_prev[nd, 2])
-            v0 /= dt
-            v1 /= dt
-            v2 /= dt
-            vn = v0 * nhat[0] + v1 * nhat[1] + v2 * nhat[2]
-            v0 -= vn * nhat[0]
-            v1 -= vn * nhat[1]
-            v2 -= vn * nhat[2]
-            vtn = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-            if vtn > 1e-15:
-                tv0 = v0 / vtn
-                tv1 = v1 / vtn
-                tv2 = v2 / vtn
-                gam, dgam = coulomb_factor(vtn, nu)
-        tv = (tv0, tv1, tv2)
+        gam, dgam, vtn, tv = _pair_slip(x, x_prev, dt, nodes, cw, nhat, mu, nu, lam)
         cf = mu * lam * gam
         for q in range(4):
             for a in range(3):
@@ -435,6 +441,74 @@ def rod_pairs_energy(pairs, cand, ncand, x, radius, k, delta):
         if gap < delta:
             energy += imc_energy(gap, k, delta)[0]
     return energy
+
+
+@njit(**_OPT_CONTACT)
+def rod_pairs_report(e, pairs, cand, ncand, x, x_prev, dt, radius, k, delta, mu, nu, g12, H12, nhat, ws,
+                     out_count, out_edge, out_obstacle, out_partner, out_rod_point, out_obstacle_point, out_normal,
+                     out_normal_force, out_friction_force, out_gap):
+    """The candidate pairs at the state kept, in one pass: returns their IMC energy [J] (no friction) and smallest
+    gap [m] (+inf without candidates), and appends env ``e``'s pairs in touch (gap < δ) to its contact rows after
+    the ``out_count[e]`` obstacle rows, up to the capacity C: two rows per pair, one for each edge, each the force
+    *on* that edge. Row of edge i against edge j: edge i, obstacle −1, partner j, rod point on i's centre line,
+    "obstacle point" the closest point on j's surface, unit normal from j to i, normal force λ = −E'(g) [N],
+    friction force on i [N], gap g [m]; edge j's row mirrors it (normal and friction reversed), so each pair's two
+    rows sum to zero. The obstacle rows' partner entries are set to −1. Velocities (x − x_prev)/dt."""
+    cap = out_gap.shape[1]
+    rc = out_count[e]
+    for r in range(rc):
+        out_partner[e, r] = -1
+    energy = 0.0
+    smallest = np.inf
+    for m in range(ncand[0]):
+        i = pairs[cand[m], 0]
+        j = pairs[cand[m], 1]
+        ri = _edge_radius(radius, i)
+        rj = _edge_radius(radius, j)
+        a = _row3(x, i)
+        b = _row3(x, i + 1)
+        p = _row3(x, j)
+        q = _row3(x, j + 1)
+        s, t = closest_seg_seg(a, b, p, q)
+        pi = vlerp(a, b, s)
+        pj = vlerp(p, q, t)
+        u = vsub(pi, pj)
+        dd = math.sqrt(vdot(u, u))
+        gap = dd - ri - rj  # as _gap
+        smallest = min(smallest, gap)
+        if gap >= delta:
+            continue
+        E, dE, _ = imc_energy(gap, k, delta)
+        energy += E
+        if rc + 2 > cap:
+            continue
+        e1 = vsub(b, a)
+        e2 = vsub(q, p)
+        if dd > 1e-12 * max(math.sqrt(vdot(e1, e1)), math.sqrt(vdot(e2, e2)), 1e-300):  # as seg_seg_derivs
+            inv = 1.0 / dd
+            for c in range(3):
+                nhat[c] = u[c] * inv
+        else:  # touching centre lines: the normal the assembly uses there
+            seg_seg_derivs(a, b, p, q, g12, H12, nhat, ws)
+        lam = -dE
+        gam, _, _, tv = _pair_slip(x, x_prev, dt, (i, i + 1, j, j + 1), (1.0 - s, s, -(1.0 - t), -t), nhat, mu, nu,
+                                   lam)
+        cf = mu * lam * gam  # friction on edge i is −cf t̂ (t̂: i's slip relative to j)
+        for side in range(2):
+            sg = 1.0 if side == 0 else -1.0
+            out_edge[e, rc] = i if side == 0 else j
+            out_obstacle[e, rc] = -1
+            out_partner[e, rc] = j if side == 0 else i
+            for c in range(3):
+                out_rod_point[e, rc, c] = pi[c] if side == 0 else pj[c]
+                out_obstacle_point[e, rc, c] = pj[c] + rj * nhat[c] if side == 0 else pi[c] - ri * nhat[c]
+                out_normal[e, rc, c] = sg * nhat[c]
+                out_friction_force[e, rc, c] = -sg * cf * tv[c]
+            out_normal_force[e, rc] = lam
+            out_gap[e, rc] = gap
+            rc += 1
+    out_count[e] = rc
+    return energy, smallest
 
 
 @njit(inline="always", **_OPT_CONTACT)

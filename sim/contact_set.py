@@ -34,6 +34,7 @@ __all__ = ["ObstacleSet", "ContactData", "ContactScratch", "contact_scratch", "c
            "node_radii"]
 
 REPORT_CAPACITY = 64
+PAIR_REPORT_CAPACITY = 64  # more StepStats contact rows when edge pairs may touch: two per pair in touch
 
 ContactData = namedtuple("ContactData", [
     "kind", "p0", "p1", "rot", "radius", "half", "mesh_root", "tri", "node_lo", "node_hi", "node_child",

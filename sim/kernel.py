@@ -8,7 +8,7 @@ import numpy as np
 from numba import njit, prange
 
 from .contact_kernels import contact_accumulate, contact_broadphase, contact_report
-from .contact_rod import rod_pairs_broadphase, rod_pairs_energy, rod_pairs_min_gap
+from .contact_rod import rod_pairs_broadphase, rod_pairs_report
 from .newton import _energies, _positions, _predicted_positions, substep
 from .solve_2d import KL_2D, frames_from_2d
 from .solve_3d import KL_3D
@@ -136,6 +136,8 @@ def _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
     pos, pos0 = w.pos, w.pos0
     if prm.n_obstacles > 0 or prm.rod_pairs > 0:
         _positions(planar, xs, pos, prm.plane_y)
+        # pos0: the step start by the step's velocity (the rows' friction velocity)
+        _predicted_positions(planar, xs, us, -prm.dt, pos0, prm.plane_y)
     if prm.n_obstacles > 0:
         # candidates of the state actually kept (a guard fallback or a restored state is not the configuration
         # the last sub-step's list was built for): energy and report see every pair near it
@@ -144,9 +146,24 @@ def _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
         w.ch[:, :, :] = 0.0
         ec = contact_accumulate(e, cd, pos, pos, prm.dt, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
                                 prm.friction_nu, prm.friction_on > 0, w.cg, w.ch, rod.link)
-    if prm.rod_pairs > 0:  # edge pairs near the state kept
+        contact_report(e, cd, pos, pos0, prm.dt, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
+                       prm.friction_nu, prm.friction_on > 0, crep.count, crep.edge, crep.obstacle, crep.rod_point,
+                       crep.obstacle_point, crep.normal, crep.normal_force, crep.friction_force, crep.gap,
+                       crep.max_penetration, rod.link)
+    if prm.rod_pairs > 0:  # edge pairs near the state kept: energy, deepest gap, rows after the obstacles'
         rod_pairs_broadphase(rod.pairs, pos, pos, rod.radius, prm.contact_margin, w.rp_box, w.rp_cand, w.rp_n)
-        ec += rod_pairs_energy(rod.pairs, w.rp_cand, w.rp_n, pos, rod.radius, prm.contact_k, prm.contact_delta)
+        if prm.n_obstacles == 0:
+            crep.count[e] = 0
+        ep, smallest = rod_pairs_report(e, rod.pairs, w.rp_cand, w.rp_n, pos, pos0, prm.dt, rod.radius,
+                                        prm.contact_k, prm.contact_delta, prm.friction, prm.friction_nu, w.g12, w.H12,
+                                        w.n12, w.ws12, crep.count, crep.edge, crep.obstacle, crep.partner,
+                                        crep.rod_point, crep.obstacle_point, crep.normal, crep.normal_force,
+                                        crep.friction_force, crep.gap)
+        ec += ep
+        pen = max(0.0, -smallest)
+        if prm.n_obstacles > 0:
+            pen = max(pen, crep.max_penetration[e])
+        crep.max_penetration[e] = pen
     ek = 0.0
     eg = 0.0
     grav = rod.grav[min(e, rod.grav.shape[0] - 1)]  # external forces: (1, n) shared or (B, n) per env
@@ -159,19 +176,6 @@ def _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
     out.energy_contact[e] = ec
     out.energy_kinetic[e] = ek
     out.energy_gravity[e] = eg
-    if prm.n_obstacles > 0:  # pos0: the step start by the step's velocity (friction velocity)
-        _predicted_positions(planar, xs, us, -prm.dt, pos0, prm.plane_y)
-        contact_report(e, cd, pos, pos0, prm.dt, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
-                       prm.friction_nu, prm.friction_on > 0, crep.count, crep.edge, crep.obstacle, crep.rod_point,
-                       crep.obstacle_point, crep.normal, crep.normal_force, crep.friction_force, crep.gap,
-                       crep.max_penetration, rod.link)
-    if prm.rod_pairs > 0:  # the deepest edge pair too (the candidates of the state kept, listed above)
-        pen = 0.0
-        if w.rp_n[0] > 0:
-            pen = max(0.0, -rod_pairs_min_gap(rod.pairs, w.rp_cand, w.rp_n, pos, rod.radius))
-        if prm.n_obstacles > 0:
-            pen = max(pen, crep.max_penetration[e])
-        crep.max_penetration[e] = pen
 
 
 @njit(**_OPT)

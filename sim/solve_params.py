@@ -38,10 +38,10 @@ def params_record(p: Params) -> np.ndarray:
 
 
 # the per-env contact rows the step kernels write for StepStats (leading axis B; C = report capacity):
-# count (B,), edge/obstacle (B, C) int64, rod_point/obstacle_point/normal/friction_force (B, C, 3),
-# normal_force/gap (B, C), max_penetration (B,)
+# count (B,), edge/obstacle/partner (B, C) int64, rod_point/obstacle_point/normal/friction_force (B, C, 3),
+# normal_force/gap (B, C), max_penetration (B,); obstacle rows first, then two rows per edge pair in touch
 ContactReport = namedtuple("ContactReport", [
-    "count", "edge", "obstacle", "rod_point", "obstacle_point", "normal", "normal_force", "friction_force", "gap",
+    "count", "edge", "obstacle", "partner", "rod_point", "obstacle_point", "normal", "normal_force", "friction_force", "gap",
     "max_penetration",
 ])
 # what the step kernel writes per env for StepStats (all (B,)): the last and first residual ‖f‖ of the step,

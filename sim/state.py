@@ -106,8 +106,9 @@ class StepStats:
     newton_iters (B,) int (total over sub-steps), residual (B,) last evaluated ‖f‖ [mixed N, N·m],
     residual0 (B,) first ‖f‖ of the step, converged (B,) bool, substeps (B,) int (1 = no retry),
     failed (B,) bool (failed in this step), energy_* (B,) [J] at the end of the step, max_penetration (B,) [m]
-    (the deepest obstacle contact or edge pair), contact_* rows of the obstacle contacts (see docs/architecture.md;
-    edge pairs are not listed there: their energy is in energy_contact).
+    (the deepest obstacle contact or edge pair), contact_* rows (docs/architecture.md): the obstacle contacts, then
+    two rows per edge pair in touch (self- or rod–rod contact), one per edge with the force on it;
+    contact_obstacle is −1 on a pair row and contact_partner_edge the other edge (−1 on an obstacle row).
     """
 
     newton_iters: np.ndarray
@@ -126,6 +127,7 @@ class StepStats:
     contact_count: np.ndarray
     contact_edge: np.ndarray
     contact_obstacle: np.ndarray
+    contact_partner_edge: np.ndarray
     contact_rod_point: np.ndarray
     contact_obstacle_point: np.ndarray
     contact_normal: np.ndarray

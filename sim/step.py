@@ -11,7 +11,7 @@ from . import solve as _solve
 from . import validate as _validate
 from .boundary import window_fraction
 from .contact_rod import model_pairs
-from .contact_set import contact_data, contact_radii, contact_scratch
+from .contact_set import PAIR_REPORT_CAPACITY, contact_data, contact_radii, contact_scratch
 from .model import Model
 from .state import Control, State, StepStats
 
@@ -73,9 +73,10 @@ class Simulator:
         # work space of the contact kernels (candidate lists); the poses themselves are in State.obstacles
         self._scratch = contact_scratch(B, m.node_count, m.obstacles.count, m.edge_radius)
         self._no_obstacles = m.obstacles.for_envs(B) if m.obstacles.count == 0 else None
-        C = int(m.obstacles.report_capacity)
+        C = int(m.obstacles.report_capacity) + (PAIR_REPORT_CAPACITY if pairs.shape[0] > 0 else 0)
         self._crep = _solve.ContactReport(
             count=np.zeros(B, np.int64), edge=np.zeros((B, C), np.int64), obstacle=np.zeros((B, C), np.int64),
+            partner=np.full((B, C), -1, np.int64),
             rod_point=np.zeros((B, C, 3)), obstacle_point=np.zeros((B, C, 3)), normal=np.zeros((B, C, 3)),
             normal_force=np.zeros((B, C)), friction_force=np.zeros((B, C, 3)), gap=np.zeros((B, C)),
             max_penetration=np.zeros(B))
@@ -212,7 +213,8 @@ class Simulator:
             energy_twist=o.energy_twist.copy(), energy_contact=o.energy_contact.copy(),
             energy_kinetic=o.energy_kinetic.copy(), energy_gravity=o.energy_gravity.copy(),
             max_penetration=cr.max_penetration.copy(), contact_count=cr.count.copy(), contact_edge=cr.edge.copy(),
-            contact_obstacle=cr.obstacle.copy(), contact_rod_point=cr.rod_point.copy(),
+            contact_obstacle=cr.obstacle.copy(), contact_partner_edge=cr.partner.copy(),
+            contact_rod_point=cr.rod_point.copy(),
             contact_obstacle_point=cr.obstacle_point.copy(), contact_normal=cr.normal.copy(),
             contact_normal_force=cr.normal_force.copy(), contact_friction_force=cr.friction_force.copy(),
             contact_gap=cr.gap.copy())

@@ -349,6 +349,8 @@ class TaskProbe:
                               contact_normal_force=stats.contact_normal_force[e, :c],
                               contact_friction=stats.contact_friction_force[e, :c],
                               contact_edge=stats.contact_edge[e, :c], contact_obstacle=stats.contact_obstacle[e, :c])
+                    if getattr(stats, "contact_partner_edge", None) is not None:
+                        kw["contact_partner_edge"] = stats.contact_partner_edge[e, :c]
             if reward is not None:
                 sc["reward"] = float(reward[e])
                 sc["solver/wall_time"] = self._wall

@@ -232,7 +232,8 @@ def _read_contacts(ep: EpisodeData, ents, rows_of, nf: int, fscale: float, force
     if fr is not None and fr.batches:
         _, v = _ragged(fr.column("Arrows3D:vectors"), 3)
         ep.contact_friction = pad(v / force_scale, 3, 0.0, np.float32)
-    for name, attr in (("edge", "contact_edge"), ("obstacle", "contact_obstacle")):
+    for name, attr in (("edge", "contact_edge"), ("obstacle", "contact_obstacle"),
+                       ("partner_edge", "contact_partner_edge")):
         col = base.column(name)
         if col is not None:
             _, v = _ragged(col, 1)

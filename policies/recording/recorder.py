@@ -289,6 +289,7 @@ class Recorder:
                  sim_step: int | None = None, m1: Any = None, m2: Any = None, d1: Any = None, d2: Any = None,
                  contact_points: Any = None, contact_normals: Any = None, contact_normal_force: Any = None,
                  contact_friction: Any = None, contact_edge: Any = None, contact_obstacle: Any = None,
+                 contact_partner_edge: Any = None,
                  kappa_bar: Any = None, kappa: Any = None, tau_bar: Any = None, tau: Any = None,
                  target_pos: Any = None, target_quat: Any = None,
                  scalars: Mapping[str, float] | None = None) -> None:
@@ -297,7 +298,8 @@ class Recorder:
         node_pos (N, 3) [m] (N fixed per episode); m1, m2, d1, d2 (N-1, 3) unit directors per edge;
         contacts (C rows, C may be 0): contact_points (C, 3) [m] on the rod, contact_normals (C, 3) unit
         (obstacle -> rod), contact_normal_force (C,) [N], optional contact_friction (C, 3) [N],
-        contact_edge / contact_obstacle (C,) int; kappa_bar / kappa (N,) or (N, k<=2) integrated
+        contact_edge / contact_obstacle / contact_partner_edge (C,) int (a row of an edge pair: obstacle -1 and the
+        other edge; of an obstacle: partner -1); kappa_bar / kappa (N,) or (N, k<=2) integrated
         curvature (commanded natural / actual), tau_bar / tau (N,) integrated twist [rad];
         target_pos (3,) [m], target_quat (4,) x y z w; scalars: name -> float (see schema.STANDARD_SCALARS).
         control_step and sim_time [s] must not decrease; a frame key (control_step, sim_time, sim_step)
@@ -344,7 +346,9 @@ class Recorder:
                        None if contact_friction is None else _vec(contact_friction, "contact_friction", (c, 3)),
                        None if contact_edge is None else _vec(contact_edge, "contact_edge", (c,), np.int64),
                        None if contact_obstacle is None else _vec(contact_obstacle, "contact_obstacle", (c,),
-                                                                  np.int64))
+                                                                  np.int64),
+                       None if contact_partner_edge is None else _vec(contact_partner_edge, "contact_partner_edge",
+                                                                      (c,), np.int64))
         curv = {}
         for name, v in (("kappa_bar", kappa_bar), ("kappa", kappa)):
             if v is not None:
@@ -538,7 +542,7 @@ class Recorder:
         nrm = np.concatenate([v[1] for v in vals]).reshape(-1, 3)
         fn = np.concatenate([v[2] for v in vals]).reshape(-1)
         extra: dict[str, np.ndarray] = {"normal_force": fn.astype(np.float64)}
-        for j, name in ((4, "edge"), (5, "obstacle")):
+        for j, name in ((4, "edge"), (5, "obstacle"), (6, "partner_edge")):
             if any(v[j] is not None for v in vals):
                 extra[name] = np.concatenate([v[j] if v[j] is not None else np.full(v[0].shape[0], -1, np.int64)
                                               for v in vals])

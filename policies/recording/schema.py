@@ -25,8 +25,9 @@ Inside every recording (all positions in metres, world frame, z up):
                                     (one per edge; zero length on the joint edges between rods)
 ``world/rod/d1``, ``world/rod/d2``  same for the reference frame (optional)
 ``world/contacts``                  Points3D at the rod contact points + raw ``normal_force`` [N],
-                                    ``edge``, ``obstacle`` (AnyValues components)
-``world/contacts/normal``           Arrows3D: unit normal (obstacle -> rod) x frame_scale
+                                    ``edge``, ``obstacle``, ``partner_edge`` (AnyValues components; a row
+                                    of two touching edges: obstacle -1, partner_edge the other edge)
+``world/contacts/normal``           Arrows3D: unit normal (other body -> rod) x frame_scale
 ``world/contacts/normal_force``     Arrows3D: normal x normal force [N] x force_scale [m/N]
 ``world/contacts/friction_force``   Arrows3D: friction force [N] x force_scale
 ``world/target``                    Transform3D (translation, quaternion x y z w) per step;
@@ -197,8 +198,9 @@ class EpisodeData:
     Arrays are float32 as stored (scalars float64). ``None`` where the quantity was not logged.
     positions (S, N, 3); m1, m2, d1, d2 (S, N-1, 3); contact_count (S,) and padded contact arrays
     contact_points/contact_normals/contact_friction (S, Cmax, 3), contact_normal_force (S, Cmax),
-    contact_edge/contact_obstacle (S, Cmax) int (-1 padding); kappa_bar/kappa (S, N, k) with k = 1 or 2,
-    tau_bar/tau (S, N); target_pos (S, 3), target_quat (S, 4) x y z w; scalars: name -> (S,) float64
+    contact_edge/contact_obstacle/contact_partner_edge (S, Cmax) int (-1 padding; a row of an edge pair has
+    obstacle -1 and the other edge as partner, an obstacle's row partner -1); kappa_bar/kappa (S, N, k) with
+    k = 1 or 2, tau_bar/tau (S, N); target_pos (S, 3), target_quat (S, 4) x y z w; scalars: name -> (S,) float64
     (NaN on frames where that scalar was not logged); control_step, sim_step (S,) int64, sim_time (S,) [s].
     """
 
@@ -219,6 +221,7 @@ class EpisodeData:
     contact_friction: np.ndarray | None = None
     contact_edge: np.ndarray | None = None
     contact_obstacle: np.ndarray | None = None
+    contact_partner_edge: np.ndarray | None = None
     kappa_bar: np.ndarray | None = None
     kappa: np.ndarray | None = None
     tau_bar: np.ndarray | None = None

@@ -1,14 +1,14 @@
 """Edge–edge contact (self- and rod–rod, docs/physics.md §4.8): the segment distance's gradient and Hessian against
 finite differences in every region, the assembled residual's Jacobian (band + coupling list) against finite
-differences, the Woodbury-corrected banded solve against a dense solve, friction's direction, and which pairs may
-touch."""
+differences, the Woodbury-corrected banded solve against a dense solve, friction's direction, the StepStats rows of
+a pair against the assembled residual, and which pairs may touch."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from sim.banded import dense_to_band
-from sim.contact_rod import allowed_pairs, rod_pairs_accumulate, seg_seg_derivs
+from sim.contact_rod import allowed_pairs, rod_pairs_accumulate, rod_pairs_report, seg_seg_derivs
 from sim.kernel import alloc_workspace
 from sim.newton import _linear_solve
 
@@ -129,6 +129,49 @@ def test_pair_friction_opposes_sliding():
     _, dE_only, _ = _accumulate(x, x, mu=0.0)
     lam = np.linalg.norm(dE_only[0:3] + dE_only[4:7])
     assert np.linalg.norm(force_on_edge0) == pytest.approx(0.5 * lam, rel=1e-6)
+
+
+def _report(x, x_prev, *, mu, rows_before=0, cap=8, k=1e5, delta=2e-3, radius=0.02, dt=0.01):
+    """The contact rows of the one pair (edges 0 and 4) appended after ``rows_before`` obstacle rows."""
+    out = dict(count=np.array([rows_before]), edge=np.full((1, cap), 7), obstacle=np.full((1, cap), 3),
+               partner=np.full((1, cap), 9), rod_point=np.zeros((1, cap, 3)), other=np.zeros((1, cap, 3)),
+               normal=np.zeros((1, cap, 3)), fn=np.zeros((1, cap)), fr=np.zeros((1, cap, 3)), gap=np.zeros((1, cap)))
+    out["energy"], out["smallest_gap"] = rod_pairs_report(
+        0, np.array([[0, 4]]), np.array([0]), np.array([1]), x, x_prev, dt, np.array([radius]), k, delta, mu, 1e-2,
+        np.zeros(12), np.zeros((12, 12)), np.zeros(3), np.zeros(32), out["count"], out["edge"], out["obstacle"],
+        out["partner"], out["rod_point"], out["other"], out["normal"], out["fn"], out["fr"], out["gap"])
+    return out
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.5])
+def test_pair_rows_carry_the_assembled_contact_force(mu):
+    """Each of the pair's two rows states the force on its edge: normal force times normal plus friction equals
+    minus the residual the assembly adds on that edge's two nodes (a sliding pair, with and without friction)."""
+    x = _two_edge_chain(-1e-3)
+    x_prev = x.copy()
+    x_prev[0:2, 0] -= 0.005
+    energy, f, _ = _accumulate(x, x_prev, mu=mu)
+    out = _report(x, x_prev, mu=mu, rows_before=2)
+    assert out["count"][0] == 4
+    assert out["energy"] == energy > 0.0 and out["smallest_gap"] == out["gap"][0, 2]
+    np.testing.assert_array_equal(out["partner"][0, :2], [-1, -1])  # the obstacle rows before: no partner
+    np.testing.assert_array_equal(out["edge"][0, :2], [7, 7])  # ...and otherwise untouched
+    np.testing.assert_array_equal(out["edge"][0, 2:4], [0, 4])
+    np.testing.assert_array_equal(out["partner"][0, 2:4], [4, 0])
+    np.testing.assert_array_equal(out["obstacle"][0, 2:4], [-1, -1])
+    force = out["normal"][0, 2:4] * out["fn"][0, 2:4, None] + out["fr"][0, 2:4]
+    np.testing.assert_allclose(force[0], -(f[0:3] + f[4:7]), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(force[1], -(f[16:19] + f[20:23]), rtol=1e-12, atol=1e-12)
+    gap = out["gap"][0, 2]
+    assert gap == out["gap"][0, 3] and -2e-3 < gap < 0.0 and out["fn"][0, 2] > 0.0
+    d = out["rod_point"][0, 2] - out["rod_point"][0, 3]  # centre-line points 2r + gap apart along the normal
+    np.testing.assert_allclose(d, (0.04 + gap) * out["normal"][0, 2], atol=1e-14)
+    np.testing.assert_allclose(out["other"][0, 2], out["rod_point"][0, 3] + 0.02 * out["normal"][0, 2], atol=1e-14)
+    if mu:
+        assert np.linalg.norm(out["fr"][0, 2]) == pytest.approx(mu * out["fn"][0, 2], rel=1e-6)  # sliding
+        assert out["fr"][0, 2, 0] < 0.0  # against edge 0's motion (+x)
+    full = _report(x, x_prev, mu=mu, rows_before=7)  # a full report lists no pair, but counts its energy
+    assert full["count"][0] == 7 and full["energy"] == energy
 
 
 def test_woodbury_solve_matches_dense():

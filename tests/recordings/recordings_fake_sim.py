@@ -60,6 +60,7 @@ class FakeSim(FakeSimBase):
             energy_stretch=z + 0.1, energy_bend=z + 0.2, energy_twist=z + 0.3, energy_contact=z + 0.4,
             energy_kinetic=z + 0.5, energy_gravity=z + 0.6, max_penetration=z.copy(), contact_count=count,
             contact_edge=np.tile(np.arange(cap), (B, 1)), contact_obstacle=np.zeros((B, cap), np.int64),
+            contact_partner_edge=np.full((B, cap), -1, np.int64),
             contact_rod_point=pts, contact_obstacle_point=pts.copy(), contact_normal=nrm, contact_normal_force=fn,
             contact_friction_force=np.zeros((B, cap, 3)), contact_gap=np.zeros((B, cap)))
 

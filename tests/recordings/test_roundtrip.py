@@ -28,7 +28,8 @@ def _frame(rng, k: int, *, contacts: bool = True) -> dict:
                 d1=rng.normal(size=(N - 1, 3)), d2=rng.normal(size=(N - 1, 3)),
                 contact_points=rng.normal(size=(c, 3)), contact_normals=rng.normal(size=(c, 3)),
                 contact_normal_force=rng.random(c) * 80.0, contact_friction=rng.normal(size=(c, 3)),
-                contact_edge=rng.integers(0, N - 1, c), contact_obstacle=rng.integers(0, 3, c),
+                contact_edge=rng.integers(0, N - 1, c), contact_obstacle=rng.integers(-1, 3, c),
+                contact_partner_edge=rng.integers(-1, N - 1, c),
                 kappa_bar=rng.normal(size=(N, 2)), kappa=rng.normal(size=(N, 2)), tau_bar=rng.normal(size=N),
                 tau=rng.normal(size=N), target_pos=rng.normal(size=3), target_quat=rng.normal(size=4),
                 scalars={"reward": float(rng.normal()), "reward_terms/distance": float(rng.normal()),
@@ -51,6 +52,7 @@ def _check_frame(ep, k: int, d: dict) -> None:
     np.testing.assert_allclose(ep.contact_friction[k, :c], d["contact_friction"], **F32)
     np.testing.assert_array_equal(ep.contact_edge[k, :c], d["contact_edge"])
     np.testing.assert_array_equal(ep.contact_obstacle[k, :c], d["contact_obstacle"])
+    np.testing.assert_array_equal(ep.contact_partner_edge[k, :c], d["contact_partner_edge"])
     assert np.all(ep.contact_edge[k, c:] == -1)
     np.testing.assert_allclose(ep.kappa_bar[k], d["kappa_bar"], **F32)
     np.testing.assert_allclose(ep.kappa[k], d["kappa"], **F32)

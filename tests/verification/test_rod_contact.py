@@ -1,13 +1,17 @@
 """Rod–rod contact (docs/physics.md §4.8): a rod dropped across another rod lying on a floor comes to rest on it,
-with no interpenetration, in a steady state whose contact force carries the weight the floor does not; with
-``rod_contact = false`` the same rod falls through to the floor."""
+with no interpenetration, in a steady state whose contact force carries the weight the floor does not (the
+StepStats contact rows of the edge pairs and the floor balance each rod's weight); with ``rod_contact = false`` the
+same rod falls through to the floor."""
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 import pytest
 
 from benchmarks.throughput_pairs import two_rod_doc
 from sim import Simulator, build_model
+from sim.contact_kernels import imc_energy
 from sim.geometry_distance import closest_seg_seg
 from sim.scene import parse_scene
 
@@ -26,6 +30,7 @@ def _gap_between_rods(x, offsets):
     return best
 
 
+@functools.lru_cache(maxsize=None)  # one run per setting for the tests of this file (they only read it)
 def _drop(rod_contact: bool, steps: int = 150):
     doc = two_rod_doc(apart=False)
     doc["contact"]["rod_contact"] = rod_contact
@@ -61,3 +66,42 @@ def test_rod_dropped_across_another_rod_rests_on_it():
 def test_rod_falls_through_without_rod_contact():
     model, st, gaps, _ = _drop(False)
     assert gaps.min() < -R                            # the centre lines came closer than one radius
+
+
+def test_contact_rows_of_the_edge_pairs_balance_the_weights():
+    model, st, _, stats = _drop(True)
+    k = int(stats.contact_count[0])
+    edge, obstacle, partner = (a[0, :k] for a in (stats.contact_edge, stats.contact_obstacle,
+                                                  stats.contact_partner_edge))
+    normal, fn, fr = stats.contact_normal[0, :k], stats.contact_normal_force[0, :k], stats.contact_friction_force[0, :k]
+    point, other, gap = stats.contact_rod_point[0, :k], stats.contact_obstacle_point[0, :k], stats.contact_gap[0, :k]
+    pair = obstacle == -1
+    assert np.all(partner[~pair] == -1) and np.all(obstacle[~pair] == 0)  # the floor's rows
+    rows = np.flatnonzero(pair)
+    assert rows.size >= 2 and rows.size % 2 == 0 and rows[0] == k - rows.size  # after the obstacle rows, two per pair
+    off = model.rod_node_offsets
+    for a, b in rows.reshape(-1, 2):
+        assert (edge[a], partner[a]) == (partner[b], edge[b])        # the same pair seen from each edge
+        assert off[0] <= min(edge[a], edge[b]) < off[1] - 1 and off[1] <= max(edge[a], edge[b]) < off[2] - 1
+        np.testing.assert_allclose(normal[a], -normal[b], atol=1e-15)
+        np.testing.assert_allclose(fr[a], -fr[b], atol=1e-15)
+        assert fn[a] == fn[b] == pytest.approx(-imc_energy(gap[a], 1e5, 1e-3)[1], rel=1e-12)  # λ = −E'(g)
+        assert fn[a] > 0.0 and abs(gap[a]) < 1e-3
+        np.testing.assert_allclose(np.linalg.norm(normal[a]), 1.0, rtol=1e-12)
+        d = point[a] - point[b]                                       # centre-line points, normal from b to a
+        np.testing.assert_allclose(d, (gap[a] + 2 * R) * normal[a], atol=1e-12)
+        np.testing.assert_allclose(other[a], point[b] + R * normal[a], atol=1e-12)  # on the partner's surface
+    # at rest, each rod's weight is carried by its rows: the floor's (node rows) and the other rod's (edge rows)
+    force = normal * fn[:, None] + fr
+    node_mass = np.asarray(model.dof_mass).reshape(-1, 4)[:, 0]
+    for lo, hi in ((off[0], off[1]), (off[1], off[2])):
+        mine = np.where(pair, (edge >= lo) & (edge < hi - 1), (edge >= lo) & (edge < hi))
+        assert force[mine, 2].sum() == pytest.approx(9.81 * node_mass[lo:hi].sum(), rel=1e-6)
+    top = (edge >= off[1]) & pair
+    assert force[top, 2].sum() > 0.2 * 9.81 * node_mass[off[1]:off[2]].sum()  # the bottom rod carries a good part
+
+
+def test_without_edge_pairs_no_pair_rows():
+    _, _, _, stats = _drop(False)
+    k = int(stats.contact_count[0])
+    assert k > 0 and np.all(stats.contact_obstacle[0, :k] == 0) and np.all(stats.contact_partner_edge[0, :k] == -1)

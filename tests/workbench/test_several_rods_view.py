@@ -57,6 +57,33 @@ def test_boundary_of_two_rods_names_loads_by_rod():
     assert len(b.twist_edges) == 0  # the joint edge's fixed twist is no boundary of either rod
 
 
+def test_rod_on_rod_contact_is_drawn_as_contact_forces():
+    """The crossing of the two-rod scene, once "cross" lies on "base": the contact arrows the view draws
+    (``contacts_from_stats``) include the edge pairs', pushing "cross" up and "base" down by equal amounts."""
+    from sim import Simulator
+    from workbench.simbridge import contacts_from_stats
+
+    model = build_model(load_scene(SCENES / "two_rods.toml"))
+    sim = Simulator(model, envs=1)
+    state, ctrl = sim.reset(), sim.make_control()
+    for _ in range(150):
+        stats = sim.step(state, ctrl)
+    assert not stats.failed.any()
+    points, forces, normals, _ = contacts_from_stats(stats)
+    k = int(stats.contact_count[0])
+    pair = stats.contact_obstacle[0, :k] == -1
+    assert pair.sum() >= 2 and len(points) == k
+    x = state.node_pos[0]
+    on_cross = stats.contact_edge[0, :k] >= model.rod_node_offsets[1]
+    up, down = forces[pair & on_cross], forces[pair & ~on_cross]
+    assert len(up) == len(down) and (up[:, 2] > 0).all() and (down[:, 2] < 0).all()
+    np.testing.assert_allclose(up.sum(axis=0), -down.sum(axis=0), atol=1e-12)
+    crossing = points[pair]  # at the middle of both rods, between their centre lines
+    assert np.abs(crossing[:, :2]).max() < 0.05 and (crossing[:, 2] > 0.0).all()
+    assert crossing[:, 2].max() < x[model.rod_node_offsets[1]:, 2].max() + 1e-9
+    assert up[:, 2].sum() > 1.0  # newtons: a good part of the weight of "cross" (≈ 9.9 N), the rest on the floor
+
+
 @pytest.mark.browser
 def test_two_rod_scene_loads_and_draws_two_tubes(wb_page):
     from tools.browser import wait_for
