@@ -111,12 +111,14 @@ def sim_main(argv: list[str] | None = None) -> int:
                 frames["edge_theta"].append(np.array(state.edge_theta))
                 frames["newton_iters"].append(st.newton_iters.copy())
                 frames["converged"].append(st.converged.copy())
-                # contact (sim/contact_kernels.py): max penetration (B,) [m], count (B,), total force on the rod
-                # (B, 3) [N] = sum of normal_force * normal + friction over the reported rows; per-row (B, C, ...)
+                # contact (sim/contact_kernels.py): max penetration (B,) [m], count (B,), total force on the rods
+                # (B, 3) [N] = sum of normal_force * normal + friction over the reported rows (the first
+                # contact_count; the rows after them are left from earlier steps); per-row (B, C, ...)
                 frames["max_penetration"].append(st.max_penetration.copy())
                 frames["contact_count"].append(st.contact_count.copy())
-                frames["contact_force"].append((st.contact_normal_force[..., None] * st.contact_normal
-                                                + st.contact_friction_force).sum(axis=1))
+                live = np.arange(st.contact_normal_force.shape[1]) < st.contact_count[:, None]
+                frames["contact_force"].append(((st.contact_normal_force[..., None] * st.contact_normal
+                                                 + st.contact_friction_force) * live[..., None]).sum(axis=1))
                 for name in crow:
                     frames[name].append(getattr(st, name).copy())
     wall = time.perf_counter() - t1

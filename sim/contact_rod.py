@@ -311,6 +311,21 @@ def _gap(x, radius, i, j):
     return math.sqrt(vdot(u, u)) - _edge_radius(radius, i) - _edge_radius(radius, j)
 
 
+@njit(inline="always", **_OPT_CONTACT)
+def _gap_bound(x, radius, i, j):
+    """A lower bound of the gap [m] of edges i and j (≤ :func:`_gap`) from each edge's bounding sphere (centre
+    the midpoint, radius half the length): a few operations, where the exact gap needs the closest points. Pairs
+    along a rod within the broad-phase margin but far apart fail the contact tests with it alone."""
+    c0 = 0.5 * (x[i, 0] + x[i + 1, 0]) - 0.5 * (x[j, 0] + x[j + 1, 0])
+    c1 = 0.5 * (x[i, 1] + x[i + 1, 1]) - 0.5 * (x[j, 1] + x[j + 1, 1])
+    c2 = 0.5 * (x[i, 2] + x[i + 1, 2]) - 0.5 * (x[j, 2] + x[j + 1, 2])
+    ei = math.sqrt((x[i + 1, 0] - x[i, 0]) ** 2 + (x[i + 1, 1] - x[i, 1]) ** 2 + (x[i + 1, 2] - x[i, 2]) ** 2)
+    ej = math.sqrt((x[j + 1, 0] - x[j, 0]) ** 2 + (x[j + 1, 1] - x[j, 1]) ** 2 + (x[j + 1, 2] - x[j, 2]) ** 2)
+    slack = 1e-12 * (ei + ej + abs(x[i, 0]) + abs(x[i, 1]) + abs(x[i, 2]))  # rounding: never above the exact gap
+    return math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) - 0.5 * (ei + ej) - _edge_radius(radius, i) - _edge_radius(radius, j) \
+        - slack
+
+
 @njit(**_OPT_CONTACT)
 def reset_coupling(wb_slot, wb_dof, wb_n, wb_M):
     """Empty the coupling list (before a Jacobian assembly)."""
@@ -369,7 +384,7 @@ def rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, dpn, fixed, radius, 
     for m in range(ncand[0]):
         i = pairs[cand[m], 0]
         j = pairs[cand[m], 1]
-        if _gap(x, radius, i, j) >= delta:  # the cheap test first: most candidates are not in touch
+        if _gap_bound(x, radius, i, j) >= delta or _gap(x, radius, i, j) >= delta:  # most candidates: no touch
             continue
         rs = _edge_radius(radius, i) + _edge_radius(radius, j)
         dd, s, t = seg_seg_derivs(_row3(x, i), _row3(x, i + 1), _row3(x, j), _row3(x, j + 1), g12, H12, nhat, ws)
@@ -426,7 +441,11 @@ def rod_pairs_min_gap(pairs, cand, ncand, x, radius):
     """Smallest gap [m] over the candidate pairs at positions ``x``, or +inf without candidates."""
     best = np.inf
     for m in range(ncand[0]):
-        gap = _gap(x, radius, pairs[cand[m], 0], pairs[cand[m], 1])
+        i = pairs[cand[m], 0]
+        j = pairs[cand[m], 1]
+        if _gap_bound(x, radius, i, j) >= best:
+            continue
+        gap = _gap(x, radius, i, j)
         if gap < best:
             best = gap
     return best
@@ -437,7 +456,11 @@ def rod_pairs_energy(pairs, cand, ncand, x, radius, k, delta):
     """IMC energy [J] of the candidate pairs at positions ``x`` (no friction, no derivatives)."""
     energy = 0.0
     for m in range(ncand[0]):
-        gap = _gap(x, radius, pairs[cand[m], 0], pairs[cand[m], 1])
+        i = pairs[cand[m], 0]
+        j = pairs[cand[m], 1]
+        if _gap_bound(x, radius, i, j) >= delta:
+            continue
+        gap = _gap(x, radius, i, j)
         if gap < delta:
             energy += imc_energy(gap, k, delta)[0]
     return energy
@@ -463,6 +486,9 @@ def rod_pairs_report(e, pairs, cand, ncand, x, x_prev, dt, radius, k, delta, mu,
     for m in range(ncand[0]):
         i = pairs[cand[m], 0]
         j = pairs[cand[m], 1]
+        bound = _gap_bound(x, radius, i, j)
+        if bound >= delta and bound >= smallest:  # neither in touch nor the deepest
+            continue
         ri = _edge_radius(radius, i)
         rj = _edge_radius(radius, j)
         a = _row3(x, i)
@@ -541,6 +567,13 @@ def rod_pairs_step_limit(pairs, cand, ncand, x, dxp, radius, delta):
         if D <= 0.0:
             continue
         rs = _edge_radius(radius, i) + _edge_radius(radius, j)
+        gb = _gap_bound(x, radius, i, j)
+        if gb >= 0.0:  # then g >= 0 and the floor below is −δ (or the centre-line guard): the same test on gb
+            fl0 = -delta
+            if fl0 < -rs:
+                fl0 = -rs * (1.0 - 1e-3)
+            if gb - D * tmax >= fl0:
+                continue
         g = _gap(x, radius, i, j)
         floor = min(g, 0.0) - delta
         if floor < -rs:

@@ -86,10 +86,13 @@ def test_throughput_pairs_tiny():
 
     res = part_pairs(quick=True, repeats=1)
     for name in ("curl_0.75_turn_no_contact", "curl_1.25_turns_resting_on_itself", "two_rods_apart",
-                 "two_rods_apart_rod_contact_off", "two_rods_crossed_resting"):
+                 "two_rods_apart_rod_contact_off", "two_rods_crossed_resting", "hanging_201_self_contact_off",
+                 "hanging_201_self_contact_on"):
         assert res[name]["failed_envs"] == 0 and res[name]["nan"] == 0 and res[name]["ms_per_step"] > 0
     assert res["curl_0.75_turn_no_contact"]["contact_energy_mean"] == 0.0
     assert res["curl_1.25_turns_resting_on_itself"]["contact_energy_mean"] > 0.0
+    # the hanging rod touches nothing, however many candidate pairs lie inside the margin
+    assert res["hanging_201_self_contact_on"]["contact_energy_mean"] == 0.0
     # the rods apart touch only the floor: the same contact energy with rod contact on and off
     assert res["two_rods_apart"]["contact_energy_mean"] == res["two_rods_apart_rod_contact_off"]["contact_energy_mean"]
     assert res["ratio_rod_contact_on_over_off_apart"] > 0 and res["ratio_self_contact_on_over_off"] > 0

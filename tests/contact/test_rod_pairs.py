@@ -1,14 +1,21 @@
 """Edge–edge contact (self- and rod–rod, docs/physics.md §4.8): the segment distance's gradient and Hessian against
 finite differences in every region, the assembled residual's Jacobian (band + coupling list) against finite
 differences, the Woodbury-corrected banded solve against a dense solve, friction's direction, the StepStats rows of
-a pair against the assembled residual, and which pairs may touch."""
+a pair against the assembled residual, the cheap lower bound of a pair's gap, and which pairs may touch."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from sim.banded import dense_to_band
-from sim.contact_rod import allowed_pairs, rod_pairs_accumulate, rod_pairs_report, seg_seg_derivs
+from sim.contact_rod import (
+    _gap,
+    _gap_bound,
+    allowed_pairs,
+    rod_pairs_accumulate,
+    rod_pairs_report,
+    seg_seg_derivs,
+)
 from sim.kernel import alloc_workspace
 from sim.newton import _linear_solve
 
@@ -172,6 +179,25 @@ def test_pair_rows_carry_the_assembled_contact_force(mu):
         assert out["fr"][0, 2, 0] < 0.0  # against edge 0's motion (+x)
     full = _report(x, x_prev, mu=mu, rows_before=7)  # a full report lists no pair, but counts its energy
     assert full["count"][0] == 7 and full["energy"] == energy
+
+
+def test_gap_bound_never_exceeds_the_gap():
+    """The bounding-sphere bound that lets far candidates skip the closest-point computation is a lower bound of
+    the exact gap: random pairs, collinear chains (where it is tight), crossing and far-off-origin edges."""
+    rng = np.random.default_rng(7)
+    r = np.array([0.01])
+    cases = [rng.normal(size=(4, 3)) * rng.choice([1e-3, 1.0, 100.0]) + rng.normal(size=3) * rng.choice([0, 1e3])
+             for _ in range(4000)]
+    line = np.linspace(0.0, 0.3, 31)
+    for off in (0.0, 1e3, -7.3e4):  # a straight chain: pairs k edges apart, the bound equals the gap
+        chain = np.stack([line + off, np.full(31, off), np.full(31, 0.5)], axis=1)
+        cases += [np.concatenate([chain[i:i + 2], chain[i + k:i + k + 2]]) for i in range(20) for k in range(2, 10)]
+    tight = 0
+    for x in cases:
+        g, b = _gap(x, r, 0, 2), _gap_bound(x, r, 0, 2)
+        assert b <= g, (x, b, g)
+        tight += g - b < 1e-9 * (1.0 + np.abs(x).max())
+    assert tight >= 3 * 160  # the collinear chains: tight up to the rounding slack
 
 
 def test_woodbury_solve_matches_dense():

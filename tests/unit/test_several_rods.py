@@ -221,6 +221,37 @@ def test_rodlab_sim_writes_the_rod_layout(tmp_path, capsys):
         assert cross[-1, :, 2].mean() < cross[0, :, 2].mean()  # the cross rod falls
 
 
+def test_rodlab_sim_contact_rows_of_two_rods_at_rest(tmp_path, monkeypatch):
+    """Once "cross" rests on "base": the .npz lists the pair rows after the floor's, and the total contact force
+    carries the two rods' weight, from the listed rows only (rows after contact_count are what earlier steps left
+    there: here they are made huge)."""
+    from sim import Simulator, build_model, load_scene
+    from sim.cli import sim_main
+
+    step = Simulator.step
+
+    def step_leaving_rows(self, state, ctrl):
+        stats = step(self, state, ctrl)
+        for e, k in enumerate(stats.contact_count):
+            stats.contact_normal_force[e, k:] = 1e6
+            stats.contact_normal[e, k:] = (0.0, 0.0, 1.0)
+        return stats
+
+    monkeypatch.setattr(Simulator, "step", step_leaving_rows)
+
+    out = tmp_path / "two.npz"
+    assert sim_main([str(TWO_RODS), "--duration", "2", "--every", "50", "--out", str(out), "--no-progress"]) == 0
+    model = build_model(load_scene(TWO_RODS))
+    weight = 9.8 * np.asarray(model.dof_mass).reshape(-1, 4)[:, 0].sum()
+    with np.load(out) as z:
+        k = int(z["contact_count"][-1, 0])
+        obstacle, partner = z["contact_obstacle"][-1, 0, :k], z["contact_partner_edge"][-1, 0, :k]
+        pair = obstacle == -1
+        assert pair.sum() >= 2 and not pair[: k - pair.sum()].any()  # the floor's rows, then the pairs'
+        assert (partner[pair] >= 0).all() and (partner[~pair] == -1).all()
+        np.testing.assert_allclose(z["contact_force"][-1, 0], [0.0, 0.0, weight], atol=2e-3 * weight)
+
+
 def test_rodlab_sim_single_rod_npz_has_the_layout(tmp_path):
     from sim.cli import sim_main
 
