@@ -250,10 +250,12 @@ def rod_pairs_broadphase(pairs, x_start, x_end, radius, margin, box, cand, ncand
 @njit(**_OPT_CONTACT)
 def rod_pairs_refresh(pairs, x_start, x_end, radius, margin, box, cand, ncand):
     """Add to the candidate list the allowed pairs whose boxes over the motion ``x_start`` → ``x_end`` overlap and
-    that are not in it yet (the list stays sorted). Returns whether any pair was added."""
+    that are not in it yet (the list stays sorted). Returns the smallest gap [m] at ``x_end`` of the pairs added
+    (+inf when none was): a pair added at a gap of δ or more exerts no force there."""
     _edge_boxes(x_start, x_end, radius, margin, box)
     n0 = ncand[0]
     added = False
+    smallest = np.inf
     k = 0
     n = n0
     for c in range(pairs.shape[0]):
@@ -265,6 +267,7 @@ def rod_pairs_refresh(pairs, x_start, x_end, radius, margin, box, cand, ncand):
             cand[n] = c
             n += 1
             added = True
+            smallest = min(smallest, _gap(x_end, radius, pairs[c, 0], pairs[c, 1]))
     if added:  # insertion sort of the appended tail into the sorted head
         for m in range(n0, n):
             v = cand[m]
@@ -274,7 +277,7 @@ def rod_pairs_refresh(pairs, x_start, x_end, radius, margin, box, cand, ncand):
                 p -= 1
             cand[p + 1] = v
     ncand[0] = n
-    return added
+    return smallest
 
 
 @njit(inline="always", **_OPT_CONTACT)

@@ -407,20 +407,26 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
         return st, it, False, r, r0, 0.0, pen0
     # refresh: the solve can carry the rod onto pairs the predicted-motion list missed (a control change moves it
     # far from x0 + h u); refresh the list over the motion actually taken and, if it gained pairs, solve again.
-    # Backward Euler ends where the solve ended: the refreshed list then covers the whole sub-step motion.
+    # Backward Euler ends where the solve ended: the refreshed list then covers the whole sub-step motion. Edge
+    # pairs added at a gap of δ or more exert no force at the solution, which then solves the longer list too: only
+    # an added pair in reach of the contact potential calls for the second solve.
     list_covers_step = False
     if contact or pairs:
         _positions(planar, x, pos, py)
         list_covers_step = not midpoint
         added = False
+        resolve = False
         if contact:
             added = contact_refresh(e, cd, pos0, pos, prm.contact_margin, rod.link)
+            resolve = added
         if pairs:
-            added_pairs = rod_pairs_refresh(rod.pairs, pos0, pos, rod.radius, prm.contact_margin, w.rp_box,
-                                            w.rp_cand, w.rp_n)
-            added = added or added_pairs
+            added_gap = rod_pairs_refresh(rod.pairs, pos0, pos, rod.radius, prm.contact_margin, w.rp_box,
+                                          w.rp_cand, w.rp_n)
+            added = added or added_gap < np.inf
+            resolve = resolve or added_gap < prm.contact_delta
         if added:
             list_covers_step = False
+        if resolve:
             st, it2, conv, r, r0 = newton(e, hs, kb, tb, rod, prm, cd, w)
             it += it2
             if st != OK:

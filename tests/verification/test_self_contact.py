@@ -107,3 +107,24 @@ def test_batched_envs_match_envs_alone_bit_for_bit():
     together = run(np.arange(3))
     for e in range(3):
         np.testing.assert_array_equal(together[e], run(np.array([e]))[0])
+
+
+def test_pairs_that_do_not_touch_cost_no_newton_iteration():
+    """A long rod hanging as a cantilever, self_contact on: as it swings, pairs a few edges apart enter the
+    broad-phase margin every step (refresh over the motion taken) but none comes within δ, so none calls for a
+    second Newton solve: the same iterations and, to the solver tolerance, the same motion as with self_contact off."""
+    from benchmarks.throughput_pairs import _hanging_doc
+
+    runs = {}
+    for on in (False, True):
+        model = build_model(parse_scene(_hanging_doc(on)))
+        assert (model_pairs(model).shape[0] > 0) == on
+        sim = Simulator(model, envs=1)
+        state, ctrl = sim.reset(), sim.make_control()
+        iters = [int(sim.step(state, ctrl).newton_iters[0]) for _ in range(40)]
+        runs[on] = (iters, state.node_pos[0].copy(), sim)
+    assert runs[True][0] == runs[False][0]
+    np.testing.assert_allclose(runs[True][1], runs[False][1], atol=1e-8)
+    sim = runs[True][2]
+    stats = sim.step(sim.reset(), sim.make_control())
+    assert stats.contact_count[0] == 0 and stats.energy_contact[0] == 0.0
