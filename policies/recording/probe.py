@@ -348,9 +348,8 @@ class TaskProbe:
                     kw.update(contact_points=stats.contact_rod_point[e, :c], contact_normals=stats.contact_normal[e, :c],
                               contact_normal_force=stats.contact_normal_force[e, :c],
                               contact_friction=stats.contact_friction_force[e, :c],
-                              contact_edge=stats.contact_edge[e, :c], contact_obstacle=stats.contact_obstacle[e, :c])
-                    if getattr(stats, "contact_partner_edge", None) is not None:
-                        kw["contact_partner_edge"] = stats.contact_partner_edge[e, :c]
+                              contact_edge=stats.contact_edge[e, :c], contact_obstacle=stats.contact_obstacle[e, :c],
+                              contact_partner_edge=stats.contact_partner_edge[e, :c])
             if reward is not None:
                 sc["reward"] = float(reward[e])
                 sc["solver/wall_time"] = self._wall

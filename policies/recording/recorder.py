@@ -31,7 +31,7 @@ import time
 import uuid
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 import rerun as rr
@@ -108,6 +108,17 @@ def _pid_alive(pid: int) -> bool:
     except PermissionError:
         return True
     return True
+
+
+class _ContactRows(NamedTuple):
+    """One frame's contact rows as ``log_step`` validated them (C rows; the optional ones None when not given)."""
+    points: np.ndarray
+    normals: np.ndarray
+    normal_force: np.ndarray
+    friction: np.ndarray | None
+    edge: np.ndarray | None
+    obstacle: np.ndarray | None
+    partner_edge: np.ndarray | None
 
 
 class _Episode:
@@ -341,14 +352,13 @@ class Recorder:
                                      "contact_normal_force together")
             cp = _vec(contact_points, "contact_points", (None, 3))
             c = cp.shape[0]
-            contact = (cp, _vec(contact_normals, "contact_normals", (c, 3)),
-                       _vec(contact_normal_force, "contact_normal_force", (c,), np.float64),
-                       None if contact_friction is None else _vec(contact_friction, "contact_friction", (c, 3)),
-                       None if contact_edge is None else _vec(contact_edge, "contact_edge", (c,), np.int64),
-                       None if contact_obstacle is None else _vec(contact_obstacle, "contact_obstacle", (c,),
-                                                                  np.int64),
-                       None if contact_partner_edge is None else _vec(contact_partner_edge, "contact_partner_edge",
-                                                                      (c,), np.int64))
+            ids = {name: None if v is None else _vec(v, "contact_" + name, (c,), np.int64)
+                   for name, v in (("edge", contact_edge), ("obstacle", contact_obstacle),
+                                   ("partner_edge", contact_partner_edge))}
+            contact = _ContactRows(
+                cp, _vec(contact_normals, "contact_normals", (c, 3)),
+                _vec(contact_normal_force, "contact_normal_force", (c,), np.float64),
+                None if contact_friction is None else _vec(contact_friction, "contact_friction", (c, 3)), **ids)
         curv = {}
         for name, v in (("kappa_bar", kappa_bar), ("kappa", kappa)):
             if v is not None:
@@ -389,8 +399,8 @@ class Recorder:
             ep.add(k, f, a)
         if contact is not None:
             ep.add("contacts", f, contact)
-            if contact[2].size:
-                ep.max_fn = max(ep.max_fn, float(np.abs(contact[2]).max()))
+            if contact.normal_force.size:
+                ep.max_fn = max(ep.max_fn, float(np.abs(contact.normal_force).max()))
         for k, a in curv.items():
             ep.add(k, f, a)
         if tgt is not None:
@@ -536,16 +546,16 @@ class Recorder:
         rec.log(path, rr.LineStrips2D.from_fields(colors=[_CURV_COLORS[kind]]), static=True)
         rec.send_columns(path, indexes=indexes, columns=rr.LineStrips2D.columns(strips=pts))
 
-    def _send_contacts(self, rec, idx, fr: list[int], vals: list[tuple]) -> None:
-        counts = np.array([v[0].shape[0] for v in vals], np.int64)
-        pts = np.concatenate([v[0] for v in vals]).reshape(-1, 3)
-        nrm = np.concatenate([v[1] for v in vals]).reshape(-1, 3)
-        fn = np.concatenate([v[2] for v in vals]).reshape(-1)
+    def _send_contacts(self, rec, idx, fr: list[int], vals: list[_ContactRows]) -> None:
+        counts = np.array([v.points.shape[0] for v in vals], np.int64)
+        pts = np.concatenate([v.points for v in vals]).reshape(-1, 3)
+        nrm = np.concatenate([v.normals for v in vals]).reshape(-1, 3)
+        fn = np.concatenate([v.normal_force for v in vals]).reshape(-1)
         extra: dict[str, np.ndarray] = {"normal_force": fn.astype(np.float64)}
-        for j, name in ((4, "edge"), (5, "obstacle"), (6, "partner_edge")):
-            if any(v[j] is not None for v in vals):
-                extra[name] = np.concatenate([v[j] if v[j] is not None else np.full(v[0].shape[0], -1, np.int64)
-                                              for v in vals])
+        for name in ("edge", "obstacle", "partner_edge"):
+            if any(getattr(v, name) is not None for v in vals):
+                extra[name] = np.concatenate([getattr(v, name) if getattr(v, name) is not None
+                                              else np.full(v.points.shape[0], -1, np.int64) for v in vals])
         base = S.CONTACTS
         rec.log(base, rr.Points3D.from_fields(radii=[0.012], colors=[(220, 30, 30)]), static=True)
         cols = list(rr.Points3D.columns(positions=pts).partition(counts))
@@ -553,8 +563,8 @@ class Recorder:
             cols += list(rr.AnyValues.columns(**extra).partition(counts))
         rec.send_columns(base, indexes=idx(fr), columns=cols)
         arrows = {"normal": nrm * self.frame_scale, "normal_force": nrm * fn[:, None] * self.force_scale}
-        if any(v[3] is not None for v in vals):
-            fr_ = np.concatenate([v[3] if v[3] is not None else np.zeros((v[0].shape[0], 3), np.float32)
+        if any(v.friction is not None for v in vals):
+            fr_ = np.concatenate([v.friction if v.friction is not None else np.zeros((v.points.shape[0], 3), np.float32)
                                   for v in vals])
             arrows["friction_force"] = fr_ * self.force_scale
         for name, vec in arrows.items():
