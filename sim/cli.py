@@ -41,9 +41,9 @@ def sim_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--every", type=int, default=1, help="record every K-th step (default 1)")
     ap.add_argument("--out", help="write time, node_pos (frames, envs, nodes of all rods, 3), edge_theta, "
                                   "newton_iters, converged, max_penetration, contact_count, contact_force (and "
-                                  "per-contact rows: obstacle contacts and edge pairs), rod_node_offsets (where each rod's nodes start, then the "
-                                  "total) and rod_names to this .npz; its folder is checked for writing before the "
-                                  "simulation starts")
+                                  "per-contact rows: obstacle contacts and edge pairs), rod_node_offsets (where "
+                                  "each rod's nodes start, then the total) and rod_names to this .npz; its folder "
+                                  "is checked for writing before the simulation starts")
     add_progress_flag(ap)
     a = ap.parse_args(argv)
     from . import Simulator, build_model, load_scene

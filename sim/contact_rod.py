@@ -250,8 +250,8 @@ def rod_pairs_broadphase(pairs, x_start, x_end, radius, margin, box, cand, ncand
 @njit(**_OPT_CONTACT)
 def rod_pairs_refresh(pairs, x_start, x_end, radius, margin, box, cand, ncand):
     """Add to the candidate list the allowed pairs whose boxes over the motion ``x_start`` → ``x_end`` overlap and
-    that are not in it yet (the list stays sorted). Returns the smallest gap [m] at ``x_end`` of the pairs added
-    (+inf when none was): a pair added at a gap of δ or more exerts no force there."""
+    that are not in it yet (the list stays sorted). Returns (whether any pair was added, the smallest gap [m] at
+    ``x_end`` of the pairs added (+inf when none was)): a pair added at a gap of δ or more exerts no force there."""
     _edge_boxes(x_start, x_end, radius, margin, box)
     n0 = ncand[0]
     added = False
@@ -277,7 +277,7 @@ def rod_pairs_refresh(pairs, x_start, x_end, radius, margin, box, cand, ncand):
                 p -= 1
             cand[p + 1] = v
     ncand[0] = n
-    return smallest
+    return added, smallest
 
 
 @njit(inline="always", **_OPT_CONTACT)
@@ -552,6 +552,16 @@ def _pair_distance(x, dxp, tt, i, j):
     return math.sqrt(vdot(u, u))
 
 
+@njit(inline="always", **_OPT_CONTACT)
+def _gap_floor(g, delta, rs):
+    """The lowest gap [m] one update may bring a pair at gap ``g`` to: min(g, 0) − δ, but never letting the centre
+    lines meet (radii sum ``rs``)."""
+    floor = min(g, 0.0) - delta
+    if floor < -rs:
+        floor = -rs * (1.0 - 1e-3)
+    return floor
+
+
 @njit(**_OPT_CONTACT)
 def rod_pairs_step_limit(pairs, cand, ncand, x, dxp, radius, delta):
     """Largest fraction τ ∈ (0, 1] of the Newton update ``dxp`` ((N, 3) node displacements from positions ``x``)
@@ -571,16 +581,10 @@ def rod_pairs_step_limit(pairs, cand, ncand, x, dxp, radius, delta):
             continue
         rs = _edge_radius(radius, i) + _edge_radius(radius, j)
         gb = _gap_bound(x, radius, i, j)
-        if gb >= 0.0:  # then g >= 0 and the floor below is −δ (or the centre-line guard): the same test on gb
-            fl0 = -delta
-            if fl0 < -rs:
-                fl0 = -rs * (1.0 - 1e-3)
-            if gb - D * tmax >= fl0:
-                continue
+        if gb >= 0.0 and gb - D * tmax >= _gap_floor(0.0, delta, rs):  # g ≥ gb ≥ 0: g's floor, and g passes too
+            continue
         g = _gap(x, radius, i, j)
-        floor = min(g, 0.0) - delta
-        if floor < -rs:
-            floor = -rs * (1.0 - 1e-3)  # never let the centre lines meet
+        floor = _gap_floor(g, delta, rs)
         if g - D * tmax >= floor:
             continue
         tt = 0.0

@@ -420,9 +420,9 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
             added = contact_refresh(e, cd, pos0, pos, prm.contact_margin, rod.link)
             resolve = added
         if pairs:
-            added_gap = rod_pairs_refresh(rod.pairs, pos0, pos, rod.radius, prm.contact_margin, w.rp_box,
-                                          w.rp_cand, w.rp_n)
-            added = added or added_gap < np.inf
+            added_pairs, added_gap = rod_pairs_refresh(rod.pairs, pos0, pos, rod.radius, prm.contact_margin,
+                                                       w.rp_box, w.rp_cand, w.rp_n)
+            added = added or added_pairs
             resolve = resolve or added_gap < prm.contact_delta
         if added:
             list_covers_step = False
