@@ -14,7 +14,7 @@ import viser
 from workbench.frame import quat_z_to
 from workbench.obstacles import mesh_for_edit
 from workbench.view_boundary import Boundary, BoundaryView, boundary_of
-from workbench.view_scene import CAMERAS, ROD_COLOR, Overlays, arrow_vectors
+from workbench.view_scene import CAMERAS, ROD_COLOR, Overlays, arrow_vectors, place_camera
 
 FOCUS_COLOR = np.array([40, 110, 230], dtype=np.uint8)
 ROOT = "/grid"
@@ -118,9 +118,7 @@ class GridView:
     def look_at(self, env: int | None) -> None:
         pos, look = self.cell_camera(env)
         for client in self.server.get_clients().values():
-            with client.atomic():
-                client.camera.position = tuple(pos)
-                client.camera.look_at = tuple(look)
+            place_camera(client, tuple(pos), tuple(look))
 
     def render(self) -> None:
         s = self.s

@@ -81,6 +81,15 @@ class Overlays:
     boundary: bool = True  # fixed nodes, fixed twists and point loads (``workbench.view_boundary``)
 
 
+def place_camera(client: viser.ClientHandle, position, look_at) -> None:
+    """Put ``client``'s camera at ``position`` looking at ``look_at``, both in one atomic message group: the page
+    applies them in the same frame, so it never draws, nor reports back, a camera with one new value and one old.
+    (viser's position setter shifts the look-at with it; the look-at set after it states it exactly.)"""
+    with client.atomic():
+        client.camera.position = position
+        client.camera.look_at = look_at
+
+
 class SceneView:
     """Owns every scene node of the workbench page."""
 
@@ -195,8 +204,7 @@ class SceneView:
 
         The page reports its camera on its own schedule while the server moves it, so the offset is read from one
         report (position read on both sides of the look-at; a report arriving in between skips that page for this
-        frame) and both new values are set explicitly in one atomic message group: the page applies them in the same
-        frame, so it never draws, nor reports back, a camera with the new position and the old look-at, which would
+        frame) and both new values are sent together (:func:`place_camera`): a half-moved camera reported back would
         change the kept offset for good."""
         tip = np.asarray(tip, np.float64)
         if not np.all(np.isfinite(tip)):
@@ -210,9 +218,7 @@ class SceneView:
                     continue  # a report arrived between the two reads
                 if float(np.abs(tip - look).max()) <= 1e-6:
                     continue
-                with client.atomic():
-                    cam.position = tip + (pos - look)  # viser shifts the look-at with it...
-                    cam.look_at = tip  # ...and this states it exactly, whatever it read meanwhile
+                place_camera(client, tip + (pos - look), tip)
             except (AssertionError, ValueError):  # the page has not reported its camera yet
                 continue
 
@@ -230,9 +236,7 @@ class SceneView:
         pos, look = CAMERAS[preset]
         self.server.initial_camera.position, self.server.initial_camera.look_at = pos, look
         for client in self.server.get_clients().values():
-            with client.atomic():
-                client.camera.position = pos
-                client.camera.look_at = look
+            place_camera(client, pos, look)
 
     # ------------------------------------------------------------------ obstacles
     def sync_obstacles(self, edits: list[ObstacleEdit],
