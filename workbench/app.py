@@ -17,7 +17,7 @@ from workbench.core import Workbench
 from workbench.files import Folders
 from workbench.frame import Frame
 from workbench.gui_controls import ControlsPanel
-from workbench.gui_guard import GuiGuard, finite_pose, only_value_updates
+from workbench.gui_guard import GuiGuard, MessageGuard, finite_pose, only_value_updates
 from workbench.handshake import Guard, start_viser
 from workbench.runner import SimThread
 from workbench.view_boundary import boundary_of
@@ -59,6 +59,10 @@ class WorkbenchApp:
         if not only_value_updates(self.server):
             self.stop_server_and_cleanup()
             raise RuntimeError("viser changed: GUI updates from the page could not be restricted to values")
+        self.messages = MessageGuard()
+        if not self.messages.install(self.server):
+            self.stop_server_and_cleanup()
+            raise RuntimeError("viser changed: the message types a client may send could not be restricted")
         self.server.gui.configure_theme(control_width="large", show_share_button=False)
         self.view = SceneView(self.server, wb.live.n_nodes, env_map=env_map)
         self.render_hooks: list = []  # called with each drawn frame after the view (ghost of a compared episode)

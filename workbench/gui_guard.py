@@ -142,3 +142,73 @@ def only_value_updates(server) -> bool:
 
     ws.register_handler(vm.GuiUpdateMessage, values_only)
     return True
+
+
+# The message types the workbench's page sends (docs/architecture.md, "Security"): values of GUI elements and
+# button presses, mesh uploads, clicks on scene nodes, the obstacle gizmo, the camera and the screenshot's
+# render. viser's server also handles share-tunnel requests (which ask a public relay to publish the session),
+# button-hold, form, command-palette, node-drag, pointer and local-storage messages; the page has no control
+# that sends them, so a client that does is not the page.
+PAGE_MESSAGES = (
+    "GuiUpdateMessage",
+    "FileTransferStartUpload",
+    "FileTransferPart",
+    "SceneNodeClickMessage",
+    "TransformControlsUpdateMessage",
+    "TransformControlsDragStartMessage",
+    "TransformControlsDragEndMessage",
+    "ViewerCameraMessage",
+    "GetRenderResponseMessage",
+)
+REFUSED_CLOSE_CODE = 1008  # WebSocket "policy violation"
+
+
+class MessageGuard:
+    """Lets through only the message types of :data:`PAGE_MESSAGES`; any other type closes the sender's
+    connection with code 1008 and a reason naming the type, before any handler of viser's sees it.
+
+    viser hands each incoming message to the server's dispatcher and to the connection's; both are wrapped
+    (the connection's when it opens, before its first message is read). The share-tunnel handlers are also
+    removed outright, so no code path left in viser can open a tunnel."""
+
+    def __init__(self, allowed=PAGE_MESSAGES):
+        from viser import _messages as vm
+
+        self.allowed = frozenset(getattr(vm, name) for name in allowed)
+        self.refused: list[str] = []  # type names, in order (for the log and tests)
+        self._lock = threading.Lock()
+
+    def install(self, server) -> bool:
+        """Install on a running ``viser.ViserServer``; False if viser changed and the guard could not be put
+        in place (the caller must then not serve)."""
+        from viser import _messages as vm
+
+        ws = server._websock_server
+        needed = ("_handle_incoming_message", "_incoming_handlers", "on_client_connect", "_live_connections")
+        if not all(hasattr(ws, name) for name in needed):
+            return False
+        for share in (vm.ShareUrlRequest, vm.ShareUrlDisconnect):
+            ws._incoming_handlers.pop(share, None)
+        self._wrap(ws, refuse=True, connections=ws._live_connections)
+        ws.on_client_connect(lambda conn: self._wrap(conn, refuse=False))
+        return True
+
+    def _wrap(self, dispatcher, *, refuse: bool, connections=None) -> None:
+        inner = dispatcher._handle_incoming_message
+
+        async def checked(client_id, message) -> None:
+            if type(message) in self.allowed:
+                await inner(client_id, message)
+            elif refuse:  # the server's dispatcher answers; the connection's only drops the message
+                await self._refuse(connections, client_id, type(message).__name__)
+
+        dispatcher._handle_incoming_message = checked
+
+    async def _refuse(self, connections, client_id, name: str) -> None:
+        with self._lock:
+            self.refused.append(name)
+        print(f"rodlab workbench: refused a {name} message from client {client_id} (not sent by the page); "
+              "connection closed", flush=True)
+        conn = connections.get(client_id)
+        if conn is not None:
+            await conn.close(REFUSED_CLOSE_CODE, f"rodlab workbench: {name} is not accepted"[:120])

@@ -15,17 +15,17 @@ class HostileClient:
     def __init__(self, app, *, origin: str | None = None):
         headers = {"Origin": origin} if origin else {}
         self.app = app
-        n0 = len(app.server.get_clients())
+        before = set(app.server.get_clients())
         self.ws = connect(f"ws://127.0.0.1:{app.port}/", subprotocols=[f"viser-v{viser.__version__}"],
-                          additional_headers=headers, max_size=None, open_timeout=20)
+                          additional_headers=headers, max_size=None, open_timeout=120)
         # viser registers a client (and runs GUI callbacks for it) after its first camera message
         self.send(vm.ViewerCameraMessage(wxyz=(1.0, 0.0, 0.0, 0.0), position=(1.0, -1.0, 1.0), fov=1.0, near=0.01,
                                          far=100.0, image_height=480, image_width=640, look_at=(0.0, 0.0, 0.5),
                                          up_direction=(0.0, 0.0, 1.0)))
-        t_end = time.monotonic() + 20
-        while len(app.server.get_clients()) <= n0 and time.monotonic() < t_end:
+        t_end = time.monotonic() + 120  # an outer bound only: the wait ends when the client is registered
+        while not set(app.server.get_clients()) - before and time.monotonic() < t_end:
             time.sleep(0.02)
-        if len(app.server.get_clients()) <= n0:
+        if not set(app.server.get_clients()) - before:
             raise TimeoutError("the server did not register the client")
 
     def send(self, msg: vm.Message) -> None:

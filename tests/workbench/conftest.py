@@ -65,7 +65,9 @@ def wb_page(shared):
     app.sync_obstacle_view()
     app.controls.sync_sliders()
     app.request_render()
-    return app, page
+    yield app, page
+    # the real page only ever sends the message types the server accepts (workbench.gui_guard.PAGE_MESSAGES)
+    assert app.messages.refused == [], f"the page sent refused message types: {app.messages.refused}"
 
 
 @pytest.fixture(scope="session")
