@@ -5,7 +5,7 @@ again, and so on (``--runs`` times each, interleaved so slow drifts of the machi
 The figure of a case is the median over its runs; the ratio is median(B) / median(A).
 
     git worktree add --detach /tmp/rodlab-old <commit>      # the code to compare against
-    python -m benchmarks.ab --a /tmp/rodlab-old --b . --runs 3 --out docs/bench/ab_step.json
+    python -m benchmarks.ab --a /tmp/rodlab-old --b . --runs 3 --out /tmp/ab.json
 
 Both checkouts run with this interpreter (``PYTHONPATH`` set to the checkout, so its own ``sim``/``policies``
 are imported) and the same thread settings; the first run of each side also pays its numba cache load,

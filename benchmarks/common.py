@@ -109,17 +109,6 @@ def write_json(out_dir: Path, name: str, data: dict[str, Any]) -> Path:
     return path
 
 
-def write_summary(args: argparse.Namespace, name: str, data: dict[str, Any]) -> Path:
-    """Write a script's result to ``docs/bench/summary/<name>`` (or to ``--out`` when given), say where, and print
-    it when ``--json`` was asked for; returns the path."""
-    out_dir = args.out if args.out != DEFAULT_OUT else DEFAULT_OUT / "summary"
-    path = write_json(out_dir, name, data)
-    print(f"wrote {path}")
-    if args.json:
-        print(json.dumps(_jsonable(data), indent=1))
-    return path
-
-
 def save_figure(fig: Any, out_dir: Path, name: str) -> Path:
     """Save a matplotlib figure as PNG atomically and close it."""
     import matplotlib.pyplot as plt

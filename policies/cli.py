@@ -90,10 +90,6 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--compile", action="store_true",
                    help="run each SAC update (losses, gradients, Adam steps) as one torch.compile-d function (needs "
                         "a C++ compiler; about a minute of compiling at the start; BENCHMARKS.md §6)")
-    p.add_argument("--split-products", action="store_true",
-                   help="with --compile --bf16: also the bfloat16 products with a bias as a product plus an addition "
-                        "(rounded before the bias), beside the unit-dimension loops of --compile (runs with it "
-                        "learned more slowly: BENCHMARKS.md §6)")
     p.add_argument("--log-interval", type=float, default=d.log_interval_s, help="seconds between log lines")
     p.add_argument("--device", default=d.device,
                    help="torch device of the SAC networks and replay sampling: cpu (default), cuda or cuda:N; the "
@@ -109,10 +105,6 @@ def train_main(argv: list[str]) -> int:
         p.error("TASK is required")
     if a.steps < 1 or (a.envs is not None and a.envs < 1):
         p.error("--steps and --envs must be positive")
-    if a.split_products and not a.compile:
-        from policies.train import SPLIT_NEEDS_COMPILE
-
-        p.error(SPLIT_NEEDS_COMPILE)
     from sim.validate import check_output_path
 
     try:  # before any work: a run directory that cannot be written loses nothing
@@ -135,7 +127,7 @@ def train_main(argv: list[str]) -> int:
                 init_ent_coef=a.init_ent_coef, first_checkpoint_minutes=a.first_checkpoint_minutes,
                 eval_minutes=a.eval_minutes, eval_every_steps=a.eval_every_steps, eval_episodes=a.eval_episodes,
                 eval_stochastic=a.eval_stochastic, bf16=a.bf16, bf16_layout=a.bf16_layout,
-                compile_updates=a.compile, compile_split_products=a.split_products, device=a.device)
+                compile_updates=a.compile, device=a.device)
     if a.resume:
         cfg = os.path.join(a.run_dir, "config.json")
         try:
@@ -336,8 +328,6 @@ def bench_train_main(argv: list[str]) -> int:
     p.add_argument("--threads", type=int, default=1, help="torch threads")
     p.add_argument("--compile", action="store_true",
                    help="each SAC update as one torch.compile-d function (as rodlab train --compile)")
-    p.add_argument("--split-products", action="store_true",
-                   help="with --compile: the thin-product graph pass (as rodlab train --split-products)")
     p.add_argument("--bf16", action="store_true", help="updates under bfloat16 autocast")
     p.add_argument("--bf16-layout", choices=BF16_LAYOUTS, default="float32_io",
                    help="with --bf16: which layers stay float32 (as rodlab train --bf16-layout)")
@@ -347,19 +337,15 @@ def bench_train_main(argv: list[str]) -> int:
     p.add_argument("--device", default="cpu", help="torch device of the updates: cpu (default), cuda or cuda:N")
     p.add_argument("--json", action="store_true")
     a = p.parse_args(argv)
-    from policies.train import SPLIT_NEEDS_COMPILE, TrainError, check_compiler
+    from policies.train import TrainError, check_compiler
     from policies.train_speed import SpeedSettings
-
-    if a.split_products and not a.compile:
-        p.error(SPLIT_NEEDS_COMPILE)
 
     try:
         if a.compile:
             check_compiler()
         res = bench_train(a.task, envs=a.envs, iters=a.iters, warmup=a.warmup, threads=a.threads,
-                          speed=SpeedSettings(compile=a.compile, bf16=a.bf16, bf16_layout=a.bf16_layout, adam=a.adam,
-                                              split_products=a.split_products), overlap=a.overlap,
-                          device=a.device)
+                          speed=SpeedSettings(compile=a.compile, bf16=a.bf16, bf16_layout=a.bf16_layout, adam=a.adam),
+                          overlap=a.overlap, device=a.device)
     except TrainError as exc:
         print(f"rodlab bench train: {exc}", file=sys.stderr)
         return 2

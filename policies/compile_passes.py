@@ -1,24 +1,16 @@
-"""Graph passes for the compiled SAC updates (``rodlab train --compile``; docs/training.md, "Compiled updates").
+"""Graph pass for the compiled SAC updates (``rodlab train --compile``; docs/training.md, "Compiled updates").
 
 Inductor on the CPU keeps every matrix product of the traced update a library call (oneDNN/MKL) and fuses only
-the elementwise work around it. Two kinds of product cost more as library calls than as fused loops:
+the elementwise work around it. Products with a unit dimension, which the SAC networks have at each critic's output
+layer (256 -> 1) and in its backward pass, cost more as library calls than as fused loops: ``x @ w`` with one output
+column is a row-wise dot product (``(x * w^T).sum(1)``), the input gradient ``g @ w`` through that layer an outer
+product (``g * w``), the weight gradient ``g^T @ x`` a column sum (``(g^T * x).sum(0)``). A library call for these
+runs at a fraction of its rate and allocates its output; as loops they fuse with their neighbours.
 
-* products with a unit dimension, which the SAC networks have at each critic's output layer (256 -> 1) and in its
-  backward pass: ``x @ w`` with one output column is a row-wise dot product (``(x * w^T).sum(1)``), the input
-  gradient ``g @ w`` through that layer an outer product (``g * w``), the weight gradient ``g^T @ x`` a column
-  sum (``(g^T * x).sum(0)``). A library call for these runs at a fraction of its rate and allocates its output;
-  as loops they fuse with their neighbours.
-* ``addmm(bias, x, w)``: the library first copies the bias, broadcast to the whole (batch, out) output, and
-  then accumulates the product onto it, one extra pass over a 1024 x 256 tensor per layer. As
-  ``mm(x, w) + bias`` the bias joins the LayerNorm/ReLU loop that reads the product anyway.
-
-``UnitProductLoops`` (part of ``--compile``) rewrites the first kind only, and keeps the library's precision: the
-loops multiply and sum in float32 and round once to bfloat16, after the bias (the output layer's ``addmm`` becomes
-one dot-plus-bias loop), as the library's bfloat16 product does. ``SplitThinProducts`` (``--split-products``, off
-by default) rewrites both kinds and rounds the split product before its bias is added. Both act where a product
-computes in bfloat16 (or float16) on the CPU, as under ``--bf16``; float32 products and everything else are left to
-inductor (in float32 the split measured no faster). Measured in BENCHMARKS.md §6: ``--split-products`` 0.88–1.02 of
-the compiled update time, and whole runs with it learned more slowly (seven seeds each), hence off by default.
+``UnitProductLoops`` (part of ``--compile``) rewrites them and keeps the library's precision: the loops multiply and
+sum in float32 and round once to bfloat16, after the bias (the output layer's ``addmm`` becomes one dot-plus-bias
+loop), as the library's bfloat16 product does. It acts where a product computes in bfloat16 (or float16) on the
+CPU, as under ``--bf16``; float32 products and everything else are left to inductor.
 """
 from __future__ import annotations
 
@@ -35,45 +27,38 @@ def _meta(node):
 
 
 def _rewritable(*nodes) -> bool:
-    """Tensors on the CPU in a 16-bit float type (float32 products are left: there the library's ``addmm`` was as
-    fast as the split, BENCHMARKS.md §6)."""
+    """Tensors on the CPU in a 16-bit float type (float32 products are left to the library)."""
     vals = [_meta(n) for n in nodes]
     return all(isinstance(v, torch.Tensor) and v.device.type == "cpu" and v.dtype in (torch.bfloat16, torch.float16)
                for v in vals)
 
 
-class _ProductPass(CustomGraphPass):
-    """What the passes share: the count of rewrites, the cache key, the products they may rewrite."""
+class UnitProductLoops(CustomGraphPass):
+    """Post-grad pass: bfloat16 products with a unit dimension -> float32 loops rounded once (``addmm`` with one
+    output column -> a dot product plus the bias). ``rewritten`` counts the nodes replaced by the last call
+    (``dot_bias``, ``dot_rows``, ``outer``, ``sum_rows``)."""
 
     def __init__(self) -> None:
         self.rewritten: Counter = Counter()
 
     def uuid(self):
-        # inductor's cache keys the compiled graph on this: one key per pass and per version of this file
+        # inductor's cache keys the compiled graph on this: one key per version of this file
         return get_hash_for_files((__file__,)) + type(self).__name__.encode()
 
-    @staticmethod
-    def _biased_products(graph: torch.fx.Graph):
-        """(node, bias, x, w) of each plain ``addmm`` computing in a 16-bit float type on the CPU."""
-        for node in list(graph.find_nodes(op="call_function", target=aten.addmm.default)):
-            bias, x, w = node.args[:3]
-            if node.kwargs.get("beta", 1) == 1 and node.kwargs.get("alpha", 1) == 1 and _rewritable(node, x, w):
-                yield node, bias, x, w
-
-    @staticmethod
-    def _products(graph: torch.fx.Graph):
-        """(node, a, b, (m, k, n)) of each ``mm`` computing in a 16-bit float type on the CPU."""
-        for node in list(graph.find_nodes(op="call_function", target=aten.mm.default)):
-            a, b = node.args
-            if _rewritable(node, a, b):
-                yield node, a, b, (*_meta(a).shape, _meta(b).shape[1])
-
-    def _rewrite_unit_products(self, graph: torch.fx.Graph, *, upcast: bool) -> None:
-        """Replace each 16-bit ``mm`` with a unit dimension by a product and a sum (``dot_rows``, ``outer``,
-        ``sum_rows``), counted in ``rewritten``. ``upcast``: multiply and sum in float32 and round the
-        result once (an outer product has no sum: it is one rounding either way); else in the product's own type."""
-        f = _to_float32(graph) if upcast else (lambda x: x)
-        for node, a, b, (m, k, n) in self._products(graph):
+    def __call__(self, graph: torch.fx.Graph) -> None:
+        self.rewritten = Counter()
+        f = _to_float32(graph)
+        for node, bias, x, w in _biased_products(graph):
+            if _meta(w).shape[1] != 1:
+                continue
+            with graph.inserting_before(node):
+                dots = _dot_rows(graph, x, w, f)
+                out = _cast(graph, _op(graph, aten.add.Tensor, dots, _cast(graph, bias, torch.float32)),
+                            _meta(node).dtype)
+            _replace(graph, node, out, "dot_bias", self.rewritten)
+        # each 16-bit ``mm`` with a unit dimension -> a product and a sum, multiplied and summed in float32 and
+        # rounded once (an outer product has no sum: it is one rounding either way)
+        for node, a, b, (m, k, n) in _products(graph):
             with graph.inserting_before(node):
                 if n == 1:  # (m, k) @ (k, 1): one dot product per row
                     out, kind = _dot_rows(graph, a, b, f), "dot_rows"
@@ -84,27 +69,25 @@ class _ProductPass(CustomGraphPass):
                     out, kind = _op(graph, aten.sum.dim_IntList, cols, [0], True), "sum_rows"
                 else:
                     continue
-                if upcast and kind != "outer":
+                if kind != "outer":
                     out = _cast(graph, out, _meta(node).dtype)
             _replace(graph, node, out, kind, self.rewritten)
 
 
-class UnitProductLoops(_ProductPass):
-    """Post-grad pass: bfloat16 products with a unit dimension -> float32 loops rounded once (``addmm`` with one
-    output column -> a dot product plus the bias). ``rewritten`` counts the nodes replaced by the last call
-    (``dot_bias``, ``dot_rows``, ``outer``, ``sum_rows``)."""
+def _biased_products(graph: torch.fx.Graph):
+    """(node, bias, x, w) of each plain ``addmm`` computing in a 16-bit float type on the CPU."""
+    for node in list(graph.find_nodes(op="call_function", target=aten.addmm.default)):
+        bias, x, w = node.args[:3]
+        if node.kwargs.get("beta", 1) == 1 and node.kwargs.get("alpha", 1) == 1 and _rewritable(node, x, w):
+            yield node, bias, x, w
 
-    def __call__(self, graph: torch.fx.Graph) -> None:
-        self.rewritten = Counter()
-        for node, bias, x, w in self._biased_products(graph):
-            if _meta(w).shape[1] != 1:
-                continue
-            with graph.inserting_before(node):
-                dots = _dot_rows(graph, x, w, _to_float32(graph))
-                out = _cast(graph, _op(graph, aten.add.Tensor, dots, _cast(graph, bias, torch.float32)),
-                            _meta(node).dtype)
-            _replace(graph, node, out, "dot_bias", self.rewritten)
-        self._rewrite_unit_products(graph, upcast=True)
+
+def _products(graph: torch.fx.Graph):
+    """(node, a, b, (m, k, n)) of each ``mm`` computing in a 16-bit float type on the CPU."""
+    for node in list(graph.find_nodes(op="call_function", target=aten.mm.default)):
+        a, b = node.args
+        if _rewritable(node, a, b):
+            yield node, a, b, (*_meta(a).shape, _meta(b).shape[1])
 
 
 def _dot_rows(graph: torch.fx.Graph, x, w, f):
@@ -155,18 +138,4 @@ def _drop_unused(graph: torch.fx.Graph, node: torch.fx.Node) -> None:
         todo.extend(inputs)
 
 
-class SplitThinProducts(_ProductPass):
-    """Post-grad pass: ``addmm`` -> ``mm`` + bias; ``mm`` with a unit dimension -> a product and a sum.
-    ``rewritten`` counts the nodes replaced by the last call (``addmm``, ``dot_rows``, ``outer``, ``sum_rows``)."""
-
-    def __call__(self, graph: torch.fx.Graph) -> None:
-        self.rewritten = Counter()
-        for node, bias, x, w in self._biased_products(graph):
-            with graph.inserting_before(node):
-                product = _op(graph, aten.mm.default, x, w)
-                out = _op(graph, aten.add.Tensor, product, bias)
-            _replace(graph, node, out, "addmm", self.rewritten)
-        self._rewrite_unit_products(graph, upcast=False)
-
-
-__all__ = ["SplitThinProducts", "UnitProductLoops"]
+__all__ = ["UnitProductLoops"]

@@ -21,8 +21,8 @@ What SB3's ``SAC`` lacks and how it is added here (nothing else is changed):
 * **Compiled updates** (``RodSAC.compile_updates``, ``rodlab train --compile``): each update is one call of
   ``_fused_update`` through ``torch.compile``: the same loss methods as the eager updates, gradients by
   ``torch.func.grad_and_value`` and the Adam steps written out on the optimizers' own state (docs/training.md);
-  inductor compiles it with the graph pass ``UnitProductLoops``, or ``SplitThinProducts`` with
-  ``compile_split_products`` (policies/compile_passes.py). The policy noise is drawn eagerly and passed in.
+  inductor compiles it with the graph pass ``UnitProductLoops`` (policies/compile_passes.py). The policy noise is
+  drawn eagerly and passed in.
 * **Replay batches** (``_sample_replay``): SB3's sampling draws and batch, gathered in one pass per field.
 * **Timing**: ``last_update_time`` [s] of the most recent ``train()`` call, for logging/benchmarks.
 
@@ -262,18 +262,15 @@ class RodSAC(SAC):
         self.last_update_time = 0.0
         self.bf16_updates = False  # the gradient updates under bfloat16 autocast (policies/train.py Args.bf16)
         self.compile_updates = False  # each update one torch.compile-d function (Args.compile_updates)
-        self.compile_split_products = False  # with the graph pass of policies/compile_passes.py (Args)
         self._compiled_fns = None
         super().__init__(*args, **kwargs)
 
-    def set_update_settings(self, *, bf16: bool, bf16_layout: str, compile_updates: bool,
-                            split_products: bool) -> None:
+    def set_update_settings(self, *, bf16: bool, bf16_layout: str, compile_updates: bool) -> None:
         """How the gradient updates run: under bfloat16 autocast with ``bf16_layout`` (``set_bf16_layout``), as
-        compiled functions, with the graph pass of policies/compile_passes.py. Used by ``rodlab train`` (from its
-        ``Args``) and ``rodlab bench train`` (from its ``SpeedSettings``)."""
+        compiled functions. Used by ``rodlab train`` (from its ``Args``) and ``rodlab bench train`` (from its
+        ``SpeedSettings``)."""
         self.bf16_updates = bool(bf16)
         self.compile_updates = bool(compile_updates)
-        self.compile_split_products = bool(split_products)
         set_bf16_layout(self.policy, bf16_layout)
 
     def _setup_model(self) -> None:
@@ -442,11 +439,9 @@ class RodSAC(SAC):
             for name, module in (("actor", self.actor), ("critic", self.critic)):
                 if {id(p) for p in module.parameters()} != {id(p) for p in module.optimizer.param_groups[0]["params"]}:
                     raise ValueError(f"compiled updates step every {name} parameter; its optimizer holds others")
-            from policies.compile_passes import SplitThinProducts, UnitProductLoops
+            from policies.compile_passes import UnitProductLoops
 
-            # absent in models saved before it existed
-            split = getattr(self, "compile_split_products", False)
-            options = {"post_grad_custom_post_pass": SplitThinProducts() if split else UnitProductLoops()}
+            options = {"post_grad_custom_post_pass": UnitProductLoops()}
             self._compiled_fns = {"actor_dist_params": _BoundMethod(self.actor, "get_action_dist_params"),
                                   "update": th.compile(self._fused_update, dynamic=False, options=options)}
         fused = self._compiled_fns["update"]

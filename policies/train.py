@@ -52,6 +52,10 @@ class TrainError(Exception):
     """Bad training input (unknown task, inconsistent resume) with a readable message."""
 
 
+# a setting a saved config.json may still hold -> its value that runs as this version does
+RETIRED_SETTINGS = {"compile_split_products": False}
+
+
 @dataclass
 class Args:
     """Training configuration; defaults follow docs/tasks.md §8.1/8.2 (the paper's setup)."""
@@ -83,9 +87,6 @@ class Args:
                                             # or all (every layer in bfloat16); policies/sac.py BF16_LAYOUTS
     compile_updates: bool = False           # each update one torch.compile-d function (docs/training.md,
                                             # "Compiled updates"; needs a C++ compiler)
-    compile_split_products: bool = False    # with compile_updates: the pass SplitThinProducts instead of
-                                            # UnitProductLoops (policies/compile_passes.py; learned more slowly:
-                                            # BENCHMARKS.md §6)
     # runtime
     torch_threads: int = 1
     checkpoint_minutes: float = 5.0
@@ -109,6 +110,8 @@ class Args:
     @classmethod
     def from_json(cls, data: dict) -> "Args":
         names = {f.name for f in dataclasses.fields(cls)}
+        # settings that no longer exist, dropped from a saved config when they hold the value that behaves as now
+        data = {k: v for k, v in data.items() if not (k in RETIRED_SETTINGS and v == RETIRED_SETTINGS[k])}
         unknown = sorted(set(data) - names)
         if unknown:
             raise TrainError(f"config has unknown keys {unknown}")
@@ -319,24 +322,17 @@ def load_checkpoint(args: Args, run_dir: Path, env):
         raise TrainError(f"--resume: {exc}") from None
 
 
-SPLIT_NEEDS_COMPILE = ("--split-products is a pass over the compiled update graph: add --compile "
-                       "(in a sweep: --set compile_updates=true)")
-
-
 def check_update_settings(args: Args) -> None:
     """``TrainError`` naming the option when the update settings name nothing or contradict each other (checked by
     ``train`` and, for every trial before any starts, by ``rodlab sweep``)."""
     if args.bf16_layout not in BF16_LAYOUTS:
         raise TrainError(f"--bf16-layout: expected one of {', '.join(BF16_LAYOUTS)}, got {args.bf16_layout!r}")
-    if args.compile_split_products and not args.compile_updates:
-        raise TrainError(SPLIT_NEEDS_COMPILE)
 
 
 def configure_updates(model, args: Args) -> None:
-    """The run's update settings on a new or loaded model: bfloat16 and its layout, compiled updates and their
-    graph pass (none of them is part of a checkpoint, so a resumed run takes them from its config)."""
-    model.set_update_settings(bf16=args.bf16, bf16_layout=args.bf16_layout, compile_updates=args.compile_updates,
-                              split_products=args.compile_split_products)
+    """The run's update settings on a new or loaded model: bfloat16 and its layout, compiled updates (none of them
+    is part of a checkpoint, so a resumed run takes them from its config)."""
+    model.set_update_settings(bf16=args.bf16, bf16_layout=args.bf16_layout, compile_updates=args.compile_updates)
 
 
 def _buffer_size(args: Args) -> int:

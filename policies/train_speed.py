@@ -7,8 +7,8 @@ Nothing here is used by ``rodlab train`` by default; each setting must first be 
 
 * ``compile``: ``RodSAC.compile_updates`` (also ``rodlab train --compile``): each SAC update (losses, their
   gradients, the Adam steps) runs as one ``torch.compile``d function; the target update stays eager. Needs a C++
-  compiler for the CPU inductor back-end. It is compiled with the graph pass ``UnitProductLoops``, or with
-  ``split_products=True`` ``SplitThinProducts`` (policies/compile_passes.py; ``rodlab train --split-products``).
+  compiler for the CPU inductor back-end. It is compiled with the graph pass ``UnitProductLoops``
+  (policies/compile_passes.py).
 * ``bf16``: ``RodSAC.bf16_updates``: each forward pass of the updates runs under
   ``torch.autocast("cpu", dtype=torch.bfloat16)``, with the hidden 256x256 products in bfloat16 and the input
   and output layers, LayerNorms and losses in float32 (policies/sac.py).
@@ -31,7 +31,6 @@ class SpeedSettings:
     bf16: bool = False
     bf16_layout: str = "float32_io"
     adam: str = "fused"
-    split_products: bool = False
 
     def __post_init__(self):
         if self.adam not in ADAM_KINDS:
@@ -40,12 +39,9 @@ class SpeedSettings:
 
         if self.bf16_layout not in BF16_LAYOUTS:
             raise ValueError(f"bf16_layout must be one of {BF16_LAYOUTS}, got {self.bf16_layout!r}")
-        if self.split_products and not self.compile:
-            raise ValueError("split_products is a pass over the compiled update graph: it needs compile=True")
 
     def label(self) -> str:
         return ",".join([f"adam={self.adam}"] + (["compile"] if self.compile else []) + (
-            ["split"] if self.compile and self.split_products else []) + (
             [f"bf16={self.bf16_layout}"] if self.bf16 else []))
 
 
@@ -72,5 +68,4 @@ def apply_speed_settings(model, settings: SpeedSettings) -> None:
     if model.ent_coef_optimizer is not None:
         g = model.ent_coef_optimizer.param_groups[0]
         model.ent_coef_optimizer = _adam([model.log_ent_coef], g["lr"], g["eps"], settings.adam)
-    model.set_update_settings(bf16=settings.bf16, bf16_layout=settings.bf16_layout, compile_updates=settings.compile,
-                              split_products=settings.split_products)
+    model.set_update_settings(bf16=settings.bf16, bf16_layout=settings.bf16_layout, compile_updates=settings.compile)

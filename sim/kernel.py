@@ -1,6 +1,6 @@
 """The batched step kernel: per env, the retry/guard ladder around :func:`sim.newton.substep`, then the outputs
 (energies, solver figures, contact rows). Shared by the 3-D and the planar rod (``prm.planar``); see
-:mod:`sim.newton` for the stages of a (sub)step and the guards.
+:mod:`sim.newton` for the stages of a (sub)step, docs/physics.md §6 for the ladder and the guards.
 """
 from __future__ import annotations
 

@@ -19,13 +19,7 @@ the rest is written once. A (sub)step of size h runs these stages:
                 redone by backward Euler
     commit      the sub-step start state becomes the new state; end-of-sub-step penetration
 
-Failure (non-finite, residual growth > 1e6, bad pivot, |strain| too large, or unconverged when accept_unconverged
-is false) → retry the step with 2, 4, 8, 16 sub-steps, else the env is restored and flagged failed. Penetration
-guard (obstacle scenes): a finite level whose deepest end-of-sub-step penetration exceeds max(max_penetration,
-p0 + max_penetration/4) (p0 = penetration at the step start) is retried with more sub-steps; the finest level is
-accepted however deep, and if that level diverges the least-penetrating finite coarser result is kept. Divergence
-guard (divergence_guard > 0): an accepted unconverged (sub)step whose residual grew by more than divergence_guard
-is retried the same way; both guards share one fallback, scored by max(pen/limit, growth/divergence_guard).
+Failed (sub)steps, the retry ladder and the penetration and divergence guards: docs/physics.md §6.
 """
 from __future__ import annotations
 

@@ -8,9 +8,7 @@ Keys (SI units)::
            integrator ("backward_euler"|"midpoint", default "backward_euler"),
            line_search ("auto"|"backtrack"|"none", default "auto": backtrack only in envs with contact
            candidates and only when an update raised the residual), newton_dtol [m/s] (displacement
-           test, default 1e-2), divergence_guard [-] (default 10; 0 = off: an accepted unconverged
-           solve whose force residual grew more than this factor over its iterations is retried with
-           2, 4, 8, 16 sub-steps, the least-bad result kept; see docs/architecture.md)
+           test, default 1e-2), divergence_guard [-] (default 10; 0 = off; docs/physics.md §6.3)
     [rod]  nodes, length [m], radius [m], density [kg/m^3], youngs_modulus [Pa], poisson_ratio [-],
            start [m] (3-vector), direction (3-vector, normalised here), clamp ("first_edge"|"none",
            default "first_edge"), cross_section ("circle"|"rectangle"|"ellipse", default "circle":

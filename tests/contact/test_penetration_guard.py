@@ -1,4 +1,4 @@
-"""Penetration guard of the sub-step retry (docs/architecture.md "Failure handling"): a (sub)step that ends
+"""Penetration guard of the sub-step retry (docs/physics.md §6.2): a (sub)step that ends
 deeper than ``[contact] max_penetration`` (default 4 delta; for a step that starts deeper: its start
 penetration + limit/4) inside an obstacle is retried with 2, 4, 8, 16 sub-steps; the guard never fails an env. Scenario: the paper arm (dt 0.05 s, 5 Newton iterations,
 accept_unconverged) swinging fast into a capsule, which with the guard disabled ends a step deep inside it."""

@@ -1,4 +1,4 @@
-"""Tunnelling safeguards (docs/architecture.md "Failure handling"): the Newton step limit
+"""Tunnelling safeguards (docs/physics.md §6.4): the Newton step limit
 (``contact_step_limit``) and the candidate refresh, unit-level and in the simulator."""
 from __future__ import annotations
 

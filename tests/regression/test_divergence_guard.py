@@ -1,4 +1,4 @@
-"""Divergence guard (docs/architecture.md "Failure handling"): with the paper's 2 accepted-unconverged Newton
+"""Divergence guard (docs/physics.md §6.3): with the paper's 2 accepted-unconverged Newton
 iterations, a step whose force residual grows by more than ``[sim] divergence_guard`` (default 10) over its
 iterations is retried with 2, 4, 8, 16 sub-steps (the least-bad result kept, never a failure by itself).
 Scenario: the paper arm under saturating bang-bang curvature commands (the stress benchmark's generator),

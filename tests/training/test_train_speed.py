@@ -415,65 +415,34 @@ def _compiled_with(fn, graph_pass):
                                                      "fx_graph_cache": False})
 
 
-@pytest.mark.parametrize("bf16", [False, True])
-def test_split_thin_products_rewrites_and_keeps_the_gradients(fresh_dynamo, bf16):
-    """``SplitThinProducts`` (policies/compile_passes.py) replaces the biased and the unit-dimension bfloat16
-    products of a critic's loss and gradients by loops and leaves float32 ones alone; the compiled gradients equal
-    the eager ones (float32 to rounding, bfloat16 to its precision)."""
-    from policies.compile_passes import SplitThinProducts
-
-    params, x = _critic_like_inputs(64)
-    grads, split = _critic_grads(bf16), SplitThinProducts()
-    (g_c, loss_c), (g_e, loss_e) = _compiled_with(grads, split)(params, x), grads(params, x)
-    # bfloat16 forward: 2 biased products; backward: the output layer's input gradient (outer) and weight gradient
-    # (column sum), the one-column output (a dot product per row)
-    if bf16:
-        assert split.rewritten["addmm"] == 2 and split.rewritten["dot_rows"] == 1
-        assert split.rewritten["outer"] == 1 and split.rewritten["sum_rows"] == 1
-    else:
-        assert not split.rewritten
-    tol = {"rtol": 2e-2, "atol": 2e-2} if bf16 else {"rtol": 1e-5, "atol": 1e-6}
-    torch.testing.assert_close(loss_c, loss_e, **tol)
-    for k in params:
-        torch.testing.assert_close(g_c[k], g_e[k], **tol)
-
-
 def test_run_settings_reach_the_model():
-    """``configure_updates`` puts a run's update settings (``Args``: bf16, its layout, compiled updates and their
-    graph pass) on the model, and the defaults take them off again."""
+    """``configure_updates`` puts a run's update settings (``Args``: bf16, its layout, compiled updates) on the
+    model, and the defaults take them off again."""
     from policies.sac import Float32Linear
     from policies.train import configure_updates
 
     model = _model()
-    configure_updates(model, Args(task="ik4d", bf16=True, bf16_layout="all", compile_updates=True,
-                                  compile_split_products=True))
-    assert model.bf16_updates and model.compile_updates and model.compile_split_products
+    configure_updates(model, Args(task="ik4d", bf16=True, bf16_layout="all", compile_updates=True))
+    assert model.bf16_updates and model.compile_updates
     assert not any(isinstance(m, Float32Linear) for m in model.policy.modules())  # every layer in bfloat16
     configure_updates(model, Args(task="ik4d"))
-    assert not model.bf16_updates and not model.compile_updates and not model.compile_split_products
+    assert not model.bf16_updates and not model.compile_updates
     assert any(isinstance(m, Float32Linear) for m in model.policy.modules())
 
 
-def test_split_products_without_compile_is_refused(tmp_path, capsys):
-    """The thin-product pass works on the compiled update graph: asking for it without compiled updates is refused
-    with a message naming --compile (rodlab train, a sweep's --set, rodlab bench train, SpeedSettings), before a
-    run directory is made."""
-    from policies.cli import bench_train_main, train_main
-    from policies.train import TrainError, train
+def test_saved_config_with_a_retired_setting():
+    """A run's config.json written when ``compile_split_products`` still existed loads when it holds the value that
+    runs as now (off), and names the key otherwise; ``--split-products`` is no option any more."""
+    from policies.cli import bench_train_main
+    from policies.train import TrainError
 
-    with pytest.raises(TrainError, match="--split-products .* add --compile"):
-        train(Args(task="ik4d", num_envs=2, total_steps=100, run_dir=str(tmp_path / "run"), bf16=True,
-                   compile_split_products=True))
-    assert not (tmp_path / "run").exists()
-    for main, argv in ((train_main, ["ik4d", "--bf16", "--split-products", "--run-dir", str(tmp_path / "cli")]),
-                       (bench_train_main, ["--task", "ik4d", "--bf16", "--split-products"])):
-        with pytest.raises(SystemExit) as exc:
-            main(argv)
-        assert exc.value.code == 2
-        assert "--split-products is a pass over the compiled update graph: add --compile" in capsys.readouterr().err
-    assert not (tmp_path / "cli").exists()
-    with pytest.raises(ValueError, match="needs compile=True"):
-        SpeedSettings(bf16=True, split_products=True)
+    saved = Args(task="ik4d").to_json()
+    assert Args.from_json({**saved, "compile_split_products": False}) == Args(task="ik4d")
+    with pytest.raises(TrainError, match="unknown keys .*compile_split_products"):
+        Args.from_json({**saved, "compile_split_products": True})
+    with pytest.raises(SystemExit) as exc:
+        bench_train_main(["--task", "ik4d", "--compile", "--split-products"])
+    assert exc.value.code == 2
 
 
 @pytest.mark.parametrize("bf16", [False, True])
@@ -481,15 +450,14 @@ def test_unit_product_loops_rewrite_and_keep_the_precision(fresh_dynamo, bf16):
     """``UnitProductLoops`` (policies/compile_passes.py, part of ``--compile``) turns the bfloat16 products with a
     unit dimension of a critic's loss and gradients into float32 loops rounded once, leaves the wide products and
     float32 alone, and is as close to the float32 gradients as the library's bfloat16 products are."""
-    from policies.compile_passes import SplitThinProducts, UnitProductLoops
+    from policies.compile_passes import UnitProductLoops
 
     params, x = _critic_like_inputs(256)
     grads, loops = _critic_grads(bf16), UnitProductLoops()
     (g_c, loss_c), (g_e, loss_e) = _compiled_with(grads, loops)(params, x), grads(params, x)
     if bf16:  # forward: the output layer (dot + bias); backward: its input gradient and its weight gradient
         assert loops.rewritten == {"dot_bias": 1, "outer": 1, "sum_rows": 1}
-        # the two passes give inductor's cache different keys (a graph compiled with one is never the other's)
-        assert loops.uuid() != SplitThinProducts().uuid() and loops.uuid() == UnitProductLoops().uuid()
+        assert loops.uuid() == UnitProductLoops().uuid()  # inductor's cache key: one per version of the pass
     else:
         assert not loops.rewritten
     tol = {"rtol": 2e-2, "atol": 2e-2} if bf16 else {"rtol": 1e-5, "atol": 1e-6}
