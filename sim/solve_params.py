@@ -54,12 +54,12 @@ StepOutput = namedtuple("StepOutput", [
 # the rod's constant per-edge / per-node / per-DOF arrays (docs/physics.md §1.2): rest edge lengths (N-1,),
 # Voronoi lengths (N,), DOF masses, fixed-DOF flags (n,) of one env, and the external forces grav (gravity plus
 # point loads): (1, n) shared by all envs, or (B, n) per env when time-windowed loads act (row min(e, rows - 1));
-# the stiffnesses: EA [N] per edge (N-1,), EI1/EI2/GJ [N m²] per node (N,) (an interior node: the mean of its two
-# edges'; docs/physics.md §1.5). The planar rod reads its in-plane bending stiffness from EI1. radius [m]: (1,) for
-# a rod of one radius, else (N-1,) per edge (sim.contact_kernels). link (N-1,) uint8: 1 for a material edge, 0 for
-# a joint edge between two rods of a scene (docs/physics.md §1.7): no stretching, no bending or twisting at its two
-# nodes, no contact, its frame carried along unchanged. pairs (P, 2) int64: the edge pairs that may touch
-# (sim.contact_rod.allowed_pairs; (0, 2) without self- or rod–rod contact).
+# the stiffnesses: EA [N] per edge (N-1,), EI1/EI2/GJ [N m²] per node (N,) (an interior node: the length-weighted
+# mean of its two edges' compliances; docs/physics.md §1.5). The planar rod reads its in-plane bending stiffness
+# from EI1. radius [m]: (1,) for a rod of one radius, else (N-1,) per edge (sim.contact_kernels). link (N-1,)
+# uint8: 1 for a material edge, 0 for a joint edge between two rods of a scene (docs/physics.md §1.7): no
+# stretching, no bending or twisting at its two nodes, no contact, its frame carried along unchanged. pairs (P, 2)
+# int64: the edge pairs that may touch (sim.contact_rod.allowed_pairs; (0, 2) without self- or rod–rod contact).
 RodData = namedtuple("RodData", ["rest_len", "vor_len", "mass", "fixed", "grav", "EA", "EI1", "EI2", "GJ", "radius",
                                  "link", "pairs"])
 # the batched state the kernel advances in place (leading axis B): DOFs and their velocities (B, n), the stored
