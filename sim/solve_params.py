@@ -46,10 +46,11 @@ ContactReport = namedtuple("ContactReport", [
 ])
 # what the step kernel writes per env for StepStats (all (B,)): the last and first residual ‖f‖ of the step,
 # the energies [J] at its end, Newton iterations (total over sub-steps), sub-steps per step of the level
-# accepted (1 = no retry), whether every sub-step converged, whether the env failed in this step
+# accepted (1 = no retry), how many of those sub-steps the implicit midpoint rule redid by backward Euler (0 with
+# backward Euler), whether every sub-step converged, whether the env failed in this step
 StepOutput = namedtuple("StepOutput", [
     "residual", "residual0", "energy_stretch", "energy_bend", "energy_twist", "energy_contact", "energy_kinetic",
-    "energy_gravity", "newton_iters", "substeps", "converged", "failed",
+    "energy_gravity", "newton_iters", "substeps", "midpoint_fallbacks", "converged", "failed",
 ])
 # the rod's constant per-edge / per-node / per-DOF arrays (docs/physics.md §1.2): rest edge lengths (N-1,),
 # Voronoi lengths (N,), DOF masses, fixed-DOF flags (n,) of one env, and the external forces grav (gravity plus
