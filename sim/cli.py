@@ -37,6 +37,10 @@ def sim_main(argv: list[str] | None = None) -> int:
                          "to 1e5 s with zeroed velocities, until a step moves no node by more than "
                          "--static-tol x rod length); --out then holds one frame")
     ap.add_argument("--static-tol", type=float, default=1e-10, help="relative displacement tolerance of --static")
+    ap.add_argument("--to-stable", action="store_true",
+                    help="with --static: an env that ends at an unstable equilibrium (a saddle of the energy, e.g. a "
+                         "column above its buckling load left straight) is pushed along its most negative "
+                         "direction and relaxed again, at most 4 times (docs/physics.md §3.8)")
     ap.add_argument("--envs", type=int, default=1, help=f"number of environments (default 1, at most {_MAX_ENVS})")
     ap.add_argument("--every", type=int, default=1, help="record every K-th step (default 1)")
     ap.add_argument("--out", help="write time, node_pos (frames, envs, nodes of all rods, 3), edge_theta, "
@@ -180,13 +184,14 @@ def _static_main(a: argparse.Namespace, spec, fail) -> int:
     model = build_model(spec)
     sim = Simulator(model, envs=a.envs)
     state, ctrl = sim.reset(), sim.make_control()
-    res = solve_static(spec, state, ctrl, xtol=a.static_tol)
+    res = solve_static(spec, state, ctrl, xtol=a.static_tol, to_stable=a.to_stable)
     wall = time.perf_counter() - t0
     if a.out:
         try:
             _atomic_savez(a.out, time=np.zeros(1), node_pos=state.node_pos[None].copy(),
                           edge_theta=np.asarray(state.edge_theta)[None].copy(), converged=res.converged[None],
-                          static_steps=res.steps, static_last_move=res.last_move, **_rod_arrays(model))
+                          static_steps=res.steps, static_last_move=res.last_move, stable=res.stable,
+                          negative_directions=res.negative_directions, **_rod_arrays(model))
         except OSError as exc:
             return fail(f"{a.out}: cannot write: {exc.strerror or exc}")
         print(f"rodlab sim: wrote the static equilibrium to {a.out}")
@@ -194,6 +199,17 @@ def _static_main(a: argparse.Namespace, spec, fail) -> int:
     _print_tips(model, state, 6)
     print(f"converged envs: {int(res.converged.sum())}/{a.envs} after {int(res.steps.max())} pseudo-time steps "
           f"(last dt {res.dt:g} s, largest last move {float(res.last_move.max()):.3g} m); {wall:.2f} s")
+    if res.perturbations.any():
+        print(f"pushed off an unstable equilibrium: {int((res.perturbations > 0).sum())} env(s), "
+              f"{int(res.perturbations.sum())} time(s) in all")
+    bad = np.flatnonzero(res.converged & ~res.stable)
+    if bad.size:
+        print(f"unstable equilibrium in {bad.size} env(s) (first: env {int(bad[0])}, "
+              f"{int(res.negative_directions[bad[0]])} negative direction(s), lowest eigenvalue "
+              f"{float(res.lowest_eigenvalue[bad[0]]):.3g} 1/s^2)"
+              + ("" if a.to_stable else "; --to-stable looks for a stable one nearby"))
+    elif res.converged.all():
+        print("stable equilibrium (no negative direction of the static Hessian)")
     return 0 if res.converged.all() else 1
 
 
