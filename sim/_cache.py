@@ -14,7 +14,7 @@ from pathlib import Path
 _HERE = Path(__file__).resolve().parent
 _SOURCES = ["frames.py", "banded.py", "solve.py", "solve_params.py", "solve_3d.py", "solve_2d.py", "newton.py",
             "kernel.py", "contact_kernels.py", "contact_rod.py", "geometry_distance.py", "kinds.py",
-            "energies/stretch.py", "energies/bend_twist.py", "energies/planar.py"]
+            "energies/stretch.py", "energies/bend_twist.py", "energies/planar.py", "hessian.py"]
 # modules whose numba functions call no numba function of another module (their own cache check suffices)
 SELF_CONTAINED = ["contact_mesh.py"]
 

@@ -37,10 +37,14 @@ def sim_main(argv: list[str] | None = None) -> int:
                          "to 1e5 s with zeroed velocities, until a step moves no node by more than "
                          "--static-tol x rod length); --out then holds one frame")
     ap.add_argument("--static-tol", type=float, default=1e-10, help="relative displacement tolerance of --static")
+    ap.add_argument("--to-stable", action="store_true",
+                    help="with --static: an env that ends at an unstable equilibrium (a saddle of the energy, e.g. a "
+                         "column above its buckling load left straight) is pushed along its most negative "
+                         "direction and relaxed again, at most 4 times (docs/physics.md §3.8)")
     ap.add_argument("--envs", type=int, default=1, help=f"number of environments (default 1, at most {_MAX_ENVS})")
     ap.add_argument("--every", type=int, default=1, help="record every K-th step (default 1)")
     ap.add_argument("--out", help="write time, node_pos (frames, envs, nodes of all rods, 3), edge_theta, "
-                                  "newton_iters, converged, max_penetration, contact_count, contact_force (and "
+                                  "newton_iters, converged, midpoint_fallbacks, max_penetration, contact_count, contact_force (and "
                                   "per-contact rows: obstacle contacts and edge pairs), rod_node_offsets (where "
                                   "each rod's nodes start, then the total) and rod_names to this .npz; its folder "
                                   "is checked for writing before the simulation starts")
@@ -92,18 +96,23 @@ def sim_main(argv: list[str] | None = None) -> int:
     first = sim.step(state.copy(), ctrl)  # compile / load kernels outside the timing
     t_ready = time.perf_counter() - t0
     frames: dict[str, list] = {"time": [], "node_pos": [], "edge_theta": [], "newton_iters": [], "converged": [],
-                               "max_penetration": [], "contact_count": [], "contact_force": []}
+                               "midpoint_fallbacks": [], "max_penetration": [], "contact_count": [],
+                               "contact_force": []}
     crow = ("contact_edge", "contact_obstacle", "contact_partner_edge", "contact_rod_point", "contact_normal",
             "contact_normal_force", "contact_friction_force", "contact_gap") if first.contact_edge.shape[1] else ()
     for name in crow:
         frames[name] = []
     it_sum, it_max = 0, 0
+    fell = np.zeros(a.envs, np.int64)  # midpoint sub-steps redone by backward Euler, per env
+    subs = np.zeros(a.envs, np.int64)
     t1 = time.perf_counter()
     with progress_bar(n, desc="rodlab sim", enabled=progress_wanted(a.progress)) as bar:
         for k in range(1, n + 1):
             st = sim.step(state, ctrl)
             it_sum += int(st.newton_iters.sum())
             it_max = max(it_max, int(st.newton_iters.max()))
+            fell += st.midpoint_fallbacks
+            subs += st.substeps
             bar.update(1)
             if a.out and (k % a.every == 0 or k == n):
                 frames["time"].append(k * model.dt)
@@ -111,6 +120,7 @@ def sim_main(argv: list[str] | None = None) -> int:
                 frames["edge_theta"].append(np.array(state.edge_theta))
                 frames["newton_iters"].append(st.newton_iters.copy())
                 frames["converged"].append(st.converged.copy())
+                frames["midpoint_fallbacks"].append(st.midpoint_fallbacks.copy())
                 # contact (sim/contact_kernels.py): max penetration (B,) [m], count (B,), total force on the rods
                 # (B, 3) [N] = sum of normal_force * normal + friction over the reported rows (the first
                 # contact_count; the rows after them are left from earlier steps); per-row (B, C, ...)
@@ -132,8 +142,21 @@ def sim_main(argv: list[str] | None = None) -> int:
     _print_tips(model, state, 5)
     print(f"newton iterations per step: mean {it_sum / (n * a.envs):.2f}, max {it_max}; "
           f"failed envs: {int(state.failed.sum())}")
+    if model.integrator == "midpoint":
+        print(_midpoint_line(fell, subs))
     print(f"time per step: {wall / n * 1e3:.3f} ms (kernels ready in {t_ready:.2f} s)")
     return 0
+
+
+def _midpoint_line(fell: np.ndarray, subs: np.ndarray) -> str:
+    """The summary line of a midpoint run: how many sub-steps gained energy and were redone by backward Euler
+    (docs/physics.md §3.3), over all envs and for the worst env."""
+    total, worst = int(fell.sum()), int(np.argmax(fell))
+    line = (f"midpoint fallbacks: {total} of {int(subs.sum())} sub-steps redone by backward Euler "
+            f"(gained energy)")
+    if total and fell.shape[0] > 1:
+        line += f"; most in env {worst}: {int(fell[worst])} of {int(subs[worst])}"
+    return line
 
 
 def _rod_arrays(model) -> dict:
@@ -161,13 +184,14 @@ def _static_main(a: argparse.Namespace, spec, fail) -> int:
     model = build_model(spec)
     sim = Simulator(model, envs=a.envs)
     state, ctrl = sim.reset(), sim.make_control()
-    res = solve_static(spec, state, ctrl, xtol=a.static_tol)
+    res = solve_static(spec, state, ctrl, xtol=a.static_tol, to_stable=a.to_stable)
     wall = time.perf_counter() - t0
     if a.out:
         try:
             _atomic_savez(a.out, time=np.zeros(1), node_pos=state.node_pos[None].copy(),
                           edge_theta=np.asarray(state.edge_theta)[None].copy(), converged=res.converged[None],
-                          static_steps=res.steps, static_last_move=res.last_move, **_rod_arrays(model))
+                          static_steps=res.steps, static_last_move=res.last_move, stable=res.stable,
+                          negative_directions=res.negative_directions, **_rod_arrays(model))
         except OSError as exc:
             return fail(f"{a.out}: cannot write: {exc.strerror or exc}")
         print(f"rodlab sim: wrote the static equilibrium to {a.out}")
@@ -175,6 +199,17 @@ def _static_main(a: argparse.Namespace, spec, fail) -> int:
     _print_tips(model, state, 6)
     print(f"converged envs: {int(res.converged.sum())}/{a.envs} after {int(res.steps.max())} pseudo-time steps "
           f"(last dt {res.dt:g} s, largest last move {float(res.last_move.max()):.3g} m); {wall:.2f} s")
+    if res.perturbations.any():
+        print(f"pushed off an unstable equilibrium: {int((res.perturbations > 0).sum())} env(s), "
+              f"{int(res.perturbations.sum())} time(s) in all")
+    bad = np.flatnonzero(res.converged & ~res.stable)
+    if bad.size:
+        print(f"unstable equilibrium in {bad.size} env(s) (first: env {int(bad[0])}, "
+              f"{int(res.negative_directions[bad[0]])} negative direction(s), lowest eigenvalue "
+              f"{float(res.lowest_eigenvalue[bad[0]]):.3g} 1/s^2)"
+              + ("" if a.to_stable else "; --to-stable looks for a stable one nearby"))
+    elif res.converged.all():
+        print("stable equilibrium (no negative direction of the static Hessian)")
     return 0 if res.converged.all() else 1
 
 

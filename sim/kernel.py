@@ -70,7 +70,8 @@ def env_step(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
     # sub-steps, keeping the least-bad finite level result (score = max(pen/lim, growth/rg) > 1) as fallback
     fb_score = np.inf
     rg = prm.divergence_guard
-    fb_ns, fb_it, fb_conv, fb_r, fb_r0 = 1, 0, False, 0.0, 0.0
+    fb_ns, fb_it, fb_conv, fb_r, fb_r0, fb_mf = 1, 0, False, 0.0, 0.0, 0
+    mfall = 0  # midpoint (sub)steps of the level kept that were redone by backward Euler
     lim = prm.max_penetration  # guard limit [m]: raised to (start penetration + limit/4) for a step starting deeper
     for level in range(levels):
         ns = 1 << level
@@ -78,11 +79,13 @@ def env_step(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
         _copy_state(xs, us, d1s, ts, bs, w.sub_x, w.sub_v, w.sub_d1, w.sub_t, w.sub_beta)
         ok = True
         iters = 0
+        mfall = 0
         conv_all = True
         pen = 0.0
         grow = 0.0
         for s in range(ns):
-            st, it, conv, r, r0s, pen_s, pen0 = substep(e, h, kb, tb, rod, prm, cd, w, level == 0 and s == 0)
+            st, it, conv, r, r0s, pen_s, pen0, fell = substep(e, h, kb, tb, rod, prm, cd, w, level == 0 and s == 0)
+            mfall += fell
             if s == 0:
                 r0 = r0s
                 if level == 0:
@@ -101,7 +104,7 @@ def env_step(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
                 fb_score = score
                 _copy_state(w.sub_x, w.sub_v, w.sub_d1, w.sub_t, w.sub_beta, w.fb_x, w.fb_v, w.fb_d1, w.fb_t,
                             w.fb_beta)
-                fb_ns, fb_it, fb_conv, fb_r, fb_r0 = ns, iters, conv_all, r, r0
+                fb_ns, fb_it, fb_conv, fb_r, fb_r0, fb_mf = ns, iters, conv_all, r, r0, mfall
             ok = False
             continue
         if ok:
@@ -109,7 +112,7 @@ def env_step(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
     if not ok and fb_score < np.inf:
         ok = True
         _copy_state(w.fb_x, w.fb_v, w.fb_d1, w.fb_t, w.fb_beta, w.sub_x, w.sub_v, w.sub_d1, w.sub_t, w.sub_beta)
-        ns, iters, conv_all, r, r0 = fb_ns, fb_it, fb_conv, fb_r, fb_r0
+        ns, iters, conv_all, r, r0, mfall = fb_ns, fb_it, fb_conv, fb_r, fb_r0, fb_mf
     if ok:
         if planar:
             copy_into(xs, w.sub_x)
@@ -123,6 +126,7 @@ def env_step(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
     out.newton_iters[e] = iters
     out.converged[e] = ok and conv_all
     out.substeps[e] = ns
+    out.midpoint_fallbacks[e] = mfall if ok else 0
     out.failed[e] = not ok
     return ok
 
@@ -190,6 +194,7 @@ def _clear_outputs(out, e):  # a call, not inlined: the outputs are written insi
     out.energy_gravity[e] = 0.0
     out.newton_iters[e] = 0
     out.substeps[e] = 0
+    out.midpoint_fallbacks[e] = 0
     out.converged[e] = False
     out.failed[e] = False
 

@@ -62,7 +62,7 @@ class Model:
     rest_tangent: np.ndarray         # (N-1, 3)
     edge_radius: np.ndarray          # (N-1,) [m] contact radius per edge
     edge_EA: np.ndarray              # (N-1,) [N] stretching stiffness per edge
-    node_EI1: np.ndarray             # (N,) [N m^2] bending stiffness at a node (interior: mean of its two edges)
+    node_EI1: np.ndarray             # (N,) [N m^2] bending stiffness at a node (interior: §1.5, compliance mean)
     node_EI2: np.ndarray             # (N,) [N m^2]
     node_GJ: np.ndarray              # (N,) [N m^2] twisting stiffness at a node (same rule)
     rest_kappa_bar: np.ndarray       # (N, 2) integrated natural curvature of the rest shape (rows 0, N-1 = 0)
@@ -123,13 +123,22 @@ class Model:
         return out
 
 
-def _node_mean(edge: np.ndarray) -> np.ndarray:
-    """(N,) per-node values of an (N-1,) per-edge quantity: an interior node the mean of its two edges, an end
-    node its edge's (bending and twisting act at interior nodes only)."""
+def _node_stiffness(edge: np.ndarray, lbar: np.ndarray) -> np.ndarray:
+    """(N,) per-node bending or twisting stiffness from an (N-1,) per-edge one (docs/physics.md §1.5). An interior
+    node's Voronoi cell is half of each adjacent edge, so its compliance is the mean of the two edges' compliances
+    weighted by the half-edge lengths: ``K_i = (l̄_{i-1} + l̄_i) / (l̄_{i-1}/K_{i-1} + l̄_i/K_i)`` (the plain
+    harmonic mean for equal edges; exactly the edges' value where they are equal, 0 where either is 0). An end
+    node takes its edge's value (bending and twisting act at interior nodes only)."""
     out = np.empty(edge.shape[0] + 1)
     out[0] = edge[0]
     out[-1] = edge[-1]
-    out[1:-1] = 0.5 * (edge[:-1] + edge[1:])
+    a, b = edge[:-1], edge[1:]
+    la, lb = lbar[:-1], lbar[1:]
+    same = a == b
+    soft = (a == 0.0) | (b == 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        harm = (la + lb) / (la / a + lb / b)
+    out[1:-1] = np.where(same, a, np.where(soft, 0.0, harm))
     return out
 
 
@@ -185,7 +194,8 @@ def _rod_arrays(rod) -> dict:
     d1, t = initial_reference_frames(x)
     return dict(
         x=x, lbar=lbar, vor=vor, r=r, EA=E * A, EI1=EI1, EI2=EI2, GJ=GJ, mass=mass, theta=rod.density * Jp * lbar,
-        node_EI1=_node_mean(EI1), node_EI2=_node_mean(EI2), node_GJ=_node_mean(GJ), d1=d1, t=t,
+        node_EI1=_node_stiffness(EI1, lbar), node_EI2=_node_stiffness(EI2, lbar), node_GJ=_node_stiffness(GJ, lbar),
+        d1=d1, t=t,
         kbar=material_curvature(x, d1, np.cross(t, d1)),  # rest shape: material = reference frame (θ = 0)
         planar=_planar_axes(d1[0], t[0]))
 

@@ -472,9 +472,12 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
 @njit(**_OPT)
 def substep(e, h, kb, tb, rod, prm, cd, w, want_pen0):
     """One (sub)step with the scene's integrator; a midpoint step that gains energy (see
-    :func:`sim.solve_params.midpoint_gained_energy`) is redone by backward Euler."""
+    :func:`sim.solve_params.midpoint_gained_energy`) is redone by backward Euler. Returns what
+    :func:`substep_with` does and, last, 1 if the (sub)step was redone by backward Euler, else 0."""
     st, it, conv, r, r0, pen, pen0 = substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, prm.midpoint != 0)
+    fell = 0
     if st == MIDPOINT_GAINED:
+        fell = 1
         st, it2, conv, r, r0, pen, pen0 = substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, False)
         it += it2
-    return st, it, conv, r, r0, pen, pen0
+    return st, it, conv, r, r0, pen, pen0, fell

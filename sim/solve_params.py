@@ -46,20 +46,21 @@ ContactReport = namedtuple("ContactReport", [
 ])
 # what the step kernel writes per env for StepStats (all (B,)): the last and first residual ‖f‖ of the step,
 # the energies [J] at its end, Newton iterations (total over sub-steps), sub-steps per step of the level
-# accepted (1 = no retry), whether every sub-step converged, whether the env failed in this step
+# accepted (1 = no retry), how many of those sub-steps the implicit midpoint rule redid by backward Euler (0 with
+# backward Euler), whether every sub-step converged, whether the env failed in this step
 StepOutput = namedtuple("StepOutput", [
     "residual", "residual0", "energy_stretch", "energy_bend", "energy_twist", "energy_contact", "energy_kinetic",
-    "energy_gravity", "newton_iters", "substeps", "converged", "failed",
+    "energy_gravity", "newton_iters", "substeps", "midpoint_fallbacks", "converged", "failed",
 ])
 # the rod's constant per-edge / per-node / per-DOF arrays (docs/physics.md §1.2): rest edge lengths (N-1,),
 # Voronoi lengths (N,), DOF masses, fixed-DOF flags (n,) of one env, and the external forces grav (gravity plus
 # point loads): (1, n) shared by all envs, or (B, n) per env when time-windowed loads act (row min(e, rows - 1));
-# the stiffnesses: EA [N] per edge (N-1,), EI1/EI2/GJ [N m²] per node (N,) (an interior node: the mean of its two
-# edges'; docs/physics.md §1.5). The planar rod reads its in-plane bending stiffness from EI1. radius [m]: (1,) for
-# a rod of one radius, else (N-1,) per edge (sim.contact_kernels). link (N-1,) uint8: 1 for a material edge, 0 for
-# a joint edge between two rods of a scene (docs/physics.md §1.7): no stretching, no bending or twisting at its two
-# nodes, no contact, its frame carried along unchanged. pairs (P, 2) int64: the edge pairs that may touch
-# (sim.contact_rod.allowed_pairs; (0, 2) without self- or rod–rod contact).
+# the stiffnesses: EA [N] per edge (N-1,), EI1/EI2/GJ [N m²] per node (N,) (an interior node: the length-weighted
+# mean of its two edges' compliances; docs/physics.md §1.5). The planar rod reads its in-plane bending stiffness
+# from EI1. radius [m]: (1,) for a rod of one radius, else (N-1,) per edge (sim.contact_kernels). link (N-1,)
+# uint8: 1 for a material edge, 0 for a joint edge between two rods of a scene (docs/physics.md §1.7): no
+# stretching, no bending or twisting at its two nodes, no contact, its frame carried along unchanged. pairs (P, 2)
+# int64: the edge pairs that may touch (sim.contact_rod.allowed_pairs; (0, 2) without self- or rod–rod contact).
 RodData = namedtuple("RodData", ["rest_len", "vor_len", "mass", "fixed", "grav", "EA", "EI1", "EI2", "GJ", "radius",
                                  "link", "pairs"])
 # the batched state the kernel advances in place (leading axis B): DOFs and their velocities (B, n), the stored

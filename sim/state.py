@@ -1,7 +1,7 @@
 """State, Control and StepStats: struct-of-arrays with a leading env axis B (shapes and SI units below)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -105,6 +105,8 @@ class StepStats:
 
     newton_iters (B,) int (total over sub-steps), residual (B,) last evaluated ‖f‖ [mixed N, N·m],
     residual0 (B,) first ‖f‖ of the step, converged (B,) bool, substeps (B,) int (1 = no retry),
+    midpoint_fallbacks (B,) int (with ``integrator = "midpoint"``: how many of the step's sub-steps gained energy and
+    were redone by backward Euler, docs/physics.md §3.3; always 0 with backward Euler),
     failed (B,) bool (failed in this step), energy_* (B,) [J] at the end of the step, max_penetration (B,) [m]
     (the deepest obstacle contact or edge pair), contact_* rows (docs/architecture.md): the obstacle contacts, then
     two rows per edge pair in touch (self- or rod–rod contact), one per edge with the force on it;
@@ -134,6 +136,7 @@ class StepStats:
     contact_normal_force: np.ndarray
     contact_friction_force: np.ndarray
     contact_gap: np.ndarray
+    midpoint_fallbacks: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     @property
     def energy_elastic(self) -> np.ndarray:

@@ -25,19 +25,28 @@ from .model import build_model
 from .scene import SceneSpec
 from .step import Simulator
 
-__all__ = ["StaticResult", "static_spec", "solve_static"]
+__all__ = ["StaticResult", "static_spec", "solve_static", "static_hessian", "static_stability"]
 
 
 @dataclasses.dataclass
 class StaticResult:
-    """Per env (B,): converged, steps taken, the last step's largest free position change [m] and Newton
-    residual; ``dt`` the final pseudo-time step [s]."""
+    """Per env (B,): converged, steps taken (all relaxations together), the last step's largest free position change [m] and Newton
+    residual; ``dt`` the final pseudo-time step [s]. Stability of the equilibrium found (converged envs; see
+    :func:`static_stability`): ``negative_directions`` the number of negative eigenvalues of the static Hessian
+    on the free DOFs (0: a local minimum of the energy, stable; more: a saddle or maximum, unstable; -1: not
+    checked), ``stable`` whether it is 0, ``lowest_eigenvalue`` [1/s²] the lowest eigenvalue of the
+    mass-weighted Hessian ``M^-1/2 H M^-1/2`` (nan: not checked); ``perturbations`` how many times ``to_stable``
+    pushed the env along a negative direction."""
 
     converged: np.ndarray
     steps: np.ndarray
     last_move: np.ndarray
     residual: np.ndarray
     dt: float
+    stable: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, bool))
+    negative_directions: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, np.int64))
+    lowest_eigenvalue: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    perturbations: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, np.int64))
 
 
 def static_spec(spec: SceneSpec, time: float, dt: float, dx_stop: float) -> SceneSpec:
@@ -55,55 +64,203 @@ def static_spec(spec: SceneSpec, time: float, dt: float, dx_stop: float) -> Scen
 
 
 def solve_static(spec: SceneSpec, state: Any, ctrl: Any, *, xtol: float = 1e-10, dt_max: float = 1e5,
-                 growth: float = 10.0, max_steps: int = 200) -> StaticResult:
+                 growth: float = 10.0, max_steps: int = 200, check_stability: bool = True, to_stable: bool = False,
+                 max_tries: int = 4) -> StaticResult:
     """Relax ``state`` (of a Simulator of ``spec``; changed in place) to static equilibrium under ``ctrl``.
 
     All envs share the pseudo-time step; envs that have converged keep stepping (their moves stay below the
-    tolerance). ``state.time`` is left unchanged."""
-    if not (xtol > 0 and dt_max >= spec.sim.dt and growth > 1 and max_steps >= 1):
-        raise ValueError("solve_static: need xtol > 0, dt_max >= the scene's dt, growth > 1, max_steps >= 1")
+    tolerance). ``state.time`` is left unchanged.
+
+    ``check_stability``: count the negative directions of the static Hessian at each converged env's equilibrium
+    (:func:`static_stability`). A saddle satisfies ``∇E = F`` as well as a minimum, and Newton converges to
+    whichever is near (a column under twice its buckling load stays straight). ``to_stable``: while an env is at
+    an unstable equilibrium (at most ``max_tries`` times), push it along the eigenvector of the lowest eigenvalue
+    (largest node move 1 %, then 10 %, 30 %, ... of the rod length), relax it with a fixed pseudo-time step
+    ``h = sqrt(0.5/|λ|)`` (an energy-decreasing proximal step that the negative direction cannot turn back up: the
+    perturbation doubles per step) and then with the growing steps above, and check again."""
+    if not (xtol > 0 and dt_max >= spec.sim.dt and growth > 1 and max_steps >= 1 and max_tries >= 0):
+        raise ValueError("solve_static: need xtol > 0, dt_max >= the scene's dt, growth > 1, max_steps >= 1, "
+                         "max_tries >= 0")
     B = state.dof.shape[0]
     t = float(state.time[0]) if B else 0.0
     if B and not np.all(state.time == t):
         raise ValueError("solve_static: all envs must be at the same time (the active loads depend on it)")
     time0 = state.time.copy()
-    sims: dict[float, Simulator] = {}
-    h = float(spec.sim.dt)
     length = max(float(r.length) for r in spec.rods)
-    conv = np.zeros(B, bool)
-    steps = np.zeros(B, np.int64)
-    move = np.full(B, np.inf)
-    res = np.full(B, np.inf)
-    free = None
-    for _ in range(max_steps):
-        if h not in sims:
-            sims[h] = Simulator(build_model(static_spec(spec, t, h, 0.1 * xtol * length)), envs=B)
-        sim = sims[h]
-        if free is None:
-            m = sim.model
-            dpn = m.dofs_per_node
-            pos_dof = (np.arange(m.node_count * dpn) % dpn) < (3 if dpn == 4 else 2)
-            free = np.flatnonzero(pos_dof & ~m.dof_fixed)
-        before = state.copy()
-        state.dof_vel[...] = 0.0
-        stats = sim.step(state, ctrl)
-        if state.failed.any():  # undo the step in every env and shrink the pseudo-time step
-            _restore(state, before)
-            if h <= spec.sim.dt:
+    run = _Relax(spec, state, ctrl, t, xtol * length, dt_max, growth)
+    res = run(float(spec.sim.dt), 0, max_steps)
+    neg = np.full(B, -1, np.int64)
+    lam = np.full(B, np.nan)
+    pushed = np.zeros(B, np.int64)
+    if check_stability or to_stable:
+        neg, lam, vec = _stability(run.any_sim(), state, ctrl, res.converged)
+        for k in range(max_tries if to_stable else 0):
+            bad = res.converged & (neg > 0)
+            if not bad.any():
                 break
-            h = max(float(spec.sim.dt), h / growth)
-            continue
-        steps += 1
-        d = np.abs(state.dof.reshape(B, -1)[:, free] - before.dof.reshape(B, -1)[:, free])
-        move = d.max(axis=1) if free.size else np.zeros(B)
-        res = stats.residual
-        conv = (h >= dt_max) & (move <= xtol * length)
-        if conv.all():
-            break
-        h = min(dt_max, h * growth)
+            _push(run.any_sim().model, state, vec, bad, length * (0.01 if k == 0 else 0.1 * 3.0 ** (k - 1)))
+            pushed += bad
+            h_hold = float(np.sqrt(0.5 / np.max(-lam[bad])))
+            steps = res.steps
+            res = run(h_hold, 100, max_steps)
+            res.steps += steps
+            neg, lam, vec = _stability(run.any_sim(), state, ctrl, res.converged)
     state.dof_vel[...] = 0.0
     state.time[:] = time0
-    return StaticResult(converged=conv, steps=steps, last_move=move, residual=np.asarray(res), dt=h)
+    res.negative_directions, res.lowest_eigenvalue, res.perturbations = neg, lam, pushed
+    res.stable = res.converged & (neg == 0)
+    return res
+
+
+class _Relax:
+    """The pseudo-time continuation of :func:`solve_static` on one state (the Simulators by step size kept)."""
+
+    def __init__(self, spec, state, ctrl, t, move_tol, dt_max, growth):
+        self.spec, self.state, self.ctrl, self.t = spec, state, ctrl, t
+        self.move_tol, self.dt_max, self.growth = move_tol, dt_max, growth
+        self.sims: dict[float, Simulator] = {}
+        self.free = None
+
+    def sim(self, h: float) -> Simulator:
+        if h not in self.sims:
+            spec = static_spec(self.spec, self.t, h, 0.1 * self.move_tol)
+            self.sims[h] = Simulator(build_model(spec), envs=self.state.dof.shape[0])
+        return self.sims[h]
+
+    def any_sim(self) -> Simulator:
+        return next(iter(self.sims.values())) if self.sims else self.sim(float(self.spec.sim.dt))
+
+    def __call__(self, h: float, hold: int, max_steps: int) -> StaticResult:
+        """From pseudo-time step ``h``: ``hold`` steps at ``h`` (fewer once a step moves less than 1e-3 of the
+        largest move so far), then ``h`` grows by ``growth`` per step up to ``dt_max`` until converged."""
+        state, ctrl, spec = self.state, self.ctrl, self.spec
+        B = state.dof.shape[0]
+        conv = np.zeros(B, bool)
+        steps = np.zeros(B, np.int64)
+        move = np.full(B, np.inf)
+        res = np.full(B, np.inf)
+        h_min = min(float(spec.sim.dt), h)
+        largest = 0.0
+        h_fail = np.inf  # the step size that failed last (a singular static Hessian: a neutral direction)
+        for _ in range(max_steps + hold):
+            sim = self.sim(h)
+            if self.free is None:
+                m = sim.model
+                dpn = m.dofs_per_node
+                pos_dof = (np.arange(m.node_count * dpn) % dpn) < (3 if dpn == 4 else 2)
+                self.free = np.flatnonzero(pos_dof & ~m.dof_fixed)
+            free = self.free
+            before = state.copy()
+            state.dof_vel[...] = 0.0
+            stats = sim.step(state, ctrl)
+            if state.failed.any():  # undo the step in every env and shrink the pseudo-time step
+                _restore(state, before)
+                if h <= h_min:
+                    break
+                h_fail = h
+                h = max(h_min, h / self.growth)
+                hold = 0
+                continue
+            steps += 1
+            d = np.abs(state.dof.reshape(B, -1)[:, free] - before.dof.reshape(B, -1)[:, free])
+            move = d.max(axis=1) if free.size else np.zeros(B)
+            res = stats.residual
+            if hold > 0:
+                hold -= 1
+                largest = max(largest, float(move.max(initial=0.0)))
+                if float(move.max(initial=0.0)) < 1e-3 * largest:
+                    hold = 0
+                continue
+            # converged: no move at the largest step, or at the largest step that still factorises (a neutral
+            # direction, e.g. the plane of a buckled round column, makes the barely regularised Jacobian singular)
+            top = h >= self.dt_max or (h * self.growth >= h_fail and h >= 1e-3 * self.dt_max)
+            conv = top & (move <= self.move_tol)
+            if conv.all():
+                break
+            h = min(self.dt_max, h * self.growth)
+        return StaticResult(converged=conv, steps=steps, last_move=move, residual=np.asarray(res), dt=h)
+
+
+def static_hessian(sim: Simulator, state: Any, ctrl: Any, e: int) -> np.ndarray:
+    """The dense (n, n) static Hessian of env ``e`` at its state (constrained DOFs: identity rows and columns), the
+    step's own elements at the state's frames, where they are exact (docs/physics.md §2.4); friction, not a
+    potential force, is left out by taking the symmetric part."""
+    from .contact_set import contact_data
+    from .hessian import static_jacobian
+
+    B = state.dof.shape[0]
+    obs = sim._no_obstacles if state.obstacles is None else state.obstacles
+    ab, dofs, cm = static_jacobian(e, np.ascontiguousarray(state.dof.reshape(B, -1)[e]),
+                                   np.ascontiguousarray(state.edge_ref_d1[e]), np.ascontiguousarray(state.edge_tangent[e]),
+                                   np.ascontiguousarray(state.node_ref_twist[e]),
+                                   np.ascontiguousarray(ctrl.kappa_bar[e], dtype=np.float64),
+                                   np.ascontiguousarray(ctrl.tau_bar[e], dtype=np.float64), sim._rod, sim._prm,
+                                   contact_data(obs, sim._scratch))
+    n = state.dof.reshape(B, -1).shape[1]
+    kl = (ab.shape[1] - 1) // 2
+    r = np.arange(n)[:, None]
+    c = r + np.arange(-kl, kl + 1)[None, :]
+    ok = (c >= 0) & (c < n)
+    H = np.zeros((n, n))
+    H[np.broadcast_to(r, c.shape)[ok], c[ok]] = ab[:n][ok]
+    if dofs.size:
+        H[np.ix_(dofs, dofs)] += cm
+    return 0.5 * (H + H.T)
+
+
+def static_stability(sim: Simulator, state: Any, ctrl: Any, e: int) -> tuple[int, float, np.ndarray]:
+    """(negative directions, lowest eigenvalue [1/s²], its eigenvector (n,)) of env ``e``'s equilibrium.
+
+    The eigenproblem is the mass-weighted static Hessian ``S = M^-1/2 H M^-1/2`` on the free DOFs (``M`` the
+    lumped DOF masses); by Sylvester's law of inertia ``S`` has as many negative eigenvalues as ``H``, and its
+    lowest eigenvector (mapped back by ``M^-1/2``) is the direction a pseudo-time step grows fastest along. A
+    symmetric eigensolver is used rather than the signs of the step's LDLᵀ pivots: those are not exposed by the
+    kernel, belong to an iterate before the last one, and an LDLᵀ without pivoting can break down on an
+    indefinite matrix. Eigenvalues below ``-1e-9`` times the largest diagonal entry of ``S`` count as negative
+    (rounding leaves zero modes, e.g. a free spin of the twist angles, at ~1e-16 of it). Where the lowest
+    eigenvalue is multiple, the eigenvector returned is the combination of its eigenvectors nearest to moving
+    every free node down (−z)."""
+    m = sim.model
+    H = static_hessian(sim, state, ctrl, e)
+    free = np.flatnonzero(~np.asarray(m.dof_fixed))
+    d = 1.0 / np.sqrt(np.asarray(m.dof_mass)[free])
+    S = H[np.ix_(free, free)] * d[:, None] * d[None, :]
+    w, v = np.linalg.eigh(S)
+    thr = 1e-9 * float(np.abs(np.diag(S)).max(initial=0.0))
+    # a multiple lowest eigenvalue (a round column buckles in any plane): of its eigenvectors, the combination
+    # nearest to moving every free node down (-z), so that the push keeps a plane of symmetry where there is one
+    deg = v[:, np.abs(w - w[0]) <= 1e-6 * abs(w[0])] if w.size else v[:, :1]
+    dpn = m.dofs_per_node
+    down = -((free % dpn) == (2 if dpn == 4 else 1)).astype(float)
+    y = deg @ (deg.T @ down)
+    y = y if np.linalg.norm(y) > 1e-8 * np.linalg.norm(down) else v[:, 0]
+    vec = np.zeros(H.shape[0])
+    vec[free] = d * y / np.linalg.norm(y)
+    return int(np.count_nonzero(w < -thr)), float(w[0]), vec
+
+
+def _stability(sim, state, ctrl, conv):
+    B = state.dof.shape[0]
+    neg = np.full(B, -1, np.int64)
+    lam = np.full(B, np.nan)
+    vec = np.zeros((B, state.dof.reshape(B, -1).shape[1]))
+    for e in np.flatnonzero(conv):
+        neg[e], lam[e], vec[e] = static_stability(sim, state, ctrl, int(e))
+    return neg, lam, vec
+
+
+def _push(model, state, vec, envs, size):
+    """Move the ``envs`` along ``vec`` (B, n) so that the largest node displacement is ``size`` [m] (the sign
+    that moves the lowest free node down: under gravity the way a buckle or a sagging rope goes)."""
+    B = state.dof.shape[0]
+    dpn = model.dofs_per_node
+    npos = 3 if dpn == 4 else 2
+    q = state.dof.reshape(B, -1)
+    for e in np.flatnonzero(envs):
+        v = vec[e].reshape(-1, dpn)
+        s = np.abs(v[:, :npos]).max()
+        if s > 0:
+            q[e] += (size / s) * vec[e] * (1.0 if v[:, npos - 1].sum() <= 0 else -1.0)
 
 
 def _restore(state: Any, before: Any) -> None:

@@ -83,8 +83,8 @@ class Simulator:
         f, i = (lambda: np.zeros(B)), (lambda: np.zeros(B, np.int64))
         self._out = _solve.StepOutput(
             residual=f(), residual0=f(), energy_stretch=f(), energy_bend=f(), energy_twist=f(), energy_contact=f(),
-            energy_kinetic=f(), energy_gravity=f(), newton_iters=i(), substeps=i(), converged=np.zeros(B, bool),
-            failed=np.zeros(B, bool))
+            energy_kinetic=f(), energy_gravity=f(), newton_iters=i(), substeps=i(), midpoint_fallbacks=i(),
+            converged=np.zeros(B, bool), failed=np.zeros(B, bool))
 
     # ------------------------------------------------------------------ state / control construction
     def _rest_dof(self) -> np.ndarray:
@@ -208,7 +208,8 @@ class Simulator:
         o, cr = self._out, self._crep
         return StepStats(
             newton_iters=o.newton_iters.copy(), residual=o.residual.copy(), residual0=o.residual0.copy(),
-            converged=o.converged.copy(), substeps=o.substeps.copy(), failed=o.failed.copy(),
+            converged=o.converged.copy(), substeps=o.substeps.copy(), midpoint_fallbacks=o.midpoint_fallbacks.copy(),
+            failed=o.failed.copy(),
             energy_stretch=o.energy_stretch.copy(), energy_bend=o.energy_bend.copy(),
             energy_twist=o.energy_twist.copy(), energy_contact=o.energy_contact.copy(),
             energy_kinetic=o.energy_kinetic.copy(), energy_gravity=o.energy_gravity.copy(),

@@ -160,6 +160,7 @@ _STAT_SCALARS = (("energy/stretch", "energy_stretch"), ("energy/bend", "energy_b
                  ("energy/contact", "energy_contact"), ("energy/kinetic", "energy_kinetic"),
                  ("energy/gravity", "energy_gravity"), ("solver/residual", "residual"),
                  ("solver/converged", "converged"), ("solver/substeps", "substeps"),
+                 ("solver/midpoint_fallbacks", "midpoint_fallbacks"),
                  ("solver/newton_iters", "newton_iters"), ("contact/max_penetration", "max_penetration"))
 
 

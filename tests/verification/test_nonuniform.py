@@ -17,17 +17,18 @@ from sim.tomlio import SceneError
 from tests.unit._rodspec import make_spec, small_scene_toml
 from tests.verification._util import static_solve
 
-R = 0.02
-E_ROOT, E_TIP = 4e7, 1e7   # stiff inner half, soft outer half
+R_ROOT, R_TIP = 0.02, 0.01   # thick inner half, thin outer half: a stiffness ratio of 16
+E = 1e7
 
 
 def _stepped(N, F):
-    """A cantilever of length 1 whose edges up to x = 0.5 have E_ROOT and the rest E_TIP, a tip load F (-z)."""
+    """A cantilever of length 1 whose edges up to x = 0.5 have radius R_ROOT and the rest R_TIP (the step at the
+    middle node for odd N), a tip load F (-z)."""
     s = np.linspace(0.0, 1.0, N)
     mid = 0.5 * (s[:-1] + s[1:])
-    Es = tuple(float(E_ROOT if m < 0.5 else E_TIP) for m in mid)
-    spec = make_spec(nodes=N, length=1.0, radius=R, E=E_ROOT, dt=1e4, dtol=1e-14, max_iter=100)
-    spec = dataclasses.replace(spec, rod=dataclasses.replace(spec.rod, edge_youngs_modulus=Es),
+    rs = tuple(float(R_ROOT if m < 0.5 else R_TIP) for m in mid)
+    spec = make_spec(nodes=N, length=1.0, radius=R_ROOT, E=E, dt=1e4, dtol=1e-14, max_iter=100)
+    spec = dataclasses.replace(spec, rod=dataclasses.replace(spec.rod, edge_radius=rs),
                                loads=(LoadSpec(node=-1, force=(0.0, 0.0, -F)),))
     sim, state, stats = static_solve(spec, steps=3)
     assert stats.converged.all()
@@ -41,30 +42,32 @@ def _stepped_beam_tip(F, L, a, EIa, EIb):
     return F / 3.0 * ((L ** 3 - (L - a) ** 3) / EIa + (L - a) ** 3 / EIb)
 
 
-def test_stepped_cantilever_matches_beam_theory_and_converges():
-    """A stiffness step halfway: the tip deflection approaches the two-segment beam formula as N doubles (the
-    built-in end is the middle of edge 0; the step's node carries the mean of its two edges' EI: an O(l̄) error,
-    0.6 % at N = 81, that halves with each doubling)."""
-    F = 1e-3
-    I = np.pi * R ** 4 / 4  # noqa: E741
+def stepped_cantilever_errors(Ns=(21, 41, 81), F=1e-5):
+    """Relative tip-deflection errors of the stepped cantilever against the two-segment beam formula."""
+    EIa, EIb = E * np.pi * R_ROOT ** 4 / 4, E * np.pi * R_TIP ** 4 / 4
     errs = []
-    for N in (21, 41, 81):
+    for N in Ns:
         m, tip = _stepped(N, F)
-        x0 = 0.5 * m.rest_edge_length[0]
-        ref = _stepped_beam_tip(F, 1.0 - x0, 0.5 - x0, E_ROOT * I, E_TIP * I)
-        errs.append(abs(-tip[2] - ref) / ref)
         assert abs(tip[1]) < 1e-12
-    assert errs[2] < 1e-2, errs
-    assert 1.7 < errs[0] / errs[1] < 2.3 and 1.7 < errs[1] / errs[2] < 2.3, errs  # first order in l̄
-    # the uniform soft and stiff rods bracket it: the step is really felt
-    uni_soft = F * (1.0 - 0.5 / 80) ** 3 / (3 * E_TIP * I)
-    uni_stiff = F * (1.0 - 0.5 / 80) ** 3 / (3 * E_ROOT * I)
-    assert uni_stiff < -tip[2] < uni_soft
+        x0 = 0.5 * m.rest_edge_length[0]
+        ref = _stepped_beam_tip(F, 1.0 - x0, 0.5 - x0, EIa, EIb)
+        errs.append((-tip[2] - ref) / ref)
+    return np.array(errs)
+
+
+def test_stepped_cantilever_matches_beam_theory_to_second_order():
+    """A radius step 20 → 10 mm halfway (EI ratio 16): the node at the step carries the compliance mean of its two
+    edges (its Voronoi cell is half in each), so the tip deflection approaches the two-segment beam formula with
+    the square of the edge length (the built-in end is the middle of edge 0). The arithmetic mean of the two EI
+    would make the rod over-stiff by 4.3 % at N = 41, an error that only halves with each doubling of N."""
+    errs = stepped_cantilever_errors()
+    assert abs(errs[1]) < 1e-3, errs
+    assert 3.5 < errs[0] / errs[1] < 4.5 and 3.5 < errs[1] / errs[2] < 4.5, errs  # second order in l̄
 
 
 def test_masses_and_stiffnesses_follow_the_per_edge_sections():
     """Node masses are half of each adjacent edge's ρ π r_j² l_j (their sum the rod's mass), EA is per edge and
-    the bending/twisting stiffness of an interior node is the mean of its two edges'."""
+    the bending/twisting stiffness of an interior node is the harmonic mean of its two edges' (equal edges)."""
     N, rho, nu = 6, 800.0, 0.4
     r = np.array([0.03, 0.025, 0.02, 0.015, 0.01])
     E = np.array([1e6, 2e6, 3e6, 4e6, 5e6])
@@ -77,10 +80,32 @@ def test_masses_and_stiffnesses_follow_the_per_edge_sections():
     np.testing.assert_allclose(m.node_mass[0], 0.5 * rho * np.pi * r[0] ** 2 * lbar[0], rtol=1e-14)
     np.testing.assert_allclose(m.edge_EA, E * np.pi * r ** 2, rtol=1e-14)
     EI = E * np.pi * r ** 4 / 4
-    np.testing.assert_allclose(m.node_EI1[1:-1], 0.5 * (EI[:-1] + EI[1:]), rtol=1e-14)
-    np.testing.assert_allclose(m.node_GJ[1:-1], 0.5 * (EI[:-1] + EI[1:]) * 2 / (2 * (1 + nu)), rtol=1e-14)
+    GJ = EI * 2 / (2 * (1 + nu))
+    harm = lambda k: 2.0 / (1.0 / k[:-1] + 1.0 / k[1:])  # noqa: E731
+    np.testing.assert_allclose(m.node_EI1[1:-1], harm(EI), rtol=1e-14)
+    np.testing.assert_allclose(m.node_EI2[1:-1], harm(EI), rtol=1e-14)
+    np.testing.assert_allclose(m.node_GJ[1:-1], harm(GJ), rtol=1e-14)
+    np.testing.assert_allclose(m.node_EI1[[0, -1]], EI[[0, -1]], rtol=1e-14)
     np.testing.assert_allclose(m.edge_radius, r)
     assert m.radius == r.max() and m.EA == pytest.approx((E * np.pi * r ** 2).max())
+
+
+def test_node_stiffness_weights_the_compliances_by_the_half_edges():
+    """Unequal edges: an interior node's compliance is the mean of its edges' compliances weighted by the half-edge
+    lengths, K_i = (l_a + l_b)/(l_a/K_a + l_b/K_b); equal stiffnesses give exactly their value, whatever the
+    lengths."""
+    pts = [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.4, 0.0, 0.0], [0.5, 0.0, 0.0], [0.9, 0.0, 0.0]]
+    Es = (1e6, 3e6, 3e6, 5e5)
+    spec = make_spec(nodes=5, length=0.9, radius=0.01, E=3e6)
+    spec = dataclasses.replace(spec, rod=dataclasses.replace(spec.rod, rest_points=tuple(map(tuple, pts)),
+                                                             edge_youngs_modulus=Es))
+    m = build_model(spec)
+    la, EI = m.rest_edge_length, np.array(Es) * np.pi * 0.01 ** 4 / 4
+    want = (la[:-1] + la[1:]) / (la[:-1] / EI[:-1] + la[1:] / EI[1:])
+    np.testing.assert_allclose(m.node_EI1[1:-1], want, rtol=1e-14)
+    assert m.node_EI1[2] == EI[1]  # equal neighbours: the same float
+    uni = build_model(dataclasses.replace(spec, rod=dataclasses.replace(spec.rod, edge_youngs_modulus=None)))
+    assert np.all(uni.node_EI1 == uni.EI1) and np.all(uni.node_GJ == uni.GJ)
 
 
 def test_uniform_lists_step_bit_for_bit_like_the_scalar_keys():
