@@ -37,24 +37,54 @@ def launch(playwright):
     return playwright.chromium.launch(executable_path=chromium_path(), headless=True, args=CHROMIUM_ARGS)
 
 
-def wait_for(pred: Callable[[], bool], timeout: float = 15.0, interval: float = 0.05, what: str = "") -> None:
-    t_end = time.monotonic() + timeout
-    while time.monotonic() < t_end:
+# Waits end on a condition (the page's state, the server's counters), never on elapsed time. The bound only stops
+# a hang: long enough for a machine at load 20 with software WebGL (RODLAB_WAIT_BOUND_S overrides it).
+WAIT_BOUND_S = float(os.environ.get("RODLAB_WAIT_BOUND_S", "600"))
+WAIT_MS = int(WAIT_BOUND_S * 1000)  # the same bound for Playwright's waits (milliseconds)
+
+
+def poll(pred: Callable[[], bool], seconds: float, interval: float = 0.05) -> bool:
+    """True as soon as ``pred()`` holds, False after ``seconds``: for a gesture to repeat, never a failure."""
+    t_end = time.monotonic() + seconds
+    while True:
         if pred():
-            return
+            return True
+        if time.monotonic() >= t_end:
+            return False
         time.sleep(interval)
-    raise TimeoutError(f"timed out after {timeout:.0f} s waiting for {what or pred}")
+
+
+def wait_for(pred: Callable[[], bool], timeout: float | None = None, interval: float = 0.05, what: str = "") -> None:
+    """Wait until ``pred()`` holds. ``timeout`` is an outer bound against a hang and never shorter than
+    :data:`WAIT_BOUND_S`, so a busy machine only makes the wait longer."""
+    bound = max(timeout or 0.0, WAIT_BOUND_S)
+    if not poll(pred, bound, interval):
+        raise TimeoutError(f"timed out after {bound:.0f} s waiting for {what or pred}")
+
+
+def retry_until(action: Callable[[], None], pred: Callable[[], bool], *, attempt_s: float = 10.0,
+                what: str = "") -> None:
+    """Repeat ``action()`` until ``pred()`` holds, each try given ``attempt_s`` to take effect (a click that a
+    software-GL page had not drawn yet misses); fails after :data:`WAIT_BOUND_S`."""
+    t_end = time.monotonic() + WAIT_BOUND_S
+    while True:
+        action()
+        if poll(pred, attempt_s):
+            return
+        if time.monotonic() >= t_end:
+            raise TimeoutError(f"timed out after {WAIT_BOUND_S:.0f} s repeating the gesture for {what or pred}")
 
 
 def open_page(browser, app, *, width: int = 1280, height: int = 800):
     """Open the workbench page and wait until the GUI and the camera are known server-side."""
     page = browser.new_page(viewport={"width": width, "height": height})
-    n0 = len(app.server.get_clients())
+    page.set_default_timeout(WAIT_MS)
+    before = set(app.server.get_clients())
     page.goto(app.url)
-    page.get_by_text("Teleop", exact=True).first.wait_for(timeout=30000)
-    wait_for(lambda: len(app.server.get_clients()) > n0, 20, what="browser client")
+    page.get_by_text("Teleop", exact=True).first.wait_for()
+    wait_for(lambda: set(app.server.get_clients()) - before, what="browser client")
     client = newest_client(app)
-    wait_for(lambda: client.camera.image_width > 0, 20, what="camera message")
+    wait_for(lambda: client.camera.image_width > 0, what="camera message")
     close_toasts(page)
     return page
 
@@ -117,7 +147,7 @@ def drag_gizmo_x(page, client, origin: np.ndarray, *, scale: float | None = None
 
 def canvas_png(page) -> bytes:
     """Screenshot of the 3D canvas only."""
-    return page.locator("canvas").first.screenshot(timeout=60000)
+    return page.locator("canvas").first.screenshot(timeout=WAIT_MS)
 
 
 def canvas_variance(page) -> float:
@@ -144,7 +174,7 @@ def expand_folder(page, folder: str, probe: str) -> None:
     if btn.count() and btn.first.is_visible():
         return
     page.get_by_text(folder, exact=True).first.click()
-    btn.first.wait_for(state="visible", timeout=10000)
+    btn.first.wait_for(state="visible", timeout=WAIT_MS)
 
 
 def image_variance(png_bytes: bytes) -> float:

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from tools.browser import WAIT_MS
+
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -24,7 +26,7 @@ def _shot(page, path: Path) -> None:
 
     close_toasts(page)
     time.sleep(0.5)
-    path.write_bytes(page.screenshot(timeout=60000))
+    path.write_bytes(page.screenshot(timeout=WAIT_MS))
     print(f"wrote {path}")
 
 

@@ -10,6 +10,12 @@ import os
 from pathlib import Path
 
 import pytest
+from playwright.sync_api import expect
+
+from tools.browser import WAIT_MS
+
+# Playwright's assertions wait on the page's state up to the same outer bound as tools.browser.wait_for
+expect.set_options(timeout=WAIT_MS)
 
 SHOTS = Path(__file__).resolve().parents[2] / "docs" / "screenshots"
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import expect
 
-from tools.browser import wait_for
+from tools.browser import WAIT_MS, wait_for
 from workbench.view_scene import ARROW_MAX, arrow_vectors
 
 
@@ -42,7 +42,7 @@ def test_contact_force_labels_and_total(wb_page):
     assert re.fullmatch(r"[0-9.e+-]+ N", text)
     wait_for(lambda: "total contact force" in app.controls.status.content, what="total force in the status")
     expect(page.get_by_text("total contact force", exact=False).first).to_be_visible()
-    expect(page.get_by_text(re.compile(r"^[0-9.e+-]+ N$")).first).to_be_attached(timeout=15000)
+    expect(page.get_by_text(re.compile(r"^[0-9.e+-]+ N$")).first).to_be_attached(timeout=WAIT_MS)
     arrows = np.asarray(app.view.contact_arrows.points)
     assert np.linalg.norm(arrows[:, 1] - arrows[:, 0], axis=1).max() <= ARROW_MAX + 1e-9
     assert len(fr.contact_forces)

@@ -5,11 +5,13 @@ import numpy as np
 import pytest
 
 from tools.browser import (
+    WAIT_MS,
     canvas_png,
     drag_gizmo_x,
     expand_folder,
     image_diff_fraction,
     newest_client,
+    retry_until,
     slider_thumb,
     wait_for,
 )
@@ -33,22 +35,17 @@ def test_add_obstacle_and_drag_gizmo_into_rod(wb_page, shots_dir):
     # drag the gizmo's x arrow towards the rod, to x ~ 0.1 (the sphere then overlaps the rod by ~3 cm)
     # on a loaded machine the software-GL page may not have redrawn the moved camera when the mouse goes down,
     # so the press misses the arrow: repeat the gesture (up to 3 times) until the server sees the drag
-    for attempt in range(3):
+    def drag() -> None:
         xc = float(wb.obstacles[0].position[0])   # where the gizmo is now
         drag_gizmo_x(page, newest_client(app), np.array([xc, 0.0, 0.6]), dist=-(xc - 0.1))
-        try:
-            wait_for(lambda: wb.obstacles[0].position[0] < x0 - 0.2, timeout=10.0,
-                     what="gizmo drag to reach the server")
-            break
-        except TimeoutError:
-            if attempt == 2:
-                raise
+
+    retry_until(drag, lambda: wb.obstacles[0].position[0] < x0 - 0.2, what="gizmo drag to reach the server")
     assert float(gizmo.position[0]) < x0 - 0.2
     # contact follows the move at once: the rod is pushed away from the sphere (towards -x)
     wait_for(lambda: wb.live.state.node_pos[0, 12, 0] < mid0[0] - 0.005, timeout=20,
              what=f"rod pushed by contact (sphere dragged to {np.round(wb.obstacles[0].position, 3)})")
     wait_for(lambda: app.view.contact_arrows.visible, what="contact arrows drawn")
-    (shots_dir / "workbench_obstacles.png").write_bytes(page.screenshot(timeout=60000))
+    (shots_dir / "workbench_obstacles.png").write_bytes(page.screenshot(timeout=WAIT_MS))
 
 
 def test_play_shipped_policy(wb_page, shots_dir):
@@ -76,7 +73,7 @@ def test_play_shipped_policy(wb_page, shots_dir):
     assert np.isfinite(r1) and wb.policy.scalars["reward"] != r1
     assert any(k.startswith("r_") for k in wb.policy.scalars)  # reward terms are live
     expand_folder(page, "Plots", ".uplot")
-    (shots_dir / "workbench_policy.png").write_bytes(page.screenshot(timeout=60000))
+    (shots_dir / "workbench_policy.png").write_bytes(page.screenshot(timeout=WAIT_MS))
 
 
 def test_open_recording_and_scrub(wb_page, shots_dir):
@@ -106,7 +103,7 @@ def test_open_recording_and_scrub(wb_page, shots_dir):
     # the page shows a different picture (poll: the browser draws asynchronously)
     wait_for(lambda: image_diff_fraction(first, canvas_png(page)) > 0.002, timeout=30, what="the view to change")
     expand_folder(page, "Plots", ".uplot")
-    (shots_dir / "workbench_replay.png").write_bytes(page.screenshot(timeout=60000))
+    (shots_dir / "workbench_replay.png").write_bytes(page.screenshot(timeout=WAIT_MS))
 
 
 def test_upload_mesh_in_the_page(wb_page):

@@ -8,7 +8,7 @@ import io
 import numpy as np
 import pytest
 
-from tools.browser import canvas_png, expand_folder, newest_client, project, wait_for
+from tools.browser import WAIT_MS, canvas_png, expand_folder, newest_client, project, retry_until, wait_for
 from workbench.grid import GridSession, cell_offsets
 
 pytestmark = pytest.mark.browser
@@ -74,15 +74,13 @@ def test_grid_shows_n_rods_and_click_focuses(wb_page):
                                  for e in range(n)), timeout=30, what="every env's rod drawn in its cell")
         # click env 3's rod: it is focused (blue), the camera moves to its cell, its readouts show
         k = n - 1
-        for _ in range(3):  # a software-GL page may not have drawn the last frame at the first click
+        def click_env() -> None:
             with app.grid.runner.lock:
                 uvk = project(cam, s.positions()[k, s.n_nodes // 2][None], box["width"], box["height"])[0]
                 page.mouse.click(uvk[0] + box["x"], uvk[1] + box["y"])
-            try:
-                wait_for(lambda: view.focus == k, timeout=10, what="click focuses env 3")
-                break
-            except TimeoutError:
-                continue
+
+        # a software-GL page may not have drawn the last frame at the first click
+        retry_until(click_env, lambda: view.focus == k, what="click focuses env 3")
         assert view.focus == k and int(app.grid.focus.value) == k
         wait_for(lambda: np.allclose(cam.look_at, view.cell_camera(k)[1], atol=1e-3), what="camera on env 3")
         wait_for(lambda: f"env {k} ·" in app.grid.msg.content, what="env 3's readouts")
@@ -93,7 +91,7 @@ def test_grid_shows_n_rods_and_click_focuses(wb_page):
         assert len(view.boundary.fixed.batched_positions) == n * len(view.boundary.b.fixed_nodes)
         page.get_by_text("Display", exact=True).first.click()  # (not expand_folder: "Stop grid" matches "top")
         box = page.get_by_label("Fixes and loads")
-        box.wait_for(state="visible", timeout=10000)
+        box.wait_for(state="visible", timeout=WAIT_MS)
         box.click()
         try:
             wait_for(lambda: page.evaluate(GLYPHS_JS) == dict.fromkeys(glyphs, False), what="the grid's glyphs hidden")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import expect
 
-from tools.browser import expand_folder, newest_client, slider_root, wait_for
+from tools.browser import WAIT_MS, expand_folder, newest_client, slider_root, wait_for
 from workbench.gui_controls import TABS, slider_label
 from workbench.view_scene import CAMERAS
 
@@ -33,7 +33,7 @@ def test_every_control_has_a_hint_and_units(wb_page):
     # the hint shows in the page (viser draws it as a tooltip of the input, after 0.5 s of hovering)
     expand_folder(page, "Teleop", "Zero sliders")
     slider_root(page, slider_label(2, 0)).hover()
-    expect(page.get_by_text("around node 10", exact=False).first).to_be_visible(timeout=10000)
+    expect(page.get_by_text("around node 10", exact=False).first).to_be_visible(timeout=WAIT_MS)
 
 
 def test_planar_task_and_camera_presets(wb_page):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import expect
 
-from tools.browser import expand_folder, newest_client, project, wait_for
+from tools.browser import expand_folder, newest_client, project, retry_until, wait_for
 from workbench.obstacles import bounding_radius
 
 pytestmark = pytest.mark.browser
@@ -44,13 +44,8 @@ def test_select_by_click_dropdown_and_typed_pose(wb_page):
     box = page.locator("canvas").first.bounding_box()
     uv = project(cam, np.stack([a.position, b.position]), box["width"], box["height"]) + [box["x"], box["y"]]
     assert np.linalg.norm(uv[0] - uv[1]) > 40, "the two obstacles overlap on screen"
-    for _ in range(3):  # a software-GL page may not have drawn the new camera at the first click
-        page.mouse.click(*uv[0])
-        try:
-            wait_for(lambda: view.selected == 0, timeout=10, what="click to select obstacle 0")
-            break
-        except TimeoutError:
-            continue
+    # a software-GL page may not have drawn the new camera at the first click
+    retry_until(lambda: page.mouse.click(*uv[0]), lambda: view.selected == 0, what="click to select obstacle 0")
     assert view.selected == 0 and np.allclose(view.gizmo(0).position, a.position)
     expect(page.get_by_label("Selected")).to_have_value("0: sphere")
     # the dropdown selects too

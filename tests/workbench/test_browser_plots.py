@@ -7,7 +7,7 @@ import io
 import numpy as np
 import pytest
 
-from tools.browser import expand_folder, slider_thumb, wait_for
+from tools.browser import WAIT_MS, expand_folder, slider_thumb, wait_for
 from workbench.plots import COLORS
 
 pytestmark = pytest.mark.browser
@@ -71,7 +71,7 @@ def test_replay_plots_every_series_with_timeline_cursor(wb_page):
         c = charts[title]
         assert c["ymin"] is not None and c["ymax"] is not None and c["ymin"] < c["ymax"], title
         canvas = page.locator(".uplot").filter(has_text=title).locator("canvas").first
-        png = canvas.screenshot(timeout=60000)
+        png = canvas.screenshot(timeout=WAIT_MS)
         for j, name in enumerate(names):
             i = c["labels"].index(name)
             finite = [v for v in c["data"][i] if v is not None]

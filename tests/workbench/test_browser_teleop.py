@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tools.browser import canvas_variance, expand_folder, slider_thumb, wait_for
+from tools.browser import WAIT_MS, canvas_variance, expand_folder, slider_thumb, wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -14,7 +14,7 @@ def test_page_renders_rod(wb_page, shots_dir):
     app, page = wb_page
     # a blank WebGL canvas has (almost) zero pixel variance; poll: the first frames may be empty
     wait_for(lambda: canvas_variance(page) > 50.0, timeout=30, what="3D view to show the scene")
-    (shots_dir / "workbench_start.png").write_bytes(page.screenshot(timeout=60000))
+    (shots_dir / "workbench_start.png").write_bytes(page.screenshot(timeout=WAIT_MS))
 
 
 def test_teleop_slider_moves_tip(wb_page, shots_dir):
@@ -36,5 +36,5 @@ def test_teleop_slider_moves_tip(wb_page, shots_dir):
     wait_for(lambda: wb.teleop.values[4, 1] == pytest.approx(-2.0), what="second slider")
     app.controls.frames.value = True  # material frames overlay for the screenshot
     wait_for(lambda: app.view.frames.visible, what="frames overlay")
-    (shots_dir / "workbench_teleop.png").write_bytes(page.screenshot(timeout=60000))
+    (shots_dir / "workbench_teleop.png").write_bytes(page.screenshot(timeout=WAIT_MS))
     app.controls.frames.value = False

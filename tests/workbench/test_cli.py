@@ -1,12 +1,16 @@
 """``rodlab workbench`` command line: serves the default scene, rejects bad input clearly."""
 from __future__ import annotations
 
+import signal
 import socket
-import threading
-import time
+import subprocess
+import sys
 import urllib.request
+from pathlib import Path
 
 from workbench.cli import default_scene, workbench_main
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 def free_port() -> int:
@@ -21,21 +25,21 @@ def test_default_scene_is_the_obstacle_scene():
 
 
 def test_serves_the_page_on_localhost():
+    """As a user runs it: the page is served once the start-up line is printed, and Ctrl-C quits cleanly."""
     port = free_port()
-    rc = {}
-    t = threading.Thread(target=lambda: rc.setdefault("rc", workbench_main(
-        ["--port", str(port), "--seconds", "4", "--no-env-map"])))
-    t.start()
-    html = None
-    t_end = time.monotonic() + 60
-    while html is None and time.monotonic() < t_end:
-        try:
-            html = urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=2).read()
-        except OSError:
-            time.sleep(0.2)
-    t.join(120)
-    assert rc.get("rc") == 0
-    assert html is not None and b"<html" in html.lower()
+    proc = subprocess.Popen([sys.executable, "-m", "rodlab_cli", "workbench", "--port", str(port), "--no-env-map"],
+                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for line in proc.stdout:  # ends on the start-up line, or when the process dies
+            if f"http://127.0.0.1:{port}/" in line:
+                break
+        assert proc.poll() is None, proc.stderr.read()
+        html = urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=600).read()
+        assert b"<html" in html.lower()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        rc = proc.wait(timeout=600)
+    assert rc == 0
 
 
 def test_missing_scene_file_is_a_clear_error(capsys, tmp_path):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import expect
 
-from tools.browser import expand_folder, wait_for
+from tools.browser import WAIT_MS, expand_folder, wait_for
 from workbench.coloring import colorbar_html, colors, node_values, value_range
 from workbench.frame import Frame
 
@@ -59,7 +59,7 @@ def test_colour_bar_follows_quantity_and_range(wb_page):
     wb.set_teleop_value(3, 2, 1.0)
     expand_folder(page, "Display", "top")
     bar = page.locator(".rodlab-colorbar")
-    expect(bar).to_contain_text("|κ| curvature [rad]", timeout=15000)
+    expect(bar).to_contain_text("|κ| curvature [rad]", timeout=WAIT_MS)
 
     def bar_range() -> tuple[float, float]:
         lo, hi = (float(bar.locator(f"span.{k}").inner_text()) for k in ("lo", "hi"))
@@ -70,7 +70,7 @@ def test_colour_bar_follows_quantity_and_range(wb_page):
     for quantity, text in (("κ1", "κ1 [rad]"), ("twist", "twist [rad]")):
         page.get_by_label("Colour by").click()
         page.get_by_role("option", name=quantity, exact=True).click()
-        expect(bar).to_contain_text(text, timeout=15000)
+        expect(bar).to_contain_text(text, timeout=WAIT_MS)
         wait_for(lambda: bar_range()[0] < 0 and bar_range()[0] == pytest.approx(-bar_range()[1]), timeout=15,
                  what=f"symmetric range for {quantity}")
     # a fixed range

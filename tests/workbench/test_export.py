@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from rodlab_cli import main as rodlab
-from tools.browser import wait_for
+from tools.browser import WAIT_MS, wait_for
 from workbench import export as X
 from workbench.export_image import export_gif, export_png
 
@@ -207,14 +207,14 @@ def test_html_opens_from_file_offline_and_rod_moves(browser, tmp_path):
     page.on("pageerror", lambda e: errors.append(str(e)))
     try:
         page.goto(out.as_uri())
-        page.wait_for_selector("body[data-ready='1']", timeout=20000)
+        page.wait_for_selector("body[data-ready='1']", timeout=WAIT_MS)
         canvas = page.locator("#cv")
         first = _rod_pixels(canvas.screenshot())
         assert first.sum() > 500, "rod not drawn on the canvas"
         slider = page.locator("#frame")
         slider.focus()
         slider.press("End")  # the timeline's last frame, as a user would
-        page.wait_for_selector("body[data-frame='51']", timeout=10000)
+        page.wait_for_selector("body[data-frame='51']", timeout=WAIT_MS)
         last = _rod_pixels(canvas.screenshot())
         assert last.sum() > 500
         moved = (first ^ last).sum() / max(first.sum(), last.sum())
@@ -242,7 +242,7 @@ def test_html_with_every_obstacle_kind_renders_without_script_errors(browser, tm
     page.on("pageerror", lambda e: errors.append(str(e)))
     try:
         page.goto(out.as_uri())
-        page.wait_for_selector("body[data-ready='1']", timeout=20000)
+        page.wait_for_selector("body[data-ready='1']", timeout=WAIT_MS)
         for view in ("top", "side", "front", "iso"):
             page.locator(f"#v-{view}").click()
         page.keyboard.press("ArrowRight")

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tools.browser import WAIT_MS
 from workbench import export as X
 from workbench.frame import joint_edges, quat_to_matrix, rod_edges
 from workbench.tube import SIDES, vertex_count
@@ -175,7 +176,7 @@ def test_html_player_draws_no_line_on_the_joint(browser, tmp_path):
         page = browser.new_page(viewport={"width": 600, "height": 500})
         try:
             page.goto(out.as_uri())
-            page.wait_for_selector("body[data-ready='1']", timeout=20000)
+            page.wait_for_selector("body[data-ready='1']", timeout=WAIT_MS)
             a = np.asarray(Image.open(io.BytesIO(page.locator("#cv").screenshot())).convert("RGB"), dtype=int)
         finally:
             page.close()

@@ -99,7 +99,8 @@ def test_two_rod_scene_loads_and_draws_two_tubes(wb_page):
                  and len(app.view.rod.last_mesh.vertices) == 2 * vertex_count(21, SIDES),
                  timeout=30, what="two tubes of 21 nodes")
         assert wb.live.model.rod_names == ("base", "cross")
-        page.wait_for_timeout(300)
+        f = wb.frame_index
+        wait_for(lambda: wb.frame_index > f + 3, what="a few more steps of the two rods")
         assert np.isfinite(app.view.rod.last_mesh.vertices).all()
         # the Teleop tab offers the two rods; choosing "cross" in the page makes the sliders steer it
         page.get_by_role("tab", name="Teleop", exact=True).click()
