@@ -21,7 +21,7 @@ def _make_lint_paths() -> list[str]:
 
 def _ruff(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "ruff", *args], cwd=ROOT, input=stdin, capture_output=True,
-                          text=True, timeout=120)
+                          text=True, timeout=600)
 
 
 def test_tree_is_lint_clean():

@@ -13,6 +13,6 @@ BANNED = ("viser", "rerun", "torch", "gymnasium", "stable_baselines3")
 def test_import_sim_loads_no_heavy_modules():
     code = ("import sys, json; import sim; import sim.cli; "
             "print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in %r)))" % (BANNED,))
-    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr
     assert json.loads(out.stdout.strip().splitlines()[-1]) == []

@@ -34,7 +34,7 @@ def test_every_entry_resolves_to_a_callable(target):
 
 
 def test_console_script_runs():
-    r = subprocess.run([sys.executable, "-m", "rodlab_cli", "--help"], capture_output=True, text=True, timeout=60)
+    r = subprocess.run([sys.executable, "-m", "rodlab_cli", "--help"], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0 and "usage: rodlab" in r.stdout
 
 

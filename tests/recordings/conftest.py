@@ -14,7 +14,7 @@ def rerun_bin() -> str:
     from policies.recording.recorder import rerun_cli
 
     exe = rerun_cli()
-    subprocess.run([exe, "analytics", "disable"], capture_output=True, timeout=60)
+    subprocess.run([exe, "analytics", "disable"], capture_output=True, timeout=600)
     return exe
 
 
@@ -22,7 +22,7 @@ def rerun_bin() -> str:
 def verify(rerun_bin):
     """verify(path): assert `rerun rrd verify path` exits 0."""
     def _verify(path: str | Path) -> None:
-        r = subprocess.run([rerun_bin, "rrd", "verify", str(path)], capture_output=True, text=True, timeout=120)
+        r = subprocess.run([rerun_bin, "rrd", "verify", str(path)], capture_output=True, text=True, timeout=600)
         assert r.returncode == 0, f"rerun rrd verify {path} failed:\n{r.stdout}\n{r.stderr}"
     return _verify
 

@@ -63,7 +63,7 @@ def test_sigkill_mid_episode_leaves_no_file(tmp_path):
     out = tmp_path / "killed.rrd"
     p = _spawn(CHILD_MID_EPISODE, out)
     os.kill(p.pid, signal.SIGKILL)
-    p.wait(timeout=30)
+    p.wait(timeout=600)
     assert p.returncode == -signal.SIGKILL
     assert not out.exists()
     # only the hidden part folder of the dead process is left (never anything named like the output)
@@ -81,7 +81,7 @@ def test_sigkill_at_any_time_leaves_no_file_or_a_valid_one(tmp_path, delay, veri
     p = _spawn(CHILD_LOOP, out)
     time.sleep(delay)
     os.kill(p.pid, signal.SIGKILL)
-    p.wait(timeout=30)
+    p.wait(timeout=600)
     if out.exists():                     # a finished earlier round: must be complete and valid
         verify(out)
         eps = read_recording(out)

@@ -33,7 +33,7 @@ def raw_request(port: int, host: str, *, origin: str | None = None, websocket: b
     if websocket:
         lines += ["Upgrade: websocket", "Connection: Upgrade", "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==",
                   "Sec-WebSocket-Version: 13", f"Sec-WebSocket-Protocol: {PROTO}"]
-    with socket.create_connection(("127.0.0.1", port), timeout=20) as s:
+    with socket.create_connection(("127.0.0.1", port), timeout=600) as s:
         s.sendall(("\r\n".join(lines) + "\r\n\r\n").encode())
         head = s.recv(64).decode("latin-1")
     return int(head.split()[1])
@@ -55,14 +55,14 @@ def test_own_page_and_websocket_are_accepted(app):
         assert raw_request(p, host) == 200
         assert raw_request(p, host, websocket=True) == 101
         assert raw_request(p, host, websocket=True, origin=f"http://{host}") == 101
-    assert b"<html" in urllib.request.urlopen(app.url, timeout=20).read().lower()
+    assert b"<html" in urllib.request.urlopen(app.url, timeout=600).read().lower()
 
 
 def test_foreign_origin_websocket_is_rejected(app):
     n = len(app.server.get_clients())
     with pytest.raises(InvalidStatus) as exc:
         connect(f"ws://127.0.0.1:{app.port}/", subprotocols=[PROTO], additional_headers={"Origin": "http://evil.example"},
-                open_timeout=20)
+                open_timeout=600)
     assert exc.value.response.status_code == 403
     assert raw_request(app.port, f"127.0.0.1:{app.port}", websocket=True, origin="http://evil.example") == 403
     assert raw_request(app.port, f"127.0.0.1:{app.port}", websocket=True, origin="null") == 403
@@ -134,11 +134,11 @@ def test_start_up_prints_the_full_url_first():
         m = re.match(r"http://[^/]+:(\d+)/\?token=([\w-]+)$", url)
         assert m, url
         port, token = int(m.group(1)), m.group(2)
-        assert urllib.request.urlopen(f"http://127.0.0.1:{port}/?token={token}", timeout=20).status == 200
+        assert urllib.request.urlopen(f"http://127.0.0.1:{port}/?token={token}", timeout=600).status == 200
         with pytest.raises(urllib.error.HTTPError) as exc:
-            urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=20)
+            urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=600)
         assert exc.value.code == 403
-        err = proc.communicate(timeout=120)[1]
+        err = proc.communicate(timeout=600)[1]
     assert proc.returncode == 0 and "WARNING" in err and "0.0.0.0" in err
 
 

@@ -18,7 +18,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 def _rodlab_eval(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-c", "import rodlab_cli, sys; sys.exit(rodlab_cli.main(sys.argv[1:]))",
-                           "eval", *args], cwd=REPO, capture_output=True, text=True, timeout=300)
+                           "eval", *args], cwd=REPO, capture_output=True, text=True, timeout=600)
 
 
 def test_rodlab_eval_never_unpickles_an_sb3_zip(tmp_path):

@@ -97,7 +97,7 @@ def test_hard_kill_leaves_a_consistent_checkpoint_that_resumes(tmp_path):
             time.sleep(0.2)
         time.sleep(0.3)
         os.kill(proc.pid, signal.SIGKILL)  # no chance to write a final checkpoint
-        proc.wait(timeout=60)
+        proc.wait(timeout=600)
     finally:
         if proc.poll() is None:
             proc.kill()

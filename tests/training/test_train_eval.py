@@ -123,7 +123,7 @@ def test_cli_reports_bad_input_without_traceback(tmp_path, capsys):
     bad.write_text("garbage")
     out = subprocess.run([sys.executable, "-c", "import rodlab_cli, sys; sys.exit(rodlab_cli.main(sys.argv[1:]))",
                           "eval", str(bad), "--task", "Pendulum-v1"], cwd=REPO, capture_output=True, text=True,
-                         timeout=120)
+                         timeout=600)
     assert out.returncode == 2
     assert "Traceback" not in out.stderr and "not a readable policy zip" in out.stderr
 

@@ -67,7 +67,7 @@ def test_keys_in_a_text_field_are_text(wb_page):
 
 def test_script_is_served_with_the_page_only(wb_page):
     app, _page = wb_page
-    with urllib.request.urlopen(app.url, timeout=10) as r:
+    with urllib.request.urlopen(app.url, timeout=600) as r:
         page = r.read().decode()
     assert page.count('data-rodlab="keys"') == 1
     for key, (_kind, label) in SHORTCUTS.items():
@@ -75,7 +75,7 @@ def test_script_is_served_with_the_page_only(wb_page):
     assert page.index('data-rodlab="keys"') < page.rindex("</body>")
     # gzip-encoded page (what browsers ask for) carries it too
     req = urllib.request.Request(app.url, headers={"Accept-Encoding": "gzip"})
-    with urllib.request.urlopen(req, timeout=10) as r:
+    with urllib.request.urlopen(req, timeout=600) as r:
         import gzip
 
         assert r.headers["Content-Encoding"] == "gzip"

@@ -11,7 +11,7 @@ def test_fps_bench_writes_json(tmp_path):
     from tools.fps_bench import main
 
     out = tmp_path / "fps.json"
-    assert main(["--envs", "1,2", "--seconds", "0.5", "--warmup", "0.3", "--no-browser", "--json", str(out)]) == 0
+    assert main(["--envs", "1,2", "--seconds", "2", "--warmup", "0.3", "--no-browser", "--json", str(out)]) == 0
     doc = json.loads(out.read_text())
     assert [r["envs"] for r in doc["results"]] == [1, 2]
     for r in doc["results"]:
