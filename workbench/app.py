@@ -17,9 +17,16 @@ from workbench.core import Workbench
 from workbench.files import Folders
 from workbench.frame import Frame
 from workbench.gui_controls import ControlsPanel
-from workbench.gui_guard import GuiGuard, MessageGuard, finite_pose, only_value_updates
+from workbench.gui_guard import (
+    GuiGuard,
+    MessageGuard,
+    finite_pose,
+    guard_callbacks,
+    only_value_updates,
+)
 from workbench.handshake import Guard, start_viser
 from workbench.runner import SimThread
+from workbench.simbridge import ActionRefused
 from workbench.view_boundary import boundary_of
 from workbench.view_rod import scene_info
 from workbench.view_scene import SceneView
@@ -56,17 +63,23 @@ class WorkbenchApp:
         except BaseException:
             self.files.cleanup()
             raise
-        if not only_value_updates(self.server):
+        self.refused_values: dict[tuple[str, str], int] = {}  # (element label, why) -> count; bounded by the GUI
+        if not only_value_updates(self.server, self._value_refused):
             self.stop_server_and_cleanup()
             raise RuntimeError("viser changed: GUI updates from the page could not be restricted to values")
         self.messages = MessageGuard()
         if not self.messages.install(self.server):
             self.stop_server_and_cleanup()
             raise RuntimeError("viser changed: the message types a client may send could not be restricted")
+        self.callback_errors: dict[tuple[str, str], int] = {}  # (exception type, where) -> count
+        if not guard_callbacks(self.server, self._callback_failed):
+            self.stop_server_and_cleanup()
+            raise RuntimeError("viser changed: the workbench's callbacks could not be guarded")
         self.server.gui.configure_theme(control_width="large", show_share_button=False)
         self.view = SceneView(self.server, wb.live.n_nodes, env_map=env_map)
         self.render_hooks: list = []  # called with each drawn frame after the view (ghost of a compared episode)
         self.status_note = ""  # a line appended to the status (video progress)
+        self.notice = ("", 0.0)  # (text, when): why the last page action failed, shown for NOTICE_S
         self.thread = SimThread(wb, self._render, speed=speed)
         self.controls = ControlsPanel(self)
         self.panels = [self.controls]
@@ -94,6 +107,30 @@ class WorkbenchApp:
         self.grid = GridPanel(self)
         self.compare = ComparePanel(self)
         self.panels += [self.obstacles, self.policy, self.replay, self.plots, self.pictures, self.grid, self.compare]
+
+    def _value_refused(self, label: str, why: str) -> None:
+        n = self.refused_values.get((label, why), 0)
+        self.refused_values[(label, why)] = n + 1
+        if n == 0:  # one line per element and reason, however often a client repeats it
+            print(f"rodlab workbench: refused a value for {label!r} from a client: {why}", flush=True)
+
+    def _callback_failed(self, exc: BaseException) -> None:
+        """A page action failed: the status line says why; an unexpected error is also logged, with its
+        traceback, once per kind and place."""
+        if isinstance(exc, ActionRefused):
+            self.notice = (f"⚠ {exc}", time.monotonic())
+            return
+        import traceback
+
+        tb = traceback.extract_tb(exc.__traceback__)
+        where = f"{tb[-1].filename}:{tb[-1].lineno}" if tb else "?"
+        key = (type(exc).__name__, where)
+        n = self.callback_errors.get(key, 0)
+        self.callback_errors[key] = n + 1
+        self.notice = (f"⚠ that action failed: {type(exc).__name__}: {str(exc)[:200]}", time.monotonic())
+        if n == 0:
+            print(f"rodlab workbench: a page action failed ({type(exc).__name__} at {where}):", flush=True)
+            traceback.print_exception(type(exc), exc, exc.__traceback__)
 
     @property
     def port(self) -> int:

@@ -19,7 +19,7 @@ import numpy as np
 from workbench import obstacles as obst
 from workbench.frame import Frame
 from workbench.history import History, Snapshot
-from workbench.simbridge import LiveSim, load
+from workbench.simbridge import ActionRefused, LiveSim, load
 from workbench.teleop import Teleop
 
 Mode = Literal["teleop", "policy", "replay"]
@@ -127,7 +127,7 @@ class Workbench:
         """Gravity on/off (teleop only: a task keeps its own settings)."""
         with self.lock:
             if self.policy is not None:
-                raise RuntimeError("gravity belongs to the task while a policy is loaded")
+                raise ActionRefused("gravity belongs to the task while a policy is loaded")
             self.live.set_gravity(on)
 
     # ------------------------------------------------------------------ frames

@@ -1,6 +1,7 @@
 """GUI: status line, play controls, display toggles, teleop sliders."""
 from __future__ import annotations
 
+import time
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -13,6 +14,7 @@ if TYPE_CHECKING:
     from workbench.app import WorkbenchApp
 
 COMP_LABELS = ("κ1", "κ2", "τ")
+NOTICE_S = 10.0  # [s] a failed page action is named in the status line this long
 
 
 KEYS_HELP = ("Keys: **space** play / pause · **→** one step (pauses) · **r** reset "
@@ -321,4 +323,7 @@ class ControlsPanel:
             lines.append(f"⚠ error: {th.error}")
         if getattr(app, "status_note", ""):
             lines.append(app.status_note)
+        note, at = getattr(app, "notice", ("", 0.0))
+        if note and time.monotonic() - at < NOTICE_S:
+            lines.append(note)
         self.status.content = "  \n".join(lines)

@@ -123,22 +123,63 @@ def cap_uploads(server, limit: int, on_refused: Callable[[str, int], None]) -> b
     return True
 
 
-def only_value_updates(server) -> bool:
-    """Let clients change only the ``value`` of a GUI element. viser applies any attribute a client names in
-    a GUI update (its callback list, its options, ...); the page itself only ever sends ``value``. Returns
-    False if viser changed and the filter could not be installed."""
+MAX_TEXT = 1000  # characters of a text value from the page (names of scenes, recordings, frames)
+
+
+def value_problem(current, value) -> str | None:
+    """Why ``value`` cannot be a value of a GUI element whose value is now ``current``, or None when it can:
+    the same kind (a switch or button: a bool; a number: a finite int/float; a text: a string of at most
+    :data:`MAX_TEXT` characters; a vector or colour: as many finite numbers). Ranges and options are the
+    panels' checks (they say why in the page); this one keeps values of the wrong kind out of viser's casts
+    and the callbacks."""
+    def finite_number(x) -> bool:
+        return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+    if isinstance(current, bool):
+        return None if isinstance(value, bool) else "not true/false"
+    if isinstance(current, (int, float)):
+        return None if finite_number(value) else "not a finite number"
+    if isinstance(current, str):
+        if not isinstance(value, str):
+            return "not a text"
+        return None if len(value) <= MAX_TEXT else f"longer than {MAX_TEXT} characters"
+    if isinstance(current, tuple):
+        ok = (isinstance(value, (list, tuple)) and len(value) == len(current)
+              and all(finite_number(x) for x in value))
+        return None if ok else f"not {len(current)} finite numbers"
+    return "this element takes no value from the page"  # e.g. an upload button (files come as transfers)
+
+
+def only_value_updates(server, on_refused: Callable[[str, str], None] | None = None) -> bool:
+    """Let clients change only the ``value`` of a GUI element, and only to a value of the element's kind
+    (:func:`value_problem`; a refused update is dropped and reported as (label, why)). viser applies any
+    attribute a client names in a GUI update (its callback list, its options, ...) and casts the value with the
+    current value's type; the page itself only ever sends ``value``. Returns False if viser changed and the
+    filter could not be installed."""
     from viser import _messages as vm
 
-    ws, handler = server._websock_server, server.gui._handle_gui_updates
+    gui = server.gui
+    ws, handler = server._websock_server, gui._handle_gui_updates
     if handler not in ws._incoming_handlers.get(vm.GuiUpdateMessage, []):
+        return False
+    if not isinstance(getattr(gui, "_gui_input_handle_from_uuid", None), dict):
         return False
     ws.unregister_handler(vm.GuiUpdateMessage, handler)
 
     async def values_only(client_id, message) -> None:
-        updates = {k: v for k, v in message.updates.items() if k == "value"}
-        if updates:
-            message.updates = updates
-            await handler(client_id, message)
+        if "value" not in message.updates:
+            return
+        handle = gui._gui_input_handle_from_uuid.get(message.uuid)
+        if handle is None:
+            return
+        value = message.updates["value"]
+        why = value_problem(handle._impl.value, value)
+        if why is not None:
+            if on_refused is not None:
+                on_refused(str(getattr(handle, "label", "") or message.uuid), why)
+            return
+        message.updates = {"value": value}
+        await handler(client_id, message)
 
     ws.register_handler(vm.GuiUpdateMessage, values_only)
     return True
@@ -212,3 +253,32 @@ class MessageGuard:
         conn = connections.get(client_id)
         if conn is not None:
             await conn.close(REFUSED_CLOSE_CODE, f"rodlab workbench: {name} is not accepted"[:120])
+
+
+class _GuardedExecutor:
+    """viser's callback thread pool, with each callback run through ``report`` on an exception."""
+
+    def __init__(self, inner, report: Callable[[BaseException], None]):
+        self._inner, self._report = inner, report
+
+    def submit(self, fn, /, *args, **kwargs):
+        def run():
+            try:
+                return fn(*args, **kwargs)
+            except Exception as exc:  # noqa: BLE001 - reported on the page and (unexpected ones) in the log
+                self._report(exc)
+        return self._inner.submit(run)
+
+    def __getattr__(self, name):
+        return getattr(self._inner, name)
+
+
+def guard_callbacks(server, report: Callable[[BaseException], None]) -> bool:
+    """Run every GUI and scene callback of ``server`` so that an exception reaches ``report`` (the page says
+    what went wrong) instead of a traceback in viser's thread pool. False if viser changed."""
+    apis = (server.gui, server.scene)
+    if not all(hasattr(api, "_thread_executor") for api in apis):
+        return False
+    for api in apis:
+        api._thread_executor = _GuardedExecutor(api._thread_executor, report)
+    return True

@@ -17,6 +17,11 @@ from sim.contact_set import node_radii
 from workbench.frame import Frame, edge_strain, integrated_curvature
 
 
+class ActionRefused(RuntimeError):
+    """An action the session cannot take now (e.g. editing a task's scene while its policy runs): the page
+    shows the message in the status line; nothing is logged."""
+
+
 def copy_struct(obj):
     """Deep copy of a State/Control-like struct of numpy arrays (dataclass or plain object)."""
     return copy.deepcopy(obj)
@@ -73,7 +78,7 @@ class LiveSim:
 
     def _build(self, *, keep_state: bool) -> None:
         if self.owner is not None:
-            raise RuntimeError("this simulator belongs to a task; stop the policy to edit the scene")
+            raise ActionRefused("this simulator belongs to a task; stop the policy to edit the scene")
         old_state = getattr(self, "state", None) if keep_state else None
         old_ctrl = getattr(self, "ctrl", None) if keep_state else None
         self.model = build_model(self._spec_for_build())

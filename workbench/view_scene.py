@@ -6,6 +6,8 @@ contacts, targets, obstacles with transform gizmos, ground grid, camera presets 
 from __future__ import annotations
 
 import dataclasses
+import functools
+import threading
 from typing import Callable
 
 import numpy as np
@@ -90,11 +92,22 @@ def place_camera(client: viser.ClientHandle, position, look_at) -> None:
         client.camera.look_at = look_at
 
 
+def _one_at_a_time(method):
+    """Obstacle drawing methods are called from several callback threads (edits, gizmo, replay): one at a time,
+    so the drawn obstacles, the edits and the gizmo always belong together."""
+    @functools.wraps(method)
+    def locked(self, *args, **kwargs):
+        with self._obstacles_lock:
+            return method(self, *args, **kwargs)
+    return locked
+
+
 class SceneView:
     """Owns every scene node of the workbench page."""
 
     def __init__(self, server: viser.ViserServer, n_nodes: int, *, env_map: bool = True):
         self.server = server
+        self._obstacles_lock = threading.RLock()
         self.overlays = Overlays()
         sc = server.scene
         sc.set_up_direction("+z")
@@ -239,6 +252,7 @@ class SceneView:
             place_camera(client, pos, look)
 
     # ------------------------------------------------------------------ obstacles
+    @_one_at_a_time
     def sync_obstacles(self, edits: list[ObstacleEdit],
                        on_move: Callable[[int, np.ndarray, np.ndarray], None] | None,
                        on_select: Callable[[int], None] | None = None, selected: int | None = None) -> None:
@@ -269,6 +283,7 @@ class SceneView:
             self.obstacle_nodes.append((parent, mesh))
         self.select(selected)
 
+    @_one_at_a_time
     def select(self, index: int | None) -> None:
         """Put the transform gizmo on obstacle ``index`` (None or a display-only scene: no gizmo)."""
         if self._gizmo is not None:
@@ -292,6 +307,7 @@ class SceneView:
         g.on_update(_cb)
         self._gizmo, self.selected = g, index
 
+    @_one_at_a_time
     def move_obstacle(self, index: int, position, wxyz) -> None:
         """Show obstacle ``index`` at a pose set from the server (numeric fields): its mesh and its gizmo."""
         if 0 <= index < len(self.obstacle_nodes):

@@ -16,7 +16,7 @@ import viser
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from tests.security.hostile_client import HostileClient
+from tools.hostile_client import HostileClient
 from workbench.cli import workbench_main
 from workbench.handshake import BindError, check_bindable
 

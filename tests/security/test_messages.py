@@ -12,7 +12,7 @@ import viser._viser as viser_module
 from viser import _messages as vm
 from websockets.exceptions import ConnectionClosed
 
-from tests.security.hostile_client import HostileClient
+from tools.hostile_client import HostileClient
 from workbench.gui_guard import PAGE_MESSAGES, REFUSED_CLOSE_CODE
 
 

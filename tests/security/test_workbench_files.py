@@ -15,9 +15,9 @@ import pytest
 from viser import _messages as vm
 
 from sim import load_scene
-from tests.security.hostile_client import HostileClient
 from tests.security.payloads import rodlab_zip, sb3_zip
 from tools.browser import wait_for
+from tools.hostile_client import HostileClient
 from workbench.coloring import QUANTITIES
 
 REPO = Path(__file__).resolve().parents[2]

@@ -47,5 +47,13 @@ class HostileClient:
         for i, c in enumerate(parts):
             self.send(vm.FileTransferPart(button._impl.uuid, tid, i, c))
 
+    def drain(self) -> None:
+        """Read and drop what the server sends until the connection ends (as a page that keeps up does)."""
+        try:
+            while True:
+                self.ws.recv()
+        except Exception:  # noqa: BLE001 - closed by either side: nothing more to read
+            pass
+
     def close(self) -> None:
         self.ws.close()

@@ -1,0 +1,109 @@
+"""Values of the wrong kind from a client never reach viser's casts or the workbench's callbacks, and a page
+action that fails is said in the status line instead of a traceback in viser's thread pool."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from tools.browser import wait_for
+from tools.hostile_client import HostileClient
+from workbench.gui_guard import MAX_TEXT, value_problem
+
+
+@pytest.mark.parametrize("current, value, ok", [
+    (True, False, True), (True, 1, False), (True, "yes", False), (True, None, False),
+    (1.0, 2, True), (1.0, 2.5, True), (1.0, True, False), (1.0, math.nan, False), (1.0, math.inf, False),
+    (1.0, "1", False), (1.0, [1.0], False), (1.0, None, False), (3, 4.0, True),
+    ("a", "b", True), ("a", 1, False), ("a", "x" * MAX_TEXT, True), ("a", "x" * (MAX_TEXT + 1), False),
+    ((0.0, 0.0, 0.0), [1, 2, 3], True), ((0.0, 0.0, 0.0), (1.0, 2.0), False),
+    ((0.0, 0.0, 0.0), (1.0, math.nan, 3.0), False), ((0.0, 0.0, 0.0), "abc", False),
+    (None, 1, False), (object(), "x", False),
+])
+def test_value_problem_by_kind(current, value, ok):
+    assert (value_problem(current, value) is None) == ok
+
+
+@pytest.fixture(scope="module")
+def app(tmp_path_factory):
+    from workbench.app import WorkbenchApp
+    from workbench.core import Workbench
+
+    a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, wait_for_browser=False,
+                     scenes_dir=tmp_path_factory.mktemp("scenes"),
+                     recordings_dir=tmp_path_factory.mktemp("recordings")).start()
+    yield a
+    a.stop()
+
+
+def applied_after(app, client) -> None:
+    """Wait until every message ``client`` sent so far has been handled (a marker value sent after them is
+    applied: one connection's messages are dispatched in order)."""
+    speed = app.controls.speed
+    marker = 0.7 if speed.value != 0.7 else 0.8
+    client.set(speed, marker)
+    wait_for(lambda: speed.value == marker, what="the marker value")
+
+
+def test_values_of_the_wrong_kind_are_dropped_and_reported(app, capsys):
+    c = app.controls
+    client = HostileClient(app)
+    try:
+        before = (c.speed.value, c.gravity.value, c.color_by.value)
+        for handle, bad in ((c.speed, "fast"), (c.speed, None), (c.speed, [1, 2]), (c.speed, math.inf),
+                            (c.gravity, 1), (c.color_by, 3), (c.color_by, "x" * (MAX_TEXT + 5))):
+            client.set(handle, bad)
+        applied_after(app, client)
+        assert (c.gravity.value, c.color_by.value) == before[1:]
+        assert app.refused_values[(c.speed.label, "not a finite number")] == 4
+        assert app.refused_values[(c.gravity.label, "not true/false")] == 1
+        assert app.refused_values[(c.color_by.label, "not a text")] == 1
+        assert app.refused_values[(c.color_by.label, f"longer than {MAX_TEXT} characters")] == 1
+        assert app.callback_errors == {}
+        out = capsys.readouterr()
+        assert out.out.count(f"refused a value for {c.speed.label!r}") == 1  # one line per element and reason
+        assert "Traceback" not in out.err
+    finally:
+        client.close()
+
+
+def test_a_refused_action_is_said_in_the_status_line(app, capsys):
+    """Gravity belongs to a running task: the page says so; nothing is logged."""
+    wb, c = app.wb, app.controls
+    app.policy.start_task("follow_target")
+    wait_for(lambda: wb.policy is not None, what="policy session")
+    client = HostileClient(app)
+    try:
+        client.set(c.gravity, not c.gravity.value)
+        wait_for(lambda: "gravity belongs to the task" in app.notice[0], what="the refusal in the notice")
+        wait_for(lambda: "gravity belongs to the task" in c.status.content, what="the refusal in the status line")
+        assert app.callback_errors == {}
+        assert "Traceback" not in capsys.readouterr().err
+    finally:
+        client.close()
+        wb.stop_policy()
+
+
+def test_an_unexpected_error_is_said_and_logged_once(app, capsys):
+    calls = []
+
+    def broken(_event) -> None:
+        calls.append(1)
+        raise KeyError("no such thing")
+
+    btn = app.server.gui.add_button("broken (test)")
+    btn.on_click(broken)
+    client = HostileClient(app)
+    try:
+        for _ in range(3):
+            client.click(btn)
+        wait_for(lambda: len(calls) == 3 and sum(app.callback_errors.values()) == 3, what="three failed actions")
+        assert [k[0] for k in app.callback_errors] == ["KeyError"]
+        assert "that action failed: KeyError" in app.notice[0]
+        out = capsys.readouterr()
+        assert out.out.count("a page action failed (KeyError") == 1
+        assert out.err.count("Traceback") == 1
+    finally:
+        client.close()
+        btn.remove()
+

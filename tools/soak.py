@@ -1,0 +1,117 @@
+"""Drive a workbench session the way a hostile client would, for a while, and sample the memory it holds.
+
+A raw WebSocket client (``tools.hostile_client``) sends, in a loop, a value for a random GUI element of the
+page: a plausible one (an option of a dropdown, a number in a slider's range, a button press: loading scenes,
+opening recordings, running policies and grids, recording, exporting) or a hostile one (huge, non-finite, of the
+wrong type, a file name outside the folders). Every ``sample_s`` the process's resident memory is sampled.
+
+    python -m tools.soak --seconds 600 --json /tmp/soak.json
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import random
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+HOSTILE = (1e308, -1e308, math.inf, -math.inf, math.nan, 2 ** 63, -1, 0, True, None, "", "x" * 5000,
+           "../../etc/passwd", "/etc/shadow", "a/b.toml", "..", "C:\\\\x", [1, 2, 3], {"a": 1}, 123456789)
+
+
+def rss_mb() -> float:
+    """Resident memory of this process [MB] (Linux /proc)."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024.0
+    return math.nan
+
+
+def plausible(handle, rng: random.Random):
+    """A value the page itself could send for ``handle``."""
+    opts = getattr(handle, "options", None)
+    if opts:
+        return rng.choice(tuple(opts))
+    lo, hi = getattr(handle, "min", None), getattr(handle, "max", None)
+    v = handle.value
+    if isinstance(v, bool):
+        return not v
+    if isinstance(v, (int, float)) and lo is not None and hi is not None:
+        return rng.uniform(float(lo), float(hi))
+    if isinstance(v, tuple) and v and all(isinstance(x, (int, float)) for x in v):
+        return tuple(x + rng.uniform(-0.5, 0.5) for x in v)
+    if isinstance(v, str):
+        return rng.choice(("scene.toml", "ep", "x", v))
+    return v
+
+
+def backlog(app) -> int:
+    """Messages the server holds for its clients (viser's broadcast buffer)."""
+    return len(app.server._websock_server._broadcast_buffer.message_from_id)
+
+
+def drive(app, seconds: float, *, seed: int = 0, rate_hz: float = 200.0, sample_s: float = 5.0,
+          read: bool = True, progress=None) -> list[tuple[float, float, int]]:
+    """Send hostile and plausible GUI values to ``app`` for ``seconds``, reading what the server sends (as a
+    page does) unless ``read`` is False; returns (elapsed s, RSS MB, server backlog) samples."""
+    from viser import _messages as vm
+
+    from tools.hostile_client import HostileClient
+
+    rng = random.Random(seed)
+    client = HostileClient(app)
+    if read:
+        threading.Thread(target=client.drain, daemon=True, name="soak-reader").start()
+    samples = [(0.0, rss_mb(), backlog(app))]
+    t0 = time.monotonic()
+    next_sample = t0 + sample_s
+    try:
+        while (now := time.monotonic()) - t0 < seconds:
+            handles = list(app.server.gui._gui_input_handle_from_uuid.items())
+            uuid, impl = rng.choice(handles)
+            value = plausible(impl, rng) if rng.random() < 0.6 else rng.choice(HOSTILE)
+            client.send(vm.GuiUpdateMessage(uuid, {"value": value}))
+            time.sleep(1.0 / rate_hz)
+            if now >= next_sample:
+                samples.append((now - t0, rss_mb(), backlog(app)))
+                next_sample += sample_s
+                if progress is not None:
+                    progress(samples[-1])
+    finally:
+        client.close()
+    samples.append((time.monotonic() - t0, rss_mb(), backlog(app)))
+    return samples
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m tools.soak", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seconds", type=float, default=300.0)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--rate", type=float, default=200.0, help="GUI messages per second")
+    ap.add_argument("--no-read", action="store_true", help="never read what the server sends (a stalled client)")
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args(argv)
+    from workbench.app import WorkbenchApp
+    from workbench.core import Workbench
+
+    with tempfile.TemporaryDirectory() as tmp:
+        app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, wait_for_browser=False,
+                           scenes_dir=Path(tmp) / "scenes", recordings_dir=Path(tmp) / "recordings").start()
+        try:
+            samples = drive(app, args.seconds, seed=args.seed, rate_hz=args.rate, read=not args.no_read,
+                            progress=lambda s: print(f"{s[0]:7.1f} s  RSS {s[1]:8.1f} MB  backlog {s[2]}",
+                                                     flush=True))
+        finally:
+            app.stop()
+    if args.json:
+        args.json.write_text(json.dumps({"seconds": args.seconds, "seed": args.seed, "rate_hz": args.rate,
+                                         "samples": samples}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
