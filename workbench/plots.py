@@ -42,7 +42,8 @@ def group_of(name: str) -> tuple[str, str]:
         return "reward", "reward and its terms"
     if name.startswith("energy/"):
         return "energy", "energies [J]"
-    if name in ("solver/newton_iters", "solver/newton_iters_control", "solver/substeps", "solver/converged"):
+    if name in ("solver/newton_iters", "solver/newton_iters_control", "solver/substeps", "solver/converged",
+                "solver/midpoint_fallbacks"):
         return "solver/newton_iters", "Newton iterations / substeps"
     titles = {"tip_error": "tip error [m]", "ori_error": "orientation error 1 − (q·q*)² [-]",
               "contact/max_normal_force": "max contact force [N]", "contact/max_penetration": "max penetration [m]",

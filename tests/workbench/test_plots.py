@@ -51,3 +51,11 @@ def test_live_names():
     assert live_name("r_distance") == "reward_terms/distance"
     assert live_name("contact_force") == "contact/max_normal_force"
     assert live_name("episode_step") is None and live_name("return") is None
+
+
+def test_solver_counts_share_one_plot():
+    from workbench.plots import group_of
+
+    key = group_of("solver/newton_iters")
+    for name in ("solver/substeps", "solver/converged", "solver/midpoint_fallbacks"):
+        assert group_of(name) == key
