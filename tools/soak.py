@@ -50,8 +50,13 @@ def plausible(handle, rng: random.Random):
 
 
 def backlog(app) -> int:
-    """Messages the server holds for its clients (viser's broadcast buffer)."""
-    return len(app.server._websock_server._broadcast_buffer.message_from_id)
+    """Work the server holds for its clients: messages in viser's broadcast buffer and callbacks waiting to run."""
+    return len(app.server._websock_server._broadcast_buffer.message_from_id) + pending_callbacks(app)
+
+
+def pending_callbacks(app) -> int:
+    """Callbacks of the page's actions submitted and not started (the thread pool's queue)."""
+    return sum(api._thread_executor._inner._work_queue.qsize() for api in (app.server.gui, app.server.scene))
 
 
 def drive(app, seconds: float, *, seed: int = 0, rate_hz: float = 200.0, sample_s: float = 5.0,

@@ -256,18 +256,43 @@ class MessageGuard:
 
 
 class _GuardedExecutor:
-    """viser's callback thread pool, with each callback run through ``report`` on an exception."""
+    """viser's callback thread pool, with each callback run through ``report`` on an exception, and at most one
+    call of each callback waiting: a client sending faster than a callback runs (a slider dragged, a hostile
+    client at hundreds of messages per second) replaces the waiting call's arguments with its newest instead of
+    queueing another (callbacks read their element's current value, so the newest call is the one that
+    counts). The queue is then bounded by the number of callbacks, not by the client's rate."""
 
     def __init__(self, inner, report: Callable[[BaseException], None]):
         self._inner, self._report = inner, report
+        self._lock = threading.Lock()
+        self._waiting: dict[Any, tuple[tuple, dict]] = {}  # callback -> newest (args, kwargs) not yet started
+        self.coalesced = 0  # calls folded into a waiting call of the same callback
 
     def submit(self, fn, /, *args, **kwargs):
+        from concurrent.futures import Future
+
+        with self._lock:
+            if fn in self._waiting:
+                self._waiting[fn] = (args, kwargs)
+                self.coalesced += 1
+                done: Future = Future()
+                done.set_result(None)
+                return done
+            self._waiting[fn] = (args, kwargs)
+
         def run():
+            with self._lock:
+                a, kw = self._waiting.pop(fn)
             try:
-                return fn(*args, **kwargs)
+                return fn(*a, **kw)
             except Exception as exc:  # noqa: BLE001 - reported on the page and (unexpected ones) in the log
                 self._report(exc)
         return self._inner.submit(run)
+
+    def waiting(self) -> int:
+        """Callbacks waiting to run."""
+        with self._lock:
+            return len(self._waiting)
 
     def __getattr__(self, name):
         return getattr(self._inner, name)
