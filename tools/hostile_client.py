@@ -2,22 +2,32 @@
 any value for any GUI element, and any upload, without the page's own checks."""
 from __future__ import annotations
 
+import threading
 import time
 import uuid
 
 import msgspec
 import viser
 from viser import _messages as vm
+from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
 
 class HostileClient:
-    def __init__(self, app, *, origin: str | None = None):
+    """``read`` (default): a background thread reads and drops what the server sends, as a page that keeps up
+    does; without it nothing is read, the client stalls after a few messages and answers no keepalive ping (the
+    server then drops it). :attr:`closed_by` is the close that ended the connection, once it ended."""
+
+    def __init__(self, app, *, origin: str | None = None, read: bool = True):
         headers = {"Origin": origin} if origin else {}
         self.app = app
+        self.closed_by: ConnectionClosed | None = None
+        self._ended = threading.Event()
         before = set(app.server.get_clients())
         self.ws = connect(f"ws://127.0.0.1:{app.port}/", subprotocols=[f"viser-v{viser.__version__}"],
                           additional_headers=headers, max_size=None, open_timeout=120)
+        if read:
+            threading.Thread(target=self._drain, daemon=True, name="hostile-client-reader").start()
         # viser registers a client (and runs GUI callbacks for it) after its first camera message
         self.send(vm.ViewerCameraMessage(wxyz=(1.0, 0.0, 0.0, 0.0), position=(1.0, -1.0, 1.0), fov=1.0, near=0.01,
                                          far=100.0, image_height=480, image_width=640, look_at=(0.0, 0.0, 0.5),
@@ -47,13 +57,22 @@ class HostileClient:
         for i, c in enumerate(parts):
             self.send(vm.FileTransferPart(button._impl.uuid, tid, i, c))
 
-    def drain(self) -> None:
-        """Read and drop what the server sends until the connection ends (as a page that keeps up does)."""
+    def _drain(self) -> None:
         try:
             while True:
                 self.ws.recv()
-        except Exception:  # noqa: BLE001 - closed by either side: nothing more to read
-            pass
+        except ConnectionClosed as e:
+            self.closed_by = e
+        finally:
+            self._ended.set()
+
+    def wait_closed(self, bound: float = 600.0) -> ConnectionClosed:
+        """The close that ends the connection (waits for it; ``bound`` only guards against a hang)."""
+        if not self._ended.wait(bound):
+            raise TimeoutError(f"the connection did not end within {bound:.0f} s")
+        if self.closed_by is None:
+            raise RuntimeError("the connection ended without a close")
+        return self.closed_by
 
     def close(self) -> None:
         self.ws.close()

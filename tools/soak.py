@@ -15,7 +15,6 @@ import math
 import random
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -68,9 +67,7 @@ def drive(app, seconds: float, *, seed: int = 0, rate_hz: float = 200.0, sample_
     from tools.hostile_client import HostileClient
 
     rng = random.Random(seed)
-    client = HostileClient(app)
-    if read:
-        threading.Thread(target=client.drain, daemon=True, name="soak-reader").start()
+    client = HostileClient(app, read=read)
     samples = [(0.0, rss_mb(), backlog(app))]
     t0 = time.monotonic()
     next_sample = t0 + sample_s

@@ -56,7 +56,8 @@ class FakeSim(FakeSimBase):
         z = np.zeros(B)
         return SimpleNamespace(
             failed=np.zeros(B, bool), newton_iters=np.full(B, 2), converged=np.ones(B, bool),
-            substeps=np.ones(B, np.int64), residual=np.full(B, 1e-3), residual0=np.ones(B),
+            substeps=np.ones(B, np.int64), midpoint_fallbacks=np.zeros(B, np.int64), residual=np.full(B, 1e-3),
+            residual0=np.ones(B),
             energy_stretch=z + 0.1, energy_bend=z + 0.2, energy_twist=z + 0.3, energy_contact=z + 0.4,
             energy_kinetic=z + 0.5, energy_gravity=z + 0.6, max_penetration=z.copy(), contact_count=count,
             contact_edge=np.tile(np.arange(cap), (B, 1)), contact_obstacle=np.zeros((B, cap), np.int64),
