@@ -331,6 +331,8 @@ class Workbench:
     def set_obstacle_pose(self, index: int, position, wxyz) -> None:
         """Move/rotate obstacle ``index``; contact follows at the next step (no rebuild)."""
         with self.lock:
+            if not 0 <= index < len(self.obstacles):  # removed by another action since the page sent the pose
+                raise ActionRefused(f"obstacle {index + 1} is gone (the scene has {len(self.obstacles)})")
             e = self.obstacles[index]
             e.position = np.asarray(position, dtype=np.float64).reshape(3).copy()
             e.wxyz = np.asarray(wxyz, dtype=np.float64).reshape(4).copy()

@@ -154,7 +154,8 @@ class GridPanel:
 
     def set_focus(self, env: int) -> None:
         """Focus env ``env``: its colour, the camera on its cell, its readouts below."""
-        if self.session is None or not 0 <= int(env) < self.session.n:
+        session, view = self.session, self.view  # a stop on another callback thread may clear them
+        if session is None or view is None or not 0 <= int(env) < session.n:
             return
         if int(self.focus.value) != int(env):  # the slider first: whoever sees the view focused sees it too
             self._syncing = True
@@ -163,7 +164,7 @@ class GridPanel:
             finally:
                 self._syncing = False
             self.app.checks.accept(self.focus)
-        self.view.set_focus(int(env))
+        view.set_focus(int(env))
         self.update_status()
 
     def stop(self) -> None:
