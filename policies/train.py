@@ -144,17 +144,7 @@ def make_sb3_env(task: str, num_envs: int, seed: int):
     task = task_short_name(task)
     if task in (getattr(policies, "TASKS", {}) or {}):
         venv = policies.make_vec_env(task, num_envs, seed=seed)
-        adapter = policies.SB3VecEnvAdapter(venv)
-        adapter.last_raw_info = {}
-        raw_step = venv.step
-
-        def step_and_keep_info(actions):  # keep the batched info dict (per-term rewards) for logging
-            out = raw_step(actions)
-            adapter.last_raw_info = out[4]
-            return out
-
-        venv.step = step_and_keep_info
-        return adapter
+        return policies.SB3VecEnvAdapter(venv)  # its reward_terms observer: the per-term rewards for logging
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv
 

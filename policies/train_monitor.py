@@ -131,10 +131,11 @@ def monitor_callback(args, run_dir: Path, wall_offset: float, stop_flag: dict, e
             self.win_rew_sum += float(rew.sum())
             self.win_rew_n += rew.size
             self.disc_sum += self.disc_c * rew
-            raw = getattr(env, "last_raw_info", None)  # batched info of rodlab envs: "reward/<term>" (B,)
-            if isinstance(raw, dict):
-                for k, v in raw.items():
-                    if k.startswith("reward/") and np.shape(v) == rew.shape:
+            observer = getattr(env, "reward_terms", None)  # rodlab envs: the core's "reward/<term>" (B,) arrays
+            latest = getattr(observer, "latest", None)
+            if isinstance(latest, dict):
+                for k, v in latest.items():
+                    if np.shape(v) == rew.shape:
                         self.terms.setdefault(k, np.zeros(len(rew)))
                         self.terms[k] += np.nan_to_num(np.asarray(v, dtype=np.float64))
             for i in np.flatnonzero(dones):

@@ -28,7 +28,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .tasks import TASK_SPECS, gym_task_id
-from .tasks.base import BatchedTask, check_field_value
+from .tasks.base import BatchedTask, RewardTermsObserver, check_field_value
 from .tasks.env import action_space, observation_space
 
 __all__ = ["BatchedVecEnv", "SB3VecEnvAdapter", "make_vec_env", "vector_entry_point", "check_overrides"]
@@ -153,10 +153,14 @@ class SB3VecEnvAdapter(_SB3VecEnv):  # type: ignore[misc,valid-type]
     the returned obs row is already the next episode's first observation (SB3 convention).
     ``seed(s)`` followed by ``reset()`` re-seeds like ``make_vec_env(..., seed=s)`` (env i gets child i
     of ``SeedSequence(s)``), not SB3's ``s + i`` per env.
+    ``reward_terms`` (a :class:`~policies.tasks.base.RewardTermsObserver` of the task core) holds the
+    ``reward/<term>`` arrays (B,) of the latest step, which SB3's per-env infos do not carry (training logs them).
     """
 
     def __init__(self, venv: BatchedVecEnv):
         self.venv = venv
+        self.reward_terms = RewardTermsObserver()
+        venv.core.add_observer(self.reward_terms)
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
         self._actions: np.ndarray | None = None
         self._base_seed: int | None = None

@@ -134,9 +134,7 @@ def policy_episode(task: str, policy: str, *, seed: int = 0, max_sim_steps: int 
 
     frames = [snap()]
     for _ in range(int(max_sim_steps)):
-        s.before_sim_step(None)
-        core.sim.step(core.state, core.ctrl)
-        s.after_sim_step(None)
+        s.sim_step(None)
         frames.append(snap())
         if s.done:
             break

@@ -78,9 +78,7 @@ class Workbench:
             scalars: dict = {}
             if self.policy is not None and self.mode == "policy":
                 hand = self.teleop if self.hand_control else None
-                self.policy.before_sim_step(self.live, hand=hand)
-                self.live.step()
-                scalars = self.policy.after_sim_step(self.live)
+                scalars = self.policy.sim_step(self.live, hand=hand)
                 self._sync_policy_obstacles()
             else:
                 self.teleop.apply(self.live.ctrl, self.live.rest_ctrl)

@@ -1,15 +1,19 @@
 """A task episode driven by a policy (or by hand) one *sim* step at a time, so the page shows
-every sim step; the task's own converter, post-step hook, observation and reward are used.
+every sim step; the episode is the task's own (``BatchedTask.begin_step`` / ``sim_step`` / ``end_step``, the
+calls ``BatchedTask.step`` makes), so rewards, terminations and info are those of training.
 
-The session owns a batched task core with B = 1 (``policies.tasks``); the workbench draws and
-steps that core's simulator/state/control (``LiveSim.adopt``). Per control step:
+The session owns a batched task core with B = 1 (``policies.tasks``); the workbench draws that core's
+simulator/state/control (``LiveSim.adopt``) and the core steps it. Per control step:
 
-* policy: ``action = policy.predict(obs)`` → ``converter.convert`` → increment ramped over the
-  sim steps (``converter.apply``), exactly as ``BatchedTask.step`` does;
-* by hand: the teleop's absolute (κ1, κ2, twist) per control point become the converter's K/T and
-  the simulator holds ``converter.natural_values()``; the episode, target and reward go on.
-After the last sim step of a control step: task post-step hook, observation, reward + terms,
-termination/truncation (docs/tasks.md §3.3); the next control step of a finished episode resets it.
+* policy: ``action = policy.predict(obs)`` begins the control step (the converter's increment is ramped over
+  its sim steps);
+* by hand: the control step begins without an action; before each sim step the teleop's absolute (κ1, κ2,
+  twist) per control point become the converter's K/T and the simulator holds ``converter.natural_values()``
+  (a take-over in the middle of a policy's control step stops its increment there; a hand-back continues it);
+  the episode, target and reward go on.
+
+After the last sim step of a control step the core ends it (post-step hook, observation, reward + terms,
+termination/truncation, docs/tasks.md §3.3); the next control step of a finished episode resets it.
 """
 from __future__ import annotations
 
@@ -109,10 +113,8 @@ class PolicySession:
 
     # ------------------------------------------------------------------ episode
     def _start_episode(self) -> None:
-        self.obs = self.core.reset()
+        self.obs = self.core.reset()   # also drops a control step left unfinished
         self.obstacles_version += 1
-        self.sub = 0
-        self.inc = None
         self.done = False
         self.episode_return = 0.0
         self.scalars: dict[str, float] = {}
@@ -129,51 +131,44 @@ class PolicySession:
     def _action(self) -> np.ndarray:
         return act(self.policy, self.obs, self.core.action_dim, self._rng, self.deterministic)
 
-    def before_sim_step(self, live, *, hand=None) -> None:
+    def sim_step(self, live=None, *, hand=None) -> dict:
+        """One sim step of the episode (``live``: the workbench's ``LiveSim`` wrapping the core's simulator, which
+        times the step and keeps its stats; None: headless). ``hand``: the teleop driving instead of the policy.
+        Begins a control step (a new episode first when the last one ended) before its first sim step and ends it
+        after its last; returns the scalars of the latest ended control step."""
         core = self.core
-        if self.sub == 0:
+        if not core.step_in_progress:
             if self.done:
                 self._start_episode()
-            if hand is None:
-                self.inc = core.converter.convert(self._action())
-            else:
-                self.inc = None
+            core.begin_step(None if hand is not None else self._action())
         if hand is not None:
             self.set_accumulated(hand.values[:, :2], hand.values[:, 2])
             kappa, tau = core.converter.natural_values()
             rest = getattr(live, "rest_ctrl", None)
             core.ctrl.kappa_bar[...] = kappa + (0.0 if rest is None else rest.kappa_bar)
             core.ctrl.tau_bar[...] = tau + (0.0 if rest is None else rest.tau_bar)
-        elif self.inc is not None:
-            core.converter.apply(core.ctrl, self.inc, self.sub)
 
-    def after_sim_step(self, live) -> dict:
-        from policies.tasks.rewards import FAILURE_REWARD
+        def one_step():
+            return core.sim_step(increment=hand is None)
 
-        core = self.core
-        self.sub += 1
-        if self.sub < self.substeps:
+        if live is None:
+            one_step()
+        else:
+            live.step(one_step)
+        if core.sim_steps_taken < self.substeps:
             return dict(self.scalars)
-        self.sub = 0
-        core._post_step()
-        fields = core._fields()
-        self.obs = core._concat(fields)
-        reward, terms, extra = core._reward(fields)
-        r = float(np.asarray(reward)[0])
-        truncated = bool(core.step_count[0] == core.config.timeout_steps)
-        core.step_count += 1
-        failed = bool(np.asarray(core.state.failed)[0])
-        if failed or not (r >= FAILURE_REWARD):
-            r, self.done = FAILURE_REWARD, True
-        self.done = self.done or truncated
+        self.obs, reward, terminated, truncated, info = core.end_step()
+        r = float(reward[0])
+        self.done = bool(terminated[0] or truncated[0])
         self.episode_return += r
         sc = {"reward": r, "return": self.episode_return, "episode_step": float(core.step_count[0])}
-        for k, v in terms.items():
-            sc[f"r_{k}"] = float(np.asarray(v)[0])
-        d = extra.get("tip_distance")
+        for k, v in info.items():
+            if k.startswith("reward/"):  # the task's terms and its failure reward, as the recordings hold them
+                sc[f"r_{k[len('reward/'):]}"] = float(v[0])
+        d = info.get("tip_distance")
         if d is not None:
             sc["tip_error"] = float(np.asarray(d)[0])
-        o = extra.get("orientation_distance")
+        o = info.get("orientation_distance")
         if o is not None:
             sc["ori_error"] = float(np.asarray(o)[0])
         self.scalars = sc

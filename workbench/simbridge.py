@@ -147,9 +147,11 @@ class LiveSim:
         assign_struct(self.ctrl, self.sim.make_control())
         self.last_stats = None
 
-    def step(self):
+    def step(self, run=None):
+        """One sim step, timed, its stats kept. ``run``: a call that makes the step and returns its StepStats
+        (policy mode: the task core's ``sim_step``, so the step is the episode's); default ``sim.step``."""
         t0 = time.perf_counter()
-        self.last_stats = self.sim.step(self.state, self.ctrl)
+        self.last_stats = self.sim.step(self.state, self.ctrl) if run is None else run()
         self.step_time = time.perf_counter() - t0
         return self.last_stats
 

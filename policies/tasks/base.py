@@ -5,9 +5,11 @@ A :class:`BatchedTask` owns the simulator, its State/Control, an :class:`ActionC
 numpy over the B envs; only resets loop over the envs being reset (to draw from each env's own
 generator). The gymnasium single env (B = 1) and the batched VectorEnv are thin wrappers over it.
 
-Episode protocol (docs/tasks.md §3): reset -> counter 0; each step converts the action, runs
-``substeps`` sim steps (increment injected before each), runs the task's post-step hook, builds the
-observation and the reward. ``truncated`` when the counter (before increment) equals
+Episode protocol (docs/tasks.md §3), written once here: reset -> counter 0; each control step is
+``begin_step`` (convert the action), ``substeps`` x ``sim_step`` (increment injected before each sim step) and
+``end_step`` (the task's post-step hook, observation, reward, termination, info); ``step`` is exactly those
+calls, and the workbench makes the same calls one sim step at a time. ``truncated`` when the counter (before
+increment) equals
 ``timeout_steps`` (so an episode has ``timeout_steps + 1`` steps). ``terminated`` with reward -10
 when the simulator failed during the step (``StepStats.failed``; reason ``"sim_failed"``) or the
 reward is NaN or < -10 (reason ``"reward_explosion"``). Observations are sanitised (no NaN/inf).
@@ -27,11 +29,12 @@ from typing import Any, ClassVar, Literal, Protocol
 
 import numpy as np
 
-from policies.control import STATE_NODES, ActionConverter, ControlConfig, Smoothing
+from policies.control import STATE_NODES, ActionConverter, ControlConfig, ControlIncrement, Smoothing
 
 from .rewards import FAILURE_REWARD
 
-__all__ = ["TaskConfig", "BatchedTask", "StepObserver", "child_generator", "spawn_generators", "check_field_value"]
+__all__ = ["TaskConfig", "BatchedTask", "StepObserver", "RewardTermsObserver", "child_generator", "spawn_generators",
+           "check_field_value"]
 
 # Ranges of the integer settings every task shares (a huge substeps count would run for ever).
 FIELD_LIMITS = {"substeps": (1, 1000), "newton_max_iter": (1, 10_000), "timeout_steps": (0, 10 ** 9)}
@@ -127,7 +130,40 @@ class StepObserver(Protocol):
 
     def on_step(self, core: "BatchedTask", reward: np.ndarray, terminated: np.ndarray, truncated: np.ndarray,
                 info: dict[str, Any]) -> None:
-        """After ``core.step`` (``core.last_step_seconds`` holds its wall time)."""
+        """After the control step (``core.end_step``; ``core.last_step_seconds`` holds its wall time)."""
+
+
+class RewardTermsObserver:
+    """A :class:`StepObserver` that keeps the reward terms of the latest control step: ``latest`` maps each
+    ``reward/<term>`` of that step's info to its (B,) array (the info's own arrays; empty before the first step).
+    A reset leaves it alone (the vector env resets finished envs right after their last step)."""
+
+    def __init__(self) -> None:
+        self.latest: dict[str, np.ndarray] = {}
+
+    def on_reset(self, core: "BatchedTask", mask: np.ndarray) -> None:
+        pass
+
+    def on_sim_step(self, core: "BatchedTask", substep: int, stats: Any) -> None:
+        pass
+
+    def on_step(self, core: "BatchedTask", reward: np.ndarray, terminated: np.ndarray, truncated: np.ndarray,
+                info: dict[str, Any]) -> None:
+        self.latest = {k: v for k, v in info.items() if k.startswith("reward/")}
+
+
+@dataclass
+class _ControlStep:
+    """The control step in progress: its increment (None: no action), start time, sim steps taken and the
+    per-env failure and solver counts summed over them."""
+
+    increment: ControlIncrement | None
+    t0: float
+    failed: np.ndarray
+    iters: np.ndarray
+    unconv: np.ndarray
+    retries: np.ndarray
+    taken: int = 0
 
 
 class BatchedTask:
@@ -135,7 +171,9 @@ class BatchedTask:
 
     Attributes: ``envs`` B; ``sim``, ``state``, ``ctrl``; ``converter``; ``rngs`` (B generators);
     ``step_count`` (B,) int; ``obs_dim``; ``action_dim``; ``observers`` (:class:`StepObserver`, see
-    :meth:`add_observer`); ``last_step_seconds`` (wall time of the last control step).
+    :meth:`add_observer`); ``last_step_seconds`` (wall time of the last control step, ``begin_step`` to
+    ``end_step``). A control step is :meth:`step`, or the same work in parts: :meth:`begin_step`,
+    ``substeps`` x :meth:`sim_step`, :meth:`end_step`.
     Hooks: ``_reset_task(idx)``, ``_post_step()``, ``_fields() -> dict name -> (B, n)``,
     ``_reward(fields) -> (reward (B,), terms dict, extra info dict)``.
     """
@@ -167,6 +205,7 @@ class BatchedTask:
         self._all = np.ones(B, dtype=bool)
         self.observers: list[StepObserver] = []
         self.last_step_seconds = 0.0
+        self._control: _ControlStep | None = None   # the control step in progress (begin_step .. end_step)
 
     # ---------------------------------------------------------------- config
     def _control_config(self) -> ControlConfig:
@@ -198,10 +237,18 @@ class BatchedTask:
 
     # ---------------------------------------------------------------- episode
     def reset(self, mask: np.ndarray | None = None) -> np.ndarray:
-        """Reset the envs in ``mask`` ((B,) bool, all if None); returns observations (B, obs_dim) of ALL envs."""
+        """Reset the envs in ``mask`` ((B,) bool, all if None); returns observations (B, obs_dim) of ALL envs.
+
+        A reset of every env drops a control step in progress (no ``end_step``, no ``on_step``); a reset of
+        some envs during one is a RuntimeError."""
         m = self._all if mask is None else np.asarray(mask, dtype=bool)
         if m.shape != (self.envs,):
             raise ValueError(f"reset mask has shape {m.shape}, expected ({self.envs},)")
+        if self._control is not None:
+            if not m.all():
+                raise RuntimeError("reset of some envs during a control step (begin_step without end_step); "
+                                   "end the step first or reset every env")
+            self._control = None        # a reset of every env drops the unfinished control step
         idx = np.nonzero(m)[0]
         if idx.size:
             self.sim.reset_envs(self.state, self.ctrl, m)
@@ -216,26 +263,89 @@ class BatchedTask:
     def step(self, action) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """One control step of all B envs. action (B, action_dim) in [-1, 1].
 
-        Returns obs (B, obs_dim) float32, reward (B,) float64, terminated (B,), truncated (B,) bool,
-        info dict of (B,) arrays.
+        Exactly :meth:`begin_step`, ``substeps`` x :meth:`sim_step`, :meth:`end_step` (an error on the way drops
+        the unfinished step). Returns obs (B, obs_dim) float32, reward (B,) float64, terminated (B,), truncated
+        (B,) bool, info dict of (B,) arrays.
         """
+        if action is None:
+            raise ValueError("step needs an action (B, action_dim); begin_step(None) runs a step without one")
+        self.begin_step(action)
+        try:
+            for _ in range(self.config.substeps):
+                self.sim_step()
+            return self.end_step()
+        finally:
+            self._control = None
+
+    @property
+    def step_in_progress(self) -> bool:
+        """Whether a control step has begun (:meth:`begin_step`) and not ended (:meth:`end_step`)."""
+        return self._control is not None
+
+    @property
+    def sim_steps_taken(self) -> int:
+        """Sim steps taken in the control step in progress (0 when none is in progress)."""
+        return 0 if self._control is None else self._control.taken
+
+    def begin_step(self, action) -> None:
+        """Begin a control step of all B envs: convert ``action`` (B, action_dim) in [-1, 1] into the increment
+        that the next ``substeps`` sim steps add to the controls (the converter accumulates it at once).
+
+        ``action=None``: a control step without an action (the converter's K/T and the controls are left to
+        the caller, as the workbench's hand control does). RuntimeError when a control step is in progress;
+        ValueError (nothing begun) for an action of the wrong shape or with NaN/inf.
+        """
+        if self._control is not None:
+            raise RuntimeError(f"begin_step during a control step ({self._control.taken} of "
+                               f"{self.config.substeps} sim steps taken; end_step first)")
         t0 = time.perf_counter()
-        inc = self.converter.convert(action)
+        inc = None if action is None else self.converter.convert(action)
         B = self.envs
-        failed = np.zeros(B, dtype=bool)
-        iters = np.zeros(B, dtype=np.int64)
-        unconv = np.zeros(B, dtype=np.int64)
-        retries = np.zeros(B, dtype=np.int64)
-        for k in range(self.config.substeps):
-            self.converter.apply(self.ctrl, inc, k)
-            stats = self.sim.step(self.state, self.ctrl)
-            for o in self.observers:
-                o.on_sim_step(self, k, stats)
-            failed |= np.asarray(stats.failed, dtype=bool)
-            iters += np.asarray(stats.newton_iters)
-            unconv += ~np.asarray(stats.converged, dtype=bool)
-            retries += np.asarray(stats.substeps) > 1
-        failed |= np.asarray(self.state.failed, dtype=bool)
+        self._control = _ControlStep(increment=inc, t0=t0, failed=np.zeros(B, dtype=bool),
+                                     iters=np.zeros(B, dtype=np.int64), unconv=np.zeros(B, dtype=np.int64),
+                                     retries=np.zeros(B, dtype=np.int64))
+
+    def sim_step(self, *, increment: bool = True):
+        """One sim step of the control step in progress; returns its ``StepStats``.
+
+        Adds the step's share of the increment to the controls (the k-th, k = sim steps taken so far; not when
+        ``increment`` is False: the caller set the controls for this sim step), steps the simulator, calls the
+        observers' ``on_sim_step`` and adds the step's failures and solver counts to those ``end_step`` reports.
+        RuntimeError without a control step in progress or when its ``substeps`` sim steps are taken.
+        """
+        c = self._control
+        if c is None:
+            raise RuntimeError("sim_step without a control step in progress (begin_step first)")
+        k = c.taken
+        if k >= self.config.substeps:
+            raise RuntimeError(f"sim_step after all {self.config.substeps} sim steps of the control step "
+                               "(end_step next)")
+        if increment and c.increment is not None:
+            self.converter.apply(self.ctrl, c.increment, k)
+        stats = self.sim.step(self.state, self.ctrl)
+        for o in self.observers:
+            o.on_sim_step(self, k, stats)
+        c.failed |= np.asarray(stats.failed, dtype=bool)
+        c.iters += np.asarray(stats.newton_iters)
+        c.unconv += ~np.asarray(stats.converged, dtype=bool)
+        c.retries += np.asarray(stats.substeps) > 1
+        c.taken = k + 1
+        return stats
+
+    def end_step(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """End the control step in progress after its ``substeps`` sim steps: the task's post-step hook, the
+        observation, the reward and its terms, truncation, termination (sim failure or reward explosion: reward
+        -10), the step counter, the info; then the observers' ``on_step``. Returns what :meth:`step` returns.
+        RuntimeError without a control step in progress or before all its sim steps are taken.
+        """
+        c = self._control
+        if c is None:
+            raise RuntimeError("end_step without a control step in progress (begin_step first)")
+        if c.taken != self.config.substeps:
+            raise RuntimeError(f"end_step after {c.taken} of {self.config.substeps} sim steps (sim_step first)")
+        self._control = None
+        B = self.envs
+        failed = c.failed | np.asarray(self.state.failed, dtype=bool)
         self._post_step()
         fields = self._fields()
         obs = self._concat(fields)
@@ -254,11 +364,11 @@ class BatchedTask:
         info.update(extra)
         info["failed"] = terminated.copy()
         info["failure_reason"] = reason
-        info["newton_iters"] = iters
-        info["unconverged_steps"] = unconv
-        info["retried_steps"] = retries
+        info["newton_iters"] = c.iters
+        info["unconverged_steps"] = c.unconv
+        info["retried_steps"] = c.retries
         info["episode_step"] = self.step_count.copy()
-        self.last_step_seconds = time.perf_counter() - t0
+        self.last_step_seconds = time.perf_counter() - c.t0
         for o in self.observers:
             o.on_step(self, reward, terminated, truncated, info)
         return obs, reward, terminated, truncated, info

@@ -127,3 +127,151 @@ def test_config_override_and_validation(fake_sim):
         policies.make_vec_env("follow_target", 1, target_lo=(0, 0))
     with pytest.raises(ValueError, match="smoothing"):
         policies.make_vec_env("follow_target", 1, smoothing="bogus")
+
+
+def _step_in_parts(core, action):
+    """A control step as its three public parts (what the workbench does one sim step at a time)."""
+    core.begin_step(action)
+    for k in range(core.config.substeps):
+        assert core.step_in_progress and core.sim_steps_taken == k
+        core.sim_step()
+    return core.end_step()
+
+
+def _assert_bitwise(a, b, where):
+    names = ("obs", "reward", "terminated", "truncated")
+    for name, x, y in zip(names, a[:4], b[:4]):
+        assert x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes(), f"{where}: {name}"
+    assert list(a[4]) == list(b[4]), where
+    for k, x in a[4].items():
+        y = b[4][k]
+        if x.dtype == object:
+            assert x.tolist() == y.tolist(), f"{where}: info[{k!r}]"
+        else:
+            assert x.dtype == y.dtype and x.tobytes() == y.tobytes(), f"{where}: info[{k!r}]"
+
+
+class _Counter:
+    """A StepObserver counting the calls it gets, with the sim step indices."""
+
+    def __init__(self):
+        self.resets, self.sim_steps, self.steps = 0, [], 0
+
+    def on_reset(self, core, mask):
+        self.resets += 1
+
+    def on_sim_step(self, core, substep, stats):
+        self.sim_steps.append(substep)
+
+    def on_step(self, core, reward, terminated, truncated, info):
+        self.steps += 1
+
+
+@pytest.mark.parametrize("task", sorted(TASKS))
+def test_step_equals_its_parts_bitwise(fake_sim, task):
+    """``step`` and begin_step / sim_step x substeps / end_step give the same observations, rewards, terminations,
+    truncations and infos, bit for bit, through truncation, a simulator failure and a reward explosion."""
+    cores = [policies.make_vec_env(task, 3, seed=5, timeout_steps=2).core for _ in range(2)]
+    counters = [_Counter(), _Counter()]
+    for core, counter in zip(cores, counters):
+        core.add_observer(counter)
+        core.reset()
+    acts = np.random.default_rng(1).uniform(-1, 1, (7, 3, cores[0].action_dim)).astype(np.float32)
+    for t, a in enumerate(acts):
+        for core in cores:
+            if t == 2:
+                core.ctrl.kappa_bar[1, 5, 0] = 100.0      # the stand-in simulator fails env 1
+            if t == 4:
+                core.state.dof[2] = np.nan                # env 2: NaN reward -> reward explosion
+        whole, parts = cores[0].step(a), _step_in_parts(cores[1], a)
+        _assert_bitwise(whole, parts, f"{task} step {t}")
+        assert not cores[1].step_in_progress
+        if t == 2:
+            assert whole[4]["failure_reason"][1] == "sim_failed"
+        if t == 4:
+            assert whole[4]["failure_reason"][2] == "reward_explosion"
+        done = whole[2] | whole[3]
+        if done.any():
+            for core in cores:
+                np.testing.assert_array_equal(core.reset(done), cores[0].observe())
+    n = cores[0].config.substeps
+    for c in counters:
+        assert c.steps == len(acts) and c.sim_steps == list(range(n)) * len(acts)
+    assert counters[0].resets == counters[1].resets
+
+
+def test_step_parts_refuse_the_wrong_order(fake_sim):
+    core = policies.make_vec_env("follow_target", 2, seed=0).core
+    core.reset()
+    a = np.zeros((2, core.action_dim), np.float32)
+    with pytest.raises(RuntimeError, match="begin_step first"):
+        core.sim_step()
+    with pytest.raises(RuntimeError, match="begin_step first"):
+        core.end_step()
+    with pytest.raises(ValueError, match="shape"):
+        core.begin_step(np.zeros((3, core.action_dim)))
+    assert not core.step_in_progress                 # a refused action begins nothing
+    core.begin_step(a)
+    with pytest.raises(RuntimeError, match="during a control step"):
+        core.begin_step(a)
+    with pytest.raises(RuntimeError, match="during a control step"):
+        core.step(a)
+    core.sim_step()
+    with pytest.raises(RuntimeError, match="after 1 of 2 sim steps"):
+        core.end_step()
+    core.sim_step()
+    with pytest.raises(RuntimeError, match="end_step next"):
+        core.sim_step()
+    with pytest.raises(RuntimeError, match="reset of some envs"):
+        core.reset(np.array([True, False]))
+    assert core.step_in_progress
+    core.reset()                                      # every env: the unfinished step is dropped
+    assert not core.step_in_progress and core.sim_steps_taken == 0
+    assert core.step(a)[4]["episode_step"].tolist() == [1, 1]
+    with pytest.raises(ValueError, match="needs an action"):
+        core.step(None)
+
+
+def test_a_failed_step_leaves_no_step_in_progress(fake_sim):
+    class Boom:
+        def on_reset(self, core, mask):
+            pass
+
+        def on_sim_step(self, core, substep, stats):
+            raise KeyError("observer failed")
+
+        def on_step(self, core, reward, terminated, truncated, info):
+            pass
+
+    core = policies.make_vec_env("follow_target", 1, seed=0).core
+    core.reset()
+    boom = Boom()
+    core.add_observer(boom)
+    a = np.zeros((1, core.action_dim), np.float32)
+    with pytest.raises(KeyError):
+        core.step(a)
+    assert not core.step_in_progress
+    core.remove_observer(boom)
+    assert core.step(a)[4]["episode_step"].tolist() == [1]   # the failed step did not count
+
+
+def test_step_without_action_leaves_the_controls_to_the_caller(fake_sim):
+    """begin_step(None) and sim_step(increment=False) (the workbench's hand control): no increment reaches the
+    controls, the converter keeps its values, and the control step still ends with a reward and a counted step."""
+    core = policies.make_vec_env("follow_target", 2, seed=0).core
+    core.reset()
+    core.step(np.ones((2, core.action_dim), np.float32))
+    K, kappa = core.converter.K.copy(), core.ctrl.kappa_bar.copy()
+    core.begin_step(None)
+    core.sim_step()
+    core.sim_step()
+    obs, reward, term, trunc, info = core.end_step()
+    np.testing.assert_array_equal(core.converter.K, K)
+    np.testing.assert_array_equal(core.ctrl.kappa_bar, kappa)
+    assert info["episode_step"].tolist() == [2, 2] and np.isfinite(reward).all()
+    core.begin_step(np.ones((2, core.action_dim), np.float32))  # an action whose increment the caller skips
+    core.sim_step(increment=False)
+    np.testing.assert_array_equal(core.ctrl.kappa_bar, kappa)
+    core.sim_step()                                              # the second share reaches the controls
+    assert not np.array_equal(core.ctrl.kappa_bar, kappa)
+    core.end_step()

@@ -112,3 +112,30 @@ def test_bench_env_cli(fake_sim, capsys):
     res = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert res["envs"] == 3 and res["ms_per_env_step_median"] > 0 and res["task"] == "rodlab/IK4D-v0"
     assert bench_env_main(["--task", "nope", "--envs", "3"]) == 2
+
+
+def test_sb3_adapter_keeps_the_reward_terms_of_each_step(fake_sim):
+    """The training env (``make_sb3_env``) carries the core's ``reward/<term>`` arrays of the latest step through
+    its reward-terms observer, the same values the batched env's info holds (including a finished episode)."""
+    from policies.train import make_sb3_env
+
+    env = make_sb3_env("follow_target", 3, seed=4)
+    twin = make_vec_env("follow_target", 3, seed=4)
+    assert env.reward_terms.latest == {}
+    env.reset()
+    twin.reset()
+    acts = np.random.default_rng(2).uniform(-1, 1, (3, 3, 10)).astype(np.float32)
+    for t, a in enumerate(acts):
+        if t == 1:
+            for core in (env.venv.core, twin.core):
+                core.ctrl.kappa_bar[1, 5, 0] = 100.0  # the stand-in simulator fails env 1: a done env
+        _, rew, done, _ = env.step(a)
+        _, r, term, _, info = twin.step(a)
+        want = {k: v for k, v in info.items() if k.startswith("reward/")}
+        got = env.reward_terms.latest
+        assert sorted(got) == sorted(want) == ["reward/bonus", "reward/distance", "reward/failure"]
+        for k in want:
+            assert got[k].tobytes() == want[k].tobytes(), (t, k)
+        np.testing.assert_allclose(sum(got.values()), rew, rtol=1e-6)  # the terms add up to the reward
+        if t == 1:
+            assert done[1] and got["reward/failure"][1] == -10.0

@@ -198,3 +198,27 @@ def test_ship_copies_and_refuses_a_worse_policy(tmp_path, monkeypatch):
     with pytest.raises(ShipError, match="not found"):
         ship(tmp_path / "nothing", "pend", dest_dir=dest)
     assert main(["ship", str(tmp_path / "nothing"), "--name", "x"]) == 1
+
+
+def test_training_logs_the_reward_terms(tmp_path, monkeypatch):
+    """The reward terms reach the training log through the env's reward-terms observer: per finished episode
+    ``rollout/ep_reward/<term>`` is logged, and the term means add up to the logged episode return."""
+    import functools
+
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    import policies
+
+    monkeypatch.setattr(policies, "make_vec_env", functools.partial(policies.make_vec_env, timeout_steps=3))
+    run = tmp_path / "run"
+    train(_args(run, 48, learning_starts=16, updates_per_iter=1, eval_episodes=0))  # 4-step episodes
+    ea = EventAccumulator(str(run / "tb"))
+    ea.Reload()
+    terms = ["rollout/ep_reward/bonus", "rollout/ep_reward/distance", "rollout/ep_reward/failure"]
+    assert set(terms) <= set(ea.Tags()["scalars"])
+    ret = {e.step: e.value for e in ea.Scalars("rollout/ep_return_mean")}
+    parts = [{e.step: e.value for e in ea.Scalars(t)} for t in terms]
+    assert len(ret) >= 2 and all(set(p) == set(ret) for p in parts)
+    for step, value in ret.items():
+        assert sum(p[step] for p in parts) == pytest.approx(value, rel=1e-5, abs=1e-5), step
+    assert any(p < 0 for p in parts[1].values())  # the distance term is a real (negative) reward
