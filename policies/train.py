@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from sim.atomicio import write_bytes
+from sim.support.atomicio import write_bytes
 
 from policies.checkpoint import find_checkpoint, read_state, resume_seed
 from policies.checkpoint import save_checkpoint as _save_checkpoint

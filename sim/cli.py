@@ -15,7 +15,7 @@ __all__ = ["sim_main", "bench_sim_main"]
 
 
 def _atomic_savez(path: str, **arrays) -> None:
-    from .atomicio import savez
+    from .support.atomicio import savez
 
     savez(path, compressed=True, **arrays)
 
@@ -26,7 +26,7 @@ _MAX_ENVS = 100_000
 
 def sim_main(argv: list[str] | None = None) -> int:
     """rodlab sim SCENE.toml --duration T [--envs B] [--every K] [--out FILE.npz] [--progress/--no-progress]"""
-    from .progress import add_progress_flag, progress_bar, progress_wanted
+    from .support.progress import add_progress_flag, progress_bar, progress_wanted
 
     ap = argparse.ArgumentParser(prog="rodlab sim", description="Simulate a scene headless (rest controls). "
                                  "Prints a warning when the rod starts inside an obstacle.")
@@ -53,7 +53,7 @@ def sim_main(argv: list[str] | None = None) -> int:
     from . import Simulator, build_model, load_scene
     from .scene import SceneError
     from .scene_check import overlap_warning, rod_obstacle_overlaps
-    from .validate import check_output_path
+    from .support.paths import check_output_path
 
     def fail(msg: str) -> int:
         print(f"rodlab sim: {msg}", file=sys.stderr)

@@ -435,8 +435,8 @@ def _rod_lines(rod: RodSpec) -> list[str]:
 
 
 def dump_scene(spec: SceneSpec, path: str | os.PathLike) -> None:
-    """Write ``spec`` as TOML to ``path`` atomically (``sim.atomicio``: usual file mode); mesh paths relative to it."""
-    from .atomicio import write_text
+    """Write ``spec`` as TOML to ``path`` atomically (``sim.support.atomicio``: usual file mode); mesh paths relative to it."""
+    from .support.atomicio import write_text
 
     p = Path(path)
     write_text(p, scene_to_toml(spec, base_dir=p.resolve().parent), mkdir=False)

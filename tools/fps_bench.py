@@ -157,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
         if pw is not None:
             pw.stop()
     if args.json:
-        from sim import atomicio
+        from sim.support import atomicio
 
         doc = {"command": "python -m tools.fps_bench " + " ".join(argv if argv is not None else sys.argv[1:]),
                "seconds": args.seconds, "size": args.size, "results": results}

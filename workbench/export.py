@@ -9,7 +9,7 @@
 * PNG / GIF: the same default view of one frame / of the whole episode, drawn with matplotlib (no browser
   needed; :mod:`workbench.export_image`).
 
-Files are written atomically (:mod:`sim.atomicio`) and only to the paths given.
+Files are written atomically (:mod:`sim.support.atomicio`) and only to the paths given.
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from policies.recording.schema import EpisodeData, RecordingError
-from sim import atomicio
+from sim.support import atomicio
 
 from .export_page import PAGE
 

@@ -1,6 +1,6 @@
 """Pictures of a recorded episode, drawn with matplotlib (no browser): a PNG of one frame and an animated GIF
 of the episode, in the default view of the HTML player (:mod:`workbench.export`): oblique for 3-D tasks, facing
-the x-z plane for planar ones. Files are written atomically (:mod:`sim.atomicio`).
+the x-z plane for planar ones. Files are written atomically (:mod:`sim.support.atomicio`).
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from policies.recording.schema import EpisodeData
-from sim import atomicio
+from sim.support import atomicio
 
 from .export import ExportError, _check_out, _mesh_edges, _obstacles, rod_offsets
 
