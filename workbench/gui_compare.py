@@ -4,18 +4,14 @@ policy on the running task's scene: its episode is computed headless with the li
 episode restarts, so both start from the same target and obstacles."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from workbench.compare import Ghost, GhostView, policy_episode
 from workbench.files import FileAccessError, page_error
+from workbench.gui_host import PanelHost
 from workbench.replay import read_episodes
-
-if TYPE_CHECKING:
-    from workbench.app import WorkbenchApp
 
 
 class ComparePanel:
-    def __init__(self, app: "WorkbenchApp"):
+    def __init__(self, app: PanelHost):
         self.app = app
         gui = app.server.gui
         files = app.replay._files()

@@ -6,14 +6,11 @@ from __future__ import annotations
 import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from workbench.files import page_error
 from workbench.grid import MAX_ENVS, GridSession
 from workbench.grid_view import GridView
-
-if TYPE_CHECKING:
-    from workbench.app import WorkbenchApp
+from workbench.gui_host import PanelHost
 
 
 class GridRunner:
@@ -63,7 +60,7 @@ class GridRunner:
 
 
 class GridPanel:
-    def __init__(self, app: "WorkbenchApp"):
+    def __init__(self, app: PanelHost):
         self.app = app
         gui = app.server.gui
         with app.tabs["Policy"], gui.add_folder("Grid of envs"):

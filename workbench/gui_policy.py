@@ -2,18 +2,15 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from workbench.files import page_error
-
-if TYPE_CHECKING:
-    from workbench.app import WorkbenchApp
+from workbench.gui_host import PanelHost
 
 NO_POLICY = ("zero", "random")
 
 
 class PolicyPanel:
-    def __init__(self, app: "WorkbenchApp"):
+    def __init__(self, app: PanelHost):
         self.app = app
         gui = app.server.gui
         try:
