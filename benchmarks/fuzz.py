@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+import rodlab_cli
+
 PARTS = ("scene", "control", "env", "cli")
 OUTCOMES = ("ok", "clear_error", "crash", "silent_wrong")
 WHERE = "fuzz.toml"
@@ -356,8 +358,6 @@ def random_cli_case(rng: np.random.Generator, tmp: str) -> list[str]:
 
 def run_cli_case(args: list[str]) -> tuple[str, str]:
     """Run ``rodlab ARGS`` in this process; clear = exit 0 (ok), or 2 with a one-line 'rodlab ...:' message."""
-    import rodlab_cli
-
     err, out = io.StringIO(), io.StringIO()
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):

@@ -29,8 +29,10 @@ from typing import Any, Callable
 import numpy as np
 from sim.rotations import from_xyzw, quat_yaw
 
+from policies.elastica import make_elastica_vec_env
 from policies.sac import PolicyLoadError, load_policy
 from policies.sb3_env import make_sb3_env, task_short_name
+from policies.vec_env import SB3VecEnvAdapter
 
 # Slices into the flat observation (fields concatenated alphabetically, docs/tasks.md §4.3-7.3):
 # tip = last state node; dims = 3 or 2 (x, z).
@@ -188,9 +190,6 @@ def evaluate(policy_or_path, task: str | None = None, *, episodes: int = 100, se
 def _run_episodes(policy, task, episodes, seed, n, deterministic, callback, gamma, source,
                   env_hook=None, backend: str = "dismech") -> list[dict]:
     if backend == "elastica":  # the task on PyElastica (policies/elastica), same observations and rewards
-        from policies.elastica import make_elastica_vec_env
-        from policies.vec_env import SB3VecEnvAdapter
-
         env = SB3VecEnvAdapter(make_elastica_vec_env(task, n, seed=seed))
     elif backend == "dismech":
         env = make_sb3_env(task, n, seed)

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from policies.recording.reader import read_recording
 from policies.recording.schema import EpisodeData, RecordingError
 from sim.support import atomicio
 
@@ -44,8 +45,6 @@ _DATA_RE = re.compile(r'<script type="application/json" id="rodlab-data">(.*?)</
 
 def load_episode(recording: str | Path, episode: int) -> EpisodeData:
     """Episode ``episode`` (0-based, in the order ``rodlab inspect`` lists them) of a .rrd file."""
-    from policies.recording.reader import read_recording
-
     eps = read_recording(recording)
     if not isinstance(episode, (int, np.integer)) or not 0 <= int(episode) < len(eps):
         raise ExportError(f"{recording}: episode {episode} out of range: the file has {len(eps)} "

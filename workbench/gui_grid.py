@@ -11,6 +11,8 @@ from workbench.files import page_error
 from workbench.grid import MAX_ENVS, GridSession
 from workbench.grid_view import GridView
 from workbench.gui_host import PanelHost
+from workbench.gui_policy import NO_POLICY
+from workbench.policy_session import PRETRAINED
 
 
 class GridRunner:
@@ -117,8 +119,6 @@ class GridPanel:
         if task not in tuple(pol.task.options) or policy not in pol._policies():
             self._say("choose a task and a policy from the lists")
             return
-        from workbench.gui_policy import NO_POLICY
-        from workbench.policy_session import PRETRAINED
 
         try:
             self.start(task, policy if policy in NO_POLICY else str(PRETRAINED / Path(policy).name),

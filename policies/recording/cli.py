@@ -22,6 +22,10 @@ from typing import Any
 
 import numpy as np
 
+import policies
+from policies.tasks import gym_task_id
+
+from .reader import summarize
 from .schema import RecordingError
 
 
@@ -66,9 +70,6 @@ def record(task: str, out: str | Path, *, policy: str | None = None, mode: str =
     {"file", "episodes": [summaries]}. ``show_progress``: a progress bar with ETA on stderr."""
     from sim.support.paths import check_output_path
     from sim.support.progress import progress_bar
-
-    import policies
-    from policies.tasks import gym_task_id
 
     from .probe import TaskProbe
     from .recorder import Recorder
@@ -192,7 +193,6 @@ def inspect_main(argv: list[str]) -> int:
     p.add_argument("file", help="recording .rrd")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     a = p.parse_args(argv)
-    from .reader import summarize
 
     try:
         s = summarize(a.file)

@@ -9,6 +9,7 @@ from .base import BatchedTask, TaskConfig
 from .env import RodTaskEnv
 from .obstacles3d import FenceSampler, FenceSpec
 from .rewards import reach_reward
+from .scenes import set_env_capsules
 
 __all__ = ["RandomObstacles3DConfig", "RandomObstacles3DCore", "RandomObstacles3DEnv", "default_config"]
 
@@ -55,8 +56,6 @@ class RandomObstacles3DCore(BatchedTask):
         return self.fences[0].astype(np.float64), float(self.config.fence.radius)
 
     def _reset_task(self, idx: np.ndarray) -> None:
-        from .scenes import set_env_capsules
-
         for i in idx:
             self.fences[i] = self.sampler.sample(self.rngs[i])
         set_env_capsules(self.state, idx, self.fences[idx].astype(np.float64), float(self.config.fence.radius))
