@@ -13,26 +13,26 @@ import time
 
 import numpy as np
 
+from . import accuracy_sweeps as sw
+from . import rodlab_runs as rr
 from .references import trajectory_error
 from .rodlab_runs import CONVERGED
 from .scenes import ArmPress
 
 
 def bench(*, quick: bool, peer: bool, repeats: int) -> dict | None:
-    from . import accuracy as acc
-    from . import rodlab_runs as rr
     sc = ArmPress()
-    g = dict(acc.grids(quick))
+    g = dict(sw.grids(quick))
     g["solvers"] = ["conv", "it5"] + ([] if quick else ["paper"])
     g["small_dt_solvers"] = ["conv"]
     ref_n, ref_dt = (41, 1e-3) if quick else (81, 2e-4)
-    if acc.PEER_ONLY:
+    if sw.PEER_ONLY:
         if peer:
             from .peers import elastica_scenes as es
             kw = dict(length=sc.length, radius=sc.radius, density=sc.density, youngs=sc.youngs)
             g2 = dict(g)
             g2["el_nodes"] = [21] if quick else [11, 21, 41]
-            acc._run_elastica_sweep("contact", es.run_arm, sc, g2, lambda r, n: {"error": None}, kw, repeats)
+            sw.run_elastica_sweep("contact", es.run_arm, sc, g2, lambda r, n: {"error": None}, kw, repeats)
         return None
     t0 = time.perf_counter()
     ref = rr.run_arm(sc, n_nodes=ref_n, dt=ref_dt, solver=CONVERGED, sample_dt=0.01)
@@ -46,7 +46,7 @@ def bench(*, quick: bool, peer: bool, repeats: int) -> dict | None:
         return {"error": trajectory_error(r["t"], r["tip"], ref_t, ref_tip, scale=sc.length),
                 "max_penetration": r.get("max_penetration")}
 
-    pts = acc._run_rodlab_sweep("contact", rr.run_arm, sc, g, err, repeats)
+    pts = sw.run_rodlab_sweep("contact", rr.run_arm, sc, g, err, repeats)
     out = {"scene": "contact", "params": {k: v for k, v in vars(sc).items()},
            "reference": {"nodes": ref_n, "dt": ref_dt, "dt_doubling_change": change,
                          "max_penetration": ref["max_penetration"]},
@@ -57,11 +57,11 @@ def bench(*, quick: bool, peer: bool, repeats: int) -> dict | None:
         kw = dict(length=sc.length, radius=sc.radius, density=sc.density, youngs=sc.youngs)
         g2 = dict(g)
         g2["el_nodes"] = [21] if quick else [11, 21, 41]
-        pts += acc._run_elastica_sweep("contact", es.run_arm, sc, g2, err, kw, repeats)
+        pts += sw.run_elastica_sweep("contact", es.run_arm, sc, g2, err, kw, repeats)
         dt_ref = es.stable_dt_estimate(es.RodSpec(n_nodes=41, **kw)) * 0.5
         key = f"contact_ref|41|{dt_ref:.6e}"
-        eref = acc.PEER_CACHE.get(key) or es.run_arm(sc, n_nodes=41, dt=dt_ref, sample_dt=0.01)
-        acc.PEER_CACHE[key] = eref
+        eref = sw.PEER_CACHE.get(key) or es.run_arm(sc, n_nodes=41, dt=dt_ref, sample_dt=0.01)
+        sw.PEER_CACHE[key] = eref
         out["model_gap"] = {"elastica_nodes": 41, "elastica_dt": dt_ref,
                             "max_tip_distance_over_L": trajectory_error(eref["t"], eref["tip"], ref_t, ref_tip,
                                                                         scale=sc.length),

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import accuracy_contact
 from . import analysis as an
 from .common import load, save_figure
 from .references import trajectory_error
@@ -270,6 +271,4 @@ def bench_rl(*, quick: bool, repeats: int) -> dict | None:
 
 def bench_contact(*, quick: bool, peer: bool, repeats: int) -> dict | None:
     """Arm pressed into an obstacle (benchmarks/accuracy_contact.py)."""
-    from . import accuracy_contact
-
     return accuracy_contact.bench(quick=quick, peer=peer, repeats=repeats)

@@ -92,7 +92,7 @@ def _jsonable(x: Any) -> Any:
 
 
 def _atomic_write(path: Path, write: Callable[[str], None]) -> None:
-    from sim.atomicio import write_via_path
+    from sim.support.atomicio import write_via_path
 
     write_via_path(path, write)
 

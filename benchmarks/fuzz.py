@@ -34,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+import rodlab_cli
+
 PARTS = ("scene", "control", "env", "cli")
 OUTCOMES = ("ok", "clear_error", "crash", "silent_wrong")
 WHERE = "fuzz.toml"
@@ -356,8 +358,6 @@ def random_cli_case(rng: np.random.Generator, tmp: str) -> list[str]:
 
 def run_cli_case(args: list[str]) -> tuple[str, str]:
     """Run ``rodlab ARGS`` in this process; clear = exit 0 (ok), or 2 with a one-line 'rodlab ...:' message."""
-    import rodlab_cli
-
     err, out = io.StringIO(), io.StringIO()
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
@@ -418,7 +418,7 @@ def fuzz(n: int, *, seed: int = 0, parts: tuple[str, ...] = PARTS, time_limit_s:
     with tempfile.TemporaryDirectory() as td:
         tmp = tmp or td
         Path(tmp, "f.txt").write_text("not a folder")
-        from sim.progress import progress_bar
+        from sim.support.progress import progress_bar
 
         with progress_bar(n, desc="rodlab bench fuzz", unit="case", enabled=progress) as bar:
             for i in range(n):
@@ -459,7 +459,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--time-limit", type=float, default=None, metavar="S", help="stop after S seconds")
     p.add_argument("--out", default=None, help="write the counts as JSON to this file")
     p.add_argument("--json", action="store_true", help="print the JSON to stdout")
-    from sim.progress import add_progress_flag, progress_wanted
+    from sim.support.progress import add_progress_flag, progress_wanted
 
     add_progress_flag(p)
     a = p.parse_args(argv)
@@ -467,7 +467,7 @@ def main(argv: list[str] | None = None) -> int:
     if a.n < 1 or not parts or any(s not in PARTS for s in parts):
         p.error(f"--n must be >= 1 and --parts a subset of {','.join(PARTS)}")
     if a.out:
-        from sim.validate import check_output_path
+        from sim.support.paths import check_output_path
 
         try:
             check_output_path(a.out)
@@ -479,7 +479,7 @@ def main(argv: list[str] | None = None) -> int:
     res["command"] = "rodlab bench fuzz " + " ".join(sys.argv[2:] if argv is None else argv)
     text = json.dumps(res, indent=1)
     if a.out:
-        from sim.atomicio import write_text
+        from sim.support.atomicio import write_text
 
         write_text(a.out, text + "\n")
     if a.json:

@@ -23,7 +23,7 @@ import numpy as np
 
 from .common import load
 from .rodlab_runs import Solver, make_sim
-from .throughput import arm_doc, time_sim
+from .throughput_timing import arm_doc, time_sim
 
 CURL_NODES = 41
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from .common import load, save_figure
 from .rodlab_runs import Solver
-from .throughput import arm_doc, time_sim
+from .throughput_timing import arm_doc, time_sim
 
 # task short name -> (elastica sim steps per control step, obstacles kind, planar)
 TASKS = {

@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from sim.atomicio import write_bytes
+from sim.support.atomicio import write_bytes
 
 REPLAY_KEYS = ("observations", "next_observations", "actions", "rewards", "dones", "timeouts")
 

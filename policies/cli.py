@@ -12,6 +12,9 @@ import os
 import sys
 import time
 
+from policies.tasks import gym_task_id
+from policies.train_speed import SpeedSettings, apply_speed_settings
+
 
 def _threads_env(argv: list[str] | None = None) -> None:
     """Thread counts of OpenMP, MKL and numba, set before torch and numba load them: the command's ``--threads``
@@ -105,7 +108,7 @@ def train_main(argv: list[str]) -> int:
         p.error("TASK is required")
     if a.steps < 1 or (a.envs is not None and a.envs < 1):
         p.error("--steps and --envs must be positive")
-    from sim.validate import check_output_path
+    from sim.support.paths import check_output_path
 
     try:  # before any work: a run directory that cannot be written loses nothing
         check_device(a.device)
@@ -167,8 +170,8 @@ def eval_main(argv: list[str]) -> int:
     p.add_argument("--record", default=None, metavar="FILE.rrd",
                    help="also record the evaluated episodes to this rerun file (written atomically; its folder is "
                         "checked for writing before the evaluation starts)")
-    from sim.progress import add_progress_flag, progress_bar, progress_wanted
-    from sim.validate import check_output_path
+    from sim.support.paths import check_output_path
+    from sim.support.progress import add_progress_flag, progress_bar, progress_wanted
 
     add_progress_flag(p)
     p.add_argument("--trust-pickle", action="store_true",
@@ -244,7 +247,6 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
     t_build = time.perf_counter()
     env = make_sb3_env(task, envs, seed)
     model = build_sac(args, env)
-    from policies.train_speed import SpeedSettings, apply_speed_settings
 
     speed = speed or SpeedSettings()
     apply_speed_settings(model, speed)  # settings to try (policies/train_speed.py)
@@ -338,7 +340,6 @@ def bench_train_main(argv: list[str]) -> int:
     p.add_argument("--json", action="store_true")
     a = p.parse_args(argv)
     from policies.train import TrainError, check_compiler
-    from policies.train_speed import SpeedSettings
 
     try:
         if a.compile:
@@ -371,7 +372,7 @@ def bench_env(task: str, *, envs: int = 500, steps: int = 50, warmup: int = 3, s
     """
     import numpy as np
 
-    from policies import make_vec_env
+    from policies import make_vec_env  # loads the vector env (torch, SB3)
 
     t0 = time.perf_counter()
     kw = {} if smoothing is None else {"smoothing": smoothing}
@@ -435,7 +436,6 @@ def bench_env_main(argv: list[str]) -> int:
             numba.set_num_threads(max(1, min(a.threads, numba.config.NUMBA_NUM_THREADS)))
         else:
             os.environ["NUMBA_NUM_THREADS"] = str(a.threads)
-    from policies.tasks import gym_task_id
 
     try:
         gym_task_id(a.task)

@@ -29,7 +29,10 @@ from typing import Any, Callable
 import numpy as np
 from sim.rotations import from_xyzw, quat_yaw
 
+from policies.elastica import make_elastica_vec_env
 from policies.sac import PolicyLoadError, load_policy
+from policies.sb3_env import make_sb3_env, task_short_name
+from policies.vec_env import SB3VecEnvAdapter
 
 # Slices into the flat observation (fields concatenated alphabetically, docs/tasks.md §4.3-7.3):
 # tip = last state node; dims = 3 or 2 (x, z).
@@ -143,8 +146,6 @@ def evaluate(policy_or_path, task: str | None = None, *, episodes: int = 100, se
     ``trust_pickle``: also load full SB3 checkpoints (unpickles the file: only for trusted files).
     Raises PolicyLoadError (bad/missing/untrusted file, shape mismatch) or ValueError (no task known).
     """
-    from policies.train import task_short_name
-
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     policy, meta = _resolve_policy(policy_or_path, trust_pickle)
@@ -188,12 +189,7 @@ def evaluate(policy_or_path, task: str | None = None, *, episodes: int = 100, se
 
 def _run_episodes(policy, task, episodes, seed, n, deterministic, callback, gamma, source,
                   env_hook=None, backend: str = "dismech") -> list[dict]:
-    from policies.train import make_sb3_env
-
     if backend == "elastica":  # the task on PyElastica (policies/elastica), same observations and rewards
-        from policies.elastica import make_elastica_vec_env
-        from policies.vec_env import SB3VecEnvAdapter
-
         env = SB3VecEnvAdapter(make_elastica_vec_env(task, n, seed=seed))
     elif backend == "dismech":
         env = make_sb3_env(task, n, seed)

@@ -47,7 +47,7 @@ import numpy as np
 import torch as th
 import torch.nn.functional as F
 from gymnasium import spaces
-from sim.atomicio import write_bytes
+from sim.support.atomicio import write_bytes
 from stable_baselines3 import SAC
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.torch_layers import create_mlp
@@ -56,6 +56,8 @@ from stable_baselines3.common.utils import polyak_update
 from stable_baselines3.sac.policies import Actor, SACPolicy
 from torch import nn
 from torch.func import functional_call, grad_and_value
+
+from policies.compile_passes import UnitProductLoops
 
 POLICY_FORMAT = "rodlab-sac-policy/1"
 
@@ -439,7 +441,6 @@ class RodSAC(SAC):
             for name, module in (("actor", self.actor), ("critic", self.critic)):
                 if {id(p) for p in module.parameters()} != {id(p) for p in module.optimizer.param_groups[0]["params"]}:
                     raise ValueError(f"compiled updates step every {name} parameter; its optimizer holds others")
-            from policies.compile_passes import UnitProductLoops
 
             options = {"post_grad_custom_post_pass": UnitProductLoops()}
             self._compiled_fns = {"actor_dist_params": _BoundMethod(self.actor, "get_action_dist_params"),

@@ -210,7 +210,7 @@ def is_done(trial: Trial) -> bool:
 
 
 def _write_json(path: Path, data: dict) -> None:
-    from sim.atomicio import write_bytes
+    from sim.support.atomicio import write_bytes
 
     write_bytes(path, json.dumps(data, indent=1).encode())
 

@@ -40,17 +40,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from sim.atomicio import write_bytes
+from sim.support.atomicio import write_bytes
 
 from policies.checkpoint import find_checkpoint, read_state, resume_seed
 from policies.checkpoint import save_checkpoint as _save_checkpoint
 from policies.sac import BF16_LAYOUTS, PolicyLoadError, save_policy
+from policies.sb3_env import TrainError, make_sb3_env, task_short_name
 from policies.train_monitor import monitor_callback
-
-
-class TrainError(Exception):
-    """Bad training input (unknown task, inconsistent resume) with a readable message."""
-
 
 # a setting a saved config.json may still hold -> its value that runs as this version does
 RETIRED_SETTINGS = {"compile_split_products": False}
@@ -119,38 +115,6 @@ class Args:
 
 
 # ------------------------------------------------------------------------------------ environments
-def task_short_name(name: str) -> str:
-    """Short task name (policies.TASKS) or a gymnasium id (tests: 'Pendulum-v1') -> canonical name."""
-    import policies
-
-    tasks = policies.TASKS
-    if name in tasks:
-        return name
-    for short, tid in dict(tasks).items():
-        if name == tid:
-            return short
-    import gymnasium as gym
-
-    if name in gym.registry:
-        return name
-    known = ", ".join(sorted(tasks))
-    raise TrainError(f"unknown task {name!r}; known tasks: {known} (or a gymnasium id such as Pendulum-v1)")
-
-
-def make_sb3_env(task: str, num_envs: int, seed: int):
-    """SB3 VecEnv for a rodlab task (batched env + adapter) or a gymnasium id (DummyVecEnv)."""
-    import policies
-
-    task = task_short_name(task)
-    if task in (getattr(policies, "TASKS", {}) or {}):
-        venv = policies.make_vec_env(task, num_envs, seed=seed)
-        return policies.SB3VecEnvAdapter(venv)  # its reward_terms observer: the per-term rewards for logging
-    from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import DummyVecEnv
-
-    return make_vec_env(task, n_envs=num_envs, seed=seed, vec_env_cls=DummyVecEnv)
-
-
 def _timed(env):
     """Wrap a VecEnv so that ``last_step_time`` [s] holds the duration of the latest step."""
     from stable_baselines3.common.vec_env import VecEnvWrapper

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from policies.checkpoint import save_checkpoint
+from policies.evaluate import evaluate
 from policies.sac import save_policy
 
 METRICS_COLUMNS = ["env_steps", "wall_s", "episodes", "return_mean", "avg_disc_return_mean", "ep_len_mean",
@@ -41,8 +42,6 @@ EVAL_COLUMNS = ["env_steps", "wall_s", "n_updates", "eval_avg_disc_return_mean",
 
 def evaluate_model(model, args, *, deterministic: bool = True) -> dict:
     """Evaluation of ``model``'s current policy as configured by ``args`` (eval_episodes/envs/seed)."""
-    from policies.evaluate import evaluate
-
     return evaluate(model.policy, args.task, episodes=int(args.eval_episodes), seed=int(args.eval_seed),
                     num_envs=int(min(args.eval_envs, args.eval_episodes)), deterministic=deterministic,
                     gamma=float(args.gamma))

@@ -79,7 +79,7 @@ def plot_training_curves(run_dirs: list[str | Path], out_png: str | Path, *, tit
     axes[0, 1].legend(fontsize=8, loc="lower right")
     fig.suptitle(title or "SAC training")
     fig.tight_layout()
-    from sim.atomicio import write_via_path
+    from sim.support.atomicio import write_via_path
 
     out = write_via_path(out_png, lambda tmp: fig.savefig(tmp, format="png", dpi=100))
     plt.close(fig)
@@ -101,7 +101,7 @@ def ship(run_dir: str | Path, name: str, *, episodes: int = 50, seed: int = 100,
     evaluated on the same ``episodes`` (seed ``seed``); a candidate with a lower average discounted return raises
     ``ShipError`` and nothing is written.
     """
-    from sim.atomicio import write_bytes
+    from sim.support.atomicio import write_bytes
 
     from policies.evaluate import evaluate
     from policies.train_monitor import best_logged_eval

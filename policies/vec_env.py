@@ -27,9 +27,9 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .tasks import TASK_SPECS, gym_task_id
 from .tasks.base import BatchedTask, RewardTermsObserver, check_field_value
 from .tasks.env import action_space, observation_space
+from .tasks.registry import TASK_SPECS, gym_task_id
 
 __all__ = ["BatchedVecEnv", "SB3VecEnvAdapter", "make_vec_env", "vector_entry_point", "check_overrides"]
 

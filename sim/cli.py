@@ -11,12 +11,19 @@ from pathlib import Path
 
 import numpy as np
 
+from . import Simulator, build_model, load_scene
+from .scene import SceneError
+from .scene_check import overlap_warning, rod_obstacle_overlaps
+from .static import solve_static
+from .support.atomicio import savez
+from .support.paths import check_output_path
+from .support.progress import add_progress_flag, progress_bar, progress_wanted
+from .warmup import warmup
+
 __all__ = ["sim_main", "bench_sim_main"]
 
 
 def _atomic_savez(path: str, **arrays) -> None:
-    from .atomicio import savez
-
     savez(path, compressed=True, **arrays)
 
 
@@ -26,8 +33,6 @@ _MAX_ENVS = 100_000
 
 def sim_main(argv: list[str] | None = None) -> int:
     """rodlab sim SCENE.toml --duration T [--envs B] [--every K] [--out FILE.npz] [--progress/--no-progress]"""
-    from .progress import add_progress_flag, progress_bar, progress_wanted
-
     ap = argparse.ArgumentParser(prog="rodlab sim", description="Simulate a scene headless (rest controls). "
                                  "Prints a warning when the rod starts inside an obstacle.")
     ap.add_argument("scene", help="scene TOML file")
@@ -50,10 +55,6 @@ def sim_main(argv: list[str] | None = None) -> int:
                                   "is checked for writing before the simulation starts")
     add_progress_flag(ap)
     a = ap.parse_args(argv)
-    from . import Simulator, build_model, load_scene
-    from .scene import SceneError
-    from .scene_check import overlap_warning, rod_obstacle_overlaps
-    from .validate import check_output_path
 
     def fail(msg: str) -> int:
         print(f"rodlab sim: {msg}", file=sys.stderr)
@@ -177,9 +178,6 @@ def _print_tips(model, state, precision: int) -> None:
 
 def _static_main(a: argparse.Namespace, spec, fail) -> int:
     """``rodlab sim --static``: relax the rest state to equilibrium (sim.static) and report / write it."""
-    from . import Simulator, build_model
-    from .static import solve_static
-
     t0 = time.perf_counter()
     model = build_model(spec)
     sim = Simulator(model, envs=a.envs)
@@ -225,8 +223,6 @@ def bench_sim_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", help="also write the JSON to this file")
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
-    from . import Simulator, build_model, load_scene
-    from .warmup import warmup
     compile_s = warmup()
     import_and_compile_s = time.perf_counter() - t0
     model = build_model(load_scene(a.scene))

@@ -20,7 +20,7 @@ Friction (§4.6 "rod vs rigid obstacle", [REC]): smooth Coulomb with lagged ``n`
 derivatives through them), skipped when ``friction_on`` is False (Newton iteration 0).
 
 ``cd`` is the :class:`sim.contact_set.ContactData` namedtuple built by
-:meth:`sim.obstacles.ObstacleSet.kernel_data`:
+:meth:`sim.contact_set.ObstacleSet.kernel_data`:
 ``(kind (M,), p0 (B,M,3), p1 (B,M,3), rot (B,M,3,3), radius (B,M), half (M,3), mesh_root (M,),
 tri (T,3,3), node_lo (K,3), node_hi (K,3), node_child (K,2), node_range (K,2), cand (B,C,2) int64,
 cand_count (B,), rod_radius (1,) [m] (the broad phase's inflation), active (B,M) bool, box (B,M,2,3) world AABBs,

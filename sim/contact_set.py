@@ -17,8 +17,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from .contact_mesh import build_bvh, cylinder_triangles, load_mesh_triangles
+from .kinds import KIND_CODES
 from .obstacles import (
-    KIND_CODES,
     BoxSpec,
     CapsuleSpec,
     CylinderSpec,
@@ -26,9 +26,8 @@ from .obstacles import (
     ObstacleSpec,
     PlaneSpec,
     SphereSpec,
-    quat_to_matrix,
 )
-from .rotations import quat_z_to
+from .rotations import quat_to_matrix, quat_z_to
 
 __all__ = ["ObstacleSet", "ContactData", "ContactScratch", "contact_scratch", "contact_data", "contact_radii",
            "node_radii"]

@@ -13,9 +13,9 @@ from typing import Literal
 import numpy as np
 
 from .boundary import fixed_dofs, load_arrays, motion_arrays
+from .contact_set import ObstacleSet
 from .curvature import material_curvature
 from .frames import initial_reference_frames
-from .obstacles import ObstacleSet
 from .scene import SceneSpec
 from .section import section_of
 from .validate import check_scene

@@ -19,7 +19,7 @@ Scene keys (SI units; every obstacle may carry ``name = "..."``)::
 
 Poses: every obstacle has a per-env pose (position, quaternion wxyz). For capsule/sphere/plane the spec's
 coordinates are the obstacle's local frame (initial pose = identity); box and mesh start at their spec
-pose with geometry centred in the local frame. :meth:`ObstacleSet.set_pose` and
+pose with geometry centred in the local frame. :meth:`sim.contact_set.ObstacleSet.set_pose` and
 :meth:`ObstacleSet.set_capsules` change poses/capsules per env in place (no rebuild; mesh BVHs stay in
 the mesh frame).
 """
@@ -40,7 +40,7 @@ from .tomlio import SceneError, check_unknown, format_value, take_bool, take_flo
 from .validate import unit_vector
 
 __all__ = ["ObstacleSpec", "PlaneSpec", "SphereSpec", "CapsuleSpec", "CylinderSpec", "BoxSpec", "MeshSpec", "ContactSpec",
-           "ObstacleSet", "parse_obstacles", "parse_contact", "dump_obstacles", "dump_contact", "KIND_CODES"]
+           "parse_obstacles", "parse_contact", "dump_obstacles", "dump_contact", "KIND_CODES"]
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -302,5 +302,3 @@ def dump_contact(contact: ContactSpec) -> list[str]:
         lines.append(f"max_penetration = {format_value(float(contact.max_penetration))}")
     return lines
 
-
-from .contact_set import ObstacleSet  # noqa: E402  (runtime arrays live in their own module)

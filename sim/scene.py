@@ -39,6 +39,7 @@ from typing import Any, Literal
 from . import boundary as _bc
 from . import obstacles as _obs
 from .section import SECTIONS
+from .support.atomicio import write_text
 from .tomlio import (
     SceneError,
     check_unknown,
@@ -435,8 +436,6 @@ def _rod_lines(rod: RodSpec) -> list[str]:
 
 
 def dump_scene(spec: SceneSpec, path: str | os.PathLike) -> None:
-    """Write ``spec`` as TOML to ``path`` atomically (``sim.atomicio``: usual file mode); mesh paths relative to it."""
-    from .atomicio import write_text
-
+    """Write ``spec`` as TOML to ``path`` atomically (``sim.support.atomicio``: usual file mode); mesh paths relative to it."""
     p = Path(path)
     write_text(p, scene_to_toml(spec, base_dir=p.resolve().parent), mkdir=False)

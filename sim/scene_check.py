@@ -11,6 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .contact_kernels import contact_broadphase, contact_min_gap
+from .contact_set import contact_radii
+
 __all__ = ["Overlap", "rod_obstacle_overlaps", "overlap_warning"]
 
 
@@ -27,9 +30,6 @@ class Overlap:
 def rod_obstacle_overlaps(model, *, tolerance: float = 0.0) -> list[Overlap]:
     """Obstacles the rod's rest configuration of ``model`` (a :class:`sim.Model`) penetrates deeper than
     ``tolerance`` [m], deepest first. Empty without obstacles."""
-    from .contact_kernels import contact_broadphase, contact_min_gap
-    from .contact_set import contact_radii
-
     M = model.obstacles.count
     if M == 0:
         return []

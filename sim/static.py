@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from .contact_set import contact_data
+from .hessian import static_jacobian
 from .model import build_model
 from .scene import SceneSpec
 from .step import Simulator
@@ -185,9 +187,6 @@ def static_hessian(sim: Simulator, state: Any, ctrl: Any, e: int) -> np.ndarray:
     """The dense (n, n) static Hessian of env ``e`` at its state (constrained DOFs: identity rows and columns), the
     step's own elements at the state's frames, where they are exact (docs/physics.md §2.4); friction, not a
     potential force, is left out by taking the symmetric part."""
-    from .contact_set import contact_data
-    from .hessian import static_jacobian
-
     B = state.dof.shape[0]
     obs = sim._no_obstacles if state.obstacles is None else state.obstacles
     ab, dofs, cm = static_jacobian(e, np.ascontiguousarray(state.dof.reshape(B, -1)[e]),

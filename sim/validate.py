@@ -8,14 +8,10 @@
 * :func:`quarantine_nonfinite` - envs whose state holds NaN/inf are marked failed and their state is
   replaced by the rest configuration (time kept), so no NaN is passed on.
 * :func:`env_mask` - ``reset_envs`` selection: boolean mask or integer indices (never guessed).
-* :func:`check_output_path` - an output file or folder can be written, checked before long work starts.
 """
 from __future__ import annotations
 
 import math
-import os
-import tempfile
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -25,7 +21,7 @@ from .section import SECTIONS, section_of
 from .tomlio import SceneError
 
 __all__ = ["BOUNDS", "check_scene", "check_step_inputs", "quarantine_nonfinite", "env_mask", "unit_vector",
-           "bounds_table", "check_output_path"]
+           "bounds_table"]
 
 # key -> (lowest, highest, unit). Closed intervals; (0, x] written as lowest = 0 with "exclusive" below.
 BOUNDS: dict[str, tuple[float, float, str]] = {
@@ -429,39 +425,3 @@ def env_mask(sel: Any, envs: int, what: str = "reset_envs") -> np.ndarray:
     mask = np.zeros(envs, dtype=bool)
     mask[arr] = True
     return mask
-
-
-# ---------------------------------------------------------------------------------------------- outputs
-def check_output_path(path: Any, *, folder: bool = False, suffix: str | None = None) -> Path:
-    """Check, before any work, that ``path`` (a file, or with ``folder=True`` a folder) can be written: no part
-    of its parent is a file, missing parent folders can be created (they are, as the writer would), and a file
-    can be created there. Raises ValueError ``"PATH: problem"``; returns the Path."""
-    p = Path(os.fspath(path))
-    if str(p) == "":
-        raise ValueError("output path is empty")
-    if suffix is not None and p.suffix != suffix:
-        raise ValueError(f"{p}: output file must end in {suffix}")
-    if folder:
-        if p.exists() and not p.is_dir():
-            raise ValueError(f"{p}: exists and is a file, not a folder")
-        target = p
-    else:
-        if p.is_dir():
-            raise ValueError(f"{p}: is a folder; give a file name")
-        target = p.parent if str(p.parent) else Path(".")
-    for anc in [target, *target.parents]:
-        if anc.exists():
-            if not anc.is_dir():
-                raise ValueError(f"{p}: {anc} is a file, not a folder")
-            break
-    try:
-        target.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ValueError(f"{p}: cannot create folder {target}: {exc.strerror or exc}") from None
-    try:
-        fd, probe = tempfile.mkstemp(prefix=".write-check-", dir=str(target))
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as exc:
-        raise ValueError(f"{p}: folder {target} is not writable: {exc.strerror or exc}") from None
-    return p

@@ -4,11 +4,14 @@ from __future__ import annotations
 import sys
 import time
 
+from .model import build_model
+from .scene import RodSpec, SceneSpec, SimSpec
+from .step import Simulator
+
 __all__ = ["warmup"]
 
 
 def _tiny_spec(mode: str):
-    from .scene import RodSpec, SceneSpec, SimSpec
     return SceneSpec(
         sim=SimSpec(dt=0.01, gravity=(0.0, 0.0, -9.8), newton_tol=1e-3, newton_max_iter=2, accept_unconverged=True,
                     mode=mode),  # type: ignore[arg-type]
@@ -18,8 +21,6 @@ def _tiny_spec(mode: str):
 
 def warmup(*, verbose: bool = False) -> float:
     """Compile/load the 3-D and 2-D kernels; returns the seconds it took."""
-    from .model import build_model
-    from .step import Simulator
     t0 = time.perf_counter()
     for mode in ("3d", "2d"):
         if verbose:

@@ -20,14 +20,15 @@ import sys
 import time
 from pathlib import Path
 
+from tools.browser import close_toasts, newest_client, wait_for
+from workbench.cli import default_scene
+
 RAF_JS = ("() => { window.__raf = 0; const f = () => { window.__raf++; requestAnimationFrame(f); }; "
           "requestAnimationFrame(f); return 0; }")
 
 
 def _open_page(browser, app, width: int, height: int, counter: dict):
     """The workbench page, counting the websocket messages (and bytes) it receives."""
-    from tools.browser import close_toasts, newest_client, wait_for
-
     page = browser.new_page(viewport={"width": width, "height": height})
 
     def on_ws(ws) -> None:
@@ -50,7 +51,6 @@ def _open_page(browser, app, width: int, height: int, counter: dict):
 
 def measure(args, n_envs: int, browser) -> dict:
     from workbench.app import WorkbenchApp
-    from workbench.cli import default_scene
     from workbench.core import Workbench
 
     scene = Path(args.scene) if args.scene else default_scene()
@@ -157,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
         if pw is not None:
             pw.stop()
     if args.json:
-        from sim import atomicio
+        from sim.support import atomicio
 
         doc = {"command": "python -m tools.fps_bench " + " ".join(argv if argv is not None else sys.argv[1:]),
                "seconds": args.seconds, "size": args.size, "results": results}

@@ -16,14 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.browser import WAIT_MS
+from tools.browser import WAIT_MS, close_toasts, expand_folder, launch, open_page, wait_for
+from workbench.cli import default_scene
+from workbench.policy_session import policy_task, shipped_policies
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
 
 def _shot(page, path: Path) -> None:
-    from tools.browser import close_toasts
-
     close_toasts(page)
     time.sleep(0.5)
     path.write_bytes(page.screenshot(timeout=WAIT_MS))
@@ -39,11 +39,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from playwright.sync_api import sync_playwright
 
-    from tools.browser import expand_folder, launch, open_page, wait_for
     from workbench.app import WorkbenchApp
-    from workbench.cli import default_scene
     from workbench.core import Workbench
-    from workbench.policy_session import shipped_policies
 
     rec_dir = Path(tempfile.mkdtemp(prefix="rodlab_shots_"))
     scene = default_scene()
@@ -95,8 +92,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _task_of(path: Path) -> str:
-    from workbench.policy_session import policy_task
-
     return policy_task(path) or "follow_target"
 
 

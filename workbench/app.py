@@ -16,7 +16,9 @@ from pathlib import Path
 from workbench.core import Workbench
 from workbench.files import Folders
 from workbench.frame import Frame
+from workbench.gui_compare import ComparePanel
 from workbench.gui_controls import ControlsPanel
+from workbench.gui_grid import GridPanel
 from workbench.gui_guard import (
     GuiGuard,
     MessageGuard,
@@ -24,6 +26,11 @@ from workbench.gui_guard import (
     guard_callbacks,
     only_value_updates,
 )
+from workbench.gui_obstacles import ObstaclesPanel
+from workbench.gui_plots import PlotsPanel
+from workbench.gui_policy import PolicyPanel
+from workbench.gui_render import RenderPanel
+from workbench.gui_replay import ReplayPanel
 from workbench.handshake import Guard, start_viser
 from workbench.runner import SimThread
 from workbench.simbridge import ActionRefused
@@ -91,14 +98,6 @@ class WorkbenchApp:
         self._scene_changed()
 
     def _build_optional_panels(self) -> None:
-        from workbench.gui_compare import ComparePanel
-        from workbench.gui_grid import GridPanel
-        from workbench.gui_obstacles import ObstaclesPanel
-        from workbench.gui_plots import PlotsPanel
-        from workbench.gui_policy import PolicyPanel
-        from workbench.gui_render import RenderPanel
-        from workbench.gui_replay import ReplayPanel
-
         self.obstacles = ObstaclesPanel(self)
         self.policy = PolicyPanel(self)
         self.replay = ReplayPanel(self)

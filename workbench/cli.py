@@ -10,6 +10,9 @@ import sys
 import time
 from pathlib import Path
 
+from workbench.files import FileAccessError
+from workbench.handshake import BindError
+
 REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_SCENES = (REPO_ROOT / "assets/scenes/default.toml", REPO_ROOT / "assets/scenes/arm.toml")
 
@@ -56,8 +59,6 @@ def workbench_main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # noqa: BLE001 - SceneError etc.: one clear line
         print(f"rodlab workbench: cannot load {scene}: {exc}", file=sys.stderr)
         return 2
-    from workbench.files import FileAccessError
-    from workbench.handshake import BindError
 
     try:
         app = WorkbenchApp(wb, host=args.host, port=args.port, env_map=not args.no_env_map, speed=args.speed,

@@ -12,6 +12,7 @@ import numpy as np
 import trimesh
 
 from workbench.frame import quat_z_to, rod_edges, several_rods
+from workbench.policy_session import PolicySession
 
 GHOST_COLOR = np.array([30, 90, 255], dtype=np.uint8)
 GHOST_OPACITY = 0.45
@@ -122,8 +123,6 @@ class PolicyEpisode:
 def policy_episode(task: str, policy: str, *, seed: int = 0, max_sim_steps: int = 5000) -> PolicyEpisode:
     """The first episode of ``task`` (seed ``seed``: the same target and obstacles as a live session started with
     that seed) under ``policy``, stepped sim step by sim step as the workbench steps it (``PolicySession``)."""
-    from workbench.policy_session import PolicySession
-
     s = PolicySession(task, policy, seed=seed)
     core = s.core
 

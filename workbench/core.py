@@ -19,7 +19,8 @@ import numpy as np
 from workbench import obstacles as obst
 from workbench.frame import Frame
 from workbench.history import History, Snapshot
-from workbench.simbridge import ActionRefused, LiveSim, load
+from workbench.recorder import SessionRecorder
+from workbench.simbridge import ActionRefused, LiveSim, builtin_spec, load
 from workbench.teleop import Teleop
 
 Mode = Literal["teleop", "policy", "replay"]
@@ -63,8 +64,6 @@ class Workbench:
     @classmethod
     def builtin(cls, **kw) -> "Workbench":
         """The paper arm (assets/scenes/arm.toml) without obstacles."""
-        from workbench.simbridge import builtin_spec
-
         return cls(builtin_spec(), **kw)
 
     # ------------------------------------------------------------------ stepping
@@ -358,8 +357,6 @@ class Workbench:
     # ------------------------------------------------------------------ recording
     def start_recording(self, path: str | Path) -> Path:
         """Record every following live frame to ``path`` (.rrd) until :meth:`stop_recording`."""
-        from workbench.recorder import SessionRecorder
-
         with self.lock:
             if self.recorder is not None:
                 raise RuntimeError(f"already recording to {self.recorder.path}")

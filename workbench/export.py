@@ -9,7 +9,7 @@
 * PNG / GIF: the same default view of one frame / of the whole episode, drawn with matplotlib (no browser
   needed; :mod:`workbench.export_image`).
 
-Files are written atomically (:mod:`sim.atomicio`) and only to the paths given.
+Files are written atomically (:mod:`sim.support.atomicio`) and only to the paths given.
 """
 from __future__ import annotations
 
@@ -25,30 +25,26 @@ from typing import Any
 
 import numpy as np
 
+from policies.recording.reader import read_recording
 from policies.recording.schema import EpisodeData, RecordingError
-from sim import atomicio
+from sim.support import atomicio
 
+from .export_data import ExportError, b64_f32, check_out, frame_indices, obstacle_lists, rod_offsets
+from .export_image import export_gif, export_png
 from .export_page import PAGE
 
 __all__ = ["ExportError", "load_episode", "rod_offsets", "pack_episode", "episode_html", "unpack_html", "export_html",
            "export_to_folder", "main"]
 
 DEFAULT_MAX_FRAMES = 5000
-MAX_MESH_EDGES = 50_000
 SERIES = ("tip_error", "reward", "contact/max_normal_force")
 META_KEYS = ("task", "policy", "seed", "episode", "env", "scene", "control_dt", "dt", "substeps", "complete",
              "return", "created_utc", "rodlab_version", "git_commit")
 _DATA_RE = re.compile(r'<script type="application/json" id="rodlab-data">(.*?)</script>', re.S)
 
 
-class ExportError(ValueError):
-    """Bad export request (episode or frame out of range, unusable output path)."""
-
-
 def load_episode(recording: str | Path, episode: int) -> EpisodeData:
     """Episode ``episode`` (0-based, in the order ``rodlab inspect`` lists them) of a .rrd file."""
-    from policies.recording.reader import read_recording
-
     eps = read_recording(recording)
     if not isinstance(episode, (int, np.integer)) or not 0 <= int(episode) < len(eps):
         raise ExportError(f"{recording}: episode {episode} out of range: the file has {len(eps)} "
@@ -59,10 +55,6 @@ def load_episode(recording: str | Path, episode: int) -> EpisodeData:
     return ep
 
 
-def _b64(a: np.ndarray) -> str:
-    return base64.b64encode(np.ascontiguousarray(a, dtype="<f4").tobytes()).decode("ascii")
-
-
 def _num(v: Any) -> Any:
     if isinstance(v, (float, np.floating)):
         return float(v) if math.isfinite(v) else None
@@ -71,48 +63,6 @@ def _num(v: Any) -> Any:
     if isinstance(v, (np.integer, np.bool_)):
         return v.item()
     return str(v)
-
-
-def _mesh_edges(faces: np.ndarray) -> np.ndarray:
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    e = np.unique(np.sort(e, axis=1), axis=0)
-    return e[:MAX_MESH_EDGES]
-
-
-def _obstacles(sc: Any) -> dict[str, Any]:
-    out: dict[str, Any] = {"capsules": [], "spheres": [], "boxes": [], "meshes": []}
-    if sc.capsules is not None:
-        for ab, r in zip(np.asarray(sc.capsules, float), np.asarray(sc.capsule_radii, float)):
-            out["capsules"].append([*map(float, ab.reshape(6)), float(r)])
-    if sc.sphere_centers is not None:
-        for c, r in zip(np.asarray(sc.sphere_centers, float), np.asarray(sc.sphere_radii, float)):
-            out["spheres"].append([*map(float, c), float(r)])
-    if sc.box_centers is not None:
-        n = len(sc.box_centers)
-        quats = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)) if sc.box_quats is None else np.asarray(sc.box_quats, float)
-        for c, h, q in zip(np.asarray(sc.box_centers, float), np.asarray(sc.box_half_sizes, float), quats):
-            out["boxes"].append([*map(float, c), *map(float, h), *map(float, q)])
-    for v, f in sc.meshes:
-        out["meshes"].append({"v": _b64(np.asarray(v).reshape(-1, 3)),
-                              "e": _mesh_edges(np.asarray(f, np.int64).reshape(-1, 3)).reshape(-1).tolist()})
-    return out
-
-
-def frame_indices(n_frames: int, max_frames: int) -> np.ndarray:
-    """Frames kept in an export: all of them, or ``max_frames`` evenly spaced ones (first and last kept)."""
-    if max_frames < 2:
-        raise ExportError(f"max_frames must be >= 2 (got {max_frames})")
-    if n_frames <= max_frames:
-        return np.arange(n_frames)
-    return np.unique(np.round(np.linspace(0, n_frames - 1, max_frames)).astype(np.int64))
-
-
-def rod_offsets(ep: EpisodeData) -> list[int]:
-    """Where each rod's nodes start in the episode's centreline, then N (``[0, N]``: one rod, also for a
-    recording that stores no rod layout); the edge from one rod's last node to the next rod's first is not drawn."""
-    off = getattr(ep.scene, "rod_node_offsets", None)
-    n = int(np.asarray(ep.positions).shape[1])
-    return [0, n] if off is None else [int(k) for k in off]
 
 
 def pack_episode(ep: EpisodeData, *, max_frames: int = DEFAULT_MAX_FRAMES, title: str = "") -> dict[str, Any]:
@@ -137,13 +87,13 @@ def pack_episode(ep: EpisodeData, *, max_frames: int = DEFAULT_MAX_FRAMES, title
         "title": title or f"{m.get('task', 'episode')}  ep {m.get('episode', '?')}  ({m.get('policy', '')})",
         "meta": {k: _num(m[k]) for k in META_KEYS if k in m},
         "n_frames": int(len(idx)), "n_nodes": int(pos.shape[1]), "frame_index": idx.tolist(),
-        "positions": _b64(pos[idx]),
+        "positions": b64_f32(pos[idx]),
         "time": [float(x) for x in t],
-        "target": None if tg is None else _b64(tg),
+        "target": None if tg is None else b64_f32(tg),
         "series": series,
         "rod_radius": float(ep.scene.rod_radius), "planar": bool(ep.scene.planar),
         "rod_offsets": rod_offsets(ep),
-        "obstacles": _obstacles(ep.scene),
+        "obstacles": obstacle_lists(ep.scene),
     }
 
 
@@ -169,20 +119,9 @@ def unpack_html(text: str) -> dict[str, Any]:
     return d
 
 
-def _check_out(out: str | Path, suffix: str) -> Path:
-    p = Path(out)
-    if p.suffix.lower() != suffix:
-        raise ExportError(f"{p}: the output file name must end in {suffix}")
-    if p.is_dir():
-        raise ExportError(f"{p}: is a folder")
-    if not p.parent.is_dir():
-        raise ExportError(f"{p}: folder {p.parent} does not exist")
-    return p
-
-
 def export_html(ep: EpisodeData, out: str | Path, *, max_frames: int = DEFAULT_MAX_FRAMES, title: str = "") -> Path:
     """Write the standalone HTML page of ``ep`` to ``out`` (atomically); returns the path."""
-    p = _check_out(out, ".html")
+    p = check_out(out, ".html")
     return atomicio.write_text(p, episode_html(ep, max_frames=max_frames, title=title), mkdir=False)
 
 
@@ -197,8 +136,6 @@ def export_to_folder(ep: EpisodeData, folder: str | Path, stem: str, *, frame: i
         raise ExportError(f"{folder}: no such folder")
     if frame is None:
         return export_html(ep, folder / f"{stem}.html")
-    from .export_image import export_png
-
     return export_png(ep, frame, folder / f"{stem}_f{int(frame)}.png")
 
 
@@ -226,13 +163,11 @@ def main(argv: list[str]) -> int:
     try:
         for out, suf in ((a.html, ".html"), (a.png, ".png"), (a.gif, ".gif")):
             if out:
-                _check_out(out, suf)
+                check_out(out, suf)
         ep = load_episode(a.recording, a.episode)
         if a.html:
             p = export_html(ep, a.html, max_frames=a.max_frames)
             print(f"wrote {p} ({p.stat().st_size / 1024:.0f} KiB, {min(ep.steps, a.max_frames)} frames)")
-        if a.png or a.gif:
-            from .export_image import export_gif, export_png
         if a.png:
             frame = ep.steps - 1 if a.frame is None else a.frame
             p = export_png(ep, frame, a.png)

@@ -1,6 +1,6 @@
 """Pictures of a recorded episode, drawn with matplotlib (no browser): a PNG of one frame and an animated GIF
 of the episode, in the default view of the HTML player (:mod:`workbench.export`): oblique for 3-D tasks, facing
-the x-z plane for planar ones. Files are written atomically (:mod:`sim.atomicio`).
+the x-z plane for planar ones. Files are written atomically (:mod:`sim.support.atomicio`).
 """
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from typing import Any
 import numpy as np
 
 from policies.recording.schema import EpisodeData
-from sim import atomicio
+from sim.support import atomicio
 
-from .export import ExportError, _check_out, _mesh_edges, _obstacles, rod_offsets
+from .export_data import ExportError, check_out, frame_indices, mesh_edges, obstacle_lists, rod_offsets
 
 __all__ = ["export_png", "export_gif", "render_frame"]
 
@@ -32,7 +32,7 @@ def export_png(ep: EpisodeData, frame: int, out: str | Path, *, width: int = 960
     """Write a PNG of frame ``frame`` of ``ep`` (the HTML page's default view) to ``out`` atomically."""
     if not isinstance(frame, (int, np.integer)) or not 0 <= int(frame) < ep.steps:
         raise ExportError(f"frame {frame} out of range: the episode has {ep.steps} frames (0..{ep.steps - 1})")
-    p = _check_out(out, ".png")
+    p = check_out(out, ".png")
     fig = _figure(ep, int(frame), width, height)
     return atomicio.write_via_path(p, lambda tmp: fig.savefig(tmp, format="png", dpi=100), mkdir=False)
 
@@ -77,7 +77,7 @@ def _figure(ep: EpisodeData, frame: int, width: int, height: int) -> Any:
         for c, rad in zip(sc.sphere_centers, sc.sphere_radii):
             x, y = xy(c)
             ax.add_patch(Circle((x[0], y[0]), rad, color=grey))
-    for b in _obstacles(sc)["boxes"]:
+    for b in obstacle_lists(sc)["boxes"]:
         c, h, q = np.array(b[:3]), np.array(b[3:6]), np.array(b[6:10])
         from scipy.spatial.transform import Rotation
         corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
@@ -89,7 +89,7 @@ def _figure(ep: EpisodeData, frame: int, width: int, height: int) -> Any:
                     ax.plot(*xy(cs[[i, j]]), color=(0.27, 0.29, 0.35), lw=1)
     for v, f in sc.meshes:
         v = np.asarray(v).reshape(-1, 3)
-        for i, j in _mesh_edges(np.asarray(f, np.int64).reshape(-1, 3))[:5000]:
+        for i, j in mesh_edges(np.asarray(f, np.int64).reshape(-1, 3))[:5000]:
             ax.plot(*xy(v[[i, j]]), color=(0.27, 0.29, 0.35), lw=0.5)
     tip = pos[: frame + 1, -1]
     ax.plot(*xy(tip), color=(0.9, 0.55, 0.12, 0.6), lw=1.2)
@@ -127,11 +127,10 @@ def export_gif(ep: EpisodeData, out: str | Path, *, max_frames: int = GIF_MAX_FR
     times simulated time, looping) to ``out`` atomically."""
     from PIL import Image
 
-    from .export import frame_indices
 
     if not (isinstance(speed, (int, float)) and math.isfinite(speed) and speed > 0):
         raise ExportError(f"speed must be a positive number (got {speed!r})")
-    p = _check_out(out, ".gif")
+    p = check_out(out, ".gif")
     pos = np.asarray(ep.positions)
     if not np.isfinite(pos).all():
         raise ExportError("episode positions contain NaN/inf: nothing sensible to draw")

@@ -14,6 +14,7 @@ import numpy as np
 
 from workbench.obstacles import ObstacleEdit, edits_from_spec
 from workbench.policy_session import act, load_for
+from workbench.replay import quat_z_to
 
 MAX_ENVS = 36
 
@@ -111,7 +112,6 @@ class GridSession:
         fences = getattr(self.core, "fences", None)
         if fences is None:
             return self._static
-        from workbench.replay import quat_z_to
 
         r = float(self.core.config.fence.radius)
         out = []

@@ -11,6 +11,7 @@ import numpy as np
 import trimesh
 import viser
 
+from sim.rotations import quat_to_matrix
 from workbench.frame import quat_z_to
 from workbench.obstacles import mesh_for_edit
 from workbench.view_boundary import Boundary, BoundaryView, boundary_of
@@ -22,8 +23,6 @@ ROOT = "/grid"
 
 def obstacle_mesh(session) -> tuple[np.ndarray, np.ndarray] | None:
     """(vertices, faces) of every env's obstacles, each moved into its cell; None when there are none."""
-    from sim.rotations import quat_to_matrix
-
     verts, faces, off = [], [], 0
     for e in range(session.n):
         for ed in session.obstacles(e):

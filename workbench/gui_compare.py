@@ -4,18 +4,16 @@ policy on the running task's scene: its episode is computed headless with the li
 episode restarts, so both start from the same target and obstacles."""
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from workbench.compare import Ghost, GhostView, policy_episode
 from workbench.files import FileAccessError, page_error
+from workbench.gui_host import PanelHost
+from workbench.gui_policy import NO_POLICY
+from workbench.policy_session import PRETRAINED, shipped_policies
 from workbench.replay import read_episodes
-
-if TYPE_CHECKING:
-    from workbench.app import WorkbenchApp
 
 
 class ComparePanel:
-    def __init__(self, app: "WorkbenchApp"):
+    def __init__(self, app: PanelHost):
         self.app = app
         gui = app.server.gui
         files = app.replay._files()
@@ -93,9 +91,6 @@ class ComparePanel:
 
     @staticmethod
     def _policies() -> list[str]:
-        from workbench.gui_policy import NO_POLICY
-        from workbench.policy_session import shipped_policies
-
         try:
             files = [p.name for p in shipped_policies()]
         except Exception:  # noqa: BLE001 - policies not importable: zero/random only
@@ -105,9 +100,6 @@ class ComparePanel:
     def show_policy(self, name: str) -> Ghost | None:
         """Overlay policy ``name`` (a listed file of policies/pretrained, or zero/random) on the running task: its
         first episode with the live session's seed; the live session restarts that episode with its own policy."""
-        from workbench.gui_policy import NO_POLICY
-        from workbench.policy_session import PRETRAINED
-
         live = self.app.wb.policy
         if live is None:
             self._say("run a policy first (Policy tab): the ghost runs on its task")

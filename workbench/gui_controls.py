@@ -2,16 +2,13 @@
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from workbench.coloring import QUANTITIES, colorbar_html
+from workbench.gui_host import PanelHost
 from workbench.teleop import CONTROL_NODES, KAPPA_LIMIT, TWIST_LIMIT
 from workbench.view_scene import ARROW_MODES, CAMERAS
-
-if TYPE_CHECKING:
-    from workbench.app import WorkbenchApp
 
 COMP_LABELS = ("κ1", "κ2", "τ")
 NOTICE_S = 10.0  # [s] a failed page action is named in the status line this long
@@ -36,7 +33,7 @@ def slider_hint(k: int, comp: int) -> str:
 
 
 class ControlsPanel:
-    def __init__(self, app: "WorkbenchApp"):
+    def __init__(self, app: PanelHost):
         self.app = app
         gui = app.server.gui
         wb = app.wb

@@ -6,14 +6,13 @@ from __future__ import annotations
 import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from workbench.files import page_error
 from workbench.grid import MAX_ENVS, GridSession
 from workbench.grid_view import GridView
-
-if TYPE_CHECKING:
-    from workbench.app import WorkbenchApp
+from workbench.gui_host import PanelHost
+from workbench.gui_policy import NO_POLICY
+from workbench.policy_session import PRETRAINED
 
 
 class GridRunner:
@@ -63,7 +62,7 @@ class GridRunner:
 
 
 class GridPanel:
-    def __init__(self, app: "WorkbenchApp"):
+    def __init__(self, app: PanelHost):
         self.app = app
         gui = app.server.gui
         with app.tabs["Policy"], gui.add_folder("Grid of envs"):
@@ -120,8 +119,6 @@ class GridPanel:
         if task not in tuple(pol.task.options) or policy not in pol._policies():
             self._say("choose a task and a policy from the lists")
             return
-        from workbench.gui_policy import NO_POLICY
-        from workbench.policy_session import PRETRAINED
 
         try:
             self.start(task, policy if policy in NO_POLICY else str(PRETRAINED / Path(policy).name),

@@ -6,24 +6,21 @@ dropdown value is checked against its options (``workbench.gui_guard``).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sim.atomicio import write_bytes
+from sim.support.atomicio import write_bytes
 from workbench import obstacles as obst
 from workbench.files import FileAccessError, page_error
 from workbench.frame import quat_from_rpy_deg, rpy_deg_from_quat
 from workbench.gui_guard import cap_uploads
-
-if TYPE_CHECKING:
-    from workbench.app import WorkbenchApp
+from workbench.gui_host import PanelHost
 
 NO_MESH = "(none in assets/meshes)"
 
 
 class ObstaclesPanel:
-    def __init__(self, app: "WorkbenchApp"):
+    def __init__(self, app: PanelHost):
         self.app = app
         gui = app.server.gui
         with app.tabs["Obstacles"]:

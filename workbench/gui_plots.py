@@ -7,16 +7,12 @@ rod, commanded against actual per component (``workbench.rod_curves``), of the l
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from viser import uplot
 
+from workbench.gui_host import PanelHost
 from workbench.plots import Plot, curvature_plot, layout, live_series
 from workbench.rod_curves import live_curves, replay_curves
-
-if TYPE_CHECKING:
-    from workbench.app import WorkbenchApp
 
 LIVE_WINDOW = 400  # frames shown in the live plots
 
@@ -30,7 +26,7 @@ def _x_range(p: Plot) -> tuple[float, float]:
 
 
 class PlotsPanel:
-    def __init__(self, app: "WorkbenchApp", container=None):
+    def __init__(self, app: PanelHost, container=None):
         self.app = app
         self.folder = container if container is not None else app.tabs["Plots"]
         self.handles: dict[str, object] = {}

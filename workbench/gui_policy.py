@@ -2,18 +2,16 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from workbench.files import page_error
-
-if TYPE_CHECKING:
-    from workbench.app import WorkbenchApp
+from workbench.gui_host import PanelHost
+from workbench.policy_session import PRETRAINED, PolicySession, shipped_policies
 
 NO_POLICY = ("zero", "random")
 
 
 class PolicyPanel:
-    def __init__(self, app: "WorkbenchApp"):
+    def __init__(self, app: PanelHost):
         self.app = app
         gui = app.server.gui
         try:
@@ -62,15 +60,12 @@ class PolicyPanel:
         task, policy = self.task.value, self.policy.value
         if task not in tuple(self.task.options) or policy not in self._policies():
             raise ValueError("choose a task and a policy from the lists")
-        from workbench.policy_session import PRETRAINED
 
         self.start_task(task, policy if policy in NO_POLICY else str(PRETRAINED / Path(policy).name))
 
     def start_task(self, task: str, policy: str | None = None) -> None:
         """Start ``task`` with ``policy`` (file name in policies/pretrained, a path, or zero/random).
         Trusted callers only (``--task``, tests): the page goes through :meth:`start_listed`."""
-        from workbench.policy_session import PRETRAINED, PolicySession, shipped_policies
-
         if policy is None:
             files = shipped_policies(task)
             policy = str(files[0]) if files else "zero"

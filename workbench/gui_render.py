@@ -3,16 +3,13 @@
 from __future__ import annotations
 
 import threading
-from typing import TYPE_CHECKING
 
+from workbench.gui_host import PanelHost
 from workbench.render_export import MAX_VIDEO_FRAMES, RenderError, has_mp4_writer, record_replay, screenshot
-
-if TYPE_CHECKING:
-    from workbench.app import WorkbenchApp
 
 
 class RenderPanel:
-    def __init__(self, app: "WorkbenchApp"):
+    def __init__(self, app: PanelHost):
         self.app = app
         gui = app.server.gui
         kind = "MP4" if has_mp4_writer() else "animated GIF (no ffmpeg writer installed)"

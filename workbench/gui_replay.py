@@ -3,19 +3,16 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from workbench.files import FileAccessError, page_error
+from workbench.gui_host import PanelHost
 from workbench.replay import ReplaySession, list_recordings
-
-if TYPE_CHECKING:
-    from workbench.app import WorkbenchApp
 
 NONE = "(no recordings)"
 
 
 class ReplayPanel:
-    def __init__(self, app: "WorkbenchApp"):
+    def __init__(self, app: PanelHost):
         self.app = app
         gui = app.server.gui
         with app.tabs["Recordings"]:

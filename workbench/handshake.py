@@ -32,6 +32,8 @@ import socket
 import threading
 from urllib.parse import parse_qs, urlsplit
 
+from workbench.keys import with_keys
+
 LOOPBACK_NAMES = ("127.0.0.1", "localhost", "::1")
 _PATCH_LOCK = threading.Lock()
 
@@ -141,7 +143,6 @@ def page_with_keys(request, response):
         return response
     if urlsplit(request.path).path not in ("", "/", "/index.html"):
         return response
-    from workbench.keys import with_keys
 
     headers = response.headers
     body = with_keys(response.body, (headers.get("Content-Encoding") or "").lower() == "gzip")

@@ -12,7 +12,12 @@ from typing import Literal
 
 import numpy as np
 
+from sim import build_model
+from sim import obstacles as so
 from sim.rotations import quat_to_matrix
+from sim.scene import dump_scene
+from sim.scene_check import overlap_warning, rod_obstacle_overlaps
+from workbench.frame import quat_from_matrix, quat_z_to
 
 ObstacleKind = Literal["sphere", "capsule", "cylinder", "box", "mesh", "plane"]
 KINDS: tuple[str, ...] = ("sphere", "capsule", "cylinder", "box", "mesh", "plane")
@@ -107,9 +112,6 @@ def free_position(e: ObstacleEdit, rod_nodes: np.ndarray, rod_radius: float, oth
 
 def rest_overlaps(spec, edits: list[ObstacleEdit]) -> str:
     """Warning line when the rod's rest shape lies inside an obstacle ('' when not; sim.scene_check)."""
-    from sim import build_model
-    from sim.scene_check import overlap_warning, rod_obstacle_overlaps
-
     if not edits:
         return ""
     return overlap_warning(rod_obstacle_overlaps(build_model(spec_with(spec, edits))), "scene")
@@ -141,8 +143,6 @@ def apply_pose(live, index: int, edit: ObstacleEdit) -> None:
 
 def dump(spec, path: Path) -> Path:
     """Write ``spec`` as a TOML scene file atomically (mesh files referenced relative to ``path``)."""
-    from sim.scene import dump_scene
-
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     dump_scene(spec, path)
@@ -155,14 +155,10 @@ def _rotm(wxyz) -> np.ndarray:
 
 
 def _quat(R: np.ndarray) -> np.ndarray:
-    from workbench.frame import quat_from_matrix
-
     return quat_from_matrix(R)
 
 
 def _z_to(d) -> np.ndarray:
-    from workbench.frame import quat_z_to
-
     return quat_z_to(np.asarray(d, dtype=np.float64))
 
 
@@ -199,8 +195,6 @@ def _edit_from_obstacle_spec(o) -> ObstacleEdit:
 def _obstacle_spec_from_edit(e: ObstacleEdit):
     """ObstacleEdit -> sim ObstacleSpec with the current pose baked in (world coordinates). An obstacle that
     was not edited gives back its original spec unchanged (a saved scene keeps its numbers exactly)."""
-    from sim import obstacles as so
-
     if e.source is not None and _unchanged(e, _edit_from_obstacle_spec(e.source)):
         return e.source
 

@@ -6,7 +6,7 @@
   animated GIF (Pillow), played at the recorded time × ``speed``.
 
 Files go into the recordings folder only (plain names made here, never a path from the page) and are written
-atomically (:mod:`sim.atomicio`).
+atomically (:mod:`sim.support.atomicio`).
 """
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from typing import Callable
 
 import numpy as np
 
-from sim import atomicio
+from sim.support import atomicio
 
 MAX_WIDTH = 960  # [px] grabbed frames are at most this wide (the page's aspect ratio is kept)
 MAX_VIDEO_FRAMES = 300

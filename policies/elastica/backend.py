@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from policies.elastica.rods import CylinderSpec, ElasticaRods, RodSpec
+from policies.tasks import TASK_SPECS, gym_task_id
 
 __all__ = ["ElasticaSimulator", "make_elastica_core", "ELASTICA_DT", "CONTACT_K", "CONTACT_NU", "DAMPING_NU"]
 
@@ -161,8 +162,6 @@ def make_elastica_core(task: str, envs: int, *, seed: int | None = None, config:
     ``config`` / ``overrides``: as ``policies.make_vec_env`` (e.g. ``timeout_steps=3`` for a short episode).
     The follow_target_2d task exists for DisMech only (docs/tasks.md §4.1) and is refused.
     """
-    from policies.tasks import TASK_SPECS, gym_task_id
-
     tid = gym_task_id(task)
     if tid.endswith("FollowTarget2D-v0"):
         raise ValueError("follow_target_2d has no Elastica variant (docs/tasks.md §4.1); use follow_target")

@@ -22,6 +22,10 @@ from typing import Any
 
 import numpy as np
 
+import policies
+from policies.tasks import gym_task_id
+
+from .reader import summarize
 from .schema import RecordingError
 
 
@@ -64,11 +68,8 @@ def record(task: str, out: str | Path, *, policy: str | None = None, mode: str =
     """Run ``episodes`` episodes of ``task`` and record them to ``out``. mode: "policy" | "random" |
     "scripted" (``policy`` = path for mode "policy"). ``out`` is checked for writing first. Returns
     {"file", "episodes": [summaries]}. ``show_progress``: a progress bar with ETA on stderr."""
-    from sim.progress import progress_bar
-    from sim.validate import check_output_path
-
-    import policies
-    from policies.tasks import gym_task_id
+    from sim.support.paths import check_output_path
+    from sim.support.progress import progress_bar
 
     from .probe import TaskProbe
     from .recorder import Recorder
@@ -135,7 +136,7 @@ def record_main(argv: list[str]) -> int:
                    help="contact force arrow length per newton [m/N] (default 2e-4)")
     p.add_argument("--out", required=True, help="output file, e.g. recordings/NAME.rrd")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    from sim.progress import add_progress_flag, progress_wanted
+    from sim.support.progress import add_progress_flag, progress_wanted
 
     add_progress_flag(p)
     a = p.parse_args(argv)
@@ -192,7 +193,6 @@ def inspect_main(argv: list[str]) -> int:
     p.add_argument("file", help="recording .rrd")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     a = p.parse_args(argv)
-    from .reader import summarize
 
     try:
         s = summarize(a.file)

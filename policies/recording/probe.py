@@ -26,6 +26,7 @@ from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
+from sim.contact_mesh import load_mesh_triangles
 from sim.curvature import material_curvature
 from sim.rotations import quat_to_matrix, quat_z_to, to_xyzw
 
@@ -106,7 +107,6 @@ def scene_from_specs(specs: Any, *, rod_radius: float = 0.05, planar: bool = Fal
             bh.append([plane_half_size, plane_half_size, 1e-3])
             bq.append(to_xyzw(quat_z_to(n)))
         elif kind == "mesh":
-            from sim.contact_mesh import load_mesh_triangles
             tri = np.asarray(load_mesh_triangles(o.path, o.scale), np.float64).reshape(-1, 3)
             v = tri @ quat_to_matrix(o.orientation).T + np.asarray(o.position, np.float64)
             meshes.append((v, np.arange(len(v)).reshape(-1, 3)))

@@ -5,6 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import scenes  # looked up at call time: the tests' fake simulator swaps scenes.set_env_capsules
 from .base import BatchedTask, TaskConfig
 from .env import RodTaskEnv
 from .obstacles3d import FenceSampler, FenceSpec
@@ -55,11 +56,9 @@ class RandomObstacles3DCore(BatchedTask):
         return self.fences[0].astype(np.float64), float(self.config.fence.radius)
 
     def _reset_task(self, idx: np.ndarray) -> None:
-        from .scenes import set_env_capsules
-
         for i in idx:
             self.fences[i] = self.sampler.sample(self.rngs[i])
-        set_env_capsules(self.state, idx, self.fences[idx].astype(np.float64), float(self.config.fence.radius))
+        scenes.set_env_capsules(self.state, idx, self.fences[idx].astype(np.float64), float(self.config.fence.radius))
 
     def _fields(self) -> dict[str, np.ndarray]:
         f = self.node_fields()

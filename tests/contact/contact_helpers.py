@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim.contact_kernels import contact_accumulate, contact_broadphase, contact_report
-from sim.obstacles import ObstacleSet
+from sim.contact_set import ObstacleSet
 
 K = 1e6
 DELTA = 5e-3

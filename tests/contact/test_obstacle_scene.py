@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 from contact_helpers import accumulate, make_set
 
+from sim.contact_set import ObstacleSet
 from sim.obstacles import (
     BoxSpec,
     CapsuleSpec,
     ContactSpec,
     MeshSpec,
-    ObstacleSet,
     SphereSpec,
     dump_obstacles,
     parse_contact,

@@ -30,7 +30,7 @@ def test_unwritable_out_is_refused_before_the_work(tmp_path, capsys, kind, monke
     def no_work(*a, **k):  # the simulation must not even be built
         raise AssertionError("the simulation started before the output was checked")
 
-    monkeypatch.setattr("sim.build_model", no_work)
+    monkeypatch.setattr(cli, "build_model", no_work)
     rc = cli.sim_main([ARM, "--duration", "0.1", "--out", out])
     err = capsys.readouterr().err
     assert rc == 2 and out.split("/")[-1] in err and "rodlab sim:" in err and "Traceback" not in err, err

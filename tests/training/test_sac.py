@@ -85,7 +85,7 @@ def test_target_network_updates_every_8_updates_across_calls():
     assert model._n_updates == 8
 
 
-def test_avg_discounted_return_metric_formula():
+def test_avg_discounted_return_metric_formula(monkeypatch):
     """alf: R = (1/L) sum_l r_l (1 - gamma^l) / (1 - gamma); checked on a two-episode fake env."""
     from policies.evaluate import _run_episodes
 
@@ -117,14 +117,10 @@ def test_avg_discounted_return_metric_formula():
         def close(self):
             pass
 
-    import policies.train as tr
+    import policies.evaluate as ev
 
-    orig = tr.make_sb3_env
-    tr.make_sb3_env = lambda task, n, seed: FakeVec()
-    try:
-        eps = _run_episodes("random", "fake", 2, 0, 1, True, None, g, "fake")
-    finally:
-        tr.make_sb3_env = orig
+    monkeypatch.setattr(ev, "make_sb3_env", lambda task, n, seed: FakeVec())
+    eps = _run_episodes("random", "fake", 2, 0, 1, True, None, g, "fake")
     assert len(eps) == 2
     for e in eps:
         assert e["avg_disc_return"] == pytest.approx(expected)

@@ -74,6 +74,6 @@ def test_browser_screenshot_and_video(wb_page):
 
 
 def _umask() -> int:
-    from sim.atomicio import default_mode
+    from sim.support.atomicio import default_mode
 
     return 0o666 & ~default_mode()

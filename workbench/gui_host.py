@@ -1,0 +1,45 @@
+"""What a GUI panel (``workbench.gui_*``) uses of the app that builds it: :class:`PanelHost`, a typing Protocol that
+:class:`workbench.app.WorkbenchApp` satisfies. The panels annotate their ``app`` with it, so they need not import
+``workbench.app`` (which imports them); at run time this module imports nothing of the workbench."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, Protocol
+
+if TYPE_CHECKING:
+    from workbench.core import Workbench
+    from workbench.files import Folders
+    from workbench.frame import Frame
+    from workbench.gui_guard import GuiGuard
+    from workbench.runner import SimThread
+    from workbench.view_scene import SceneView
+
+__all__ = ["PanelHost"]
+
+
+class PanelHost(Protocol):
+    """The app as the panels see it (attributes set in ``WorkbenchApp.__init__``; the other panels are Any)."""
+
+    wb: "Workbench"
+    server: Any  # viser.ViserServer
+    view: "SceneView"
+    files: "Folders"
+    recordings_dir: Path
+    checks: "GuiGuard"
+    thread: "SimThread"
+    tabs: dict[str, Any]  # tab name -> viser tab handle (set by the controls panel)
+    render_hooks: list[Callable[["Frame"], None]]
+    status_note: str
+    waiting_for_browser: bool
+    controls: Any  # gui_controls.ControlsPanel
+    policy: Any  # gui_policy.PolicyPanel
+    replay: Any  # gui_replay.ReplayPanel
+    compare: Any  # gui_compare.ComparePanel
+
+    def request_render(self) -> None: ...
+
+    def refresh_rod_scene(self) -> None: ...
+
+    def sync_obstacle_view(self) -> None: ...
+
+    def _render(self, fr: "Frame") -> None: ...
