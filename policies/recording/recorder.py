@@ -35,6 +35,7 @@ from typing import Any, Literal, NamedTuple
 
 import numpy as np
 import rerun as rr
+import rerun_bindings
 from sim.rotations import quat_z_to, to_xyzw
 
 from . import schema as S
@@ -98,6 +99,24 @@ def _vertex_normals(v: np.ndarray, f: np.ndarray) -> np.ndarray:
         np.add.at(n, f[:, k], fn)
     ln = np.linalg.norm(n, axis=1, keepdims=True)
     return n / np.where(ln > 0, ln, 1.0)
+
+
+_BLUEPRINTS: dict[tuple, bytes] = {}  # (application id, planar, plotted paths) -> the blueprint as .rrd bytes
+_MAX_BLUEPRINTS = 64
+
+
+def _release(ep: "_Episode") -> None:
+    """Close ``ep``'s stream and free it. rerun keeps the native side of a dropped stream (its two threads and
+    buffers) until orphaned streams are cleaned up, which only ``rr.init`` does; a recorder opens one stream
+    per episode, so a long workbench session would otherwise keep every episode's threads."""
+    rec, ep.rec = ep.rec, None
+    if rec is None:
+        return
+    try:
+        rec.disconnect()
+    finally:
+        del rec
+        rerun_bindings.flush_and_cleanup_orphaned_recordings()
 
 
 def _pid_alive(pid: int) -> bool:
@@ -222,7 +241,7 @@ class Recorder:
 
     @property
     def episodes_written(self) -> int:
-        return len(self._parts)
+        return len(self.summaries)
 
     def is_open(self, env: int = 0) -> bool:
         """True if ``env`` has an episode in progress."""
@@ -425,7 +444,7 @@ class Recorder:
                        "max_contact_force": ep.max_fn, "complete": bool(complete)}
             ep.rec.send_property("summary", rr.AnyValues(**summary))
         finally:
-            ep.rec.disconnect()
+            _release(ep)
         self._parts.append(ep.part)
         self.summaries.append(summary)
         return summary
@@ -441,7 +460,7 @@ class Recorder:
                     k = ep.rows[name][1][0]
                     paths |= ({f"{S.CURVATURE}/twist"} if comps == "twist" else
                               {f"{S.CURVATURE}/kappa{j + 1}" for j in range(k.shape[1])})
-            self._send_blueprint(rec, ep, paths)
+            self._send_blueprint(ep, paths)
         cs_all = np.asarray(ep.control_step, np.int64)
         ns_all = np.asarray(ep.sim_ns, np.int64)
         ss_all = None if ep.sim_step is None else np.asarray(ep.sim_step, np.int64)
@@ -512,8 +531,8 @@ class Recorder:
             rec.send_columns(f"{S.SCALARS}/{key}", indexes=idx(fr),
                              columns=rr.Scalars.columns(scalars=np.asarray(vals, np.float64)))
 
-    def _send_blueprint(self, rec: rr.RecordingStream, ep: _Episode, paths: set[str]) -> None:
-        """Default viewer layout (sent with the first episode of the file only)."""
+    def _send_blueprint(self, ep: _Episode, paths: set[str]) -> None:
+        """Default viewer layout (with the first episode of the file only), as the file's first part."""
         import rerun.blueprint as rrb
 
         def has(prefix: str) -> bool:
@@ -537,7 +556,19 @@ class Recorder:
         view = rrb.Spatial3DView(origin="world", name="rod", eye_controls=eye)
         bp = rrb.Blueprint(rrb.Horizontal(view, rrb.Vertical(*right),
                                           column_shares=[3, 2]), collapse_panels=False)
-        rec.send_blueprint(bp, make_active=True, make_default=True)
+        key = (self.application_id, bool(ep.scene.planar), tuple(sorted(paths)))
+        data = _BLUEPRINTS.get(key)
+        if data is None:
+            # rerun makes a blueprint in a stream of its own that it never frees (two threads each): it is made
+            # once per layout in a process, and its bytes go into each file as a part of their own
+            from rerun.blueprint.api import create_in_memory_blueprint
+
+            data = create_in_memory_blueprint(application_id=self.application_id, blueprint=bp).storage.drain_as_bytes()
+            if len(_BLUEPRINTS) < _MAX_BLUEPRINTS:
+                _BLUEPRINTS[key] = data
+        part = self._parts_dir / "blueprint.rrd"
+        part.write_bytes(data)
+        self._parts.insert(0, part)
 
     def _send_curve(self, rec, indexes, path: str, xs: np.ndarray, Y: np.ndarray, kind: str) -> None:
         s, n = Y.shape
@@ -582,7 +613,7 @@ class Recorder:
         for env in list(self._open):
             if drop_open:
                 ep = self._open.pop(env)
-                ep.rec.disconnect()
+                _release(ep)
                 ep.part.unlink(missing_ok=True)
             else:
                 self.end_episode(env=env, complete=False)
@@ -609,7 +640,7 @@ class Recorder:
         """Discard everything (no file is written under ``path``)."""
         for ep in self._open.values():
             try:
-                ep.rec.disconnect()
+                _release(ep)
             except Exception:
                 pass
         self._open.clear()

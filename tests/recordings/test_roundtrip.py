@@ -1,6 +1,8 @@
 """Recorder -> .rrd -> reader round trip with synthetic numpy data of the documented shapes."""
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -276,3 +278,54 @@ def test_round_trip_any_size(tmp_path_factory, n, counts, seed):
         np.testing.assert_allclose(ep.contact_points[k, :c], d["contact_points"], **F32)
         np.testing.assert_array_equal(ep.contact_normal_force[k, :c], d["contact_normal_force"])
         assert ep.scalars["reward"][k] == d["scalars"]["reward"]
+
+
+def _threads() -> int:
+    return len(os.listdir("/proc/self/task"))
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads through Linux /proc")
+def test_finished_episodes_release_their_streams(tmp_path):
+    """Each episode is a rerun stream with native threads; a recorder that ends many episodes (a workbench
+    session recording for hours) must not keep them."""
+    rng = np.random.default_rng(5)
+    with Recorder(tmp_path / "warm.rrd") as rec:  # rerun's own start-up threads
+        rec.begin_episode({"task": "t"}, None)
+        rec.log_step(control_step=0, sim_time=0.0, node_pos=rng.normal(size=(N, 3)))
+        rec.end_episode()
+    before = _threads()
+    out = tmp_path / "many.rrd"
+    with Recorder(out) as rec:
+        for k in range(30):
+            rec.begin_episode({"task": "t", "seed": k}, None)
+            for j in range(3):
+                rec.log_step(control_step=j, sim_time=0.05 * j, node_pos=rng.normal(size=(N, 3)))
+            rec.end_episode()
+        during = _threads()
+        rec.begin_episode({"task": "t"}, None)  # left open: closed (and released) by close()
+        rec.log_step(control_step=0, sim_time=0.0, node_pos=rng.normal(size=(N, 3)))
+    assert during - before < 6, f"{during - before} threads kept after 30 finished episodes"
+    assert _threads() - before < 6
+    assert len(list_episodes(out)) == 31
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads through Linux /proc")
+def test_every_file_gets_its_layout_and_files_keep_no_threads(tmp_path):
+    """The viewer layout (blueprint) goes into every file; making it must not leave rerun threads behind."""
+    import rerun as rr
+
+    def one(path, planar: bool) -> None:
+        with Recorder(path) as rec:
+            rec.begin_episode({"task": "t"}, StaticScene(planar=planar))
+            rec.log_step(control_step=0, sim_time=0.0, node_pos=np.zeros((N, 3)), scalars={"reward": 1.0})
+            rec.end_episode()
+
+    one(tmp_path / "warm.rrd", False)
+    before = _threads()
+    paths = [tmp_path / f"f{k}.rrd" for k in range(12)]
+    for k, p in enumerate(paths):
+        one(p, planar=k % 2 == 1)
+    assert _threads() - before < 6
+    for p in paths:
+        assert [b.application_id for b in rr.chunk.RrdReader(str(p)).blueprints()] == ["rodlab"]
+        assert len(read_recording(p)) == 1
