@@ -32,6 +32,7 @@ from workbench.gui_policy import PolicyPanel
 from workbench.gui_render import RenderPanel
 from workbench.gui_replay import ReplayPanel
 from workbench.handshake import Guard, start_viser
+from workbench.housekeeping import Housekeeping
 from workbench.runner import SimThread
 from workbench.simbridge import ActionRefused
 from workbench.view_boundary import boundary_of
@@ -88,6 +89,7 @@ class WorkbenchApp:
         self.status_note = ""  # a line appended to the status (video progress)
         self.notice = ("", 0.0)  # (text, when): why the last page action failed, shown for NOTICE_S
         self.thread = SimThread(wb, self._render, speed=speed)
+        self.housekeeping = Housekeeping(self.server)
         self.controls = ControlsPanel(self)
         self.panels = [self.controls]
         self._build_optional_panels()
@@ -150,6 +152,7 @@ class WorkbenchApp:
             self.server.on_client_connect(self._first_client)
         self._render(self.wb.frame())
         self.thread.start()
+        self.housekeeping.start()
         return self
 
     def _first_client(self, _client) -> None:
@@ -161,6 +164,7 @@ class WorkbenchApp:
         self.request_render()
 
     def stop(self) -> None:
+        self.housekeeping.stop()
         self.thread.stop()
         self.view.rod.tube.close()  # no delayed tube swap after the server has gone
         rec, self.wb.recorder = self.wb.recorder, None  # no lock: the sim thread may be mid-step

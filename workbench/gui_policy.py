@@ -36,6 +36,7 @@ class PolicyPanel:
             self.rewind = gui.add_slider("Rewind to frame", min=0, max=1, step=1, initial_value=0,
                                          hint="an earlier frame of this session (the frames after it are dropped)")
             self.rewind_btn = gui.add_button("Rewind", hint="go back to that frame and pause")
+            self.rewind_note = gui.add_markdown("")
         with app.tabs["Run"], gui.add_folder("Record"):
             self.rec_btn = gui.add_button("Start recording", hint="write the following frames to an .rrd file in "
                                                                   "the recordings folder")
@@ -187,6 +188,10 @@ class PolicyPanel:
         wb = self.app.wb
         h = wb.history
         lo, hi = h.first_index, max(h.last_index, h.first_index + 1)
+        note = (f"history trimmed: the oldest {h.dropped} frames were dropped (rewind keeps the last {h.limit})"
+                if h.dropped else "")
+        if self.rewind_note.content != note:
+            self.rewind_note.content = note
         if (self.rewind.min, self.rewind.max) != (lo, hi):
             self.rewind.min, self.rewind.max = lo, hi
             if wb.playing:

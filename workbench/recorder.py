@@ -7,6 +7,7 @@ scene is right.
 """
 from __future__ import annotations
 
+import threading
 import time
 from pathlib import Path
 
@@ -83,6 +84,9 @@ class SessionRecorder:
         self._open = False
         self._rod_names = rod_names
         self._layout: tuple[int, ...] | None = None  # the open episode's rod offsets (None: one rod)
+        # the sim thread logs frames while page actions (a moved obstacle, a stop) end the episode or close
+        self._lock = threading.RLock()
+        self._closed = False
 
     @staticmethod
     def default_path(root: str | Path) -> Path:
@@ -90,11 +94,18 @@ class SessionRecorder:
 
     def new_episode(self) -> None:
         """End the current episode (if any); the next frame starts a new one."""
-        if self._open:
-            self.rec.end_episode()
-            self._open = False
+        with self._lock:
+            if self._open:
+                self._open = False
+                self.rec.end_episode()
 
     def log(self, fr: Frame) -> None:
+        """Add one frame (ignored once the recording is closed)."""
+        with self._lock:
+            if not self._closed:
+                self._log(fr)
+
+    def _log(self, fr: Frame) -> None:
         off = getattr(fr, "rod_offsets", None)
         layout = None if off is None or len(off) <= 2 else tuple(int(k) for k in off)
         if self._open and (fr.time < self._t_last or layout != self._layout):
@@ -131,6 +142,10 @@ class SessionRecorder:
 
     def close(self) -> Path | None:
         """Finish and write the file (atomic); returns its path (None if nothing was recorded)."""
-        self.new_episode()
-        out = self.rec.close()
-        return out if self.frames else None
+        with self._lock:
+            if self._closed:
+                return None
+            self._closed = True
+            self.new_episode()
+            out = self.rec.close()
+            return out if self.frames else None

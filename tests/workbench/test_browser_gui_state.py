@@ -93,3 +93,27 @@ def test_replay_status_and_play_checkbox(wb_page):
     wait_for(lambda: wb.mode == "teleop", what="replay closed")
     expect(page.get_by_label("Play recording")).not_to_be_checked()
     assert app.replay.play.value is False
+
+
+def test_a_trimmed_history_is_said_in_the_page(wb_page):
+    """The rewind history keeps a bounded number of frames; when it drops the oldest, the page says so."""
+    from workbench.history import History
+
+    app, page = wb_page
+    wb = app.wb
+    kept = wb.history
+    try:
+        with wb.lock:
+            wb.history = History(capacity=20)
+        wait_for(lambda: wb.history.dropped > 0, what="frames dropped from a 20-frame history")
+        expand_folder(page, "Rewind", "Rewind")
+        expect(page.get_by_text("history trimmed: the oldest", exact=False)).to_be_visible()
+        assert "rewind keeps the last 20" in app.policy.rewind_note.content
+        with wb.lock:
+            wb.history = kept
+        wb.reset()  # a fresh session: nothing dropped, the note goes away
+        wait_for(lambda: app.policy.rewind_note.content == "", what="the note cleared after a reset")
+        expect(page.get_by_text("history trimmed: the oldest", exact=False)).to_have_count(0)
+    finally:
+        with wb.lock:
+            wb.history = kept

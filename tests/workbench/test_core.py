@@ -6,7 +6,7 @@ import pytest
 
 from workbench.core import Workbench
 from workbench.frame import integrated_curvature, quat_from_matrix, quat_z_to
-from workbench.history import History, Snapshot
+from workbench.history import History, Snapshot, held_bytes
 
 
 @pytest.fixture
@@ -184,3 +184,28 @@ def test_teleop_steers_the_chosen_rod_of_a_two_rod_scene():
     wb.load_scene(Path(__file__).resolve().parents[2] / "assets" / "scenes" / "default.toml")
     assert wb.teleop_rods() == ["rod"]
     assert wb.teleop_rod == 0 and wb.teleop.first_node == 0
+
+
+def test_history_holds_about_its_byte_budget_and_counts_what_it_dropped():
+    big = np.zeros(10_000)  # 80 kB per snapshot
+    h = History(capacity=1000, max_bytes=1_000_000)
+    for i in range(40):
+        h.append(Snapshot(index=i, time=0.1 * i, sim=(big.copy(),), teleop={}, driver=None, mode="teleop",
+                          scalars={}))
+    assert h.limit == 12 and len(h) == 12  # 1 MB / (80 kB + a little per object)
+    assert h.dropped == 28 and h.first_index == 28 and h.last_index == 39
+    h.clear()
+    assert h.dropped == 0 and len(h) == 0
+
+
+def test_a_session_history_stays_within_its_budget():
+    """A real session's snapshots (state, controls, teleop) are measured, not assumed small."""
+    wb = Workbench.builtin()
+    wb.history = History(capacity=1000, max_bytes=200_000)
+    for _ in range(60):
+        wb.step()
+    per = held_bytes(wb.history.get(wb.history.last_index))
+    assert per > 4_000  # node positions, velocities, frames and controls of the arm
+    assert len(wb.history) == wb.history.limit == 200_000 // per
+    assert len(wb.history) * per <= 200_000
+    assert wb.history.dropped == 60 - len(wb.history)
