@@ -12,14 +12,38 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import random
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 HOSTILE = (1e308, -1e308, math.inf, -math.inf, math.nan, 2 ** 63, -1, 0, True, None, "", "x" * 5000,
            "../../etc/passwd", "/etc/shadow", "a/b.toml", "..", "C:\\\\x", [1, 2, 3], {"a": 1}, 123456789)
+
+
+class Sample(NamedTuple):
+    """One look at the server process during a soak."""
+
+    t: float  # seconds since the soak started
+    rss_mb: float  # resident memory [MB]
+    backlog: int  # messages held for pages plus callbacks waiting to run
+    threads: int  # OS threads of the process
+
+
+def threads() -> int:
+    """OS threads of this process (Linux /proc; Python's count misses native ones, e.g. rerun's)."""
+    try:
+        return len(os.listdir("/proc/self/task"))
+    except OSError:
+        return threading.active_count()
+
+
+def sample(app, t: float) -> Sample:
+    return Sample(t, rss_mb(), backlog(app), threads())
 
 
 def rss_mb() -> float:
@@ -59,16 +83,16 @@ def pending_callbacks(app) -> int:
 
 
 def drive(app, seconds: float, *, seed: int = 0, rate_hz: float = 200.0, sample_s: float = 5.0,
-          read: bool = True, progress=None) -> list[tuple[float, float, int]]:
+          read: bool = True, progress=None) -> list[Sample]:
     """Send hostile and plausible GUI values to ``app`` for ``seconds``, reading what the server sends (as a
-    page does) unless ``read`` is False; returns (elapsed s, RSS MB, server backlog) samples."""
+    page does) unless ``read`` is False; returns a :class:`Sample` every ``sample_s`` (and at both ends)."""
     from viser import _messages as vm
 
     from tools.hostile_client import HostileClient
 
     rng = random.Random(seed)
     client = HostileClient(app, read=read)
-    samples = [(0.0, rss_mb(), backlog(app))]
+    samples = [sample(app, 0.0)]
     t0 = time.monotonic()
     next_sample = t0 + sample_s
     try:
@@ -79,13 +103,13 @@ def drive(app, seconds: float, *, seed: int = 0, rate_hz: float = 200.0, sample_
             client.send(vm.GuiUpdateMessage(uuid, {"value": value}))
             time.sleep(1.0 / rate_hz)
             if now >= next_sample:
-                samples.append((now - t0, rss_mb(), backlog(app)))
+                samples.append(sample(app, now - t0))
                 next_sample += sample_s
                 if progress is not None:
                     progress(samples[-1])
     finally:
         client.close()
-    samples.append((time.monotonic() - t0, rss_mb(), backlog(app)))
+    samples.append(sample(app, time.monotonic() - t0))
     return samples
 
 
@@ -105,13 +129,13 @@ def main(argv=None) -> int:
                            scenes_dir=Path(tmp) / "scenes", recordings_dir=Path(tmp) / "recordings").start()
         try:
             samples = drive(app, args.seconds, seed=args.seed, rate_hz=args.rate, read=not args.no_read,
-                            progress=lambda s: print(f"{s[0]:7.1f} s  RSS {s[1]:8.1f} MB  backlog {s[2]}",
-                                                     flush=True))
+                            progress=lambda s: print(f"{s.t:7.1f} s  RSS {s.rss_mb:8.1f} MB  backlog {s.backlog}"
+                                                     f"  threads {s.threads}", flush=True))
         finally:
             app.stop()
     if args.json:
         args.json.write_text(json.dumps({"seconds": args.seconds, "seed": args.seed, "rate_hz": args.rate,
-                                         "samples": samples}, indent=1))
+                                         "samples": [s._asdict() for s in samples]}, indent=1))
     return 0
 
 
