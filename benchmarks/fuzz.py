@@ -205,10 +205,10 @@ _SIMS: dict[str, Any] = {}
 def _arm_sim(mode: str = "3d"):
     if mode not in _SIMS:
         from sim import Simulator, build_model, load_scene
+        from sim.support.assets import asset_path
 
-        root = Path(__file__).resolve().parents[1]
-        _SIMS[mode] = Simulator(build_model(load_scene(root / "assets" / "scenes" /
-                                                       ("arm.toml" if mode == "3d" else "arm_2d.toml"))), envs=3)
+        _SIMS[mode] = Simulator(build_model(load_scene(asset_path("scenes/arm.toml" if mode == "3d"
+                                                                  else "scenes/arm_2d.toml"))), envs=3)
     return _SIMS[mode]
 
 

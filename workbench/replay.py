@@ -12,15 +12,14 @@ import numpy as np
 from workbench.frame import Frame, edge_strain, integrated_curvature, quat_z_to, several_rods
 from workbench.obstacles import ObstacleEdit
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
 # scalar name in the recording -> name shown in the workbench plots / status
 PLOT_KEYS = {"reward": "reward", "tip_error": "tip_error", "contact/max_normal_force": "contact_force",
              "solver/newton_iters": "newton_iters"}
 
 
 def list_recordings(root: str | Path | None = None) -> list[Path]:
-    """Every .rrd below ``root`` (default: recordings/), newest first."""
-    root = Path(root) if root else REPO_ROOT / "recordings"
+    """Every .rrd below ``root`` (default: recordings/ in the working directory), newest first."""
+    root = Path(root) if root else Path("recordings")
     if not root.is_dir():
         return []
     return sorted(root.rglob("*.rrd"), key=lambda p: p.stat().st_mtime, reverse=True)

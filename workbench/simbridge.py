@@ -14,6 +14,7 @@ import numpy as np
 
 from sim import Simulator, build_model, load_scene
 from sim.contact_set import node_radii
+from sim.support.assets import asset_path
 from workbench.frame import Frame, edge_strain, integrated_curvature
 
 
@@ -232,7 +233,7 @@ def _replace_gravity(spec, g):
 
 def builtin_spec():
     """Spec of the paper arm (assets/scenes/arm.toml)."""
-    return load_scene(Path(__file__).resolve().parent.parent / "assets" / "scenes" / "arm.toml")
+    return load_scene(asset_path("scenes/arm.toml"))
 
 
 def load(path: str | Path):
