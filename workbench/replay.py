@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.frame import Frame, edge_strain, integrated_curvature, quat_z_to, several_rods
+from workbench.frame import Frame, curvature_magnitude, edge_strain, quat_z_to, several_rods
 from workbench.obstacles import ObstacleEdit
 
 # scalar name in the recording -> name shown in the workbench plots / status
@@ -149,7 +149,7 @@ class ReplaySession:
                 scalars[name.replace("reward_terms/", "r_")] = float(v[i])
         off = self.rod_offsets
         return Frame(node_pos=x, rod_radius=float(ep.scene.rod_radius), m1=unit(ep.m1), m2=unit(ep.m2),
-                     node_curvature=integrated_curvature(x, off), edge_strain=edge_strain(x, self._rest),
+                     node_curvature=curvature_magnitude(x, off), edge_strain=edge_strain(x, self._rest),
                      contact_points=cp, contact_forces=cf, targets=targets, target_wxyz=twxyz,
                      time=float(ep.sim_time[i]), scalars=scalars,
                      rod_offsets=None if off is None else off.copy())
