@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 import rodlab_cli
+from sim.state import STATE_FLOAT_ARRAYS
 
 PARTS = ("scene", "control", "env", "cli")
 OUTCOMES = ("ok", "clear_error", "crash", "silent_wrong")
@@ -158,7 +159,7 @@ def _finite_run(sim: Any, steps: int, ctrl: Any = None, rng: np.random.Generator
     ctrl = ctrl if ctrl is not None else sim.make_control()
     for _ in range(steps):
         st = sim.step(state, ctrl)
-        for name in ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time"):
+        for name in STATE_FLOAT_ARRAYS:
             if not np.isfinite(getattr(state, name)).all():
                 return f"state.{name} not finite"
         for name, a in vars(st).items():
@@ -218,8 +219,7 @@ def random_control_case(rng: np.random.Generator) -> dict:
              "float32", "int"]
     return {"mode": str(rng.choice(["3d", "2d"])), "kind": str(rng.choice(kinds)),
             "field": str(rng.choice(["kappa_bar", "tau_bar"])),
-            "state_field": str(rng.choice(["dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist",
-                                           "time"])),
+            "state_field": str(rng.choice(list(STATE_FLOAT_ARRAYS))),
             "scale": float(10 ** rng.uniform(-3, 3)), "seed": int(rng.integers(2 ** 31))}
 
 
@@ -251,7 +251,7 @@ def run_control_case(case: dict, *, steps: int = 3) -> tuple[str, str]:
     try:
         for _ in range(steps):
             st = sim.step(state, None if k == "none" else ctrl)
-            for name in ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time"):
+            for name in STATE_FLOAT_ARRAYS:
                 if not np.isfinite(getattr(state, name)).all():
                     return "silent_wrong", f"state.{name} not finite"
             for name, arr in vars(st).items():
