@@ -184,8 +184,9 @@ def run_scene_case(doc: dict, *, steps: int = 3) -> tuple[str, str]:
         return "silent_wrong", changed
     try:
         model = build_model(spec)
-        if not (np.all(model.node_mass > 0) and np.isfinite(model.node_mass).all() and model.EA > 0
-                and model.EI1 > 0 and model.GJ > 0 and math.isfinite(model.EA + model.EI1 + model.GJ)):
+        if not (np.all(model.node_mass > 0) and np.isfinite(model.node_mass).all() and model.EA_max > 0
+                and model.EI1_max > 0 and model.GJ_max > 0
+                and math.isfinite(model.EA_max + model.EI1_max + model.GJ_max)):
             return "silent_wrong", "zero or non-finite mass / stiffness"
         sim = Simulator(model, envs=2)
         q = sim.reset().obstacles.orientation
