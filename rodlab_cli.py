@@ -6,7 +6,9 @@ This file only dispatches (imports are lazy, so ``rodlab sim`` never imports tor
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import sys
+from pathlib import Path
 
 OWN_PACKAGES = ("sim", "policies", "workbench", "benchmarks")
 
@@ -34,11 +36,29 @@ BENCH: dict[str, tuple[str, str]] = {
 }
 
 
+# `rodlab bench` kinds whose code is the checkout's benchmarks/ folder: developer benchmarks (PyElastica peer, output
+# into docs/bench), not installed with rodlab (docs/architecture.md "Package boundaries").
+CHECKOUT_BENCH = tuple(k for k, (target, _) in BENCH.items() if target.startswith("benchmarks."))
+
+
+def _find_benchmarks() -> bool:
+    """True when the ``benchmarks`` package can be imported: on the import path, or in the working directory (a
+    checkout's root: it is then put on the import path, as ``python -m`` would)."""
+    if importlib.util.find_spec("benchmarks") is not None:
+        return True
+    if (Path.cwd() / "benchmarks" / "__init__.py").is_file():
+        sys.path.insert(0, str(Path.cwd()))
+        importlib.invalidate_caches()
+        return True
+    return False
+
+
 def _usage() -> str:
     lines = ["usage: rodlab COMMAND [options]   (rodlab COMMAND --help for details)", "", "commands:"]
     for name, (_, doc) in COMMANDS.items():
         lines.append(f"  {name:<11} {doc}")
-    lines.append("  bench KIND  benchmarks: " + ", ".join(BENCH))
+    lines.append("  bench KIND  benchmarks: " + ", ".join(k for k in BENCH if k not in CHECKOUT_BENCH)
+                 + "; from a checkout's root also " + ", ".join(CHECKOUT_BENCH))
     return "\n".join(lines)
 
 
@@ -70,6 +90,11 @@ def main(argv: list[str] | None = None) -> int:
     if cmd == "bench":
         if not rest or rest[0] not in BENCH:
             print("usage: rodlab bench {" + ",".join(BENCH) + "} [options]", file=sys.stderr)
+            return 2
+        if rest[0] in CHECKOUT_BENCH and not _find_benchmarks():
+            print(f"rodlab bench {rest[0]}: this benchmark runs from a rodlab source checkout (its benchmarks/ "
+                  "folder is not installed); in the checkout's root folder run "
+                  f"`rodlab bench {rest[0]}` or `python -m rodlab_cli bench {rest[0]}`", file=sys.stderr)
             return 2
         return _call(BENCH[rest[0]][0], rest[1:])
     if cmd not in COMMANDS:

@@ -13,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-DEFAULT_OUT = Path(__file__).resolve().parent.parent / "docs" / "bench"
+# developer output: the benchmarks run from a checkout (they are not installed), relative to the working directory
+DEFAULT_OUT = Path("docs") / "bench"
 
 
 def cpu_model() -> str:

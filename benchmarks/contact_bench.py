@@ -29,9 +29,9 @@ import numpy as np
 
 from sim import Simulator, build_model, load_scene
 from sim.obstacles import CapsuleSpec, MeshSpec, SphereSpec
+from sim.support.assets import asset_path
 
-ROOT = Path(__file__).resolve().parents[1]
-SCENES = ROOT / "assets" / "scenes"
+SCENES = asset_path("scenes")
 
 
 def _with(spec, *, obstacles=None, max_iter=5):

@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 import rodlab_cli
+from sim.state import STATE_FLOAT_ARRAYS
 
 PARTS = ("scene", "control", "env", "cli")
 OUTCOMES = ("ok", "clear_error", "crash", "silent_wrong")
@@ -158,7 +159,7 @@ def _finite_run(sim: Any, steps: int, ctrl: Any = None, rng: np.random.Generator
     ctrl = ctrl if ctrl is not None else sim.make_control()
     for _ in range(steps):
         st = sim.step(state, ctrl)
-        for name in ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time"):
+        for name in STATE_FLOAT_ARRAYS:
             if not np.isfinite(getattr(state, name)).all():
                 return f"state.{name} not finite"
         for name, a in vars(st).items():
@@ -183,8 +184,9 @@ def run_scene_case(doc: dict, *, steps: int = 3) -> tuple[str, str]:
         return "silent_wrong", changed
     try:
         model = build_model(spec)
-        if not (np.all(model.node_mass > 0) and np.isfinite(model.node_mass).all() and model.EA > 0
-                and model.EI1 > 0 and model.GJ > 0 and math.isfinite(model.EA + model.EI1 + model.GJ)):
+        if not (np.all(model.node_mass > 0) and np.isfinite(model.node_mass).all() and model.EA_max > 0
+                and model.EI1_max > 0 and model.GJ_max > 0
+                and math.isfinite(model.EA_max + model.EI1_max + model.GJ_max)):
             return "silent_wrong", "zero or non-finite mass / stiffness"
         sim = Simulator(model, envs=2)
         q = sim.reset().obstacles.orientation
@@ -205,10 +207,10 @@ _SIMS: dict[str, Any] = {}
 def _arm_sim(mode: str = "3d"):
     if mode not in _SIMS:
         from sim import Simulator, build_model, load_scene
+        from sim.support.assets import asset_path
 
-        root = Path(__file__).resolve().parents[1]
-        _SIMS[mode] = Simulator(build_model(load_scene(root / "assets" / "scenes" /
-                                                       ("arm.toml" if mode == "3d" else "arm_2d.toml"))), envs=3)
+        _SIMS[mode] = Simulator(build_model(load_scene(asset_path("scenes/arm.toml" if mode == "3d"
+                                                                  else "scenes/arm_2d.toml"))), envs=3)
     return _SIMS[mode]
 
 
@@ -218,8 +220,7 @@ def random_control_case(rng: np.random.Generator) -> dict:
              "float32", "int"]
     return {"mode": str(rng.choice(["3d", "2d"])), "kind": str(rng.choice(kinds)),
             "field": str(rng.choice(["kappa_bar", "tau_bar"])),
-            "state_field": str(rng.choice(["dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist",
-                                           "time"])),
+            "state_field": str(rng.choice(list(STATE_FLOAT_ARRAYS))),
             "scale": float(10 ** rng.uniform(-3, 3)), "seed": int(rng.integers(2 ** 31))}
 
 
@@ -251,7 +252,7 @@ def run_control_case(case: dict, *, steps: int = 3) -> tuple[str, str]:
     try:
         for _ in range(steps):
             st = sim.step(state, None if k == "none" else ctrl)
-            for name in ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time"):
+            for name in STATE_FLOAT_ARRAYS:
                 if not np.isfinite(getattr(state, name)).all():
                     return "silent_wrong", f"state.{name} not finite"
             for name, arr in vars(st).items():

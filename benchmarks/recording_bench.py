@@ -1,7 +1,7 @@
 """Recording cost for the paper arm (21 nodes): file size per control step and CPU overhead per step.
 
-    .venv/bin/python benchmarks/recording_bench.py [--steps 1000] [--json]
-    .venv/bin/python benchmarks/recording_bench.py --env follow_target --env-steps 100   # + real task env
+    .venv/bin/python -m benchmarks.recording_bench [--steps 1000] [--json]           # from the checkout root
+    .venv/bin/python -m benchmarks.recording_bench --env follow_target --env-steps 100   # + real task env
 
 Synthetic part: frames of the documented shapes (what ``TaskProbe`` logs per control step) are
 recorded with :class:`policies.recording.Recorder`; the size per step is the slope between a short
@@ -21,8 +21,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 N = 21
 CONFIGS = {

@@ -258,15 +258,17 @@ def _set_parent_death_signal() -> None:
         os.kill(os.getpid(), signal.SIGTERM)
 
 
-def launch_trial(run_dir: str, cpus: int) -> dict:
-    """Body of the Ray task: run the trial's training in a child process and wait for it."""
+def launch_trial(run_dir: str, cpus: int, cwd: str | None = None) -> dict:
+    """Body of the Ray task: run the trial's training in a child process and wait for it. ``cwd``: the sweep's
+    working directory (relative run directories and scene paths of the trial are relative to it)."""
     # every library's threads = the trial's cores (policies/cli.py _threads_env)
     env = dict(os.environ, NUMBA_NUM_THREADS=str(cpus), OMP_NUM_THREADS=str(cpus), MKL_NUM_THREADS=str(cpus))
-    root = str(Path(__file__).resolve().parent.parent)
-    env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
+    # the child imports the same rodlab: the sys.path entry this package came from (a checkout or site-packages)
+    packages_dir = str(Path(__file__).resolve().parent.parent)
+    env["PYTHONPATH"] = packages_dir + os.pathsep + env.get("PYTHONPATH", "")
     with open(Path(run_dir) / "train.log", "ab") as log:
         env["RODLAB_TRIAL_PARENT"] = str(os.getpid())
-        proc = subprocess.Popen([sys.executable, "-m", "policies.sweep", "_trial", run_dir], cwd=root, env=env,
+        proc = subprocess.Popen([sys.executable, "-m", "policies.sweep", "_trial", run_dir], cwd=cwd, env=env,
                                 stdout=log, stderr=subprocess.STDOUT)
         rc = proc.wait()
     return {"run_dir": run_dir, "returncode": rc}
@@ -394,7 +396,7 @@ def run_sweep(trials: list[Trial], out: Path, *, address: str | None, cpus_per_t
     if callable(term_handler):
         signal.signal(signal.SIGTERM, term_handler)
     task_fn = ray.remote(num_cpus=cpus_per_trial, max_retries=0)(launch_trial)
-    refs = {task_fn.remote(str(t.run_dir), cpus_per_trial): t for t in pending}
+    refs = {task_fn.remote(str(t.run_dir), cpus_per_trial, os.getcwd()): t for t in pending}
     live = None
     try:
         if sys.stdout.isatty():

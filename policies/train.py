@@ -175,7 +175,7 @@ def build_sac(args: Args, env):
 
 def git_commit() -> str:
     try:
-        root = Path(__file__).resolve().parent.parent
+        root = Path(__file__).resolve().parent  # git finds the work tree of a checkout from the package folder
         out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=5)
         sha = out.stdout.strip() if out.returncode == 0 else "unknown (no commit yet)"
         dirty = subprocess.run(["git", "status", "--porcelain"], cwd=root, capture_output=True, text=True, timeout=5)

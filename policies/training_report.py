@@ -22,11 +22,13 @@ import shutil
 import sys
 from pathlib import Path
 
+from sim.support.assets import package_data_dir
+
 PAPER_TABLE_II = {  # DisMech -> DisMech average discounted return, mean ± std over seeds
     "follow_target": (96.26, 9.37), "ik4d": (186.24, 63.18), "tight_obstacles_2d": (40.91, 2.98),
     "random_obstacles_3d": (27.17, 19.03),
 }
-PRETRAINED = Path(__file__).resolve().parent / "pretrained"
+PRETRAINED = package_data_dir("policies", "pretrained")  # shipped policies: package data of policies
 
 
 def read_metrics(run_dir: str | Path) -> dict[str, list[float]]:

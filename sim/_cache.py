@@ -1,7 +1,7 @@
 """Guard against stale numba caches.
 
 numba's ``cache=True`` only checks the source file of the cached function itself, so a change in a callee
-defined in another module (an energy, ``frames.py``, ``contact_kernels.py``) would leave the fused kernels in
+defined in another module (an energy, ``frames.py``, ``vec3.py``, ``contact_kernels.py``) would leave the fused kernels in
 ``kernel.py``/``newton.py`` stale. :func:`invalidate_if_sources_changed` hashes all kernel sources and, when the hash differs
 from the stamp written last time, deletes the cached ``*.nbi``/``*.nbc`` files of those modules.
 """
@@ -13,7 +13,7 @@ from pathlib import Path
 
 _HERE = Path(__file__).resolve().parent
 _SOURCES = ["frames.py", "banded.py", "solve.py", "solve_params.py", "solve_3d.py", "solve_2d.py", "newton.py",
-            "kernel.py", "contact_kernels.py", "contact_rod.py", "geometry_distance.py", "kinds.py",
+            "kernel.py", "contact_kernels.py", "contact_rod.py", "geometry_distance.py", "vec3.py", "kinds.py",
             "energies/stretch.py", "energies/bend_twist.py", "energies/planar.py", "hessian.py"]
 # modules whose numba functions call no numba function of another module (their own cache check suffices)
 SELF_CONTAINED = ["contact_mesh.py"]

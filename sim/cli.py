@@ -15,6 +15,7 @@ from . import Simulator, build_model, load_scene
 from .scene import SceneError
 from .scene_check import overlap_warning, rod_obstacle_overlaps
 from .static import solve_static
+from .support.assets import asset_path
 from .support.atomicio import savez
 from .support.paths import check_output_path
 from .support.progress import add_progress_flag, progress_bar, progress_wanted
@@ -214,7 +215,7 @@ def _static_main(a: argparse.Namespace, spec, fail) -> int:
 def bench_sim_main(argv: list[str] | None = None) -> int:
     """rodlab bench sim [--scene S] [--envs B] [--steps n] [--repeats r] [--json] [--out FILE]"""
     ap = argparse.ArgumentParser(prog="rodlab bench sim", description="Median time of one batched sim step.")
-    ap.add_argument("--scene", default=str(Path(__file__).resolve().parents[1] / "assets" / "scenes" / "arm.toml"))
+    ap.add_argument("--scene", default=str(asset_path("scenes/arm.toml")))
     ap.add_argument("--envs", type=int, default=500)
     ap.add_argument("--steps", type=int, default=20, help="timed steps per repeat")
     ap.add_argument("--repeats", type=int, default=5)

@@ -48,13 +48,10 @@ from .geometry_distance import (
     closest_seg_seg,
     closest_seg_triangle,
     dist_derivs,
-    vdot,
-    vlerp,
-    vmul,
-    vsub,
 )
 from .kinds import BOX, CAPSULE, MESH, PLANE, SPHERE
 from .solve_params import _OPT_CONTACT
+from .vec3 import vdot, vlerp, vmul, vsub
 
 __all__ = ["contact_broadphase", "contact_accumulate", "contact_report", "contact_min_gap", "imc_energy",
            "friction_block", "PLANE", "SPHERE", "CAPSULE", "BOX", "MESH"]

@@ -33,8 +33,9 @@ import numpy as np
 from numba import njit
 
 from .contact_kernels import _edge_radius, _row3, coulomb_factor, friction_tangent_entry, imc_energy
-from .geometry_distance import closest_seg_seg, vcross, vdot, vlerp, vsub
+from .geometry_distance import closest_seg_seg
 from .solve_params import _OPT_CONTACT
+from .vec3 import vcross, vdot, vlerp, vsub
 
 __all__ = ["allowed_pairs", "model_pairs", "edge_rods", "seg_seg_derivs", "rod_pairs_broadphase", "rod_pairs_refresh", "rod_pairs_accumulate",
            "rod_pairs_min_gap", "rod_pairs_energy", "rod_pairs_report", "reset_coupling", "rod_pairs_step_limit", "dense_lu_solve"]

@@ -11,47 +11,12 @@ import numpy as np
 from numba import njit
 
 from .solve_params import _OPT
+from .vec3 import vaxpy, vcross, vdot, vmul, vnorm
 
-__all__ = ["cross", "dot", "transport", "rotate_about", "signed_angle", "initial_reference_frames",
+__all__ = ["transport", "rotate_about", "signed_angle", "initial_reference_frames",
            "update_frames", "reference_twist"]
 
 _TWO_PI = 2.0 * math.pi
-
-
-@njit(inline="always", **_OPT)
-def dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-@njit(inline="always", **_OPT)
-def cross(a, b):
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-@njit(inline="always", **_OPT)
-def add(a, b):
-    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
-
-
-@njit(inline="always", **_OPT)
-def sub(a, b):
-    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
-
-
-@njit(inline="always", **_OPT)
-def scale(s, a):
-    return (s * a[0], s * a[1], s * a[2])
-
-
-@njit(inline="always", **_OPT)
-def axpy(s, a, b):
-    """s*a + b"""
-    return (s * a[0] + b[0], s * a[1] + b[1], s * a[2] + b[2])
-
-
-@njit(inline="always", **_OPT)
-def norm(a):
-    return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
 
 
 @njit(**_OPT)
@@ -62,16 +27,16 @@ def transport(u, ta, tb):
     c = ta·tb: P u = c u + k × u + (k·u)/(1 + c) k (no square root; the same rotation as normalising the axis).
     Parallel tangents give u; (anti)parallel ones (1 + c ≤ 1e-12) have no unique rotation and also keep u.
     """
-    c = dot(ta, tb)
+    c = vdot(ta, tb)
     if 1.0 + c > 1e-12:
-        k = cross(ta, tb)
-        kxu = cross(k, u)
-        s = dot(k, u) / (1.0 + c)
+        k = vcross(ta, tb)
+        kxu = vcross(k, u)
+        s = vdot(k, u) / (1.0 + c)
         out = (c * u[0] + kxu[0] + s * k[0], c * u[1] + kxu[1] + s * k[1], c * u[2] + kxu[2] + s * k[2])
     else:
         out = u
-    out = axpy(-dot(out, tb), tb, out)
-    return scale(1.0 / norm(out), out)
+    out = vaxpy(-vdot(out, tb), tb, out)
+    return vmul(1.0 / vnorm(out), out)
 
 
 @njit(**_OPT)
@@ -79,8 +44,8 @@ def rotate_about(u, t, ang):
     """Rodrigues rotation of u about the unit axis t by ang [rad]."""
     c = math.cos(ang)
     s = math.sin(ang)
-    txu = cross(t, u)
-    tu = dot(t, u)
+    txu = vcross(t, u)
+    tu = vdot(t, u)
     return (u[0] * c + txu[0] * s + t[0] * tu * (1.0 - c),
             u[1] * c + txu[1] * s + t[1] * tu * (1.0 - c),
             u[2] * c + txu[2] * s + t[2] * tu * (1.0 - c))
@@ -89,9 +54,9 @@ def rotate_about(u, t, ang):
 @njit(**_OPT)
 def signed_angle(a, b, n):
     """Angle from a to b [rad], signed by the axis n."""
-    c = cross(a, b)
-    ang = math.atan2(norm(c), dot(a, b))
-    if dot(n, c) < 0.0:
+    c = vcross(a, b)
+    ang = math.atan2(vnorm(c), vdot(a, b))
+    if vdot(n, c) < 0.0:
         ang = -ang
     return ang
 
@@ -111,23 +76,23 @@ def update_frames(x, d1_old, t_old, beta_old, t, d1, d2, elen, beta, link=None):
     lmin = np.inf
     for j in range(ne):
         e = (x[j + 1, 0] - x[j, 0], x[j + 1, 1] - x[j, 1], x[j + 1, 2] - x[j, 2])
-        le = norm(e)
+        le = vnorm(e)
         elen[j] = le
         if link is not None:
             if link[j] == 0:
                 to = (t_old[j, 0], t_old[j, 1], t_old[j, 2])
                 u = (d1_old[j, 0], d1_old[j, 1], d1_old[j, 2])
-                v = cross(to, u)
+                v = vcross(to, u)
                 for a in range(3):
                     t[j, a] = to[a]
                     d1[j, a] = u[a]
                     d2[j, a] = v[a]
                 continue
         lmin = min(lmin, le)
-        tj = scale(1.0 / le, e)
+        tj = vmul(1.0 / le, e)
         to = (t_old[j, 0], t_old[j, 1], t_old[j, 2])
         u = transport((d1_old[j, 0], d1_old[j, 1], d1_old[j, 2]), to, tj)
-        v = cross(tj, u)
+        v = vcross(tj, u)
         for a in range(3):
             t[j, a] = tj[a]
             d1[j, a] = u[a]
@@ -156,7 +121,7 @@ def reference_twist(d1, t, i, beta_old_i):
     u = transport((d1[i - 1, 0], d1[i - 1, 1], d1[i - 1, 2]), ta, tb)
     # signed angle from u to d1_i about t_i: both are ⟂ t_i, so u × d1_i ∥ t_i and its t_i component is ±|u × d1_i|
     d1i = (d1[i, 0], d1[i, 1], d1[i, 2])
-    dlt = math.atan2(dot(tb, cross(u, d1i)), dot(u, d1i)) - beta_old_i
+    dlt = math.atan2(vdot(tb, vcross(u, d1i)), vdot(u, d1i)) - beta_old_i
     dlt -= _TWO_PI * math.floor((dlt + math.pi) / _TWO_PI)
     return beta_old_i + dlt
 

@@ -21,41 +21,12 @@ import numpy as np
 from numba import njit
 
 from .solve_params import _OPT_CONTACT
+from .vec3 import vadd, vcross, vdot, vlerp, vmul, vsub
 
 __all__ = ["closest_seg_point", "closest_seg_seg", "closest_point_triangle", "closest_seg_triangle",
-           "closest_seg_box", "dist_derivs", "vadd", "vsub", "vmul", "vdot", "vcross", "vlerp"]
+           "closest_seg_box", "dist_derivs"]
 
 _EPS_PARAM = 1e-12
-
-
-@njit(inline="always", **_OPT_CONTACT)
-def vadd(a, b):
-    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
-
-
-@njit(inline="always", **_OPT_CONTACT)
-def vsub(a, b):
-    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
-
-
-@njit(inline="always", **_OPT_CONTACT)
-def vmul(c, a):
-    return (c * a[0], c * a[1], c * a[2])
-
-
-@njit(inline="always", **_OPT_CONTACT)
-def vdot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-@njit(inline="always", **_OPT_CONTACT)
-def vcross(a, b):
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-@njit(inline="always", **_OPT_CONTACT)
-def vlerp(a, b, s):
-    return (a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2]))
 
 
 @njit(**_OPT_CONTACT)

@@ -48,10 +48,10 @@ class Model:
     divergence_guard: float          # [-] residual growth factor that retries an accepted unconverged step; 0 off
     radius: float                    # [m] (non-circular sections: the circumscribed radius contact uses;
                                      # per-edge radii: the largest)
-    EA: float                        # [N]      the rod's stiffnesses; with per-edge radius or youngs_modulus
-    EI1: float                       # [N m^2]  lists, the largest over the edges (the per-edge and per-node
-    EI2: float                       # [N m^2]  values the step uses are edge_EA and node_EI1/EI2/GJ)
-    GJ: float                        # [N m^2]
+    EA_max: float                    # [N]      the largest stiffnesses over the edges (all edges' for a uniform
+    EI1_max: float                   # [N m^2]  rod; with per-edge radius or youngs_modulus lists, or several
+    EI2_max: float                   # [N m^2]  rods, the largest): summaries only; the step uses the per-edge
+    GJ_max: float                    # [N m^2]  and per-node values edge_EA and node_EI1/EI2/GJ
     rest_node_pos: np.ndarray        # (N, 3) [m] initial configuration (= rest, but for the edge lengths of a
                                      # pre-stretched rod: rest_edge_length)
     rest_edge_length: np.ndarray     # (N-1,) [m]
@@ -285,8 +285,8 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         spec=spec, mode=sim.mode, node_count=N, dt=sim.dt, gravity=_ro(g), damping=sim.damping,
         integrator=sim.integrator, line_search=sim.line_search, newton_tol=sim.newton_tol,
         newton_dtol=sim.newton_dtol, newton_max_iter=sim.newton_max_iter, divergence_guard=sim.divergence_guard,
-        accept_unconverged=sim.accept_unconverged, radius=float(r.max()), EA=float(EA.max()),
-        EI1=float(EI1.max()), EI2=float(EI2.max()), GJ=float(GJ.max()), edge_radius=_ro(r), edge_EA=_ro(EA),
+        accept_unconverged=sim.accept_unconverged, radius=float(r.max()), EA_max=float(EA.max()),
+        EI1_max=float(EI1.max()), EI2_max=float(EI2.max()), GJ_max=float(GJ.max()), edge_radius=_ro(r), edge_EA=_ro(EA),
         node_EI1=_ro(node_EI1), node_EI2=_ro(node_EI2), node_GJ=_ro(node_GJ),
         rest_node_pos=_ro(x), rest_edge_length=_ro(lbar), voronoi_length=_ro(vor), node_mass=_ro(mass),
         edge_twist_inertia=_ro(theta_inertia), rest_ref_d1=_ro(d1), rest_tangent=_ro(t),

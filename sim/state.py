@@ -6,10 +6,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .validate import state_arrays
+
 if TYPE_CHECKING:
     from .contact_set import ObstacleSet
 
-__all__ = ["State", "Control", "StepStats"]
+__all__ = ["State", "Control", "StepStats", "STATE_ARRAYS", "STATE_FLOAT_ARRAYS"]
 
 
 @dataclass(eq=False)
@@ -77,9 +79,16 @@ class State:
         return self.dof[:, :-1, 3].copy()
 
     def copy(self) -> "State":
-        return State(self.dof.copy(), self.dof_vel.copy(), self.edge_ref_d1.copy(), self.edge_tangent.copy(),
-                     self.node_ref_twist.copy(), self.time.copy(), self.failed.copy(), self.plane_y,
-                     None if self.obstacles is None else self.obstacles.copy())
+        return State(**{name: getattr(self, name).copy() for name in STATE_ARRAYS}, plane_y=self.plane_y,
+                     obstacles=None if self.obstacles is None else self.obstacles.copy())
+
+
+# The per-env arrays of a State (leading axis B), in field order: the fields typed np.ndarray (plane_y and obstacles
+# are not per-env arrays), read from the dataclass by sim.validate.state_arrays; copies, input checks, quarantine,
+# static restores and the fuzz benchmark go through it.
+STATE_ARRAYS: tuple[str, ...] = state_arrays(State)
+# the float ones (all but the bool ``failed``)
+STATE_FLOAT_ARRAYS: tuple[str, ...] = tuple(name for name in STATE_ARRAYS if name != "failed")
 
 
 @dataclass(eq=False)

@@ -25,6 +25,7 @@ from .contact_set import contact_data
 from .hessian import static_jacobian
 from .model import build_model
 from .scene import SceneSpec
+from .state import STATE_ARRAYS
 from .step import Simulator
 
 __all__ = ["StaticResult", "static_spec", "solve_static", "static_hessian", "static_stability"]
@@ -263,5 +264,5 @@ def _push(model, state, vec, envs, size):
 
 
 def _restore(state: Any, before: Any) -> None:
-    for name in ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time", "failed"):
+    for name in STATE_ARRAYS:
         getattr(state, name)[...] = getattr(before, name)

@@ -11,6 +11,7 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -311,7 +312,15 @@ def _check_contact(c: _Checker, ct: Any) -> None:
 
 
 # ---------------------------------------------------------------------------------------------- API inputs
-_STATE_FIELDS = ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time", "failed")
+def state_arrays(state: Any) -> tuple[str, ...]:
+    """The per-env arrays of a State, read from its dataclass fields (those typed np.ndarray): the list
+    ``sim.state.STATE_ARRAYS`` is made of (this module cannot import sim.state: sim.state -> sim.contact_set ->
+    sim.obstacles -> sim.validate). ``()`` for an object that is not a dataclass."""
+    if not dataclasses.is_dataclass(state):
+        return ()
+    return tuple(f.name for f in dataclasses.fields(state) if f.type in ("np.ndarray", np.ndarray))
+
+
 
 
 def _array(obj: Any, owner: str, name: str, shape: tuple, dtype: Any, *, writable: bool) -> np.ndarray:
@@ -345,8 +354,8 @@ def check_step_inputs(sim: Any, state: Any, ctrl: Any) -> None:
     nd = 4 if sim.model.mode == "3d" else 2
     want = {"dof": (B, N, nd), "dof_vel": (B, N, nd), "edge_ref_d1": (B, N - 1, 3), "edge_tangent": (B, N - 1, 3),
             "node_ref_twist": (B, N), "time": (B,), "failed": (B,)}
-    for name, shp in want.items():
-        _array(state, "state", name, shp, np.bool_ if name == "failed" else np.float64, writable=True)
+    for name in state_arrays(state) or want:
+        _array(state, "state", name, want[name], np.bool_ if name == "failed" else np.float64, writable=True)
     obs, M = getattr(state, "obstacles", None), sim.model.obstacles.count
     if obs is None:
         if M:
@@ -366,7 +375,8 @@ def quarantine_nonfinite(sim: Any, state: Any, stats: Any = None, also: np.ndarr
     state by the rest configuration (time kept when finite, else 0), so no NaN stays in the state. With
     ``stats``, those envs' StepStats numbers are zeroed and ``stats.failed`` set; ``also``: more envs treated so
     (the ones quarantined before the step). Returns the (B,) mask."""
-    arrays = [getattr(state, name) for name in _STATE_FIELDS[:-1]]  # every state field, before and after
+    floats = [name for name in state_arrays(state) if name != "failed"]
+    arrays = [getattr(state, name) for name in floats]  # every state field, before and after
     if stats is not None:  # contact rows: only the filled ones (up to the largest contact_count)
         cmax = int(stats.contact_count.max()) if stats.contact_count.size else 0
         arrays += [a[:, :cmax] if name.startswith("contact_") and a.ndim >= 2 else a
@@ -381,7 +391,7 @@ def quarantine_nonfinite(sim: Any, state: Any, stats: Any = None, also: np.ndarr
         return bad
     fresh = sim.reset()
     t = state.time.copy()
-    for name in _STATE_FIELDS[:-1]:
+    for name in floats:
         getattr(state, name)[bad] = getattr(fresh, name)[bad]
     state.time[bad] = np.where(np.isfinite(t[bad]), t[bad], 0.0)
     state.failed[bad] = True

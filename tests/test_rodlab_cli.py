@@ -2,6 +2,7 @@
 import importlib
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -63,3 +64,19 @@ def test_broken_import_inside_rodlab_shows_the_error(monkeypatch, tmp_path):
     _with_command(monkeypatch, "rodlab_probe_cmd2:main")
     with pytest.raises(ModuleNotFoundError, match="sim.no_such_module"):
         rodlab_cli.main(["probe"])
+
+
+def test_checkout_benchmarks_say_how_to_run_them_when_not_importable(monkeypatch, tmp_path, capsys):
+    """benchmarks/ is not installed: without it `rodlab bench accuracy` says to run it from a checkout's root;
+    in a checkout's root it is found there (as `python -m` would)."""
+    assert {"accuracy", "fuzz"} <= set(rodlab_cli.CHECKOUT_BENCH) and "sim" not in rodlab_cli.CHECKOUT_BENCH
+    real = rodlab_cli.importlib.util.find_spec
+    monkeypatch.setattr(rodlab_cli.importlib.util, "find_spec",
+                        lambda name, *a: None if name == "benchmarks" else real(name, *a))
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    monkeypatch.chdir(tmp_path)
+    assert rodlab_cli.main(["bench", "accuracy", "--help"]) == 2
+    err = capsys.readouterr().err
+    assert "runs from a rodlab source checkout" in err and "python -m rodlab_cli bench accuracy" in err
+    monkeypatch.chdir(Path(rodlab_cli.__file__).resolve().parent)
+    assert rodlab_cli._find_benchmarks() and sys.path[0] == str(Path.cwd())

@@ -20,8 +20,6 @@ from tools.browser import WAIT_MS, close_toasts, expand_folder, launch, open_pag
 from workbench.cli import default_scene
 from workbench.policy_session import policy_task, shipped_policies
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
-
 
 def _shot(page, path: Path) -> None:
     close_toasts(page)
@@ -32,7 +30,8 @@ def _shot(page, path: Path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.screenshots", description=__doc__.split("\n")[0])
-    ap.add_argument("--out", default=str(REPO_ROOT / "docs" / "screenshots"), help="output folder")
+    ap.add_argument("--out", default=str(Path("docs") / "screenshots"),
+                    help="output folder (default docs/screenshots of the working directory: the checkout root)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

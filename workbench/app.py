@@ -39,8 +39,6 @@ from workbench.view_boundary import boundary_of
 from workbench.view_rod import scene_info
 from workbench.view_scene import SceneView
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
-
 
 class WorkbenchApp:
     """Server + page + sim thread.
@@ -61,7 +59,7 @@ class WorkbenchApp:
         self.wb = wb
         self.wait_for_browser = wait_for_browser
         self.waiting_for_browser = False
-        self.files = Folders.create(scenes_dir=scenes_dir, recordings_dir=recordings_dir or REPO_ROOT / "recordings",
+        self.files = Folders.create(scenes_dir=scenes_dir, recordings_dir=recordings_dir,
                                     max_upload_mb=max_upload_mb)
         self.recordings_dir = self.files.recordings
         self.guard = Guard.for_host(host)

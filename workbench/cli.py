@@ -1,5 +1,5 @@
 """``rodlab workbench [SCENE.toml | --task T] [--host 127.0.0.1] [--port 8080] [--scenes-dir scenes]
-[--max-upload-mb 50]``.
+[--recordings-dir recordings] [--max-upload-mb 50]``.
 
 The first line with ``http://`` printed at start-up is the page's full address (with ``?token=...`` when
 bound to a non-loopback address; a warning follows on stderr)."""
@@ -10,11 +10,11 @@ import sys
 import time
 from pathlib import Path
 
+from sim.support.assets import asset_path
 from workbench.files import FileAccessError
 from workbench.handshake import BindError
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
-DEFAULT_SCENES = (REPO_ROOT / "assets/scenes/default.toml", REPO_ROOT / "assets/scenes/arm.toml")
+DEFAULT_SCENES = (asset_path("scenes/default.toml"), asset_path("scenes/arm.toml"))
 
 
 def default_scene() -> Path | None:
@@ -36,6 +36,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--speed", type=float, default=1.0, help="real-time factor (default 1)")
     ap.add_argument("--scenes-dir", default=None,
                     help="folder where the page saves and loads scenes (default: scenes/ in the working directory)")
+    ap.add_argument("--recordings-dir", default=None,
+                    help="folder of the recordings the page replays and writes (default: recordings/ in the working "
+                         "directory)")
     ap.add_argument("--max-upload-mb", type=float, default=50.0, help="largest mesh upload accepted [MB] (default 50)")
     ap.add_argument("--no-env-map", action="store_true", help="no HDRI lighting (faster in software GL)")
     ap.add_argument("--seconds", type=float, default=None, help="quit after this many seconds (tests)")
@@ -62,7 +65,8 @@ def workbench_main(argv: list[str] | None = None) -> int:
 
     try:
         app = WorkbenchApp(wb, host=args.host, port=args.port, env_map=not args.no_env_map, speed=args.speed,
-                           scenes_dir=args.scenes_dir, max_upload_mb=args.max_upload_mb)
+                           scenes_dir=args.scenes_dir, recordings_dir=args.recordings_dir,
+                           max_upload_mb=args.max_upload_mb)
     except (BindError, FileAccessError) as exc:
         print(f"rodlab workbench: {exc}", file=sys.stderr)
         return 2

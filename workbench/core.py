@@ -19,7 +19,7 @@ import numpy as np
 from workbench import obstacles as obst
 from workbench.frame import Frame
 from workbench.history import History, Snapshot
-from workbench.recorder import SessionRecorder
+from workbench.session_recorder import SessionRecorder
 from workbench.simbridge import ActionRefused, LiveSim, builtin_spec, load
 from workbench.teleop import Teleop
 
@@ -51,7 +51,7 @@ class Workbench:
         self.policy = None  # workbench.policy_session.PolicySession while a policy is loaded
         self.hand_control = False  # user took over from the policy
         self.replay = None  # workbench.replay.ReplaySession while a recording is open
-        self.recorder = None  # workbench.recorder.SessionRecorder while recording
+        self.recorder = None  # workbench.session_recorder.SessionRecorder while recording
         self.obstacles: list[obst.ObstacleEdit] = obst.edits_from_spec(spec)
         self.on_scene_changed: list[Callable[[], None]] = []
         self._last_scalars: dict = {}

@@ -3,7 +3,7 @@
 * scenes: saved and loaded only inside ``scenes_dir`` (default ``scenes/`` in the working directory, made on
   the first save); the shipped ``assets/scenes`` are readable but never written. A save never replaces a
   file other than the scene that is open from the scenes folder, so nothing a user saved is lost.
-* recordings: opened only inside the recordings folder.
+* recordings: opened only inside ``recordings_dir`` (default ``recordings/`` in the working directory).
 * uploads: written only into a per-launch temporary folder (removed by :meth:`Folders.cleanup`), at most
   ``max_upload_bytes`` each.
 
@@ -20,8 +20,9 @@ import shutil
 import tempfile
 from pathlib import Path
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
-SHIPPED_SCENES = REPO_ROOT / "assets" / "scenes"
+from sim.support.assets import asset_path
+
+SHIPPED_SCENES = asset_path("scenes")
 MAX_NAME = 100
 _NAME = re.compile(r"^\w[\w .()+,=-]*$")
 _GOT = re.compile(r",? got .*$")
@@ -88,7 +89,7 @@ class Folders:
         if not max_upload_mb > 0:
             raise FileAccessError(f"--max-upload-mb must be > 0, got {max_upload_mb}")
         folders = cls(scenes=scenes.absolute(),
-                      recordings=Path(recordings_dir or REPO_ROOT / "recordings").absolute(),
+                      recordings=Path(recordings_dir or Path.cwd() / "recordings").absolute(),
                       uploads=Path(tempfile.mkdtemp(prefix="rodlab-uploads-")),
                       max_upload_bytes=int(max_upload_mb * 1024 * 1024))
         atexit.register(folders.cleanup)  # also when the process ends without WorkbenchApp.stop()

@@ -79,8 +79,9 @@ def rpy_deg_from_quat(wxyz) -> np.ndarray:
     return np.degrees(np.array([roll, pitch, yaw]))
 
 
-def integrated_curvature(node_pos: np.ndarray, rod_offsets=None) -> np.ndarray:
-    """|κb_i| = 2 tan(φ_i/2) at every node (ends 0). node_pos (..., N, 3) -> (..., N). With ``rod_offsets`` (several
+def curvature_magnitude(node_pos: np.ndarray, rod_offsets=None) -> np.ndarray:
+    """Magnitude of the integrated curvature binormal, |κb_i| = 2 tan(φ_i/2), at every node (ends 0) (the material
+    components κ1, κ2 are ``sim.curvature.material_curvature``). node_pos (..., N, 3) -> (..., N). With ``rod_offsets`` (several
     rods, see :class:`Frame`) each rod's end nodes are 0 too: the edge joining two rods bends nothing."""
     k = np.linalg.norm(curvature_binormal(node_pos), axis=-1)
     inner = np.asarray(rod_offsets if rod_offsets is not None else (), np.int64)[1:-1]

@@ -163,7 +163,7 @@ class PolicyPanel:
         @self.rec_btn.on_click
         def _(_e) -> None:
             if wb.recorder is None:
-                from workbench.recorder import SessionRecorder
+                from workbench.session_recorder import SessionRecorder
 
                 try:
                     path = wb.start_recording(SessionRecorder.default_path(app.recordings_dir))

@@ -17,12 +17,13 @@ from sim import obstacles as so
 from sim.rotations import quat_to_matrix
 from sim.scene import dump_scene
 from sim.scene_check import overlap_warning, rod_obstacle_overlaps
+from sim.support.assets import asset_path
 from workbench.frame import quat_from_matrix, quat_z_to
 
 ObstacleKind = Literal["sphere", "capsule", "cylinder", "box", "mesh", "plane"]
 KINDS: tuple[str, ...] = ("sphere", "capsule", "cylinder", "box", "mesh", "plane")
 PLANE_DRAW_SIZE = 2.4  # [m] side of the square drawn for a plane
-MESH_DIR = Path(__file__).resolve().parent.parent / "assets" / "meshes"
+MESH_DIR = asset_path("meshes")
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".glb", ".gltf", ".off")
 
 

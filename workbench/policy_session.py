@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
-PRETRAINED = REPO_ROOT / "policies" / "pretrained"
+from policies.training_report import PRETRAINED
+
 _SKIP = {"sim", "model", "state", "ctrl"}  # owned by LiveSim snapshots
 
 

@@ -9,18 +9,17 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.frame import Frame, edge_strain, integrated_curvature, quat_z_to, several_rods
+from workbench.frame import Frame, curvature_magnitude, edge_strain, quat_z_to, several_rods
 from workbench.obstacles import ObstacleEdit
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
 # scalar name in the recording -> name shown in the workbench plots / status
 PLOT_KEYS = {"reward": "reward", "tip_error": "tip_error", "contact/max_normal_force": "contact_force",
              "solver/newton_iters": "newton_iters"}
 
 
 def list_recordings(root: str | Path | None = None) -> list[Path]:
-    """Every .rrd below ``root`` (default: recordings/), newest first."""
-    root = Path(root) if root else REPO_ROOT / "recordings"
+    """Every .rrd below ``root`` (default: recordings/ in the working directory), newest first."""
+    root = Path(root) if root else Path("recordings")
     if not root.is_dir():
         return []
     return sorted(root.rglob("*.rrd"), key=lambda p: p.stat().st_mtime, reverse=True)
@@ -150,7 +149,7 @@ class ReplaySession:
                 scalars[name.replace("reward_terms/", "r_")] = float(v[i])
         off = self.rod_offsets
         return Frame(node_pos=x, rod_radius=float(ep.scene.rod_radius), m1=unit(ep.m1), m2=unit(ep.m2),
-                     node_curvature=integrated_curvature(x, off), edge_strain=edge_strain(x, self._rest),
+                     node_curvature=curvature_magnitude(x, off), edge_strain=edge_strain(x, self._rest),
                      contact_points=cp, contact_forces=cf, targets=targets, target_wxyz=twxyz,
                      time=float(ep.sim_time[i]), scalars=scalars,
                      rod_offsets=None if off is None else off.copy())

@@ -14,7 +14,8 @@ import numpy as np
 
 from sim import Simulator, build_model, load_scene
 from sim.contact_set import node_radii
-from workbench.frame import Frame, edge_strain, integrated_curvature
+from sim.support.assets import asset_path
+from workbench.frame import Frame, curvature_magnitude, edge_strain
 
 
 class ActionRefused(RuntimeError):
@@ -194,7 +195,7 @@ class LiveSim:
         sc = {**self.step_scalars(), **(scalars or {})}
         kb = getattr(self.ctrl, "kappa_bar", None)
         off = self.rod_offsets
-        curv = integrated_curvature(x, off)  # each rod's end nodes bend nothing (the joint edge is no rod's)
+        curv = curvature_magnitude(x, off)  # each rod's end nodes bend nothing (the joint edge is no rod's)
         return Frame(node_pos=x.copy(), rod_radius=self.rod_radius, node_radius=self.node_radius, m1=m1, m2=m2,
                      kappa_bar=None if kb is None else np.asarray(kb[0], dtype=np.float64).copy(),
                      node_curvature=curv, edge_strain=edge_strain(x, self.rest_length),
@@ -232,7 +233,7 @@ def _replace_gravity(spec, g):
 
 def builtin_spec():
     """Spec of the paper arm (assets/scenes/arm.toml)."""
-    return load_scene(Path(__file__).resolve().parent.parent / "assets" / "scenes" / "arm.toml")
+    return load_scene(asset_path("scenes/arm.toml"))
 
 
 def load(path: str | Path):

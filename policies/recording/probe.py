@@ -32,7 +32,7 @@ from sim.rotations import quat_to_matrix, quat_z_to, to_xyzw
 
 from .schema import StaticScene
 
-__all__ = ["TaskProbe", "record_hook", "core_of", "integrated_curvature", "integrated_twist", "scene_from_specs",
+__all__ = ["TaskProbe", "record_hook", "core_of", "integrated_twist", "scene_from_specs",
            "task_static_scene", "task_target"]
 
 
@@ -46,15 +46,6 @@ def core_of(env: Any) -> Any:
             break
         env = nxt
     raise TypeError(f"cannot find a rodlab task core in {type(env).__name__} (need .core / .venv.core)")
-
-
-def integrated_curvature(pos: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> np.ndarray:
-    """Integrated curvature (κ1, κ2) per node, (..., N, 2) [-]; rows 0 and N-1 are 0.
-
-    pos (..., N, 3) [m]; m1, m2 (..., N-1, 3) material directors. κb_i = 2 t_{i-1}×t_i / (1 + t_{i-1}·t_i),
-    κ1_i = ½ κb_i·(m2_{i-1} + m2_i), κ2_i = −½ κb_i·(m1_{i-1} + m1_i)  (docs/tasks.md §1.5).
-    """
-    return material_curvature(pos, m1, m2)
 
 
 def integrated_twist(theta: np.ndarray, ref_twist: np.ndarray) -> np.ndarray:
@@ -310,7 +301,7 @@ class TaskProbe:
         model = getattr(core, "model", None) or sim.model
         pc = int(getattr(model, "planar_component", 0))
         kbar = np.asarray(ctrl.kappa_bar)
-        kap = integrated_curvature(pos[envs], m1[envs], m2[envs]) if m1 is not None else None
+        kap = material_curvature(pos[envs], m1[envs], m2[envs]) if m1 is not None else None
         twist = None
         if not planar and getattr(getattr(core, "converter", None), "cfg", None) is not None and \
                 getattr(core.converter.cfg, "has_twist", False) and hasattr(state, "node_ref_twist"):

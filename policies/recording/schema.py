@@ -287,7 +287,7 @@ def provenance() -> dict[str, str]:
         ver = version("rodlab")
     except Exception:
         ver = "unknown"
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parent  # git finds the work tree of a checkout from the package folder
     commit = "unknown"
     try:
         env = {**os.environ, "GIT_OPTIONAL_LOCKS": "0"}

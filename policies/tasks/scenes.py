@@ -1,7 +1,8 @@
 """Scene / simulator construction for the tasks (the only module of policies/tasks that imports sim).
 
-The task's scene file (``config.scene``, relative to the repository root) is loaded; a missing or invalid
-file is a ``SceneError`` (no fallback: the paper's arm (docs/tasks.md §1.1) has one source of truth, the shipped
+The task's scene file (``config.scene``) is loaded: a path starting with ``assets/`` names a shipped scene
+(``sim.support.assets``, found in a checkout and in an installed rodlab alike), any other relative path is taken
+relative to the working directory; a missing or invalid file is a ``SceneError`` (no fallback: the paper's arm (docs/tasks.md §1.1) has one source of truth, the shipped
 ``assets/scenes/arm.toml``, also used when ``config.scene`` is None). Obstacle tasks add their capsules
 (``task.scene_capsules()``) and the paper's contact settings when the scene has no obstacles. Either way the task config's solver
 settings win over the file's ``[sim]`` table: dt, newton_max_iter, newton_tol, mode, and
@@ -14,11 +15,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from sim.support.assets import asset_path
 
-__all__ = ["REPO_ROOT", "ARM_SCENE", "scene_for", "make_simulator", "set_env_capsules"]
-
-REPO_ROOT = Path(__file__).resolve().parents[2]
-
+__all__ = ["ARM_SCENE", "scene_for", "scene_path", "make_simulator", "set_env_capsules"]
 
 ARM_SCENE = "assets/scenes/arm.toml"  # the paper's arm (docs/tasks.md §1.1)
 
@@ -28,8 +27,7 @@ def scene_for(config: Any, task: Any = None):
     settings. A missing or invalid file raises SceneError naming it."""
     from sim import load_scene
 
-    p = Path(config.scene or ARM_SCENE)
-    spec = load_scene(p if p.is_absolute() else REPO_ROOT / p)
+    spec = load_scene(scene_path(config.scene or ARM_SCENE))
     if task is not None and hasattr(task, "scene_capsules"):
         ends, radius = task.scene_capsules()
         if not spec.obstacles:
@@ -39,6 +37,15 @@ def scene_for(config: Any, task: Any = None):
     sim = dataclasses.replace(spec.sim, dt=config.dt, newton_max_iter=config.newton_max_iter,
                               newton_tol=config.newton_tol, accept_unconverged=True, mode=config.mode)
     return dataclasses.replace(spec, sim=sim)
+
+
+def scene_path(scene: str | Path) -> Path:
+    """The file of a task config's ``scene``: absolute as given; ``assets/...`` the shipped asset; any other
+    relative path relative to the working directory."""
+    p = Path(scene)
+    if p.is_absolute():
+        return p
+    return asset_path(p) if p.parts[:1] == ("assets",) else p
 
 
 def _with_capsules(spec, ends: np.ndarray, radius: float):

@@ -11,8 +11,8 @@ import math
 
 from numba import njit
 
-from sim.frames import add, axpy, cross, dot, norm, scale, sub
 from sim.solve_params import _OPT
+from sim.vec3 import vadd, vaxpy, vcross, vdot, vmul, vnorm, vsub
 
 __all__ = ["bend_twist_core", "bend_twist_element", "material_curvatures", "material_directors"]
 
@@ -33,12 +33,12 @@ def _skew_row(V, r, a, b):
 @njit(**_OPT)
 def material_curvatures(xm, xi, xp, m1e, m2e, m1f, m2f):
     """(κ1, κ2) of node i from positions and material directors (3-tuples)."""
-    e = sub(xi, xm)
-    f = sub(xp, xi)
-    te = scale(1.0 / norm(e), e)
-    tf = scale(1.0 / norm(f), f)
-    kb = scale(2.0 / (1.0 + dot(te, tf)), cross(te, tf))
-    return 0.5 * dot(kb, add(m2e, m2f)), -0.5 * dot(kb, add(m1e, m1f))
+    e = vsub(xi, xm)
+    f = vsub(xp, xi)
+    te = vmul(1.0 / vnorm(e), e)
+    tf = vmul(1.0 / vnorm(f), f)
+    kb = vmul(2.0 / (1.0 + vdot(te, tf)), vcross(te, tf))
+    return 0.5 * vdot(kb, vadd(m2e, m2f)), -0.5 * vdot(kb, vadd(m1e, m1f))
 
 
 @njit(**_OPT)
@@ -63,7 +63,7 @@ def material_directors(d1, d2, theta):
     """(m1, m2) = (cos θ d1 + sin θ d2, −sin θ d1 + cos θ d2) of one edge (3-tuples)."""
     c = math.cos(theta)
     s = math.sin(theta)
-    return axpy(c, d1, scale(s, d2)), axpy(-s, d1, scale(c, d2))
+    return vaxpy(c, d1, vmul(s, d2)), vaxpy(-s, d1, vmul(c, d2))
 
 
 @njit(**_OPT)
@@ -72,36 +72,36 @@ def bend_twist_core(xm, xi, xp, m1e, m2e, m1f, m2f, tau, kbar1, kbar2, taubar, E
     """:func:`bend_twist_element` from the material directors m1, m2 of edges e and f and the twist
     τ = θ_f − θ_e + β. With ``upper_only`` only H's upper triangle (q ≥ p) is written (what the symmetric
     banded assembly reads); the lower triangle is then left unspecified."""
-    e = sub(xi, xm)
-    f = sub(xp, xi)
-    ne = norm(e)
-    nf = norm(f)
-    te = scale(1.0 / ne, e)
-    tf = scale(1.0 / nf, f)
-    chi = 1.0 + dot(te, tf)
+    e = vsub(xi, xm)
+    f = vsub(xp, xi)
+    ne = vnorm(e)
+    nf = vnorm(f)
+    te = vmul(1.0 / ne, e)
+    tf = vmul(1.0 / nf, f)
+    chi = 1.0 + vdot(te, tf)
     ichi = 1.0 / chi
-    kb = scale(2.0 * ichi, cross(te, tf))
-    k1 = 0.5 * dot(kb, add(m2e, m2f))
-    k2 = -0.5 * dot(kb, add(m1e, m1f))
-    tt = scale(ichi, add(te, tf))
-    mt1 = scale(ichi, add(m1e, m1f))
-    mt2 = scale(ichi, add(m2e, m2f))
-    a1v = cross(tf, mt2)   # a
-    b1v = cross(te, mt2)   # b
-    c2v = cross(tf, mt1)   # c
-    d2v = cross(te, mt1)   # d
+    kb = vmul(2.0 * ichi, vcross(te, tf))
+    k1 = 0.5 * vdot(kb, vadd(m2e, m2f))
+    k2 = -0.5 * vdot(kb, vadd(m1e, m1f))
+    tt = vmul(ichi, vadd(te, tf))
+    mt1 = vmul(ichi, vadd(m1e, m1f))
+    mt2 = vmul(ichi, vadd(m2e, m2f))
+    a1v = vcross(tf, mt2)   # a
+    b1v = vcross(te, mt2)   # b
+    c2v = vcross(tf, mt1)   # c
+    d2v = vcross(te, mt1)   # d
     ine = 1.0 / ne
     inf = 1.0 / nf
-    Dk1e = scale(ine, axpy(-k1, tt, a1v))
-    Dk1f = scale(inf, axpy(-k1, tt, scale(-1.0, b1v)))
-    Dk2e = scale(ine, axpy(-k2, tt, scale(-1.0, c2v)))
-    Dk2f = scale(inf, axpy(-k2, tt, d2v))
-    Dte = scale(0.5 * ine, kb)
-    Dtf = scale(0.5 * inf, kb)
-    kbm1e = dot(kb, m1e)
-    kbm1f = dot(kb, m1f)
-    kbm2e = dot(kb, m2e)
-    kbm2f = dot(kb, m2f)
+    Dk1e = vmul(ine, vaxpy(-k1, tt, a1v))
+    Dk1f = vmul(inf, vaxpy(-k1, tt, vmul(-1.0, b1v)))
+    Dk2e = vmul(ine, vaxpy(-k2, tt, vmul(-1.0, c2v)))
+    Dk2f = vmul(inf, vaxpy(-k2, tt, d2v))
+    Dte = vmul(0.5 * ine, kb)
+    Dtf = vmul(0.5 * inf, kb)
+    kbm1e = vdot(kb, m1e)
+    kbm1f = vdot(kb, m1f)
+    kbm2e = vdot(kb, m2e)
+    kbm2f = vdot(kb, m2f)
     gk1 = wk[0]
     gk2 = wk[1]
     gt = wk[2]

@@ -6,13 +6,14 @@ import numpy as np
 import pytest
 
 from policies.recording import Recorder, read_recording
-from policies.recording.probe import TaskProbe, integrated_curvature, integrated_twist
+from policies.recording.probe import TaskProbe, integrated_twist
+from sim.curvature import material_curvature
 
 F32 = dict(rtol=1e-6, atol=1e-6)
 TASKS = ["follow_target", "follow_target_2d", "ik4d", "tight_obstacles_2d", "random_obstacles_3d"]
 
 
-def test_integrated_curvature_of_an_arc():
+def test_material_curvature_of_an_arc():
     """Rod along +z turning by phi toward -x per node, frame m1=(-1,0,0), m2=(0,-1,0): kappa1 = 2 tan(phi/2)."""
     phi, N = 0.1, 8
     ang = phi * np.arange(N - 1)
@@ -20,7 +21,7 @@ def test_integrated_curvature_of_an_arc():
     pos = np.concatenate([np.zeros((1, 3)), np.cumsum(0.05 * t, 0)])
     m2 = np.tile([0.0, -1.0, 0.0], (N - 1, 1))
     m1 = np.cross(m2, t)                                   # (m1, m2, t) right-handed
-    k = integrated_curvature(pos, m1, m2)
+    k = material_curvature(pos, m1, m2)
     np.testing.assert_allclose(k[1:-1, 0], 2 * np.tan(phi / 2), rtol=1e-12)
     np.testing.assert_allclose(k[:, 1], 0.0, atol=1e-12)
     assert k[0, 0] == 0 and k[-1, 0] == 0

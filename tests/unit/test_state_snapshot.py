@@ -76,3 +76,15 @@ def test_node_pos_is_a_new_array_in_both_modes(scenes_dir):
         x = state.node_pos
         x[...] = 7.0
         assert not np.any(state.node_pos == 7.0), scene
+
+
+def test_state_arrays_are_the_state_fields_and_copy_copies_each(scenes_dir):
+    from sim.state import STATE_ARRAYS, STATE_FLOAT_ARRAYS
+
+    assert STATE_ARRAYS == FIELDS and STATE_FLOAT_ARRAYS == FIELDS[:-1]
+    sim, state, _ = _tight(scenes_dir)
+    snap = state.copy()
+    for name in STATE_ARRAYS:
+        a, b = getattr(state, name), getattr(snap, name)
+        assert isinstance(a, np.ndarray) and a.shape[0] == sim.envs and not np.shares_memory(a, b)
+        assert np.array_equal(a, b)

@@ -87,7 +87,7 @@ def test_masses_and_stiffnesses_follow_the_per_edge_sections():
     np.testing.assert_allclose(m.node_GJ[1:-1], harm(GJ), rtol=1e-14)
     np.testing.assert_allclose(m.node_EI1[[0, -1]], EI[[0, -1]], rtol=1e-14)
     np.testing.assert_allclose(m.edge_radius, r)
-    assert m.radius == r.max() and m.EA == pytest.approx((E * np.pi * r ** 2).max())
+    assert m.radius == r.max() and m.EA_max == pytest.approx((E * np.pi * r ** 2).max())
 
 
 def test_node_stiffness_weights_the_compliances_by_the_half_edges():
@@ -105,7 +105,7 @@ def test_node_stiffness_weights_the_compliances_by_the_half_edges():
     np.testing.assert_allclose(m.node_EI1[1:-1], want, rtol=1e-14)
     assert m.node_EI1[2] == EI[1]  # equal neighbours: the same float
     uni = build_model(dataclasses.replace(spec, rod=dataclasses.replace(spec.rod, edge_youngs_modulus=None)))
-    assert np.all(uni.node_EI1 == uni.EI1) and np.all(uni.node_GJ == uni.GJ)
+    assert np.all(uni.node_EI1 == uni.EI1_max) and np.all(uni.node_GJ == uni.GJ_max)
 
 
 def test_uniform_lists_step_bit_for_bit_like_the_scalar_keys():

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from workbench.core import Workbench
-from workbench.frame import integrated_curvature, quat_from_matrix, quat_z_to
+from workbench.frame import curvature_magnitude, quat_from_matrix, quat_z_to
 from workbench.history import History, Snapshot, held_bytes
 
 
@@ -125,7 +125,7 @@ def test_geometry_helpers():
     # quarter circle of 4 edges: each interior node turns by pi/8 -> |kappa| = 2 tan(pi/16)
     a = np.linspace(0, np.pi / 2, 5)
     x = np.stack([np.sin(a), np.zeros(5), 1 - np.cos(a)], 1)
-    k = integrated_curvature(x)
+    k = curvature_magnitude(x)
     np.testing.assert_allclose(k[1:-1], 2 * np.tan(np.pi / 16), rtol=1e-9)
     assert k[0] == 0 and k[-1] == 0
     d = np.array([[1.0, 0, 0], [0, 0, -1], [0, 0, 1], [0.3, -0.4, 0.5]])

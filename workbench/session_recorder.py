@@ -1,4 +1,4 @@
-"""Record the live workbench session to recordings/*.rrd with
+"""Record the live workbench session (``SessionRecorder``) to an .rrd file in the recordings folder with
 ``policies.recording.Recorder`` (the file appears atomically when recording stops).
 
 One rerun episode per continuous stretch: a rewind (time going backwards), a reset or an
