@@ -106,6 +106,7 @@ def test_a_trimmed_history_is_said_in_the_page(wb_page):
         with wb.lock:
             wb.history = History(capacity=20)
         wait_for(lambda: wb.history.dropped > 0, what="frames dropped from a 20-frame history")
+        page.get_by_role("tab", name="Run", exact=True).click()  # the shared page may be on another tab
         expand_folder(page, "Rewind", "Rewind")
         expect(page.get_by_text("history trimmed: the oldest", exact=False)).to_be_visible()
         assert "rewind keeps the last 20" in app.policy.rewind_note.content
