@@ -10,7 +10,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .solve_params import _OPT
+from .numba_options import OPT
 
 __all__ = ["cross", "dot", "transport", "rotate_about", "signed_angle", "initial_reference_frames",
            "update_frames", "reference_twist"]
@@ -18,43 +18,43 @@ __all__ = ["cross", "dot", "transport", "rotate_about", "signed_angle", "initial
 _TWO_PI = 2.0 * math.pi
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def add(a, b):
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def sub(a, b):
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def scale(s, a):
     return (s * a[0], s * a[1], s * a[2])
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def axpy(s, a, b):
     """s*a + b"""
     return (s * a[0] + b[0], s * a[1] + b[1], s * a[2] + b[2])
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def norm(a):
     return math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def transport(u, ta, tb):
     """Parallel transport P(u; ta -> tb) of a vector u ⟂ ta, then re-orthonormalised against tb (unit tb).
 
@@ -74,7 +74,7 @@ def transport(u, ta, tb):
     return scale(1.0 / norm(out), out)
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def rotate_about(u, t, ang):
     """Rodrigues rotation of u about the unit axis t by ang [rad]."""
     c = math.cos(ang)
@@ -86,7 +86,7 @@ def rotate_about(u, t, ang):
             u[2] * c + txu[2] * s + t[2] * tu * (1.0 - c))
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def signed_angle(a, b, n):
     """Angle from a to b [rad], signed by the axis n."""
     c = cross(a, b)
@@ -96,7 +96,7 @@ def signed_angle(a, b, n):
     return ang
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def update_frames(x, d1_old, t_old, beta_old, t, d1, d2, elen, beta, link=None):
     """Time-parallel frames at positions x (N, 3) from the step-start frames.
 
@@ -143,7 +143,7 @@ def update_frames(x, d1_old, t_old, beta_old, t, d1, d2, elen, beta, link=None):
     return lmin
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def reference_twist(d1, t, i, beta_old_i):
     """Reference twist β_i [rad] at interior node i, computed incrementally from β_old (§1.3).
 
