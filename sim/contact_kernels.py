@@ -1,4 +1,5 @@
-"""IMC contact and friction kernels (numba), called per env from ``sim.solve`` (docs/physics.md §4).
+"""IMC contact and friction kernels (numba), called per env from the step kernels in ``sim.kernels``
+(docs/physics.md §4).
 
 Model: every rod edge is a capsule of the rod radius ``r``. For each (edge, obstacle) candidate the
 gap is ``g = Delta - r - R`` (``Delta`` the exact centre-line distance, ``R`` the obstacle radius for

@@ -11,9 +11,9 @@ parameters that are interior (:func:`seg_seg_derivs`), so the Newton Jacobian is
 A pair couples nodes far apart along the chain, outside the band of the banded Jacobian. The assembly
 (:func:`rod_pairs_accumulate`) adds the blocks of each edge with itself into the band and collects the blocks
 between the two edges, entry by entry over the DOFs they touch, into a small dense coupling matrix ``M`` over a
-list of those DOFs (the Workspace's ``wb_*`` fields); :func:`sim.newton` then solves ``(B + E M Eᵀ) dx = f`` by the
-Woodbury identity on the banded factorisation of ``B`` (:func:`sim.newton._woodbury`). With no pair within reach the
-list is empty and the solve is the banded one.
+list of those DOFs (the Workspace's ``wb_*`` fields); :mod:`sim.kernels.newton` then solves ``(B + E M Eᵀ) dx = f``
+by the Woodbury identity on the banded factorisation of ``B`` (:func:`sim.kernels.newton._woodbury`). With no pair
+within reach the list is empty and the solve is the banded one.
 
 Candidates: once per (sub)step, over the predicted motion, every allowed pair whose swept boxes (each edge's box over
 the step's start and end, grown by its radius and half the contact margin) overlap (:func:`rod_pairs_broadphase`);
