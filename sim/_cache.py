@@ -2,7 +2,7 @@
 
 numba's ``cache=True`` only checks the source file of the cached function itself, so a change in a callee
 defined in another module (an energy, ``frames.py``, ``vec3.py``, ``contact_kernels.py``) would leave the fused kernels in
-``kernel.py``/``newton.py`` stale. :func:`invalidate_if_sources_changed` hashes all kernel sources and, when the hash differs
+``sim/kernels/`` stale. :func:`invalidate_if_sources_changed` hashes all kernel sources and, when the hash differs
 from the stamp written last time, deletes the cached ``*.nbi``/``*.nbc`` files of those modules.
 """
 from __future__ import annotations
@@ -12,15 +12,16 @@ import os
 from pathlib import Path
 
 _HERE = Path(__file__).resolve().parent
-_SOURCES = ["frames.py", "banded.py", "solve.py", "solve_params.py", "solve_3d.py", "solve_2d.py", "newton.py",
-            "kernel.py", "contact_kernels.py", "contact_rod.py", "geometry_distance.py", "vec3.py", "kinds.py",
+_SOURCES = ["numba_options.py", "frames.py", "kernels/banded.py", "kernels/data.py", "kernels/workspace.py",
+            "kernels/assemble_3d.py", "kernels/assemble_2d.py", "kernels/newton.py", "kernels/ladder.py",
+            "kernels/batch.py", "contact_kernels.py", "contact_rod.py", "geometry_distance.py", "vec3.py", "kinds.py",
             "energies/stretch.py", "energies/bend_twist.py", "energies/planar.py", "hessian.py"]
 # modules whose numba functions call no numba function of another module (their own cache check suffices)
 SELF_CONTAINED = ["contact_mesh.py"]
 
 
 def _cache_dirs() -> list[Path]:
-    dirs = [_HERE / "__pycache__", _HERE / "energies" / "__pycache__"]
+    dirs = [_HERE / "__pycache__", _HERE / "energies" / "__pycache__", _HERE / "kernels" / "__pycache__"]
     env = os.environ.get("NUMBA_CACHE_DIR")
     if env:
         dirs.append(Path(env))

@@ -1,4 +1,5 @@
-"""IMC contact and friction kernels (numba), called per env from ``sim.solve`` (docs/physics.md §4).
+"""IMC contact and friction kernels (numba), called per env from the step kernels in ``sim.kernels``
+(docs/physics.md §4).
 
 Model: every rod edge is a capsule of the rod radius ``r``. For each (edge, obstacle) candidate the
 gap is ``g = Delta - r - R`` (``Delta`` the exact centre-line distance, ``R`` the obstacle radius for
@@ -50,7 +51,7 @@ from .geometry_distance import (
     dist_derivs,
 )
 from .kinds import BOX, CAPSULE, MESH, PLANE, SPHERE
-from .solve_params import _OPT_CONTACT
+from .numba_options import OPT_CONTACT
 from .vec3 import vdot, vlerp, vmul, vsub
 
 __all__ = ["contact_broadphase", "contact_accumulate", "contact_report", "contact_min_gap", "imc_energy",
@@ -58,7 +59,7 @@ __all__ = ["contact_broadphase", "contact_accumulate", "contact_report", "contac
 
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def imc_energy(g, k, delta):
     """IMC squared-softplus energy of gap g [m]: returns (E [J], dE/dg [N], d2E/dg2 [N/m])."""
     K1 = 15.0 / delta
@@ -72,7 +73,7 @@ def imc_energy(g, k, delta):
     return k * L * L / (K1 * K1), -2.0 * k * L * sig / K1, 2.0 * k * (sig * sig + L * sig * (1.0 - sig))
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def coulomb_factor(vtn, nu):
     """Smooth Coulomb factor γ(|v_t|) and its derivative γ' (docs/physics.md §4.6): 1 and 0 when sliding
     (|v_t| > ν), else tanh(K2 |v_t| / 2) with K2 = 15/ν."""
@@ -83,7 +84,7 @@ def coulomb_factor(vtn, nu):
     return gam, 0.5 * K2 * (1.0 - gam * gam)
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def friction_tangent_entry(a1, dgam, gam, vtn, t, n, mu, d2E, i, j):
     """Entry (i, j) of smooth Coulomb friction's 3×3 Jacobian block before the nodal weights (docs/physics.md §4.6):
     a1 [γ' t tᵀ + γ/|v_t| (P − t tᵀ)] − μ E'' γ t nᵀ with a1 = μ λ / dt, P = I − n nᵀ (t, n unit 3-vectors)."""
@@ -91,7 +92,7 @@ def friction_tangent_entry(a1, dgam, gam, vtn, t, n, mu, d2E, i, j):
     return a1 * (dgam * t[i] * t[j] + gam / vtn * (P - t[i] * t[j])) - mu * d2E * gam * t[i] * n[j]
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def friction_block(va, vb, s, n, lam, d2E, mu, nu, dt, fr, J):
     """Smooth Coulomb friction of one contact on edge nodes (a, b), weights (1-s, s).
 
@@ -129,7 +130,7 @@ def friction_block(va, vb, s, n, lam, d2E, mu, nu, dt, fr, J):
     return (-c * t[0], -c * t[1], -c * t[2])
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def _to_local(p, R, x):
     d = (x[0] - p[0], x[1] - p[1], x[2] - p[2])
     return (R[0, 0] * d[0] + R[1, 0] * d[1] + R[2, 0] * d[2],
@@ -137,14 +138,14 @@ def _to_local(p, R, x):
             R[0, 2] * d[0] + R[1, 2] * d[1] + R[2, 2] * d[2])
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def _rot(R, v):
     return (R[0, 0] * v[0] + R[0, 1] * v[1] + R[0, 2] * v[2],
             R[1, 0] * v[0] + R[1, 1] * v[1] + R[1, 2] * v[2],
             R[2, 0] * v[0] + R[2, 1] * v[1] + R[2, 2] * v[2])
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def _box_lb2(lo0, lo1, lo2, hi0, hi1, hi2, slo, shi):
     """Squared distance between the box [lo, hi] and the box [slo, shi] (0 if they overlap)."""
     d0 = max(0.0, lo0 - shi[0], slo[0] - hi0)
@@ -153,7 +154,7 @@ def _box_lb2(lo0, lo1, lo2, hi0, hi1, hi2, slo, shi):
     return d0 * d0 + d1 * d1 + d2 * d2
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def _mesh_closest(al, bl, root, nlo, nhi, nch, nrg, tri, reach, stack):
     """Closest triangle of a mesh BVH to segment (al, bl) (local frame) within ``reach``.
 
@@ -216,7 +217,7 @@ def _mesh_closest(al, bl, root, nlo, nhi, nch, nrg, tri, reach, stack):
     return best, bs, bnf, bq, bd1, bd2, bn
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def _eval_edge(cd, e, o, a, b, r, reach, g6, H6, nhat, ws, stack, derivs=True):
     """Gap [m], closest rod parameter s and obstacle point of edge (a, b) vs obstacle o (not a plane).
 
@@ -299,7 +300,7 @@ def _eval_edge(cd, e, o, a, b, r, reach, g6, H6, nhat, ws, stack, derivs=True):
     return np.inf, 0.0, z
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def _box_face(cd, e, o, a, b):
     """The box face that both end points of segment (a, b) lie over (outside the box, each projecting along the
     face normal onto the face): returns (axis, side, d_a, d_b) with the nodes' distances to the face [m],
@@ -321,7 +322,7 @@ def _box_face(cd, e, o, a, b):
     return -1, 0.0, 0.0, 0.0
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def _mesh_face(cd, e, o, a, b, reach, stack):
     """The flat mesh region under both end points of segment (a, b): each node's closest mesh point within
     ``reach`` lies inside a triangle, both are seen along one common unit direction n (obstacle -> node, world
@@ -348,7 +349,7 @@ def _mesh_face(cd, e, o, a, b, reach, stack):
     return True, _rot(Rm, ua), da, db
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def _flat_face(cd, e, o, a, b, reach, stack):
     """(found, unit normal n (world), d_a, d_b): the box face or flat mesh region under both nodes of the edge
     (a, b) and the nodes' distances to it [m]; see :func:`_box_face`, :func:`_mesh_face`."""
@@ -360,19 +361,19 @@ def _flat_face(cd, e, o, a, b, reach, stack):
     return _mesh_face(cd, e, o, a, b, reach, stack)
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def _row3(x, k):
     return (x[k, 0], x[k, 1], x[k, 2])
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def _scratch(cd, e):
     """Env ``e``'s distance scratch: (ws (64,), g6 (6,), nhat (3,), H6 (6, 6), BVH stack)."""
     scf = cd.scratch_f
     return scf[e, 0:64], scf[e, 64:70], scf[e, 70:73], cd.scratch_m[e, 0], cd.scratch_i[e]
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def _report_row(e, rc, j, o, rod_point, base, scale, n, ff, normal_force, gap, out_edge, out_obstacle,
                 out_rod_point, out_obstacle_point, out_normal, out_normal_force, out_friction_force, out_gap):
     """Write contact row ``rc`` of env ``e``: edge ``j`` against obstacle ``o``, rod point ``rod_point``, obstacle
@@ -388,20 +389,20 @@ def _report_row(e, rc, j, o, rod_point, base, scale, n, ff, normal_force, gap, o
     out_gap[e, rc] = gap
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def _edge_radius(radius, j):
     """Radius [m] of edge j: ``radius`` is (1,) for a rod of one radius or (N-1,) per edge."""
     return radius[min(j, radius.shape[0] - 1)]
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def _node_radius(radius, k):
     """Radius [m] at node k (plane contact): the larger of its edges' (``radius`` as in :func:`_edge_radius`)."""
     m = radius.shape[0] - 1
     return max(radius[min(max(k - 1, 0), m)], radius[min(k, m)])
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, assemble, grad, hess, report,
                   out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
                   out_normal_force, out_friction_force, out_gap, out_max_penetration, link):
@@ -565,7 +566,7 @@ def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, a
     return energy
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def _plane_gap(cd, e, o, xx, kk):
     p0 = cd.p0
     p1 = cd.p1
@@ -573,7 +574,7 @@ def _plane_gap(cd, e, o, xx, kk):
             + p1[e, o, 2] * (xx[kk, 2] - p0[e, o, 2]))
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def contact_broadphase(e, cd, x_start, x_guess, margin, link=None):
     """Fill env ``e``'s candidate list: pairs whose gap may fall below ``margin`` [m] anywhere on the straight
     path from ``x_start`` to ``x_guess`` (one test at the midway configuration, inflated by half the motion). Pass as ``x_guess`` the predicted end of the (sub)step ``x0 + h u`` so that the list covers
@@ -652,7 +653,7 @@ def contact_broadphase(e, cd, x_start, x_guess, margin, link=None):
     return cnt
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def contact_refresh(e, cd, x_start, x_end, margin, link=None):
     """Re-run the broad phase of env ``e`` over the motion ``x_start`` -> ``x_end`` (the solved end of a step)
     and merge it with the current list. Returns True if that added pairs (the caller then solves again).
@@ -703,7 +704,7 @@ def contact_refresh(e, cd, x_start, x_end, margin, link=None):
     return added
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def _pair_gap(cd, e, c, x, dxp, t, radius, reach, g6, H6, nhat, ws, stack):
     """Gap [m] of candidate c of env e at node positions x + t·dxp ((N, 3) arrays); an edge's gap of ``reach`` [m]
     or more may come back as inf."""
@@ -722,7 +723,7 @@ def _pair_gap(cd, e, c, x, dxp, t, radius, reach, g6, H6, nhat, ws, stack):
     return gap
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def contact_step_limit(e, cd, x, dxp, radius, delta):
     """Largest fraction t ∈ (0, 1] of the Newton update ``dxp`` ((N, 3) node displacements from positions
     ``x``) that lets no candidate pair of env ``e`` go deeper than max-penetration allowance: a pair with
@@ -767,7 +768,7 @@ def contact_step_limit(e, cd, x, dxp, radius, delta):
     return max(tmax, 1e-3)
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def contact_accumulate(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, grad, hess, link=None):
     """Add the contact (+ friction) residual into ``grad`` (N, 3) [N] and Jacobian blocks into ``hess``
     (N-1, 6, 6) [N/m] for env ``e``'s candidates at positions ``x``; return the contact energy [J].
@@ -783,7 +784,7 @@ def contact_accumulate(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_
                          cd.scratch_f[e:e, :0], cd.scratch_f[e, :0], link)
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def contact_min_gap(e, cd, x, radius):
     """Smallest negative gap [m] over env ``e``'s current candidates at node positions ``x`` (N, >=3) [m];
     0.0 when no candidate penetrates (so the max penetration is ``-contact_min_gap``).
@@ -807,7 +808,7 @@ def contact_min_gap(e, cd, x, radius):
     return best
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def contact_report(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on,
                    out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
                    out_normal_force, out_friction_force, out_gap, out_max_penetration, link=None):

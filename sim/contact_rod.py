@@ -11,9 +11,9 @@ parameters that are interior (:func:`seg_seg_derivs`), so the Newton Jacobian is
 A pair couples nodes far apart along the chain, outside the band of the banded Jacobian. The assembly
 (:func:`rod_pairs_accumulate`) adds the blocks of each edge with itself into the band and collects the blocks
 between the two edges, entry by entry over the DOFs they touch, into a small dense coupling matrix ``M`` over a
-list of those DOFs (the Workspace's ``wb_*`` fields); :func:`sim.newton` then solves ``(B + E M Eᵀ) dx = f`` by the
-Woodbury identity on the banded factorisation of ``B`` (:func:`sim.newton._woodbury`). With no pair within reach the
-list is empty and the solve is the banded one.
+list of those DOFs (the Workspace's ``wb_*`` fields); :mod:`sim.kernels.newton` then solves ``(B + E M Eᵀ) dx = f``
+by the Woodbury identity on the banded factorisation of ``B`` (:func:`sim.kernels.newton._woodbury`). With no pair
+within reach the list is empty and the solve is the banded one.
 
 Candidates: once per (sub)step, over the predicted motion, every allowed pair whose swept boxes (each edge's box over
 the step's start and end, grown by its radius and half the contact margin) overlap (:func:`rod_pairs_broadphase`);
@@ -34,7 +34,7 @@ from numba import njit
 
 from .contact_kernels import _edge_radius, _row3, coulomb_factor, friction_tangent_entry, imc_energy
 from .geometry_distance import closest_seg_seg
-from .solve_params import _OPT_CONTACT
+from .numba_options import OPT_CONTACT
 from .vec3 import vcross, vdot, vlerp, vsub
 
 __all__ = ["allowed_pairs", "model_pairs", "edge_rods", "seg_seg_derivs", "rod_pairs_broadphase", "rod_pairs_refresh", "rod_pairs_accumulate",
@@ -105,7 +105,7 @@ def model_pairs(model) -> np.ndarray:
                          rod_contact=rod_contact, delta=float(c.delta))
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def seg_seg_derivs(a, b, p, q, grad, hess, nhat, ws):
     """Distance Δ [m] between segments (a, b) and (p, q) (3-tuples) with its gradient ``grad`` (12,) and Hessian
     ``hess`` (12, 12) over (a, b, p, q), and the unit normal ``nhat`` (3,) from the (p, q) point to the (a, b)
@@ -215,7 +215,7 @@ def seg_seg_derivs(a, b, p, q, grad, hess, nhat, ws):
     return dd, s, t
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def _edge_boxes(x_start, x_end, radius, margin, box):
     """box (E, 6): each edge's axis-aligned box over its positions at the start and the end of the motion, grown
     by its radius and half the margin (two boxes overlap iff the grown-by-the-whole-margin test would pass)."""
@@ -228,13 +228,13 @@ def _edge_boxes(x_start, x_end, radius, margin, box):
             box[j, 3 + a] = hi + g
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def _boxes_overlap(box, i, j):
     return (box[i, 0] <= box[j, 3] and box[j, 0] <= box[i, 3] and box[i, 1] <= box[j, 4] and box[j, 1] <= box[i, 4]
             and box[i, 2] <= box[j, 5] and box[j, 2] <= box[i, 5])
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def rod_pairs_broadphase(pairs, x_start, x_end, radius, margin, box, cand, ncand):
     """Candidates among the allowed ``pairs`` (P, 2) for a motion from ``x_start`` to ``x_end``: the indices into
     ``pairs`` of the pairs whose swept boxes overlap, into ``cand`` (P,); ``ncand[0]`` their count."""
@@ -248,7 +248,7 @@ def rod_pairs_broadphase(pairs, x_start, x_end, radius, margin, box, cand, ncand
     return n
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def rod_pairs_refresh(pairs, x_start, x_end, radius, margin, box, cand, ncand):
     """Add to the candidate list the allowed pairs whose boxes over the motion ``x_start`` → ``x_end`` overlap and
     that are not in it yet (the list stays sorted). Returns (whether any pair was added, the smallest gap [m] at
@@ -281,7 +281,7 @@ def rod_pairs_refresh(pairs, x_start, x_end, radius, margin, box, cand, ncand):
     return added, smallest
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def _dof(dpn, k, a):
     """DOF index of coordinate a of node k: 3-D 4k + a; planar 2k (x), 2k + 1 (z), −1 for y (not a DOF)."""
     if dpn == 4:
@@ -291,7 +291,7 @@ def _dof(dpn, k, a):
     return 2 * k + (0 if a == 0 else 1)
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def _slot(wb_slot, wb_dof, wb_n, d):
     """Index of DOF d in the coupling list, appended if new."""
     s = wb_slot[d]
@@ -303,7 +303,7 @@ def _slot(wb_slot, wb_dof, wb_n, d):
     return s
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def _gap(x, radius, i, j):
     """Gap [m] of edges i and j at node positions x."""
     a = _row3(x, i)
@@ -315,7 +315,7 @@ def _gap(x, radius, i, j):
     return math.sqrt(vdot(u, u)) - _edge_radius(radius, i) - _edge_radius(radius, j)
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def _gap_bound(x, radius, i, j):
     """A lower bound of the gap [m] of edges i and j (≤ :func:`_gap`) from each edge's bounding sphere (centre
     the midpoint, radius half the length): a few operations, where the exact gap needs the closest points. Pairs
@@ -330,7 +330,7 @@ def _gap_bound(x, radius, i, j):
         - slack
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def reset_coupling(wb_slot, wb_dof, wb_n, wb_M):
     """Empty the coupling list (before a Jacobian assembly)."""
     K = wb_n[0]
@@ -341,7 +341,7 @@ def reset_coupling(wb_slot, wb_dof, wb_n, wb_M):
     wb_n[0] = 0
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def _pair_slip(x, x_prev, dt, nodes, cw, nhat, mu, nu, lam):
     """Friction of a pair in touch (lagged n̂, s, t): (γ, γ', |v_t|, t̂) of the contact points' relative tangential
     velocity ``v = Σ c_k (x_k − x_prev_k)/dt``; γ = 0 (no friction) for μ = 0, no normal force or no slip."""
@@ -376,7 +376,7 @@ def _pair_slip(x, x_prev, dt, nodes, cw, nhat, mu, nu, lam):
     return gam, dgam, vtn, (tv0, tv1, tv2)
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, dpn, fixed, radius, k, delta, mu, nu, f, ab, kl, sym,
                          with_jac, wb_slot, wb_dof, wb_n, wb_M, g12, H12, nhat, ws):
     """Add the IMC energy and friction of the candidate pairs at node positions ``x`` (N, 3) to the residual ``f``
@@ -440,7 +440,7 @@ def rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, dpn, fixed, radius, 
     return energy
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def rod_pairs_min_gap(pairs, cand, ncand, x, radius):
     """Smallest gap [m] over the candidate pairs at positions ``x``, or +inf without candidates."""
     best = np.inf
@@ -455,7 +455,7 @@ def rod_pairs_min_gap(pairs, cand, ncand, x, radius):
     return best
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def rod_pairs_energy(pairs, cand, ncand, x, radius, k, delta):
     """IMC energy [J] of the candidate pairs at positions ``x`` (no friction, no derivatives)."""
     energy = 0.0
@@ -470,7 +470,7 @@ def rod_pairs_energy(pairs, cand, ncand, x, radius, k, delta):
     return energy
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def rod_pairs_report(e, pairs, cand, ncand, x, x_prev, dt, radius, k, delta, mu, nu, g12, H12, nhat, ws,
                      out_count, out_edge, out_obstacle, out_partner, out_rod_point, out_obstacle_point, out_normal,
                      out_normal_force, out_friction_force, out_gap):
@@ -541,7 +541,7 @@ def rod_pairs_report(e, pairs, cand, ncand, x, x_prev, dt, radius, k, delta, mu,
     return energy, smallest
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def _pair_distance(x, dxp, tt, i, j):
     """Centre-line distance of edges i, j at positions x + tt·dxp."""
     a = (x[i, 0] + tt * dxp[i, 0], x[i, 1] + tt * dxp[i, 1], x[i, 2] + tt * dxp[i, 2])
@@ -553,7 +553,7 @@ def _pair_distance(x, dxp, tt, i, j):
     return math.sqrt(vdot(u, u))
 
 
-@njit(inline="always", **_OPT_CONTACT)
+@njit(inline="always", **OPT_CONTACT)
 def _gap_floor(g, delta, rs):
     """The lowest gap [m] one update may bring a pair at gap ``g`` to: min(g, 0) − δ, but never letting the centre
     lines meet (radii sum ``rs``)."""
@@ -563,7 +563,7 @@ def _gap_floor(g, delta, rs):
     return floor
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def rod_pairs_step_limit(pairs, cand, ncand, x, dxp, radius, delta):
     """Largest fraction τ ∈ (0, 1] of the Newton update ``dxp`` ((N, 3) node displacements from positions ``x``)
     along which no candidate pair's gap falls below min(g0, 0) − δ (g0 its gap at τ = 0): one update can neither
@@ -602,7 +602,7 @@ def rod_pairs_step_limit(pairs, cand, ncand, x, dxp, radius, delta):
     return max(tmax, 1e-3)
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def dense_lu_solve(A, k, b, piv):
     """Solve A[:k, :k] y = b[:k] in place (LU with partial pivoting; A overwritten, y into b). False if singular."""
     for c in range(k):

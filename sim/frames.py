@@ -10,7 +10,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .solve_params import _OPT
+from .numba_options import OPT
 from .vec3 import vaxpy, vcross, vdot, vmul, vnorm
 
 __all__ = ["transport", "rotate_about", "signed_angle", "initial_reference_frames",
@@ -19,7 +19,7 @@ __all__ = ["transport", "rotate_about", "signed_angle", "initial_reference_frame
 _TWO_PI = 2.0 * math.pi
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def transport(u, ta, tb):
     """Parallel transport P(u; ta -> tb) of a vector u ⟂ ta, then re-orthonormalised against tb (unit tb).
 
@@ -39,7 +39,7 @@ def transport(u, ta, tb):
     return vmul(1.0 / vnorm(out), out)
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def rotate_about(u, t, ang):
     """Rodrigues rotation of u about the unit axis t by ang [rad]."""
     c = math.cos(ang)
@@ -51,7 +51,7 @@ def rotate_about(u, t, ang):
             u[2] * c + txu[2] * s + t[2] * tu * (1.0 - c))
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def signed_angle(a, b, n):
     """Angle from a to b [rad], signed by the axis n."""
     c = vcross(a, b)
@@ -61,7 +61,7 @@ def signed_angle(a, b, n):
     return ang
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def update_frames(x, d1_old, t_old, beta_old, t, d1, d2, elen, beta, link=None):
     """Time-parallel frames at positions x (N, 3) from the step-start frames.
 
@@ -108,7 +108,7 @@ def update_frames(x, d1_old, t_old, beta_old, t, d1, d2, elen, beta, link=None):
     return lmin
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def reference_twist(d1, t, i, beta_old_i):
     """Reference twist β_i [rad] at interior node i, computed incrementally from β_old (§1.3).
 

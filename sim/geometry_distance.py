@@ -20,7 +20,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .solve_params import _OPT_CONTACT
+from .numba_options import OPT_CONTACT
 from .vec3 import vadd, vcross, vdot, vlerp, vmul, vsub
 
 __all__ = ["closest_seg_point", "closest_seg_seg", "closest_point_triangle", "closest_seg_triangle",
@@ -29,7 +29,7 @@ __all__ = ["closest_seg_point", "closest_seg_seg", "closest_point_triangle", "cl
 _EPS_PARAM = 1e-12
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def closest_seg_point(a, b, c):
     """Segment (a, b) vs point c: return s in [0, 1] of the closest rod point."""
     e = vsub(b, a)
@@ -40,7 +40,7 @@ def closest_seg_point(a, b, c):
     return min(1.0, max(0.0, s))
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def closest_seg_seg(a, b, p, q):
     """Segments (a, b) and (p, q), Lumelsky's rule (docs/physics.md §4.2): return (s, u) in [0, 1]^2.
 
@@ -73,7 +73,7 @@ def closest_seg_seg(a, b, p, q):
     return t, u
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def closest_point_triangle(p, v0, v1, v2):
     """Closest point of triangle (v0, v1, v2) to point p (Voronoi-region walk).
 
@@ -116,7 +116,7 @@ def closest_point_triangle(p, v0, v1, v2):
     return 2, vadd(v0, vadd(vmul(v, ab), vmul(w, ac))), ab, ac
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def closest_seg_triangle(a, b, v0, v1, v2):
     """Segment (a, b) vs triangle: unsigned distance.
 
@@ -181,7 +181,7 @@ def closest_seg_triangle(a, b, v0, v1, v2):
     return math.sqrt(best), best_s, nf, q, d1, d2, z
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def closest_seg_box(a, b, h, ws):
     """Segment (a, b) vs the solid box |x_i| <= h_i, all in the box's local frame.
 
@@ -293,7 +293,7 @@ def closest_seg_box(a, b, h, ws):
     return f2, best_s, -1, (x[0], x[1], sg * h[2]), (0.0, 0.0, sg)
 
 
-@njit(**_OPT_CONTACT)
+@njit(**OPT_CONTACT)
 def dist_derivs(a, b, s, q, nfree, d1, d2, fallback_n, grad, hess, nhat, ws):
     """Distance between rod point ``a + s (b - a)`` and obstacle point ``q``, with derivatives.
 

@@ -10,25 +10,24 @@ from numba import njit
 
 from .contact_kernels import contact_broadphase
 from .contact_rod import rod_pairs_broadphase
-from .kernel import alloc_workspace
-from .newton import _assemble, _positions
-from .solve_2d import KL_2D
-from .solve_3d import KL_3D
-from .solve_params import _OPT_ALLOC, copy_into
+from .kernels.data import KL_2D, KL_3D
+from .kernels.newton import assemble, positions
+from .kernels.workspace import alloc_workspace, copy_into
+from .numba_options import OPT_ALLOC
 
 __all__ = ["static_jacobian"]
 
 _H_STATIC = 1e150  # [s] pseudo-time step of the assembly: M/h² is below any float's resolution of the stiffness
 
 
-@njit(**_OPT_ALLOC)
+@njit(**OPT_ALLOC)
 def static_jacobian(e, x, d1, t, beta, kb, tb, rod, prm_arr, cd):
     """The full band (n + kl, 2 kl + 1) of the static Jacobian of env e (row r, column c at [r, kl + c − r];
     constrained DOFs: identity rows and columns) at DOFs x (n,) with the stored frames d1, t, beta, and the
     off-band coupling of touching edge pairs: the DOFs (K,) and their dense block (K, K) (K = 0 without).
-    ``prm_arr``: the Simulator's one-record parameter array."""
+    ``prm_arr``: the Simulator's one-record parameter array (:meth:`sim.kernels.data.Params.record`)."""
     prm = prm_arr[0]
-    planar = prm.planar != 0
+    planar = prm.planar
     n = x.shape[0]
     N = rod.vor_len.shape[0]
     kl = KL_2D if planar else KL_3D
@@ -40,13 +39,13 @@ def static_jacobian(e, x, d1, t, beta, kb, tb, rod, prm_arr, cd):
     copy_into(w.sub_d1, d1)
     copy_into(w.sub_t, t)
     copy_into(w.sub_beta, beta)
-    if prm.n_obstacles > 0 or prm.rod_pairs > 0:
-        _positions(planar, x, w.pos, prm.plane_y)
-        _positions(planar, x, w.pos0, prm.plane_y)
+    if prm.n_obstacles > 0 or prm.rod_pairs:
+        positions(planar, x, w.pos, prm.plane_y)
+        positions(planar, x, w.pos0, prm.plane_y)
     if prm.n_obstacles > 0:
         contact_broadphase(e, cd, w.pos0, w.pos, prm.contact_margin, rod.link)
-    if prm.rod_pairs > 0:
+    if prm.rod_pairs:
         rod_pairs_broadphase(rod.pairs, w.pos0, w.pos, rod.radius, prm.contact_margin, w.rp_box, w.rp_cand, w.rp_n)
-    _assemble(planar, e, w.x, _H_STATIC, kb, tb, rod, prm, cd, w, True, False)
+    assemble(planar, e, w.x, _H_STATIC, kb, tb, rod, prm, cd, w, True, False)
     K = w.wb_n[0]
     return w.ab[:n + kl].copy(), w.wb_dof[:K].copy(), w.wb_M[:K, :K].copy()

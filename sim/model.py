@@ -20,7 +20,7 @@ from .scene import SceneSpec
 from .section import section_of
 from .validate import check_scene
 
-__all__ = ["Model", "build_model"]
+__all__ = ["Model", "build_model", "planar_nodes"]
 
 
 def _ro(a: np.ndarray) -> np.ndarray:
@@ -297,3 +297,15 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         motion_rate=_ro(mr), motion_window=_ro(mw), rod_names=tuple(spec.rod_names),
         rod_node_offsets=_ro(offsets), edge_link=_ro(link), rod_planar=tuple(p["planar"] for p in parts),
     )
+
+
+def planar_nodes(m: Model) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) per node: the planar component (0: κ1, 1: κ2) and sign of its rod (2-D, docs/physics.md §1.6)."""
+    per_rod = getattr(m, "rod_planar", ()) or ((m.planar_component, m.planar_sign),)
+    off = np.asarray(getattr(m, "rod_node_offsets", ()), dtype=np.int64)
+    if len(off) != len(per_rod) + 1:
+        off = np.array([0, m.node_count])
+    counts = np.diff(off)
+    comp = np.repeat(np.array([c for c, _ in per_rod], np.int64), counts)
+    sign = np.repeat(np.array([sg for _, sg in per_rod], np.float64), counts)
+    return comp, sign

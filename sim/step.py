@@ -1,24 +1,31 @@
 """Simulator: reset(), step(), control helpers. ``step`` is a short pipeline: check the inputs → the batched
 kernel (per env: predict → Newton (frames, assemble, solve, line search) → contact refresh → accept/retry →
-integrate → commit; :mod:`sim.newton`, :mod:`sim.kernel`) → StepStats."""
+integrate → commit; :mod:`sim.kernels`) → StepStats. The kernels' data is built by
+:meth:`sim.kernels.data.Params.from_model` and :meth:`sim.kernels.data.RodData.from_model`."""
 from __future__ import annotations
 
 from collections.abc import Sequence
 
 import numpy as np
 
-from . import solve as _solve
 from . import validate as _validate
 from .boundary import window_fraction
 from .contact_rod import model_pairs
-from .contact_set import PAIR_REPORT_CAPACITY, contact_data, contact_radii, contact_scratch
-from .model import Model
+from .contact_set import PAIR_REPORT_CAPACITY, contact_data, contact_scratch
+from .kernels.batch import step_kernel
+from .kernels.data import (
+    MIDPOINT_ENERGY_TOL,
+    ContactReport,
+    ControlArrays,
+    Params,
+    RodData,
+    StateArrays,
+    StepOutput,
+)
+from .model import Model, planar_nodes
 from .state import Control, State, StepStats
 
 __all__ = ["Simulator", "MIDPOINT_ENERGY_TOL"]
-
-# an implicit-midpoint (sub)step whose energy rises by more than this fraction is redone by backward Euler
-MIDPOINT_ENERGY_TOL = 1e-3
 
 IndexLike = int | Sequence[int] | np.ndarray | slice | None
 
@@ -37,35 +44,9 @@ class Simulator:
         self.model = model
         self.envs = B = int(envs)
         m = model
-        c = m.spec.contact
-        mp = getattr(c, "max_penetration", None)  # penetration guard [m]; None = 4 * delta
-        # the planar rod bends with EI1 (kernel): there, the stiffness of its in-plane component (each rod's)
-        if m.mode == "3d":
-            ei1 = m.node_EI1
-        else:
-            comp, _ = _planar_nodes(m)
-            ei1 = np.where(comp == 0, m.node_EI1, m.node_EI2)
         pairs = model_pairs(m)  # edge pairs that may touch (self- / rod–rod contact); (0, 2) without
-        prm = _solve.Params(
-            dt=m.dt, damping=m.damping, newton_tol=m.newton_tol,
-            newton_dtol=m.newton_dtol, newton_max_iter=float(m.newton_max_iter),
-            accept_unconverged=1.0 if m.accept_unconverged else 0.0,
-            midpoint=0.0 if m.integrator == "backward_euler" else 1.0,
-            line_search={"none": 0.0, "backtrack": 1.0, "auto": 2.0}[m.line_search],
-            contact_k=c.stiffness, contact_delta=c.delta, friction=c.friction, friction_nu=c.friction_velocity_tol,
-            friction_on=1.0 if np.any(m.obstacles.effective_friction(c.friction) > 0) else 0.0,
-            contact_margin=c.margin, n_obstacles=float(m.obstacles.count if getattr(c, "enabled", True) else 0),
-            planar_sign=m.planar_sign, plane_y=m.plane_y, retry_levels=5.0, max_strain=0.9,
-            max_penetration=4.0 * c.delta if mp is None else float(mp),
-            step_limit=1.0 if getattr(c, "step_limit", True) else 0.0, divergence_guard=m.divergence_guard,
-            midpoint_energy_tol=MIDPOINT_ENERGY_TOL, planar=1.0 if m.mode == "2d" else 0.0,
-            rod_pairs=1.0 if pairs.shape[0] > 0 else 0.0)
-        self._prm = _solve.params_record(prm)  # one float64 record (passed by reference in the kernels)
-        self._rod = _solve.RodData(rest_len=np.array(m.rest_edge_length), vor_len=np.array(m.voronoi_length),
-                                   mass=np.array(m.dof_mass), fixed=np.array(m.dof_fixed),
-                                   grav=np.array(m.dof_gravity)[None, :], EA=np.array(m.edge_EA),
-                                   EI1=np.array(ei1), EI2=np.array(m.node_EI2), GJ=np.array(m.node_GJ),
-                                   radius=contact_radii(m.edge_radius), link=_edge_link(m), pairs=pairs)
+        self._prm = Params.from_model(m, pairs=pairs).record()  # one typed record (passed by reference)
+        self._rod = RodData.from_model(m, pairs=pairs)
         # point loads (sim.boundary): per-env external forces only when a scene has loads; prescribed motion
         self._loads = m.load_force.shape[0] > 0
         self._motion = m.motion_rate.shape[0] > 0
@@ -74,17 +55,8 @@ class Simulator:
         self._scratch = contact_scratch(B, m.node_count, m.obstacles.count, m.edge_radius)
         self._no_obstacles = m.obstacles.for_envs(B) if m.obstacles.count == 0 else None
         C = int(m.obstacles.report_capacity) + (PAIR_REPORT_CAPACITY if pairs.shape[0] > 0 else 0)
-        self._crep = _solve.ContactReport(
-            count=np.zeros(B, np.int64), edge=np.zeros((B, C), np.int64), obstacle=np.zeros((B, C), np.int64),
-            partner=np.full((B, C), -1, np.int64),
-            rod_point=np.zeros((B, C, 3)), obstacle_point=np.zeros((B, C, 3)), normal=np.zeros((B, C, 3)),
-            normal_force=np.zeros((B, C)), friction_force=np.zeros((B, C, 3)), gap=np.zeros((B, C)),
-            max_penetration=np.zeros(B))
-        f, i = (lambda: np.zeros(B)), (lambda: np.zeros(B, np.int64))
-        self._out = _solve.StepOutput(
-            residual=f(), residual0=f(), energy_stretch=f(), energy_bend=f(), energy_twist=f(), energy_contact=f(),
-            energy_kinetic=f(), energy_gravity=f(), newton_iters=i(), substeps=i(), midpoint_fallbacks=i(),
-            converged=np.zeros(B, bool), failed=np.zeros(B, bool))
+        self._crep = ContactReport.zeros(B, C)
+        self._out = StepOutput.zeros(B)
 
     # ------------------------------------------------------------------ state / control construction
     def _rest_dof(self) -> np.ndarray:
@@ -114,7 +86,7 @@ class Simulator:
         if m.mode == "2d":
             # column 0: the in-plane curvature in the first rod's convention (the kernel's κ_2D = planar_sign ·
             # column 0); a rod whose own component or sign differs has its value converted
-            comp, sign = _planar_nodes(m)
+            comp, sign = planar_nodes(m)
             kb0 = np.where(comp == 0, kb[:, 0], kb[:, 1]) * (sign * m.planar_sign)
             kb = np.stack([kb0, np.zeros(m.node_count)], axis=1)
         return kb, np.array(m.rest_tau_bar)
@@ -170,13 +142,8 @@ class Simulator:
         if self._loads:
             rod = rod._replace(grav=self._external_forces(state.time))
         moved = self._prescribe(state) if self._motion else None
-        _solve.step_kernel(
-            _solve.StateArrays(dof=state.dof.reshape(self.envs, -1), vel=state.dof_vel.reshape(self.envs, -1),
-                               ref_d1=state.edge_ref_d1, tangent=state.edge_tangent, ref_twist=state.node_ref_twist,
-                               time=state.time, failed=state.failed),
-            _solve.ControlArrays(kappa_bar=np.ascontiguousarray(ctrl.kappa_bar, dtype=np.float64),
-                                 tau_bar=np.ascontiguousarray(ctrl.tau_bar, dtype=np.float64)),
-            rod, self._prm, contact_data(obstacles, self._scratch), self._crep, self._out)
+        step_kernel(StateArrays.of(state), ControlArrays.of(ctrl), rod, self._prm,
+                    contact_data(obstacles, self._scratch), self._crep, self._out)
         if moved is not None:  # the moved DOFs' velocities: their prescribed rates over the step
             ok = ~state.failed
             vel = state.dof_vel.reshape(self.envs, -1)
@@ -229,26 +196,6 @@ class Simulator:
         th = state.edge_theta[..., None]
         c, s = np.cos(th), np.sin(th)
         return c * d1 + s * d2, -s * d1 + c * d2, t.copy()
-
-
-def _edge_link(m: Model) -> np.ndarray:
-    """The kernels' (N-1,) uint8 edge flags: 1 a material edge, 0 a joint edge between two rods."""
-    link = getattr(m, "edge_link", None)
-    if link is None or len(link) != m.node_count - 1:
-        return np.ones(m.node_count - 1, np.uint8)
-    return np.asarray(link, dtype=np.uint8)
-
-
-def _planar_nodes(m: Model) -> tuple[np.ndarray, np.ndarray]:
-    """(N,) per node: the planar component (0: κ1, 1: κ2) and sign of its rod (2-D, docs/physics.md §1.6)."""
-    per_rod = getattr(m, "rod_planar", ()) or ((m.planar_component, m.planar_sign),)
-    off = np.asarray(getattr(m, "rod_node_offsets", ()), dtype=np.int64)
-    if len(off) != len(per_rod) + 1:
-        off = np.array([0, m.node_count])
-    counts = np.diff(off)
-    comp = np.repeat(np.array([c for c, _ in per_rod], np.int64), counts)
-    sign = np.repeat(np.array([sg for _, sg in per_rod], np.float64), counts)
-    return comp, sign
 
 
 def _ix(i: IndexLike):

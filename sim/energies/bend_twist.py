@@ -11,14 +11,14 @@ import math
 
 from numba import njit
 
-from sim.solve_params import _OPT
+from sim.numba_options import OPT
 from sim.vec3 import vadd, vaxpy, vcross, vdot, vmul, vnorm, vsub
 
 __all__ = ["bend_twist_core", "bend_twist_element", "material_curvatures", "material_directors"]
 
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def _skew_row(V, r, a, b):
     """([v]×)_{ab} for v = V[r], with [v]× w = v × w."""
     if a == b:
@@ -30,7 +30,7 @@ def _skew_row(V, r, a, b):
     return -V[r, 1] if b == 0 else V[r, 0]
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def material_curvatures(xm, xi, xp, m1e, m2e, m1f, m2f):
     """(κ1, κ2) of node i from positions and material directors (3-tuples)."""
     e = vsub(xi, xm)
@@ -41,7 +41,7 @@ def material_curvatures(xm, xi, xp, m1e, m2e, m1f, m2f):
     return 0.5 * vdot(kb, vadd(m2e, m2f)), -0.5 * vdot(kb, vadd(m1e, m1f))
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def bend_twist_element(xm, xi, xp, d1e, d2e, d1f, d2f, the, thf, beta, kbar1, kbar2, taubar,
                        EI1, EI2, GJ, lv, g, H, wk, with_hess):
     """Energy, gradient and Hessian of bending + twisting at one interior node.
@@ -58,7 +58,7 @@ def bend_twist_element(xm, xi, xp, d1e, d2e, d1f, d2f, the, thf, beta, kbar1, kb
                            lv, g, H, wk, with_hess, False)
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def material_directors(d1, d2, theta):
     """(m1, m2) = (cos θ d1 + sin θ d2, −sin θ d1 + cos θ d2) of one edge (3-tuples)."""
     c = math.cos(theta)
@@ -66,7 +66,7 @@ def material_directors(d1, d2, theta):
     return vaxpy(c, d1, vmul(s, d2)), vaxpy(-s, d1, vmul(c, d2))
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def bend_twist_core(xm, xi, xp, m1e, m2e, m1f, m2f, tau, kbar1, kbar2, taubar, EI1, EI2, GJ, lv, g, H, wk,
                     with_hess, upper_only):
     """:func:`bend_twist_element` from the material directors m1, m2 of edges e and f and the twist

@@ -7,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.banded import dense_to_band
 from sim.contact_rod import (
     _gap,
     _gap_bound,
@@ -16,8 +15,9 @@ from sim.contact_rod import (
     rod_pairs_report,
     seg_seg_derivs,
 )
-from sim.kernel import alloc_workspace
-from sim.newton import _linear_solve
+from sim.kernels.banded import dense_to_band
+from sim.kernels.newton import linear_solve
+from sim.kernels.workspace import alloc_workspace
 
 # segment pairs (a, b, p, q) per closest-point region
 SEGMENTS = {
@@ -226,7 +226,7 @@ def test_woodbury_solve_matches_dense():
     w.wb_M[:len(dofs), :len(dofs)] = Mfull[np.ix_(dofs, dofs)]
     f = rng.normal(size=n)
     w.f[:] = f
-    assert _linear_solve(False, w, n, False)
+    assert linear_solve(False, w, n, False)
     expect = np.linalg.solve(A + Mfull, f)
     np.testing.assert_allclose(w.dx[:n], expect, rtol=1e-10, atol=1e-12)
 

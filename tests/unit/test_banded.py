@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.banded import solve_dense_banded
+from sim.kernels.banded import solve_dense_banded
 
 
 def _random_banded(rng, n, kl, symmetric):

@@ -1,10 +1,10 @@
-"""The implicit step, shared by the 3-D and the planar rod: Newton loop, (sub)step, retry/guard ladder and the
-batched kernel (docs/physics.md §3.4).
+"""The implicit (sub)step, shared by the 3-D and the planar rod: Newton loop, (sub)step and the decisions the
+solve takes from the parameters (docs/physics.md §3.4). The retry/guard ladder around it is in
+:mod:`sim.kernels.ladder`, the batched driver in :mod:`sim.kernels.batch`.
 
-One call of :func:`sim.kernel.step_kernel` advances every non-failed env by one step ``dt`` (``prange`` over chunks of envs;
-env e only reads and writes row e, so a batch gives the same bits as envs alone). The mode (``prm.planar``)
-selects the element functions: :mod:`sim.solve_3d` (4N unknowns) or :mod:`sim.solve_2d` (2N unknowns); all
-the rest is written once. A (sub)step of size h runs these stages:
+The mode (``prm.planar``) selects the element functions: :mod:`sim.kernels.assemble_3d` (4N unknowns) or
+:mod:`sim.kernels.assemble_2d` (2N unknowns); all the rest is written once. A (sub)step of size h runs these
+stages:
 
     predict     guess x = x0 + 0.01·u·h on free DOFs; contact candidates over the predicted motion
     newton      repeat: frames (time-parallel transport) + assemble residual f and banded Jacobian J
@@ -28,15 +28,14 @@ import math
 import numpy as np
 from numba import njit
 
-from .banded import band_ldl_apply, band_ldl_factor, band_lu_apply, band_lu_factor
-from .contact_kernels import (
+from sim.contact_kernels import (
     contact_accumulate,
     contact_broadphase,
     contact_min_gap,
     contact_refresh,
     contact_step_limit,
 )
-from .contact_rod import (
+from sim.contact_rod import (
     dense_lu_solve,
     rod_pairs_broadphase,
     rod_pairs_energy,
@@ -44,48 +43,94 @@ from .contact_rod import (
     rod_pairs_refresh,
     rod_pairs_step_limit,
 )
-from .frames import update_frames
-from .solve_2d import KL_2D, assemble_2d, energies_2d
-from .solve_3d import KL_3D, assemble_3d, energies_3d
-from .solve_params import (
-    _OPT,
+from sim.frames import update_frames
+from sim.numba_options import OPT
+
+from .assemble_2d import assemble_2d, energies_2d
+from .assemble_3d import assemble_3d, energies_3d
+from .banded import band_ldl_apply, band_ldl_factor, band_lu_apply, band_lu_factor
+from .data import (
     BAD_PIVOT,
+    KL_2D,
+    KL_3D,
     MIDPOINT_GAINED,
     NON_FINITE,
     OK,
     RESIDUAL_GROWTH,
     STRAIN,
     UNCONVERGED,
-    copy_into,
-    has_candidates,
-    jacobian_symmetric,
-    lazy_line_search,
-    midpoint_gained_energy,
-    newton_dtol,
+    LineSearch,
 )
+from .workspace import copy_into
 
-__all__ = ["newton", "substep", "substep_with", "mech_energy"]
+__all__ = ["newton", "substep", "substep_with", "mech_energy", "assemble", "energies", "positions",
+           "predicted_positions", "linear_solve", "jacobian_symmetric", "midpoint_gained_energy"]
+
+
+# ------------------------------------------------------------------------------------------- the solve's decisions
+@njit(inline="always", **OPT)
+def jacobian_symmetric(prm):
+    """Whether the Newton Jacobian is symmetric: yes unless friction acts (obstacles or edge pairs present and
+    μ > 0); the kernels then assemble only the band's upper half and factor it by LDLᵀ."""
+    return not ((prm.n_obstacles > 0 and prm.friction_on) or (prm.rod_pairs and prm.friction > 0))
+
+
+@njit(inline="always", **OPT)
+def has_candidates(prm, cd, e, w):
+    """Whether env ``e`` has contact candidates now: obstacle pairs (cd) or edge pairs (the Workspace's list)."""
+    return (prm.n_obstacles > 0 and cd.cand_count[e] > 0) or (prm.rod_pairs and w.rp_n[0] > 0)
+
+
+@njit(inline="always", **OPT)
+def lazy_line_search(prm, cd, e, w):
+    """Whether env ``e``'s Newton loop backtracks lazily (``line_search = "auto"``, the default): only in
+    an env with contact candidates (obstacle or edge pairs: where friction's stick law and the stiff contact
+    potential make full Newton steps overshoot), and only when an update raised ‖f‖; otherwise the full step
+    costs nothing extra. The decision is read once per Newton solve (the candidate list is fixed during it)."""
+    return prm.line_search == LineSearch.AUTO and has_candidates(prm, cd, e, w)
+
+
+@njit(inline="always", **OPT)
+def newton_dtol(prm, cd, e, w):
+    """Displacement-test tolerance [m/s] of env ``e``'s Newton solve: ``newton_dtol``, capped at 1 % of the
+    friction velocity tolerance ν where friction can act (contact candidates and μ > 0): the stick law
+    γ(|v_t|/ν) resolves velocities on the scale ν, so an update that still changes velocities by ~ν is
+    not converged (docs/physics.md §4.6)."""
+    dtol = prm.newton_dtol
+    if ((prm.friction_on and prm.n_obstacles > 0 and cd.cand_count[e] > 0)
+            or (prm.friction > 0 and prm.rod_pairs and w.rp_n[0] > 0)):
+        dtol = min(dtol, 0.01 * prm.friction_nu)
+    return dtol
+
+
+@njit(inline="always", **OPT)
+def midpoint_gained_energy(e0, s0, e1, s1, tol):
+    """Whether an implicit-midpoint (sub)step gained energy beyond ``tol``: total energy e1 at its end exceeds
+    e0 at its start by more than tol · max(s0, s1) (s: the energy without the gravity potential, whose zero is
+    arbitrary). Within a step κ̄, τ̄ and the constraints are fixed and damping/friction only dissipate, so a
+    gain is the midpoint rule's own nonlinear instability; the sub-step is then redone by backward Euler."""
+    return e1 - e0 > tol * max(s0, s1)
 
 
 # ------------------------------------------------------------------------------------- the mode's element functions
-@njit(inline="always", **_OPT)
-def _assemble(planar, e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
+@njit(inline="always", **OPT)
+def assemble(planar, e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
     """Frames at x, residual w.f and (with_jac) Jacobian w.ab; returns (‖f‖, Es, Eb, Et, Ec)."""
     if planar:
         return assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym)
     return assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym)
 
 
-@njit(inline="always", **_OPT)
-def _energies(planar, xs, d1s, ts, bs, kb, tb, rod, prm, w):
+@njit(inline="always", **OPT)
+def energies(planar, xs, d1s, ts, bs, kb, tb, rod, prm, w):
     """(E_stretch, E_bend, E_twist) [J] of a state with its stored frames."""
     if planar:
         return energies_2d(xs, kb, rod, prm, w)
     return energies_3d(xs, d1s, ts, bs, kb, tb, rod, prm, w)
 
 
-@njit(inline="always", **_OPT)
-def _positions(planar, x, pos, py):
+@njit(inline="always", **OPT)
+def positions(planar, x, pos, py):
     """pos (N, 3) = the node positions of DOFs x (2-D: in the plane y = py)."""
     if planar:
         for k in range(pos.shape[0]):
@@ -98,8 +143,8 @@ def _positions(planar, x, pos, py):
                 pos[k, a] = x[4 * k + a]
 
 
-@njit(inline="always", **_OPT)
-def _predicted_positions(planar, x, u, s, pos, py):
+@njit(inline="always", **OPT)
+def predicted_positions(planar, x, u, s, pos, py):
     """pos (N, 3) = the node positions of x + s·u."""
     if planar:
         for k in range(pos.shape[0]):
@@ -112,7 +157,7 @@ def _predicted_positions(planar, x, u, s, pos, py):
                 pos[k, a] = x[4 * k + a] + s * u[4 * k + a]
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def _node_motion(planar, dx, out):
     """out (N, 3) = the node displacements of the update x ← x − dx."""
     if planar:
@@ -127,14 +172,14 @@ def _node_motion(planar, dx, out):
 
 
 # ------------------------------------------------------------------------------------------------ Newton's stages
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def _predict(x, x0, u, fixed, hs):
     """Initial guess x = x0 + 0.01·u·hs on free DOFs."""
     for k in range(x.shape[0]):
         x[k] = x0[k] if fixed[k] else x0[k] + 0.01 * u[k] * hs
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def _band_apply(planar, sym, ab, n, b):
     """b ← B⁻¹ b from the band's factors (b of length n + kl). The half bandwidths are passed as constants: the
     solvers are inlined and their loops unrolled for them."""
@@ -149,8 +194,8 @@ def _band_apply(planar, sym, ab, n, b):
         band_lu_apply(ab, n, KL_3D, b)
 
 
-@njit(inline="always", **_OPT)
-def _linear_solve(planar, w, n, sym):
+@njit(inline="always", **OPT)
+def linear_solve(planar, w, n, sym):
     """dx = J⁻¹ f (in place in w.dx): the banded solve, plus the Woodbury correction when edge pairs coupled
     DOFs outside the band (w.wb_n[0] > 0, :func:`_woodbury`); False on a bad pivot or a singular correction."""
     dx = w.dx
@@ -168,7 +213,7 @@ def _linear_solve(planar, w, n, sym):
     return True
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def _woodbury(planar, sym, w, n):
     """Correct dx = B⁻¹ f (w.dx; B the factored band) to (B + E M Eᵀ)⁻¹ f, where M (w.wb_M, K × K) couples the
     listed DOFs w.wb_dof (E their unit columns): dx − Z (I + M Eᵀ Z)⁻¹ M Eᵀ dx with Z = B⁻¹ E (docs/physics.md
@@ -200,7 +245,7 @@ def _woodbury(planar, sym, w, n):
     return True
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def _limit_update(planar, e, rod, cd, prm, w):
     """Shorten dx so that no update carries a rod edge through an obstacle or another edge (w.pos: the nodes
     at x)."""
@@ -208,7 +253,7 @@ def _limit_update(planar, e, rod, cd, prm, w):
     tcap = 1.0
     if prm.n_obstacles > 0 and cd.cand_count[e] > 0:
         tcap = contact_step_limit(e, cd, w.pos, w.cg, rod.radius, prm.contact_delta)
-    if prm.rod_pairs > 0 and w.rp_n[0] > 0:
+    if prm.rod_pairs and w.rp_n[0] > 0:
         tcap = min(tcap, rod_pairs_step_limit(rod.pairs, w.rp_cand, w.rp_n, w.pos, w.cg, rod.radius,
                                               prm.contact_delta))
     if tcap < 1.0:
@@ -216,7 +261,7 @@ def _limit_update(planar, e, rod, cd, prm, w):
             w.dx[k] *= tcap
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def _backtrack(planar, e, hs, rp, kb, tb, rod, prm, cd, w, sym):
     """Lazy line search: the last full update raised ‖f‖ above rp; step back along it (halving) until ‖f‖ ≤ rp
     or 4 halvings, then re-assemble with the Jacobian. Returns the new ‖f‖."""
@@ -226,13 +271,13 @@ def _backtrack(planar, e, hs, rp, kb, tb, rod, prm, cd, w, sym):
         alpha *= 0.5
         for k in range(x.shape[0]):
             x[k] += alpha * dx[k]  # x = x_prev - alpha dx
-        rt = _assemble(planar, e, x, hs, kb, tb, rod, prm, cd, w, False, sym)[0]
+        rt = assemble(planar, e, x, hs, kb, tb, rod, prm, cd, w, False, sym)[0]
         if rt <= rp:
             break
-    return _assemble(planar, e, x, hs, kb, tb, rod, prm, cd, w, True, sym)[0]
+    return assemble(planar, e, x, hs, kb, tb, rod, prm, cd, w, True, sym)[0]
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def _line_search(planar, e, hs, r, kb, tb, rod, prm, cd, w, sym):
     """Backtracking line search on ‖f‖: x ← x − α·dx with α = 1, ½, … (5 tries; the last is taken anyway)."""
     x, xt, dx = w.x, w.xt, w.dx
@@ -241,7 +286,7 @@ def _line_search(planar, e, hs, r, kb, tb, rod, prm, cd, w, sym):
     for trial in range(5):
         for k in range(n):
             xt[k] = x[k] - alpha * dx[k]
-        rt = _assemble(planar, e, xt, hs, kb, tb, rod, prm, cd, w, False, sym)[0]
+        rt = assemble(planar, e, xt, hs, kb, tb, rod, prm, cd, w, False, sym)[0]
         if (np.isfinite(rt) and rt <= r) or trial == 4:
             break
         alpha *= 0.5
@@ -249,7 +294,7 @@ def _line_search(planar, e, hs, r, kb, tb, rod, prm, cd, w, sym):
         x[k] = xt[k]
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def _max_position_update(dx, fixed, dpn):
     """max |dx| over the free position DOFs (not the twist angles)."""
     dmax = 0.0
@@ -259,22 +304,22 @@ def _max_position_update(dx, fixed, dpn):
     return dmax
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def newton(e, hs, kb, tb, rod, prm, cd, w):
     """Newton iterations of one (sub)step of size hs from the sub-step start (w.sub_*), iterate in w.x.
 
     Returns (status, iterations, converged, ‖f‖ last, ‖f0‖); status OK (converged, or unconverged at the
     iteration cap), NON_FINITE, RESIDUAL_GROWTH or BAD_PIVOT."""
-    planar = prm.planar != 0
+    planar = prm.planar
     x, dx, fixed = w.x, w.dx, rod.fixed
     n = x.shape[0]
     dpn = 2 if planar else 4
-    maxit = int(prm.newton_max_iter)
+    maxit = prm.newton_max_iter
     tol = prm.newton_tol
     dtol = newton_dtol(prm, cd, e, w)
     sym = jacobian_symmetric(prm)
     lazy = lazy_line_search(prm, cd, e, w)
-    limit = prm.step_limit > 0 and has_candidates(prm, cd, e, w)
+    limit = prm.step_limit and has_candidates(prm, cd, e, w)
     _predict(x, w.sub_x, w.sub_v, fixed, hs)
     r0 = 0.0
     r = 0.0
@@ -282,7 +327,7 @@ def newton(e, hs, kb, tb, rod, prm, cd, w):
     conv = False
     it = 0
     while it < maxit:
-        r = _assemble(planar, e, x, hs, kb, tb, rod, prm, cd, w, True, sym)[0]
+        r = assemble(planar, e, x, hs, kb, tb, rod, prm, cd, w, True, sym)[0]
         if lazy and it > 0 and not r <= rp:
             r = _backtrack(planar, e, hs, rp, kb, tb, rod, prm, cd, w, sym)
         if not np.isfinite(r):
@@ -295,11 +340,11 @@ def newton(e, hs, kb, tb, rod, prm, cd, w):
             conv = True
             break
         rp = r
-        if not _linear_solve(planar, w, n, sym):
+        if not linear_solve(planar, w, n, sym):
             return BAD_PIVOT, it, False, r, r0
         if limit:
             _limit_update(planar, e, rod, cd, prm, w)
-        if prm.line_search == 1:
+        if prm.line_search == LineSearch.BACKTRACK:
             _line_search(planar, e, hs, r, kb, tb, rod, prm, cd, w, sym)
         else:
             for k in range(n):
@@ -315,11 +360,11 @@ def newton(e, hs, kb, tb, rod, prm, cd, w):
 
 
 # ------------------------------------------------------------------------------------------------ one (sub)step
-@njit(**_OPT)
+@njit(**OPT)
 def mech_energy(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, w, pos, pos0, h):
     """(E_total, E_total − E_gravity) [J] of a state whose frames (d1s, ts, bs) are at xs; contact energy over
     the current candidates (friction off), ``pos`` the node positions of xs."""
-    es, eb, et = _energies(prm.planar != 0, xs, d1s, ts, bs, kb, tb, rod, prm, w)
+    es, eb, et = energies(prm.planar, xs, d1s, ts, bs, kb, tb, rod, prm, w)
     ek = 0.0
     eg = 0.0
     grav = rod.grav[min(e, rod.grav.shape[0] - 1)]  # external forces: (1, n) shared or (B, n) per env
@@ -331,13 +376,13 @@ def mech_energy(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, w, pos, pos0, h):
     if prm.n_obstacles > 0 and cd.cand_count[e] > 0:
         ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
                                 prm.friction_nu, False, w.cg, w.ch, rod.link)
-    if prm.rod_pairs > 0 and w.rp_n[0] > 0:
+    if prm.rod_pairs and w.rp_n[0] > 0:
         ec += rod_pairs_energy(rod.pairs, w.rp_cand, w.rp_n, pos, rod.radius, prm.contact_k, prm.contact_delta)
     e_in = es + eb + et + ek + ec
     return e_in + eg, e_in
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def _integrate(w, fixed, h, hs, midpoint):
     """The new velocity into w.dx (and, for the midpoint rule, the end position into w.x)."""
     x, x0, u, dx = w.x, w.sub_x, w.sub_v, w.dx
@@ -353,7 +398,7 @@ def _integrate(w, fixed, h, hs, midpoint):
                 dx[k] = 0.0
 
 
-@njit(inline="always", **_OPT)
+@njit(inline="always", **OPT)
 def _strain_ok(pos, rest_len, link, max_strain):
     """|edge strain| ≤ max_strain on every material edge (node positions pos; ``link`` RodData.link)."""
     for j in range(rest_len.shape[0]):
@@ -367,7 +412,7 @@ def _strain_ok(pos, rest_len, link, max_strain):
     return True
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
     """One (sub)step of size h from w.sub_* by implicit midpoint (``midpoint``) or backward Euler; on success
     w.sub_* hold the new state.
@@ -375,18 +420,18 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
     Returns (status, iterations, converged, ‖f‖ last, ‖f0‖, max penetration [m] at the end of the sub-step,
     max penetration [m] at its start (only if want_pen0)); penetrations are 0 without contact candidates.
     Status MIDPOINT_GAINED: a midpoint step gained energy (nothing committed)."""
-    planar = prm.planar != 0
+    planar = prm.planar
     py = prm.plane_y
     contact = prm.n_obstacles > 0
-    pairs = prm.rod_pairs > 0
+    pairs = prm.rod_pairs
     x, dx, pos, pos0 = w.x, w.dx, w.pos, w.pos0
     x0, u = w.sub_x, w.sub_v
     hs = 0.5 * h if midpoint else h
     # predict: contact candidates over the predicted motion x0 → x0 + hs·u
     pen0 = 0.0
     if contact or pairs:
-        _positions(planar, x0, pos0, py)
-        _predicted_positions(planar, x0, u, hs, pos, py)
+        positions(planar, x0, pos0, py)
+        predicted_positions(planar, x0, u, hs, pos, py)
     if contact:
         contact_broadphase(e, cd, pos0, pos, prm.contact_margin, rod.link)
         if want_pen0 and cd.cand_count[e] > 0:
@@ -406,7 +451,7 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
     # an added pair in reach of the contact potential calls for the second solve.
     list_covers_step = False
     if contact or pairs:
-        _positions(planar, x, pos, py)
+        positions(planar, x, pos, py)
         list_covers_step = not midpoint
         added = False
         resolve = False
@@ -426,11 +471,11 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
             if st != OK:
                 return st, it, False, r, r0, 0.0, pen0
     # accept
-    if not conv and prm.accept_unconverged == 0:
+    if not conv and not prm.accept_unconverged:
         return UNCONVERGED, it, False, r, r0, 0.0, pen0
     # integrate; end frames and checks
     _integrate(w, rod.fixed, h, hs, midpoint)
-    _positions(planar, x, pos, py)
+    positions(planar, x, pos, py)
     if not planar:
         update_frames(pos, w.sub_d1, w.sub_t, w.sub_beta, w.t, w.d1, w.d2, w.elen, w.beta, rod.link)
     if not _strain_ok(pos, rod.rest_len, rod.link, prm.max_strain):
@@ -439,7 +484,7 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
         if not (np.isfinite(x[k]) and np.isfinite(dx[k])):
             return NON_FINITE, it, conv, r, r0, 0.0, pen0
     if midpoint and prm.midpoint_energy_tol > 0:  # energy at the start (frames sub_*) and at the end (t, d1, beta)
-        _positions(planar, x0, pos0, py)
+        positions(planar, x0, pos0, py)
         e0, s0 = mech_energy(e, x0, u, w.sub_d1, w.sub_t, w.sub_beta, kb, tb, rod, prm, cd, w, pos0, pos0, h)
         e1, s1 = mech_energy(e, x, dx, w.d1, w.t, w.beta, kb, tb, rod, prm, cd, w, pos, pos0, h)
         if midpoint_gained_energy(e0, s0, e1, s1, prm.midpoint_energy_tol):
@@ -469,12 +514,12 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
     return OK, it, conv, r, r0, pen, pen0
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def substep(e, h, kb, tb, rod, prm, cd, w, want_pen0):
     """One (sub)step with the scene's integrator; a midpoint step that gains energy (see
-    :func:`sim.solve_params.midpoint_gained_energy`) is redone by backward Euler. Returns what
+    :func:`midpoint_gained_energy`) is redone by backward Euler. Returns what
     :func:`substep_with` does and, last, 1 if the (sub)step was redone by backward Euler, else 0."""
-    st, it, conv, r, r0, pen, pen0 = substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, prm.midpoint != 0)
+    st, it, conv, r, r0, pen, pen0 = substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, prm.midpoint)
     fell = 0
     if st == MIDPOINT_GAINED:
         fell = 1

@@ -1,7 +1,8 @@
 """Planar (x–z) rod elements of the step (2N unknowns [x, z] per node): residual and banded Jacobian, energies,
 and the 3-D frames of a planar state.
 
-Called by the shared Newton loop and retry ladder in :mod:`sim.newton` (same arguments as :mod:`sim.solve_3d`).
+Called by the shared Newton loop in :mod:`sim.kernels.newton` and the ladder in :mod:`sim.kernels.ladder` (same
+arguments as :mod:`sim.kernels.assemble_3d`).
 """
 from __future__ import annotations
 
@@ -9,21 +10,22 @@ import math
 
 from numba import njit
 
-from .contact_kernels import contact_accumulate
-from .contact_rod import reset_coupling, rod_pairs_accumulate
-from .energies.planar import planar_bend_element
-from .energies.stretch import stretch_element_2d
-from .frames import update_frames
-from .solve_params import _OPT, copy_into
+from sim.contact_kernels import contact_accumulate
+from sim.contact_rod import reset_coupling, rod_pairs_accumulate
+from sim.energies.planar import planar_bend_element
+from sim.energies.stretch import stretch_element_2d
+from sim.frames import update_frames
+from sim.numba_options import OPT
 
-__all__ = ["assemble_2d", "energies_2d", "frames_from_2d", "KL_2D"]
+from .data import KL_2D
+from .workspace import copy_into
 
-KL_2D = 5  # half bandwidth of the 2-D Jacobian (a bend element spans 6 DOFs)
+__all__ = ["assemble_2d", "energies_2d", "frames_from_2d"]
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
-    """2-D residual w.f and banded Jacobian w.ab (n + 5, 11) (see :func:`sim.solve_3d.assemble_3d`; ``tb`` is
+    """2-D residual w.f and banded Jacobian w.ab (n + 5, 11) (see :func:`sim.kernels.assemble_3d.assemble_3d`; ``tb`` is
     unused). Returns (‖f‖, Es, Eb, 0, Ec)."""
     x0, u, f, ab = w.sub_x, w.sub_v, w.f, w.ab
     g4, H4, g6, H6 = w.g4, w.H4, w.g6, w.H6
@@ -79,7 +81,7 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                     ab[o + a, kl + b - a] += H6[a, b]
     ec = 0.0
     pos, pos0 = w.pos, w.pos0
-    if prm.n_obstacles > 0 or prm.rod_pairs > 0:  # contact acts on the nodes in 3-D, in the plane y = plane_y
+    if prm.n_obstacles > 0 or prm.rod_pairs:  # contact acts on the nodes in 3-D, in the plane y = plane_y
         py = prm.plane_y
         for k in range(N):
             pos[k, 0] = x[2 * k]
@@ -93,7 +95,7 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
         ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
-                                prm.friction_nu, prm.friction_on > 0, cg, ch, link)
+                                prm.friction_nu, prm.friction_on, cg, ch, link)
         for k in range(N):
             f[2 * k] += cg[k, 0]
             f[2 * k + 1] += cg[k, 2]
@@ -106,7 +108,7 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                         lb = (b // 2) * 3 + (0 if b % 2 == 0 else 2)
                         c = 2 * j + b
                         ab[r, kl + c - r] += ch[j, la, lb]
-    if prm.rod_pairs > 0:  # edges touching edges in the plane (sim/contact_rod.py)
+    if prm.rod_pairs:  # edges touching edges in the plane (sim/contact_rod.py)
         if with_jac:
             reset_coupling(w.wb_slot, w.wb_dof, w.wb_n, w.wb_M)
         ec += rod_pairs_accumulate(rod.pairs, w.rp_cand, w.rp_n, pos, pos0, h, 2, fixed, rod.radius, prm.contact_k,
@@ -126,7 +128,7 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
     return math.sqrt(r2), es, eb, 0.0, ec
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def energies_2d(xs, kb, rod, prm, w):
     """(E_stretch, E_bend, 0) [J] of a planar state."""
     rest_len, vor_len, link = rod.rest_len, rod.vor_len, rod.link
@@ -150,7 +152,7 @@ def energies_2d(xs, kb, rod, prm, w):
     return es, eb, 0.0
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def frames_from_2d(xs, py, d1s, ts, bs, w, link):
     """Update the stored 3-D frames (d1s, ts, bs) of a planar state to its DOFs xs (time-parallel transport;
     ``link``: RodData.link)."""

@@ -1,7 +1,8 @@
 """3-D rod elements of the step (4N unknowns [x, y, z, θ] per node): residual and banded Jacobian, energies.
 
-Called by the shared Newton loop and retry ladder in :mod:`sim.newton`; ``w`` is the thread's
-:class:`sim.solve_params.Workspace`, ``rod`` the :class:`sim.solve_params.RodData`, ``prm`` the parameters record.
+Called by the shared Newton loop in :mod:`sim.kernels.newton`; ``w`` is the thread's
+:class:`sim.kernels.workspace.Workspace`, ``rod`` the :class:`sim.kernels.data.RodData`, ``prm`` the
+:class:`sim.kernels.data.Params` record.
 """
 from __future__ import annotations
 
@@ -9,19 +10,19 @@ import math
 
 from numba import njit
 
-from .contact_kernels import contact_accumulate
-from .contact_rod import reset_coupling, rod_pairs_accumulate
-from .energies.bend_twist import bend_twist_core, material_curvatures, material_directors
-from .energies.stretch import stretch_element
-from .frames import update_frames
-from .solve_params import _OPT
+from sim.contact_kernels import contact_accumulate
+from sim.contact_rod import reset_coupling, rod_pairs_accumulate
+from sim.energies.bend_twist import bend_twist_core, material_curvatures, material_directors
+from sim.energies.stretch import stretch_element
+from sim.frames import update_frames
+from sim.numba_options import OPT
 
-__all__ = ["assemble_3d", "energies_3d", "KL_3D"]
+from .data import KL_3D
 
-KL_3D = 10  # half bandwidth of the 3-D Jacobian (a bend-twist element spans 11 DOFs)
+__all__ = ["assemble_3d", "energies_3d"]
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
     """Residual w.f (n,) of the implicit (sub)step of size h from the sub-step start (w.sub_x, w.sub_v, frames
     w.sub_d1/sub_t/sub_beta) at iterate x and, if with_jac, its banded Jacobian w.ab (n + 10, 21); with ``sym``
@@ -108,7 +109,7 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                     ab[r, kl + b - a] += H11[a, b]
     ec = 0.0
     pos0 = w.pos0
-    if prm.n_obstacles > 0 or prm.rod_pairs > 0:  # the sub-step start's nodes (friction velocities)
+    if prm.n_obstacles > 0 or prm.rod_pairs:  # the sub-step start's nodes (friction velocities)
         for k in range(N):
             for a in range(3):
                 pos0[k, a] = x0[4 * k + a]
@@ -117,7 +118,7 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
         cg[:, :] = 0.0
         ch[:, :, :] = 0.0
         ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
-                                prm.friction_nu, prm.friction_on > 0, cg, ch, link)
+                                prm.friction_nu, prm.friction_on, cg, ch, link)
         for k in range(N):
             for a in range(3):
                 f[4 * k + a] += cg[k, a]
@@ -128,7 +129,7 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                     for b in range(a if sym else 0, 6):
                         c = 4 * j + b if b < 3 else 4 * j + 1 + b
                         ab[r, kl + c - r] += ch[j, a, b]
-    if prm.rod_pairs > 0:  # edges touching edges (sim/contact_rod.py): in-band blocks into ab, the rest listed
+    if prm.rod_pairs:  # edges touching edges (sim/contact_rod.py): in-band blocks into ab, the rest listed
         if with_jac:
             reset_coupling(w.wb_slot, w.wb_dof, w.wb_n, w.wb_M)
         ec += rod_pairs_accumulate(rod.pairs, w.rp_cand, w.rp_n, pos, pos0, h, 4, fixed, rod.radius, prm.contact_k,
@@ -148,7 +149,7 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
     return math.sqrt(r2), es, eb, et, ec
 
 
-@njit(**_OPT)
+@njit(**OPT)
 def energies_3d(xs, d1s, ts, bs, kb, tb, rod, prm, w):
     """(E_stretch, E_bend, E_twist) [J] of a state whose stored frames (d1s, ts, bs) are at xs (w.mf: scratch for
     the material directors)."""
