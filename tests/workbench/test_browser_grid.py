@@ -4,6 +4,7 @@ page, each with its own target, every env's clamp glyphs in one batched node per
 from __future__ import annotations
 
 import io
+import re
 
 import numpy as np
 import pytest
@@ -101,3 +102,39 @@ def test_grid_shows_n_rods_and_click_focuses(wb_page):
     finally:
         app.grid.stop()
     assert app.grid.session is None
+
+
+def _start_grid(app, page, n: int) -> None:
+    expand_folder(page, "Policy", "Run grid")
+    app.policy.task.value = "follow_target"
+    app.grid.envs.value = n
+    page.get_by_role("button", name="Run grid").click()
+    wait_for(lambda: app.grid.runner is not None and app.grid.runner.frames >= 3, timeout=120, what="grid running")
+
+
+def _page_text(page) -> str:
+    return page.evaluate("() => document.body.innerText")
+
+
+def _shown_steps(page) -> tuple[int, int]:
+    """(control step in the grid's readout, control step in the status line) as the page shows them (-1: none)."""
+    text = _page_text(page)
+    readout = [int(v) for v in re.findall(r"control step (\d+)\s*\n\s*env \d+ ·", text)]
+    status = [int(v) for v in re.findall(r"grid · follow_target · .*?control step (\d+) · t =", text)]
+    return max(readout, default=-1), max(status, default=-1)
+
+
+def test_grid_readouts_follow_the_running_grid(wb_page):
+    """The live session is paused while the grid runs, so nothing of it refreshes the readouts: the grid's runner
+    does (its readout and the status line follow the envs' control steps, without touching Focus env)."""
+    app, page = wb_page
+    _start_grid(app, page, 9)
+    try:
+        s = app.grid.session
+        for k in (20, 40):  # the page's readouts keep following the envs, not only once
+            wait_for(lambda k=k: s.steps >= k, timeout=120, what=f"{k} control steps of the grid")
+            wait_for(lambda k=k: min(_shown_steps(page)) >= k, what=f"readout and status at control step >= {k}")
+        assert int(app.grid.focus.value) == 0
+        assert "9 envs" in app.controls.status.content and "live session is paused" in app.controls.status.content
+    finally:
+        app.grid.stop()
