@@ -8,12 +8,15 @@ import time
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
+
 from workbench.files import page_error
 from workbench.grid import MAX_ENVS, GridSession
 from workbench.grid_view import GridView
 from workbench.gui_host import PanelHost
 from workbench.gui_policy import NO_POLICY
 from workbench.policy_session import PRETRAINED
+from workbench.view_scene import GROUND_SIZE, place_camera
 
 STATUS_S = 0.2  # [s] the readouts follow the running grid this often
 
@@ -100,6 +103,7 @@ class GridPanel:
         self.view: GridView | None = None
         self.runner: GridRunner | None = None
         self._syncing = False
+        self._cameras: dict[int, tuple[tuple, tuple]] = {}  # page -> (camera position, look-at) before the grid
         for h in (self.envs, self.focus):
             app.checks.track(h)
         self._wire()
@@ -146,13 +150,24 @@ class GridPanel:
             self._say(f"⚠ {page_error(exc)}")
 
     def start(self, task: str, policy: str, n: int, *, speed: float = 1.0, max_fps: float = 30.0) -> GridSession:
-        """Run ``n`` envs of ``task`` under ``policy`` (trusted callers; the page uses :meth:`start_listed`)."""
-        self.stop()
+        """Run ``n`` envs of ``task`` under ``policy`` (trusted callers; the page uses :meth:`start_listed`). The grid
+        takes the live scene's place (which is hidden, and paused) until :meth:`stop`."""
+        running = self.session is not None
+        self._teardown()
         self._say(f"building {n} envs of {task} …")
-        session = GridSession(task, policy, n)
         app = self.app
+        try:
+            session = GridSession(task, policy, n, centred=True)
+        except BaseException:
+            if running:
+                self._show_live()
+            raise
+        if not running:  # where each page looked: Stop grid goes back there
+            self._cameras = self._camera_poses()
         app.wb.set_playing(False)
         app.controls.set_quiet(app.controls.playing, False)
+        app.view.show_live(False)
+        app.view.set_ground(max(GROUND_SIZE, float(np.ptp(session.offsets[:, :2], axis=0).max()) + session.spacing))
         self.session = session
         self.view = GridView(app.server, session, on_focus=self.set_focus, overlays=app.view.overlays)
         self.view.render()
@@ -167,6 +182,15 @@ class GridPanel:
         self.runner = GridRunner(session, self.view, max_fps=max_fps, speed=speed, on_status=self._refresh).start()
         self.update_status()
         return session
+
+    def _camera_poses(self) -> dict[int, tuple[tuple, tuple]]:
+        out = {}
+        for cid, client in self.app.server.get_clients().items():
+            try:
+                out[cid] = (tuple(client.camera.position), tuple(client.camera.look_at))
+            except (AssertionError, ValueError):  # the page has not reported its camera yet
+                continue
+        return out
 
     def _refresh(self) -> None:
         """The grid's readouts and the status line, from the grid's thread (the live session is paused)."""
@@ -189,6 +213,25 @@ class GridPanel:
         self.update_status()
 
     def stop(self) -> None:
+        """Remove the grid: the live scene is shown again and every page's camera goes back to where it was before
+        the grid (a page opened since: the start view)."""
+        if self.session is None and self.view is None:
+            return
+        self._teardown()
+        self._show_live()
+        self._say("grid stopped")
+
+    def _show_live(self) -> None:
+        app = self.app
+        app.view.set_ground()
+        app.view.show_live(True)
+        cameras, self._cameras = self._cameras, {}
+        start = (tuple(app.server.initial_camera.position), tuple(app.server.initial_camera.look_at))
+        for cid, client in app.server.get_clients().items():
+            place_camera(client, *cameras.get(cid, start))
+        app.request_render()
+
+    def _teardown(self) -> None:
         if self.runner is not None:
             self.runner.stop()
             self.runner = None
@@ -198,7 +241,6 @@ class GridPanel:
         if self.session is not None:
             self.session.core.close()
             self.session = None
-            self._say("grid stopped")
 
     def status_lines(self) -> list[str] | None:
         """The status line's first lines while the grid runs (None when it does not)."""

@@ -138,3 +138,40 @@ def test_grid_readouts_follow_the_running_grid(wb_page):
         assert "9 envs" in app.controls.status.content and "live session is paused" in app.controls.status.content
     finally:
         app.grid.stop()
+
+
+#: visibility of the live scene's parents in the page (hidden while a grid is drawn in its place)
+LIVE_JS = """() => Object.fromEntries(['/rod', '/boundary', '/contacts', '/obstacles', '/target'].map((name) => {
+    const node = window.__viserSceneTree?.getState()?.[name];
+    return [name, node && node.message ? node.visibility !== false : null]; }))"""
+
+
+def test_stop_grid_goes_back_to_the_live_scene(wb_page):
+    """While the grid runs the live scene (rod, obstacles, glyphs) is hidden and the cells sit on the floor grid;
+    Stop grid shows the live scene again and puts the camera back where it was before the grid."""
+    from workbench.obstacles import default_edit
+    from workbench.view_scene import CAMERAS
+
+    app, page = wb_page
+    app.wb.add_obstacle(default_edit("sphere", position=(0.5, -0.4, 0.6)))
+    wait_for(lambda: len(app.view.obstacle_nodes) == 1, what="the live obstacle drawn")
+    cam = newest_client(app).camera
+    app.view.set_camera("front")
+    before = np.asarray(CAMERAS["front"][0]), np.asarray(CAMERAS["front"][1])
+    wait_for(lambda: np.allclose(cam.position, before[0], atol=1e-3) and np.allclose(cam.look_at, before[1], atol=1e-3),
+             what="camera on the live scene")
+    wait_for(lambda: page.evaluate(LIVE_JS)["/rod"] is True, what="the live rod shown")
+    _start_grid(app, page, 9)
+    try:
+        s = app.grid.session
+        wait_for(lambda: not any(page.evaluate(LIVE_JS).values()), what="the live scene hidden in the page")
+        half = 0.5 * app.view.ground.width  # every cell's rod base on the floor grid
+        assert np.abs(s.offsets[:, :2]).max() < half
+        wait_for(lambda: not np.allclose(cam.look_at, before[1], atol=1e-3), what="camera on the grid")
+    finally:
+        page.get_by_role("button", name="Stop grid").click()
+    wait_for(lambda: app.grid.session is None, what="grid stopped")
+    wait_for(lambda: np.allclose(cam.position, before[0], atol=1e-3) and np.allclose(cam.look_at, before[1], atol=1e-3),
+             what="camera back on the live scene")
+    shown = {"/rod": True, "/boundary": True, "/contacts": True, "/obstacles": True, "/target": False}  # teleop: no target
+    wait_for(lambda: page.evaluate(LIVE_JS) == shown, what="the live scene shown again")
