@@ -210,7 +210,7 @@ class ObstaclesPanel:
         except (FileAccessError, OSError) as exc:
             self._say(f"⚠ {page_error(exc)}")
             return None
-        self._add(obst.ObstacleEdit(kind="mesh", mesh=str(dest), position=(0.45, 0.0, 0.6), name=dest.stem),
+        self._add(obst.ObstacleEdit(kind="mesh", mesh=str(dest), position=obst.NEW_OBSTACLE_AT, name=dest.stem),
                   "uploaded")
         return dest
 
@@ -278,7 +278,7 @@ class ObstaclesPanel:
             if not ok.option(self.mesh, self._say) or self.mesh.value == NO_MESH:
                 return
             path = obst.MESH_DIR / self.mesh.value
-            self._add(obst.ObstacleEdit(kind="mesh", mesh=str(path), position=(0.45, 0.0, 0.6), name=path.stem),
+            self._add(obst.ObstacleEdit(kind="mesh", mesh=str(path), position=obst.NEW_OBSTACLE_AT, name=path.stem),
                       "mesh added")
 
         @self.upload.on_upload
