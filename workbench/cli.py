@@ -25,6 +25,15 @@ def default_scene() -> Path | None:
     return None
 
 
+def task_scene(session) -> str:
+    """What a ``--task`` session shows at start-up: the task and its scene file (``config.scene``; the shipped arm
+    when it names none)."""
+    from policies.tasks.scenes import ARM_SCENE
+
+    scene = getattr(session.core.config, "scene", None) or ARM_SCENE
+    return f"task {session.task}, scene {Path(str(scene)).name}"
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="rodlab workbench", description="interactive web workbench (viser)")
     ap.add_argument("scene", nargs="?", help="scene TOML (default: assets/scenes/default.toml or arm.toml)")
@@ -78,7 +87,8 @@ def workbench_main(argv: list[str] | None = None) -> int:
             app.stop()
             return 2
     app.start()
-    print(f"rodlab workbench: open {app.url}  ({scene or 'built-in rod'}; Ctrl-C to quit)", flush=True)
+    shown = task_scene(app.wb.policy) if args.task else (scene or "built-in rod")
+    print(f"rodlab workbench: open {app.url}  ({shown}; Ctrl-C to quit)", flush=True)
     if not app.guard.loopback:
         print(f"rodlab workbench: WARNING: serving on {args.host}, reachable from other machines; anyone with the "
               "token in the address above can drive this session (prefer --host 127.0.0.1 and an SSH tunnel)",

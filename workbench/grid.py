@@ -32,11 +32,13 @@ class GridSession:
 
     Attributes: ``core`` (the batched task), ``offsets`` (n, 3) cell origins [m], ``returns``/``last_reward``/
     ``tip_error`` (n,) per env, ``episodes`` (n,) finished episodes per env, ``obstacles_version`` (bumped when any
-    env's obstacles were re-placed). ``origin``: where cell 0 is (default one cell spacing along +y).
+    env's obstacles were re-placed). ``origin``: where cell 0 is (default one cell spacing along +y, behind the live
+    rod at the world origin); ``centred``: the cells centred on the world origin instead (the page hides the live
+    scene while the grid is drawn, so the grid takes its place on the floor grid).
     """
 
     def __init__(self, task: str, policy: str | Path = "zero", n: int = 16, *, seed: int = 0,
-                 deterministic: bool = True, origin=None):
+                 deterministic: bool = True, origin=None, centred: bool = False):
         from policies.tasks import TASK_SPECS, TASKS, gym_task_id
 
         if not (isinstance(n, (int, np.integer)) and 1 <= int(n) <= MAX_ENVS):
@@ -57,6 +59,9 @@ class GridSession:
         self.spacing = 2.0 * max(self.rod_length, 0.25)
         # default: the grid starts one cell behind the live rod (at the origin), which stays where it was
         self.offsets = cell_offsets(self.n, self.spacing, (0.0, self.spacing, 0.0) if origin is None else origin)
+        if centred:
+            mid = 0.5 * (self.offsets.min(axis=0) + self.offsets.max(axis=0))
+            self.offsets = self.offsets - np.array([mid[0], mid[1], 0.0])
         spec = getattr(self.core, "scene_spec", None) or getattr(self.core.model, "spec", None)
         self._static = [] if getattr(self.core, "fences", None) is not None else edits_from_spec(spec)
         self.obs = self.core.reset()

@@ -304,9 +304,15 @@ class ControlsPanel:
                     f" · t = {fr.time if fr else 0.0:.2f} s")
             if app.waiting_for_browser:
                 head += " · paused until a browser connects"
-        lines = [head,
-                 f"real-time factor **{th.rtf:.2f}** · step {th.step_ms:.1f} ms · {th.fps:.0f} frames/s",
-                 f"tip ({tip[0]:+.3f}, {tip[1]:+.3f}, {tip[2]:+.3f}) m"]
+        grid = getattr(app, "grid", None)
+        grid_lines = grid.status_lines() if grid is not None else None
+        if grid_lines:  # a grid of envs is drawn in place of the paused live scene: the status is the grid's
+            lines = grid_lines
+            fr = None
+        else:
+            lines = [head,
+                     f"real-time factor **{th.rtf:.2f}** · step {th.step_ms:.1f} ms · {th.fps:.0f} frames/s",
+                     f"tip ({tip[0]:+.3f}, {tip[1]:+.3f}, {tip[2]:+.3f}) m"]
         if fr is not None and len(fr.contact_points):
             total = float(np.linalg.norm(fr.contact_forces, axis=1).sum())
             lines.append(f"contacts {len(fr.contact_points)} · total contact force **{total:.3g} N**")

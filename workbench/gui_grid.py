@@ -6,6 +6,9 @@ from __future__ import annotations
 import threading
 import time
 from pathlib import Path
+from typing import Callable
+
+import numpy as np
 
 from workbench.files import page_error
 from workbench.grid import MAX_ENVS, GridSession
@@ -13,17 +16,26 @@ from workbench.grid_view import GridView
 from workbench.gui_host import PanelHost
 from workbench.gui_policy import NO_POLICY
 from workbench.policy_session import PRETRAINED
+from workbench.view_scene import GROUND_SIZE, place_camera
+
+STATUS_S = 0.2  # [s] the readouts follow the running grid this often
 
 
 class GridRunner:
-    """Steps a grid session at (at most) real time and redraws it at most ``max_fps`` times a second."""
+    """Steps a grid session at (at most) real time and redraws it at most ``max_fps`` times a second; after a redraw
+    ``on_status()`` (the page's readouts) at most every ``STATUS_S`` — the live session is paused, so nothing else
+    refreshes them while the grid runs."""
 
-    def __init__(self, session: GridSession, view: GridView, *, max_fps: float = 30.0, speed: float = 1.0):
+    def __init__(self, session: GridSession, view: GridView, *, max_fps: float = 30.0, speed: float = 1.0,
+                 on_status: Callable[[], None] | None = None):
         self.s, self.view = session, view
         self.max_fps, self.speed = max_fps, speed
+        self.on_status = on_status
         self.lock = threading.Lock()
         self.error: BaseException | None = None
         self.frames = 0  # redraws pushed to the page
+        self.rtf = 0.0  # measured real-time factor (simulated seconds per wall second)
+        self.fps = 0.0  # redraws per second
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name="rodlab-grid", daemon=True)
 
@@ -41,18 +53,28 @@ class GridRunner:
         return self._thread.is_alive()
 
     def _loop(self) -> None:
-        last = 0.0
-        next_t = time.perf_counter()
+        last = last_status = 0.0
+        next_t = win_t0 = time.perf_counter()
+        win_steps = win_frames = 0
         while not self._stop.is_set():
             try:
                 with self.lock:
                     self.s.step()
+                win_steps += 1
                 now = time.perf_counter()
+                if now - win_t0 >= 1.0:
+                    self.rtf = win_steps * self.s.control_dt / (now - win_t0)
+                    self.fps = win_frames / (now - win_t0)
+                    win_t0, win_steps, win_frames = now, 0, 0
                 if now - last >= 1.0 / self.max_fps:
                     last = now
                     with self.lock:
                         self.view.render()
                     self.frames += 1
+                    win_frames += 1
+                    if self.on_status is not None and now - last_status >= STATUS_S:
+                        last_status = now
+                        self.on_status()
                 if self.speed != float("inf"):
                     next_t = max(next_t + self.s.control_dt / self.speed, time.perf_counter() - 0.25)
                     self._stop.wait(max(0.0, next_t - time.perf_counter()))
@@ -81,6 +103,7 @@ class GridPanel:
         self.view: GridView | None = None
         self.runner: GridRunner | None = None
         self._syncing = False
+        self._cameras: dict[int, tuple[tuple, tuple]] = {}  # page -> (camera position, look-at) before the grid
         for h in (self.envs, self.focus):
             app.checks.track(h)
         self._wire()
@@ -127,13 +150,24 @@ class GridPanel:
             self._say(f"⚠ {page_error(exc)}")
 
     def start(self, task: str, policy: str, n: int, *, speed: float = 1.0, max_fps: float = 30.0) -> GridSession:
-        """Run ``n`` envs of ``task`` under ``policy`` (trusted callers; the page uses :meth:`start_listed`)."""
-        self.stop()
+        """Run ``n`` envs of ``task`` under ``policy`` (trusted callers; the page uses :meth:`start_listed`). The grid
+        takes the live scene's place (which is hidden, and paused) until :meth:`stop`."""
+        running = self.session is not None
+        self._teardown()
         self._say(f"building {n} envs of {task} …")
-        session = GridSession(task, policy, n)
         app = self.app
+        try:
+            session = GridSession(task, policy, n, centred=True)
+        except BaseException:
+            if running:
+                self._show_live()
+            raise
+        if not running:  # where each page looked: Stop grid goes back there
+            self._cameras = self._camera_poses()
         app.wb.set_playing(False)
         app.controls.set_quiet(app.controls.playing, False)
+        app.view.show_live(False)
+        app.view.set_ground(max(GROUND_SIZE, float(np.ptp(session.offsets[:, :2], axis=0).max()) + session.spacing))
         self.session = session
         self.view = GridView(app.server, session, on_focus=self.set_focus, overlays=app.view.overlays)
         self.view.render()
@@ -145,9 +179,23 @@ class GridPanel:
             self._syncing = False
         app.checks.accept(self.focus)
         self.view.look_at(None)
-        self.runner = GridRunner(session, self.view, max_fps=max_fps, speed=speed).start()
+        self.runner = GridRunner(session, self.view, max_fps=max_fps, speed=speed, on_status=self._refresh).start()
         self.update_status()
         return session
+
+    def _camera_poses(self) -> dict[int, tuple[tuple, tuple]]:
+        out = {}
+        for cid, client in self.app.server.get_clients().items():
+            try:
+                out[cid] = (tuple(client.camera.position), tuple(client.camera.look_at))
+            except (AssertionError, ValueError):  # the page has not reported its camera yet
+                continue
+        return out
+
+    def _refresh(self) -> None:
+        """The grid's readouts and the status line, from the grid's thread (the live session is paused)."""
+        self.update_status()
+        self.app.controls.update_status()
 
     def set_focus(self, env: int) -> None:
         """Focus env ``env``: its colour, the camera on its cell, its readouts below."""
@@ -165,6 +213,25 @@ class GridPanel:
         self.update_status()
 
     def stop(self) -> None:
+        """Remove the grid: the live scene is shown again and every page's camera goes back to where it was before
+        the grid (a page opened since: the start view)."""
+        if self.session is None and self.view is None:
+            return
+        self._teardown()
+        self._show_live()
+        self._say("grid stopped")
+
+    def _show_live(self) -> None:
+        app = self.app
+        app.view.set_ground()
+        app.view.show_live(True)
+        cameras, self._cameras = self._cameras, {}
+        start = (tuple(app.server.initial_camera.position), tuple(app.server.initial_camera.look_at))
+        for cid, client in app.server.get_clients().items():
+            place_camera(client, *cameras.get(cid, start))
+        app.request_render()
+
+    def _teardown(self) -> None:
         if self.runner is not None:
             self.runner.stop()
             self.runner = None
@@ -174,14 +241,23 @@ class GridPanel:
         if self.session is not None:
             self.session.core.close()
             self.session = None
-            self._say("grid stopped")
 
-    def update_status(self) -> None:
+    def status_lines(self) -> list[str] | None:
+        """The status line's first lines while the grid runs (None when it does not)."""
         s, r = self.session, self.runner
         if s is None or r is None:
+            return None
+        return [f"**grid** · {s.task} · {s.name} · {s.n} envs · control step {s.steps}"
+                f" · t = {s.steps * s.control_dt:.2f} s",
+                f"real-time factor **{r.rtf:.2f}** · {r.fps:.0f} frames/s · the live session is paused "
+                "(Stop grid goes back to it)"]
+
+    def update_status(self) -> None:
+        s, r, view = self.session, self.runner, self.view  # a stop on another thread may clear them
+        if s is None or r is None or view is None:
             return
         if r.error is not None:
             self._say(f"⚠ grid stopped: {r.error}")
             return
-        e = int(self.view.focus)
+        e = int(view.focus)
         self._say(f"**{s.task}** · {s.name} · {s.n} envs · control step {s.steps}  \n{s.readout(e)}")

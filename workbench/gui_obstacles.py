@@ -17,6 +17,8 @@ from workbench.gui_guard import cap_uploads
 from workbench.gui_host import PanelHost
 
 NO_MESH = "(none in assets/meshes)"
+NONE = "(none)"  # the Selected dropdown with no obstacle selected (no gizmo, the fields below disabled)
+KEEP = object()  # scene changed: keep the selected obstacle if it is still there (see ``ObstaclesPanel._refresh``)
 
 
 class ObstaclesPanel:
@@ -32,9 +34,10 @@ class ObstaclesPanel:
             self.add_mesh_btn = gui.add_button("Add mesh", hint="add the chosen mesh as an obstacle")
             self.upload = gui.add_upload_button("Upload mesh", mime_type="*/*",
                                                 hint="a mesh file from this computer (size-limited)")
-            self.selected = gui.add_dropdown("Selected", self._names(), initial_value=self._names()[0],
-                                             hint="the obstacle with the gizmo (a click on an obstacle selects it); "
-                                                  "Delete and the fields below act on it")
+            self.selected = gui.add_dropdown("Selected", self._names(), initial_value=NONE,
+                                             hint="the obstacle with the gizmo (a click on an obstacle selects it; "
+                                                  "a new obstacle is selected); Delete and the fields below act on "
+                                                  "it")
             self.position = gui.add_vector3("Position [m]", initial_value=(0.0, 0.0, 0.0), step=0.01,
                                             hint="centre of the selected obstacle (world x, y, z)")
             self.rotation = gui.add_vector3("Rotation [deg]", initial_value=(0.0, 0.0, 0.0), step=1.0,
@@ -54,22 +57,35 @@ class ObstaclesPanel:
             self.warning = gui.add_markdown("")
         self._syncing = False
         self._checked: tuple | None = None
+        self._next_selection = KEEP  # what the next scene change selects: KEEP, None or an index
         for h in (self.kind, self.mesh, self.selected):
             app.checks.track(h)
         cap_uploads(app.server, app.files.max_upload_bytes,
                     lambda name, size: self._say(f"⚠ upload refused: over the limit of "
                                                  f"{app.files.max_upload_bytes / 2**20:.0f} MB (--max-upload-mb)"))
         self._wire()
+        self._show_fields()
         app.wb.on_scene_changed.append(self._refresh)
 
     def _names(self) -> list[str]:
-        names = [f"{i}: {e.name or e.kind}" for i, e in enumerate(self.app.wb.obstacles)]
-        return names or ["(no obstacles)"]
+        return [NONE, *(f"{i}: {e.name or e.kind}" for i, e in enumerate(self.app.wb.obstacles))]
 
     def _refresh(self) -> None:
+        """The scene changed: the list follows; the selection is the obstacle just added (``_next_selection``), else
+        the one selected before when it is still there (a task re-placing its obstacles), else none."""
         names = self._names()
-        self.selected.options = names
-        self.selected.value = names[-1]
+        want, self._next_selection = self._next_selection, KEEP
+        if want is KEEP:
+            current = str(self.selected.value)
+            value = current if current in names else NONE
+        else:
+            value = NONE if want is None or not 0 <= want < len(names) - 1 else names[want + 1]
+        self._syncing = True  # the app redraws the obstacles (with the gizmo on the selection) after this
+        try:
+            self.selected.options = names
+            self.selected.value = value
+        finally:
+            self._syncing = False
         self.app.checks.accept(self.selected)
         self._show_fields()
 
@@ -84,10 +100,10 @@ class ObstaclesPanel:
     def select(self, index: int) -> None:
         """Select obstacle ``index`` (a click in the 3-D view, or the dropdown): gizmo, dropdown and fields follow."""
         names = self._names()
-        if not self.app.wb.obstacles or not 0 <= index < len(names):
+        if not self.app.wb.obstacles or not 0 <= index < len(names) - 1:
             return
-        if self.selected.value != names[index]:
-            self.selected.value = names[index]  # runs the dropdown's callback, which moves the gizmo
+        if self.selected.value != names[index + 1]:
+            self.selected.value = names[index + 1]  # runs the dropdown's callback, which moves the gizmo
             self.app.checks.accept(self.selected)
         elif self.app.view.selected != index:
             self.app.view.select(index)
@@ -99,7 +115,11 @@ class ObstaclesPanel:
             self._show_fields()
 
     def _show_fields(self) -> None:
+        """The fields show the selected obstacle; with none selected they are disabled."""
         i = self.selected_index()
+        for h in (self.position, self.rotation, self.size, self.delete_btn):
+            if h.disabled != (i is None):
+                h.disabled = i is None
         if i is None:
             return
         e = self.app.wb.obstacles[i]
@@ -190,8 +210,8 @@ class ObstaclesPanel:
         except (FileAccessError, OSError) as exc:
             self._say(f"⚠ {page_error(exc)}")
             return None
-        self._guard(lambda: self.app.wb.add_obstacle(obst.ObstacleEdit(
-            kind="mesh", mesh=str(dest), position=(0.45, 0.0, 0.6), name=dest.stem)), "uploaded")
+        self._add(obst.ObstacleEdit(kind="mesh", mesh=str(dest), position=obst.NEW_OBSTACLE_AT, name=dest.stem),
+                  "uploaded")
         return dest
 
     def _wire(self) -> None:
@@ -207,6 +227,8 @@ class ObstaclesPanel:
 
         @self.selected.on_update
         def _(_e) -> None:
+            if self._syncing:
+                return
             if ok.option(self.selected, self._say):
                 self.app.view.select(self.selected_index())
                 self._show_fields()
@@ -249,15 +271,15 @@ class ObstaclesPanel:
         @self.add_btn.on_click
         def _(_e) -> None:
             if ok.option(self.kind, self._say):
-                self._guard(lambda: wb.add_obstacle(self._new_edit(obst.default_edit(self.kind.value))), "added")
+                self._add(obst.default_edit(self.kind.value), "added")
 
         @self.add_mesh_btn.on_click
         def _(_e) -> None:
             if not ok.option(self.mesh, self._say) or self.mesh.value == NO_MESH:
                 return
             path = obst.MESH_DIR / self.mesh.value
-            self._guard(lambda: wb.add_obstacle(self._new_edit(obst.ObstacleEdit(
-                kind="mesh", mesh=str(path), position=(0.45, 0.0, 0.6), name=path.stem))), "mesh added")
+            self._add(obst.ObstacleEdit(kind="mesh", mesh=str(path), position=obst.NEW_OBSTACLE_AT, name=path.stem),
+                      "mesh added")
 
         @self.upload.on_upload
         def _(_e) -> None:
@@ -268,8 +290,12 @@ class ObstaclesPanel:
         def _(_e) -> None:
             if not wb.obstacles or not ok.option(self.selected, self._say):
                 return
-            idx = int(str(self.selected.value).split(":")[0])
+            idx = self.selected_index()
+            if idx is None:
+                return
+            self._next_selection = None
             self._guard(lambda: wb.delete_obstacle(idx), "deleted")
+            self._next_selection = KEEP
 
         @self.save_btn.on_click
         def _(_e) -> None:
@@ -278,6 +304,13 @@ class ObstaclesPanel:
         @self.load_btn.on_click
         def _(_e) -> None:
             self.load()
+
+    def _add(self, edit: "obst.ObstacleEdit", ok: str) -> None:
+        """Add ``edit`` where it is free (beside the rod, in view) and select it (its gizmo, its fields)."""
+        wb = self.app.wb
+        self._next_selection = len(wb.obstacles)
+        self._guard(lambda: wb.add_obstacle(self._new_edit(edit)), ok)
+        self._next_selection = KEEP
 
     def _guard(self, fn, ok: str) -> None:
         try:

@@ -8,6 +8,8 @@ from workbench.gui_host import PanelHost
 from workbench.policy_session import PRETRAINED, PolicySession, shipped_policies
 
 NO_POLICY = ("zero", "random")
+REWIND_HELP = ("Rewind goes back to the chosen frame and pauses there; the frames after it are dropped. While the "
+               "session plays the slider follows the newest frame until you move it.")
 
 
 class PolicyPanel:
@@ -34,13 +36,17 @@ class PolicyPanel:
             self.reward = gui.add_markdown("")
         with app.tabs["Run"], gui.add_folder("Rewind"):
             self.rewind = gui.add_slider("Rewind to frame", min=0, max=1, step=1, initial_value=0,
-                                         hint="an earlier frame of this session (the frames after it are dropped)")
-            self.rewind_btn = gui.add_button("Rewind", hint="go back to that frame and pause")
+                                         hint="an earlier frame of this session (the frames after it are dropped); "
+                                              "it follows the newest frame while playing, until you move it")
+            self.rewind_btn = gui.add_button("Rewind", hint="go back to that frame and pause (also while playing)")
+            self.rewind_help = gui.add_markdown(REWIND_HELP)
             self.rewind_note = gui.add_markdown("")
         with app.tabs["Run"], gui.add_folder("Record"):
             self.rec_btn = gui.add_button("Start recording", hint="write the following frames to an .rrd file in "
                                                                   "the recordings folder")
             self.rec_msg = gui.add_markdown("")
+        self._rewind_chosen = False  # the page moved the rewind slider: it stops following the newest frame
+        self._rewind_set = 0  # the value the server gave it last
         for h in (self.task, self.policy, self.rewind):
             app.checks.track(h)
         self._wire()
@@ -145,8 +151,11 @@ class PolicyPanel:
             app.request_render()
 
         @self.rewind.on_update
-        def _(_e) -> None:
-            ok.number(self.rewind, self._say)
+        def _(e) -> None:
+            if e.client is None:  # set by the server (following the newest frame)
+                return
+            if ok.number(self.rewind, self._say):
+                self._rewind_chosen = True
 
         @self.rewind_btn.on_click
         def _(_e) -> None:
@@ -157,6 +166,8 @@ class PolicyPanel:
             except KeyError as exc:
                 self.reward.content = f"⚠ {exc}"
                 return
+            self._rewind_chosen = False
+            self._rewind_set = int(self.rewind.value)
             app.controls.sync_sliders()
             app.request_render()
 
@@ -193,9 +204,14 @@ class PolicyPanel:
         if self.rewind_note.content != note:
             self.rewind_note.content = note
         if (self.rewind.min, self.rewind.max) != (lo, hi):
+            # while playing the slider follows the newest frame, unless the page chose a frame (still in the history)
+            v = int(self.rewind.value)
+            chosen = (self._rewind_chosen or v != self._rewind_set) and lo <= v <= hi
+            self._rewind_chosen = chosen
             self.rewind.min, self.rewind.max = lo, hi
-            if wb.playing:
+            if wb.playing and not chosen:
                 self.rewind.value = hi
+            self._rewind_set = int(self.rewind.value)
             self.app.checks.accept(self.rewind)
         if wb.policy is not None and wb.mode == "policy":
             sc = wb.policy.scalars

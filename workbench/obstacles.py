@@ -72,7 +72,12 @@ def mesh_catalogue() -> list[str]:
     return sorted(p.name for p in MESH_DIR.iterdir() if p.suffix.lower() in MESH_SUFFIXES)
 
 
-def default_edit(kind: str, *, position=(0.45, 0.0, 0.6)) -> ObstacleEdit:
+#: [m] where a new obstacle goes (moved clear of the rod and the others, :func:`free_position`): beside the arm's
+#: middle, in the middle of the start view (``view_scene.CAMERAS["iso"]``)
+NEW_OBSTACLE_AT = (0.4, 0.0, 0.6)
+
+
+def default_edit(kind: str, *, position=NEW_OBSTACLE_AT) -> ObstacleEdit:
     """A reasonable new obstacle of ``kind`` placed beside the rod."""
     return ObstacleEdit(kind=kind, position=np.asarray(position, dtype=np.float64), name=kind)
 
@@ -94,21 +99,43 @@ def bounding_radius(e: ObstacleEdit) -> float:
         return 0.3
 
 
+def surface_distance(e: ObstacleEdit, points: np.ndarray) -> np.ndarray:
+    """Distance [m] from each of ``points`` (K, 3) to obstacle ``e`` (negative inside a plane's half-space): exact
+    for spheres, capsules and planes, a capsule for a cylinder, the bounding sphere for boxes and meshes."""
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    c = np.asarray(e.position, np.float64)
+    if e.kind == "plane":
+        n = quat_to_matrix(np.asarray(e.wxyz, np.float64))[:, 2]
+        return (p - c) @ n
+    if e.kind in ("capsule", "cylinder"):
+        axis = quat_to_matrix(np.asarray(e.wxyz, np.float64))[:, 2]
+        s = np.clip((p - c) @ axis, -0.5 * e.length, 0.5 * e.length)
+        return np.linalg.norm(p - (c + s[:, None] * axis), axis=1) - float(e.radius)
+    return np.linalg.norm(p - c, axis=1) - bounding_radius(e)
+
+
 def free_position(e: ObstacleEdit, rod_nodes: np.ndarray, rod_radius: float, others: list[ObstacleEdit], *,
-                  near=(0.45, 0.0, 0.6), clearance: float = 0.03) -> np.ndarray:
+                  near=NEW_OBSTACLE_AT, clearance: float = 0.03, reach: float = 0.8) -> np.ndarray:
     """A centre for ``e`` whose bounding sphere keeps ``clearance`` from the rod (its nodes, ``rod_radius``) and from
-    the other obstacles' bounding spheres: the free point of a grid around the rod nearest to ``near`` (``near``
-    itself when nothing is free)."""
+    the other obstacles (:func:`surface_distance`: a floor plane only rules out what lies below it): the free point
+    of a 5 cm grid within ``reach`` of ``near`` (beside the rod, in the start view) nearest to ``near``; else the
+    point there clear of the rod alone; else ``near`` itself."""
     r = bounding_radius(e)
-    ax = np.arange(-1.2, 1.21, 0.1)
-    g = np.stack(np.meshgrid(ax, ax, np.arange(0.1, 1.41, 0.1), indexing="ij"), -1).reshape(-1, 3)
-    g = g[np.argsort(np.linalg.norm(g - np.asarray(near), axis=1), kind="stable")]
+    near = np.asarray(near, np.float64)
+    ax = np.arange(-reach, reach + 1e-9, 0.05)
+    g = near + np.stack(np.meshgrid(ax, ax, ax, indexing="ij"), -1).reshape(-1, 3)
+    g = g[np.linalg.norm(g - near, axis=1) <= reach]
+    g = g[np.argsort(np.linalg.norm(g - near, axis=1), kind="stable")]
     x = np.asarray(rod_nodes, np.float64).reshape(-1, 3)
     d_rod = np.min(np.linalg.norm(g[:, None, :] - x[None, :, :], axis=2), axis=1)
-    ok = d_rod > r + rod_radius + clearance
+    clear_of_rod = d_rod > r + rod_radius + clearance
+    ok = clear_of_rod.copy()
     for o in others:
-        ok &= np.linalg.norm(g - np.asarray(o.position), axis=1) > r + bounding_radius(o) + clearance
-    return g[np.argmax(ok)].copy() if ok.any() else np.asarray(near, np.float64).copy()
+        ok &= surface_distance(o, g) > r + clearance
+    for cand in (ok, clear_of_rod):
+        if cand.any():
+            return g[np.argmax(cand)].copy()
+    return near.copy()
 
 
 def rest_overlaps(spec, edits: list[ObstacleEdit]) -> str:

@@ -59,6 +59,8 @@ def material_frame_poses(x: np.ndarray, m1: np.ndarray, m2: np.ndarray, rod_offs
     return 0.5 * (x[k] + x[k + 1]), quat_from_matrix(R)
 
 
+GROUND_SIZE = 4.0  # [m] side of the floor grid
+LIVE_ROOTS = ("/rod", "/boundary", "/contacts", "/obstacles")  # parents of the live scene's nodes (and "/target")
 LOOK_AT = (0.1, 0.0, 0.45)
 #: camera presets (position, look-at) [m]; "front" faces the x-z plane of the 2-D tasks
 CAMERAS = {"front": ((0.1, -2.2, 0.45), LOOK_AT), "side": ((2.2, 0.0, 0.45), LOOK_AT),
@@ -114,7 +116,11 @@ class SceneView:
         if not env_map:
             sc.configure_environment_map(hdri=None)
         server.initial_camera.position, server.initial_camera.look_at = CAMERAS["iso"]
-        sc.add_grid("/ground", width=4.0, height=4.0, cell_size=0.1, section_size=0.5, plane="xy")
+        self.ground = sc.add_grid("/ground", width=GROUND_SIZE, height=GROUND_SIZE, cell_size=0.1, section_size=0.5,
+                                  plane="xy")
+        # the live scene's nodes hang below these frames, so one switch hides them all (:meth:`show_live`)
+        self.live_roots = [sc.add_frame(name, show_axes=False) for name in LIVE_ROOTS]
+        self.live_shown = True
         sc.add_light_directional("/sun", intensity=1.5, wxyz=(0.88, 0.28, 0.28, 0.25))
         sc.add_light_hemisphere("/sky", sky_color=(255, 255, 255), ground_color=(120, 120, 120), intensity=1.2)
         self.n_nodes = n_nodes
@@ -194,7 +200,7 @@ class SceneView:
                 for lab in self.force_labels:
                     if lab.visible:
                         lab.visible = False
-            if len(fr.targets):
+            if len(fr.targets) and self.live_shown:
                 self.target.position = fr.targets[0]
                 if not self.target.visible:
                     self.target.visible = True
@@ -203,7 +209,7 @@ class SceneView:
                     self.target_frame.wxyz = fr.target_wxyz
                 if self.target_frame.visible != show_f:
                     self.target_frame.visible = show_f
-            else:  # no target in this frame (e.g. teleop after a task): neither its marker nor its frame
+            else:  # no target in this frame (e.g. teleop after a task), or the live scene hidden: no marker, no frame
                 if self.target.visible:
                     self.target.visible = False
                 if self.target_frame.visible:
@@ -243,6 +249,27 @@ class SceneView:
     def set_boundary(self, b: Boundary | None) -> None:
         """Fixed nodes, fixed twists and point loads of the live scene (``view_boundary.boundary_of``)."""
         self.boundary.set_boundary(b)
+
+    def show_live(self, shown: bool) -> None:
+        """Show or hide the whole live scene (rod and its overlays, fixes and loads, contacts, target, obstacles and
+        their gizmo), e.g. while a grid of envs is drawn in its place; the floor grid and lights stay. The target comes
+        back with the next rendered frame."""
+        self.live_shown = bool(shown)
+        with self.server.atomic():
+            for root in self.live_roots:
+                root.visible = self.live_shown
+            if not self.live_shown:
+                self.target.visible = False
+                self.target_frame.visible = False
+            with self._obstacles_lock:
+                if self._gizmo is not None:
+                    self._gizmo.visible = self.live_shown
+
+    def set_ground(self, size: float = GROUND_SIZE) -> None:
+        """Side of the floor grid [m] (a grid of envs spreads wider than the live scene)."""
+        size = float(size)
+        if self.ground.width != size:
+            self.ground.width = self.ground.height = size
 
     def set_camera(self, preset: str) -> None:
         """Move every page's camera (and the start view of pages opened later) to a preset of ``CAMERAS``."""
@@ -296,7 +323,7 @@ class SceneView:
         ed, on_move = self._edits[index], self._on_move
         parent = self.obstacle_nodes[index][0]
         g = self.server.scene.add_transform_controls("/obstacle_gizmo", scale=GIZMO_SCALE, position=tuple(ed.position),
-                                                     wxyz=tuple(ed.wxyz), depth_test=False)
+                                                     wxyz=tuple(ed.wxyz), depth_test=False, visible=self.live_shown)
 
         def _cb(_event, i=index) -> None:
             pos, q = np.asarray(g.position), np.asarray(g.wxyz)

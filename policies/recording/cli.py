@@ -3,7 +3,8 @@
 rodlab record --task T [--policy P | --random | --scripted] [--episodes n] [--envs k] [--seed s]
               [--max-steps m] [--per-sim-step] [--ref-frames] [--progress/--no-progress] --out recordings/NAME.rrd
 
-The output folder is checked for writing before any episode runs; SIGTERM or Ctrl-C discards the
+The output folder must exist (a missing one is named in the error, not created) and is checked for writing before
+any episode runs; SIGTERM or Ctrl-C discards the
 recording (no file, no hidden part folder); a progress bar with ETA goes to stderr on a terminal.
 rodlab inspect FILE.rrd [--json]
 """
@@ -143,6 +144,10 @@ def record_main(argv: list[str]) -> int:
     mode = "policy" if a.policy else "scripted" if a.scripted else "random"
     from policies.sac import PolicyLoadError
 
+    folder = Path(a.out).parent
+    if not (folder.exists() or folder.is_symlink()):  # a mistyped folder is not silently created
+        print(f"rodlab record: {a.out}: folder {folder} does not exist (create it first)", file=sys.stderr)
+        return 2
     try:
         with _sigterm_as_interrupt():
             res = record(a.task, a.out, policy=a.policy, mode=mode, episodes=a.episodes, envs=a.envs,

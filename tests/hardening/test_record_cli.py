@@ -51,6 +51,19 @@ def test_record_unwritable_out_refused_before_any_episode(tmp_path, capsys, monk
     assert err.startswith("rodlab record: ") and "Traceback" not in err, err
 
 
+def test_record_into_a_missing_folder_is_a_clear_error(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "missing" / "x.rrd"
+
+    def no_env(*a, **k):
+        raise AssertionError("episodes started before the output was checked")
+
+    monkeypatch.setattr("policies.make_vec_env", no_env)
+    assert record_main(["--task", "follow_target", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"folder {tmp_path / 'missing'} does not exist" in err and "Traceback" not in err, err
+    assert not (tmp_path / "missing").exists()  # not created
+
+
 def test_record_with_another_tasks_policy_is_a_clear_error(tmp_path, capsys):
     out = tmp_path / "x.rrd"
     rc = record_main(["--task", "follow_target", "--policy", str(ROOT / "policies/pretrained/ik4d.zip"),

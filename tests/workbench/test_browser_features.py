@@ -23,7 +23,7 @@ def test_add_obstacle_and_drag_gizmo_into_rod(wb_page, shots_dir):
     app, page = wb_page
     wb = app.wb
     expand_folder(page, "Obstacles", "Add obstacle")
-    page.get_by_role("button", name="Add obstacle").click()  # default shape: sphere r 0.08 at (0.45, 0, 0.6)
+    page.get_by_role("button", name="Add obstacle").click()  # default shape: sphere r 0.08 at (0.4, 0, 0.6)
     wait_for(lambda: len(wb.obstacles) == 1 and len(app.view.obstacle_nodes) == 1, what="obstacle + gizmo")
     gizmo = app.view.gizmo(0)
     x0 = float(gizmo.position[0])

@@ -4,6 +4,7 @@ page, each with its own target, every env's clamp glyphs in one batched node per
 from __future__ import annotations
 
 import io
+import re
 
 import numpy as np
 import pytest
@@ -101,3 +102,76 @@ def test_grid_shows_n_rods_and_click_focuses(wb_page):
     finally:
         app.grid.stop()
     assert app.grid.session is None
+
+
+def _start_grid(app, page, n: int) -> None:
+    expand_folder(page, "Policy", "Run grid")
+    app.policy.task.value = "follow_target"
+    app.grid.envs.value = n
+    page.get_by_role("button", name="Run grid").click()
+    wait_for(lambda: app.grid.runner is not None and app.grid.runner.frames >= 3, timeout=120, what="grid running")
+
+
+def _page_text(page) -> str:
+    return page.evaluate("() => document.body.innerText")
+
+
+def _shown_steps(page) -> tuple[int, int]:
+    """(control step in the grid's readout, control step in the status line) as the page shows them (-1: none)."""
+    text = _page_text(page)
+    readout = [int(v) for v in re.findall(r"control step (\d+)\s*\n\s*env \d+ ·", text)]
+    status = [int(v) for v in re.findall(r"grid · follow_target · .*?control step (\d+) · t =", text)]
+    return max(readout, default=-1), max(status, default=-1)
+
+
+def test_grid_readouts_follow_the_running_grid(wb_page):
+    """The live session is paused while the grid runs, so nothing of it refreshes the readouts: the grid's runner
+    does (its readout and the status line follow the envs' control steps, without touching Focus env)."""
+    app, page = wb_page
+    _start_grid(app, page, 9)
+    try:
+        s = app.grid.session
+        for k in (20, 40):  # the page's readouts keep following the envs, not only once
+            wait_for(lambda k=k: s.steps >= k, timeout=120, what=f"{k} control steps of the grid")
+            wait_for(lambda k=k: min(_shown_steps(page)) >= k, what=f"readout and status at control step >= {k}")
+        assert int(app.grid.focus.value) == 0
+        assert "9 envs" in app.controls.status.content and "live session is paused" in app.controls.status.content
+    finally:
+        app.grid.stop()
+
+
+#: visibility of the live scene's parents in the page (hidden while a grid is drawn in its place)
+LIVE_JS = """() => Object.fromEntries(['/rod', '/boundary', '/contacts', '/obstacles', '/target'].map((name) => {
+    const node = window.__viserSceneTree?.getState()?.[name];
+    return [name, node && node.message ? node.visibility !== false : null]; }))"""
+
+
+def test_stop_grid_goes_back_to_the_live_scene(wb_page):
+    """While the grid runs the live scene (rod, obstacles, glyphs) is hidden and the cells sit on the floor grid;
+    Stop grid shows the live scene again and puts the camera back where it was before the grid."""
+    from workbench.obstacles import default_edit
+    from workbench.view_scene import CAMERAS
+
+    app, page = wb_page
+    app.wb.add_obstacle(default_edit("sphere", position=(0.5, -0.4, 0.6)))
+    wait_for(lambda: len(app.view.obstacle_nodes) == 1, what="the live obstacle drawn")
+    cam = newest_client(app).camera
+    app.view.set_camera("front")
+    before = np.asarray(CAMERAS["front"][0]), np.asarray(CAMERAS["front"][1])
+    wait_for(lambda: np.allclose(cam.position, before[0], atol=1e-3) and np.allclose(cam.look_at, before[1], atol=1e-3),
+             what="camera on the live scene")
+    wait_for(lambda: page.evaluate(LIVE_JS)["/rod"] is True, what="the live rod shown")
+    _start_grid(app, page, 9)
+    try:
+        s = app.grid.session
+        wait_for(lambda: not any(page.evaluate(LIVE_JS).values()), what="the live scene hidden in the page")
+        half = 0.5 * app.view.ground.width  # every cell's rod base on the floor grid
+        assert np.abs(s.offsets[:, :2]).max() < half
+        wait_for(lambda: not np.allclose(cam.look_at, before[1], atol=1e-3), what="camera on the grid")
+    finally:
+        page.get_by_role("button", name="Stop grid").click()
+    wait_for(lambda: app.grid.session is None, what="grid stopped")
+    wait_for(lambda: np.allclose(cam.position, before[0], atol=1e-3) and np.allclose(cam.look_at, before[1], atol=1e-3),
+             what="camera back on the live scene")
+    shown = {"/rod": True, "/boundary": True, "/contacts": True, "/obstacles": True, "/target": False}  # teleop: no target
+    wait_for(lambda: page.evaluate(LIVE_JS) == shown, what="the live scene shown again")

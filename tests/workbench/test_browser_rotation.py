@@ -26,6 +26,8 @@ def test_typed_rotation(wb_page):
     wb, ob, view = app.wb, app.obstacles, app.view
     wb.add_obstacle(obst.ObstacleEdit(kind="box", position=np.array([0.6, 0.4, 0.5]),
                                       half_extents=np.array([0.1, 0.05, 0.02])))
+    wait_for(lambda: len(view.obstacle_nodes) == 1, what="box drawn")
+    ob.select(0)  # as a click on it: an obstacle carries the gizmo only once selected
     wait_for(lambda: len(view.obstacle_nodes) == 1 and view.selected == 0, what="box selected")
     expand_folder(page, "Obstacles", "Delete obstacle")
     rot = _row_inputs(page, "Rotation [deg]")

@@ -73,3 +73,10 @@ def test_task_option_starts_a_policy_session():
         assert app.wb.policy.scalars["episode_step"] == 2
     finally:
         app.stop()
+
+
+def test_task_option_prints_the_tasks_scene(capsys):
+    """``--task T`` names T's scene at start-up, not the teleop scene opened underneath it (default.toml)."""
+    assert workbench_main(["--task", "follow_target_2d", "--port", "0", "--no-env-map", "--seconds", "0"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "http://" in x)
+    assert "task follow_target_2d, scene arm_2d.toml" in line and "default.toml" not in line, line
