@@ -82,6 +82,47 @@ def pending_callbacks(app) -> int:
     return sum(api._thread_executor._inner._work_queue.qsize() for api in (app.server.gui, app.server.scene))
 
 
+# actions that wait (up to their timeout) for the page to render a frame, which a raw client never does
+WAITS_FOR_PAGE = ("Screenshot", "Record video")
+
+
+def idle(app) -> bool:
+    """No page callback waiting or running."""
+    return all(api._thread_executor.busy() == 0 for api in (app.server.gui, app.server.scene))
+
+
+def warm_up(app, *, seed: int = 0) -> int:
+    """Every element of the page once, one at a time, with a value the page could send, each waited for: what a
+    session loads once (each scene's kernels, the policies, meshes, a recording, a grid) is loaded before memory is
+    watched. Returns how many elements were set."""
+    from viser import _messages as vm
+
+    from tools.browser import wait_for
+    from tools.hostile_client import HostileClient
+
+    rng = random.Random(seed)
+    client = HostileClient(app)
+    n = 0
+    try:
+        for uuid, impl in list(app.server.gui._gui_input_handle_from_uuid.items()):
+            if uuid not in app.server.gui._gui_input_handle_from_uuid:  # removed by an earlier action
+                continue
+            if getattr(impl, "label", "") in WAITS_FOR_PAGE:
+                continue
+            client.send(vm.GuiUpdateMessage(uuid, {"value": plausible(impl, rng)}))
+            n += 1
+            # one connection's messages are handled in order: once a marker value sent after it is applied, the
+            # element's callbacks have been submitted, and idle means they have run
+            speed = app.controls.speed
+            marker = 0.55 if speed.value != 0.55 else 0.65
+            client.set(speed, marker)
+            what = f"the action of {getattr(impl, 'label', uuid)!r}"
+            wait_for(lambda: speed.value == marker and idle(app), what=what)
+    finally:
+        client.close()
+    return n
+
+
 def drive(app, seconds: float, *, seed: int = 0, rate_hz: float = 200.0, sample_s: float = 5.0,
           read: bool = True, progress=None) -> list[Sample]:
     """Send hostile and plausible GUI values to ``app`` for ``seconds``, reading what the server sends (as a

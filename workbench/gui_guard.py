@@ -266,6 +266,7 @@ class _GuardedExecutor:
         self._inner, self._report = inner, report
         self._lock = threading.Lock()
         self._waiting: dict[Any, tuple[tuple, dict]] = {}  # callback -> newest (args, kwargs) not yet started
+        self._running = 0
         self.coalesced = 0  # calls folded into a waiting call of the same callback
 
     def submit(self, fn, /, *args, **kwargs):
@@ -283,16 +284,25 @@ class _GuardedExecutor:
         def run():
             with self._lock:
                 a, kw = self._waiting.pop(fn)
+                self._running += 1
             try:
                 return fn(*a, **kw)
             except Exception as exc:  # noqa: BLE001 - reported on the page and (unexpected ones) in the log
                 self._report(exc)
+            finally:
+                with self._lock:
+                    self._running -= 1
         return self._inner.submit(run)
 
     def waiting(self) -> int:
         """Callbacks waiting to run."""
         with self._lock:
             return len(self._waiting)
+
+    def busy(self) -> int:
+        """Callbacks waiting or running."""
+        with self._lock:
+            return len(self._waiting) + self._running
 
     def __getattr__(self, name):
         return getattr(self._inner, name)

@@ -1,8 +1,8 @@
 """A session driven for minutes by a hostile client sending hundreds of GUI values per second (plausible ones
 that load scenes, run policies and grids, open recordings, record and export; and values of the wrong kind):
 the callbacks waiting to run stay bounded by the number of callbacks (not by the client's rate), what the
-process holds (resident memory, threads, messages kept for pages) stops growing once everything has been loaded
-once, every failed action is accounted for, and the server still answers afterwards."""
+process holds (resident memory, threads, messages kept for pages) does not grow once every element has been set
+once (a warm-up, one at a time), every failed action is accounted for, and the server still answers afterwards."""
 from __future__ import annotations
 
 import pytest
@@ -11,7 +11,7 @@ from tools import soak
 from tools.browser import wait_for
 from tools.hostile_client import HostileClient
 
-SOAK_S = 120.0  # the first third loads what a session loads once (kernels, policies, meshes); then it is flat
+SOAK_S = 90.0  # after a warm-up that has set every element once (what a session loads once is then loaded)
 GROWTH_MB = 100.0  # between the lowest resident memory of the second and of the last third (heavy actions
 # running at once make peaks of several hundred MB that the upkeep hands back; a leak lifts the floor)
 GROWTH_THREADS = 8
@@ -25,6 +25,7 @@ def app(tmp_path):
     a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, wait_for_browser=False,
                      scenes_dir=tmp_path / "scenes", recordings_dir=tmp_path / "recordings").start()
     yield a
+    wait_for(lambda: soak.idle(a), what="the page actions still running")  # none left running at exit
     a.stop()
 
 
@@ -44,12 +45,13 @@ def test_hostile_session_stays_bounded_and_answers(app):
         nonlocal most_waiting
         most_waiting = max(most_waiting, gui._thread_executor.waiting() + app.server.scene._thread_executor.waiting())
 
+    assert soak.warm_up(app) > 50
     samples = soak.drive(app, SOAK_S, seed=7, rate_hz=200.0, sample_s=1.0, progress=sample)
-    assert len(samples) > 30 and all(s.rss_mb > 0 for s in samples)
+    assert len(samples) > 20 and all(s.rss_mb > 0 for s in samples)
     assert most_waiting <= n_callbacks + 16  # scene callbacks (clicks) come on top of the GUI's
     assert gui._thread_executor.coalesced > 0  # the client did send faster than its callbacks ran
 
-    third = SOAK_S / 3
+    third = SOAK_S / 3  # the first: concurrent actions reach their working set (several at once, unlike the warm-up)
     middle = [s for s in samples if third <= s.t < 2 * third]
     last = [s for s in samples if s.t >= 2 * third]
     growth = min(s.rss_mb for s in last) - min(s.rss_mb for s in middle)
