@@ -127,6 +127,8 @@ class ReplayPanel:
             if self._scrubbing or wb.replay is None or not ok.number(self.timeline, self._say):
                 return
             with wb.lock:
+                if wb.replay is None:  # closed by another action since the check
+                    return
                 wb.replay.seek(int(self.timeline.value))
             self._plot()
             app.request_render()
