@@ -1,13 +1,16 @@
 """GUI: policies (pick task + policy, play, take over / hand back), rewind, recording."""
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 from workbench.files import page_error
+from workbench.gui_guard import resend_value
 from workbench.gui_host import PanelHost
 from workbench.policy_session import PRETRAINED, PolicySession, shipped_policies
 
 NO_POLICY = ("zero", "random")
+RESEND_AFTER_S = 0.5  # [s] after the page last moved the Rewind slider, its chosen frame is sent to the pages again
 REWIND_HELP = ("Rewind goes back to the chosen frame and pauses there; the frames after it are dropped. While the "
                "session plays the slider follows the newest frame until you move it.")
 
@@ -47,6 +50,7 @@ class PolicyPanel:
             self.rec_msg = gui.add_markdown("")
         self._rewind_chosen = False  # the page moved the rewind slider: it stops following the newest frame
         self._rewind_set = 0  # the value the server gave it last
+        self._rewind_touched = 0.0  # when the page last moved it (monotonic s)
         for h in (self.task, self.policy, self.rewind):
             app.checks.track(h)
         self._wire()
@@ -156,6 +160,7 @@ class PolicyPanel:
                 return
             if ok.number(self.rewind, self._say):
                 self._rewind_chosen = True
+                self._rewind_touched = time.monotonic()
 
         @self.rewind_btn.on_click
         def _(_e) -> None:
@@ -211,6 +216,8 @@ class PolicyPanel:
             self.rewind.min, self.rewind.max = lo, hi
             if wb.playing and not chosen:
                 self.rewind.value = hi
+            elif chosen and time.monotonic() - self._rewind_touched > RESEND_AFTER_S:
+                resend_value(self.rewind)  # a newest-frame value sent just before the page's choice may show there
             self._rewind_set = int(self.rewind.value)
             self.app.checks.accept(self.rewind)
         if wb.policy is not None and wb.mode == "policy":

@@ -5,6 +5,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import urllib.request
 from pathlib import Path
 
@@ -27,13 +28,19 @@ def test_default_scene_is_the_obstacle_scene():
 def test_serves_the_page_on_localhost():
     """As a user runs it: the page is served once the start-up line is printed, and Ctrl-C quits cleanly."""
     port = free_port()
+    # SIGINT as a terminal gives it: a shell without job control starts background commands with SIGINT ignored,
+    # which the child would inherit (and Python then installs no KeyboardInterrupt handler).
     proc = subprocess.Popen([sys.executable, "-m", "rodlab_cli", "workbench", "--port", str(port), "--no-env-map"],
-                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
+        seen = []
         for line in proc.stdout:  # ends on the start-up line, or when the process dies
+            seen.append(line)
             if f"http://127.0.0.1:{port}/" in line:
                 break
-        assert proc.poll() is None, proc.stderr.read()
+        assert proc.poll() is None, "".join(seen)
+        threading.Thread(target=proc.stdout.read, daemon=True).start()  # keep its output flowing
         html = urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=600).read()
         assert b"<html" in html.lower()
     finally:

@@ -148,13 +148,18 @@ def test_tip_frame_beside_the_ik_target_frame(wb_page):
         wait_for(lambda: wb.mode == "policy" and view.target_frame.visible and view.rod.tip_frame.visible
                  and view.last_frame is not None and view.last_frame.target_wxyz is not None,
                  timeout=120, what="IK task with both frames")
-        # paused, so the drawing thread is not between the tip frame and ``last_frame`` of two different steps
+        # paused, so the drawing thread is not between the tip frame and ``last_frame`` of two different steps; the
+        # step under way when the pause came is drawn after it (``last_frame`` is set at the end of a drawing)
         wb.set_playing(False)
-        wait_for(lambda: view.last_frame.time == pytest.approx(float(np.asarray(wb.live.state.time)[0])),
-                 what="the paused frame drawn")
+
+        def paused_frame_drawn() -> bool:
+            fr = view.last_frame
+            return (fr.time == pytest.approx(float(np.asarray(wb.live.state.time)[0]))
+                    and np.allclose(view.rod.tip_frame.position, fr.node_pos[-1], rtol=0.0, atol=1e-9))
+
+        wait_for(paused_frame_drawn, what="the paused frame drawn, the tip frame on its tip")
         fr = view.last_frame
         assert fr.target_wxyz is not None
-        np.testing.assert_allclose(view.rod.tip_frame.position, fr.node_pos[-1], atol=1e-9)
         from workbench.frame import quat_to_matrix
 
         R = quat_to_matrix(np.asarray(view.rod.tip_frame.wxyz))
