@@ -148,18 +148,21 @@ def test_tip_frame_beside_the_ik_target_frame(wb_page):
         wait_for(lambda: wb.mode == "policy" and view.target_frame.visible and view.rod.tip_frame.visible
                  and view.last_frame is not None and view.last_frame.target_wxyz is not None,
                  timeout=120, what="IK task with both frames")
-        # paused, so the drawing thread is not between the tip frame and ``last_frame`` of two different steps; the
-        # step under way when the pause came is drawn after it (``last_frame`` is set at the end of a drawing)
-        wb.set_playing(False)
-
-        def paused_frame_drawn() -> bool:
-            fr = view.last_frame
-            return (fr.time == pytest.approx(float(np.asarray(wb.live.state.time)[0]))
-                    and np.allclose(view.rod.tip_frame.position, fr.node_pos[-1], rtol=0.0, atol=1e-9))
-
-        wait_for(paused_frame_drawn, what="the paused frame drawn, the tip frame on its tip")
-        fr = view.last_frame
+        # paused; a step under way at the pause is drawn by the first redraw at the latest, so the second redraw
+        # after the pause draws the paused state (the hooks see each frame just after the view drew it)
+        drawn: list = []
+        app.render_hooks.append(drawn.append)
+        try:
+            wb.set_playing(False)
+            for _ in range(2):
+                n = len(drawn)
+                app.request_render()
+                wait_for(lambda n=n: len(drawn) > n, what="a redraw of the paused session")
+        finally:
+            app.render_hooks.remove(drawn.append)
+        fr = drawn[-1]
         assert fr.target_wxyz is not None
+        np.testing.assert_allclose(view.rod.tip_frame.position, fr.node_pos[-1], rtol=0.0, atol=1e-9)
         from workbench.frame import quat_to_matrix
 
         R = quat_to_matrix(np.asarray(view.rod.tip_frame.wxyz))
