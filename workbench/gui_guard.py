@@ -154,10 +154,7 @@ def resend_value(handle) -> None:
     """Send the handle's value to every page again. viser sends a value only when it changes, so a value the
     server set that crossed a page's own change on the wire (the page then shows the server's older value while the
     server holds the page's) is never corrected otherwise."""
-    from viser import _messages as vm
-
-    impl = handle._impl
-    impl.gui_api._websock_interface.queue_message(vm.GuiUpdateMessage(impl.uuid, {"value": impl.value}))
+    handle._queue_update("value", handle.value)
 
 
 def only_value_updates(server, on_refused: Callable[[str, str], None] | None = None) -> bool:
