@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import Callable
 
 from .model import build_model
 from .scene import RodSpec, SceneSpec, SimSpec
@@ -19,10 +20,13 @@ def _tiny_spec(mode: str):
                     start=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0)))
 
 
-def warmup(*, verbose: bool = False) -> float:
-    """Compile/load the 3-D and 2-D kernels; returns the seconds it took."""
+def warmup(*, verbose: bool = False, on_stage: Callable[[str], None] | None = None) -> float:
+    """Compile/load the 3-D and 2-D kernels; returns the seconds it took. ``on_stage(what)`` is called before each
+    kernel with what is compiled next (the workbench shows it while the page waits)."""
     t0 = time.perf_counter()
     for mode in ("3d", "2d"):
+        if on_stage is not None:
+            on_stage(f"the {mode.upper()} step kernel")
         if verbose:
             print(f"sim.warmup: compiling the {mode} step kernel (first run only; cached afterwards)...",
                   file=sys.stderr, flush=True)

@@ -86,7 +86,8 @@ class WorkbenchApp:
         self.render_hooks: list = []  # called with each drawn frame after the view (ghost of a compared episode)
         self.status_note = ""  # a line appended to the status (video progress)
         self.notice = ("", 0.0)  # (text, when): why the last page action failed, shown for NOTICE_S
-        self.thread = SimThread(wb, self._render, speed=speed)
+        self.compiling = ""  # what kernel is being compiled (shown in the status line); "" when none
+        self.thread = SimThread(wb, self._render, speed=speed, prepare=self._compile_kernels)
         self.housekeeping = Housekeeping(self.server)
         self.controls = ControlsPanel(self)
         self.panels = [self.controls]
@@ -152,6 +153,23 @@ class WorkbenchApp:
         self.thread.start()
         self.housekeeping.start()
         return self
+
+    def _compile_kernels(self) -> None:
+        """Compile (or load from numba's cache) the step kernels before the first step, in the sim thread, saying in
+        the status line what is being compiled: the first start compiles for minutes, and the page would otherwise
+        show the last status of a session that does not move. ``sim.warmup.warmup`` is looked up at call time (a
+        test replaces it with a slow stand-in)."""
+        from sim import warmup as kernels
+
+        def stage(what: str) -> None:
+            self.compiling = what
+            self.controls.update_status()  # the sim thread is busy: nothing else refreshes it meanwhile
+
+        try:
+            kernels.warmup(on_stage=stage)
+        finally:
+            self.compiling = ""
+            self.request_render()
 
     def _first_client(self, _client) -> None:
         if not self.waiting_for_browser:

@@ -302,7 +302,10 @@ class ControlsPanel:
         else:
             head = (f"**{wb.mode}**{' (hand)' if wb.hand_control else ''} · frame {wb.frame_index}"
                     f" · t = {fr.time if fr else 0.0:.2f} s")
-            if app.waiting_for_browser:
+            compiling = getattr(app, "compiling", "")
+            if compiling:  # the first start: minutes (cached afterwards)
+                head += f" · compiling kernels: {compiling} (first start only, cached afterwards) …"
+            elif app.waiting_for_browser:
                 head += " · paused until a browser connects"
         grid = getattr(app, "grid", None)
         grid_lines = grid.status_lines() if grid is not None else None

@@ -31,6 +31,7 @@ class PanelHost(Protocol):
     render_hooks: list[Callable[["Frame"], None]]
     status_note: str
     waiting_for_browser: bool
+    compiling: str  # the kernel being compiled before the first step ("" when none)
     controls: Any  # gui_controls.ControlsPanel
     policy: Any  # gui_policy.PolicyPanel
     replay: Any  # gui_replay.ReplayPanel

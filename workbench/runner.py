@@ -20,11 +20,14 @@ class SimThread:
         wb: the workbench core.
         render: called with each new frame (``SceneView.render`` + GUI readouts).
         speed: target real-time factor (1.0 = real time).
+        prepare: called once in the thread before the first step (the app compiles the kernels there).
     """
 
-    def __init__(self, wb: Workbench, render: Callable, *, speed: float = 1.0, max_fps: float = 60.0):
+    def __init__(self, wb: Workbench, render: Callable, *, speed: float = 1.0, max_fps: float = 60.0,
+                 prepare: Callable[[], None] | None = None):
         self.wb = wb
         self.render = render
+        self.prepare = prepare  # run first in the thread, before any step (compiling the kernels)
         self.speed = speed
         self.max_fps = max_fps  # scene updates per second at most (the newest frame wins)
         self._stop = threading.Event()
@@ -53,6 +56,11 @@ class SimThread:
 
     def _loop(self) -> None:
         wb = self.wb
+        if self.prepare is not None:
+            try:
+                self.prepare()
+            except Exception as exc:  # noqa: BLE001 - shown in the page; the first step will say more
+                self.error = exc
         next_t = time.perf_counter()
         win_t0, win_sim0, win_frames = time.perf_counter(), 0.0, 0
         sim_elapsed = 0.0
