@@ -1,7 +1,7 @@
 """Guard against stale numba caches.
 
 numba's ``cache=True`` only checks the source file of the cached function itself, so a change in a callee
-defined in another module (an energy, ``frames.py``, ``vec3.py``, ``contact_kernels.py``) would leave the fused kernels in
+defined in another module (an energy, ``frames.py``, ``vec3.py``, ``contact/obstacles.py``) would leave the fused kernels in
 ``sim/kernels/`` stale. :func:`invalidate_if_sources_changed` hashes all kernel sources and, when the hash differs
 from the stamp written last time, deletes the cached ``*.nbi``/``*.nbc`` files of those modules.
 """
@@ -14,14 +14,16 @@ from pathlib import Path
 _HERE = Path(__file__).resolve().parent
 _SOURCES = ["numba_options.py", "frames.py", "kernels/banded.py", "kernels/data.py", "kernels/workspace.py",
             "kernels/assemble_3d.py", "kernels/assemble_2d.py", "kernels/newton.py", "kernels/ladder.py",
-            "kernels/batch.py", "contact_kernels.py", "contact_rod.py", "geometry_distance.py", "vec3.py", "kinds.py",
+            "kernels/batch.py", "contact/imc.py", "contact/obstacles.py", "contact/edge_pairs.py", "contact/stages.py",
+            "geometry_distance.py", "vec3.py", "kinds.py",
             "energies/stretch.py", "energies/bend_twist.py", "energies/planar.py", "hessian.py"]
 # modules whose numba functions call no numba function of another module (their own cache check suffices)
-SELF_CONTAINED = ["contact_mesh.py"]
+SELF_CONTAINED = ["contact/mesh.py"]
 
 
 def _cache_dirs() -> list[Path]:
-    dirs = [_HERE / "__pycache__", _HERE / "energies" / "__pycache__", _HERE / "kernels" / "__pycache__"]
+    dirs = [_HERE / "__pycache__", _HERE / "energies" / "__pycache__", _HERE / "kernels" / "__pycache__",
+            _HERE / "contact" / "__pycache__"]
     env = os.environ.get("NUMBA_CACHE_DIR")
     if env:
         dirs.append(Path(env))

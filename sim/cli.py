@@ -123,7 +123,7 @@ def sim_main(argv: list[str] | None = None) -> int:
                 frames["newton_iters"].append(st.newton_iters.copy())
                 frames["converged"].append(st.converged.copy())
                 frames["midpoint_fallbacks"].append(st.midpoint_fallbacks.copy())
-                # contact (sim/contact_kernels.py): max penetration (B,) [m], count (B,), total force on the rods
+                # contact (sim/contact/obstacles.py): max penetration (B,) [m], count (B,), total force on the rods
                 # (B, 3) [N] = sum of normal_force * normal + friction over the reported rows (the first
                 # contact_count; the rows after them are left from earlier steps); per-row (B, C, ...)
                 frames["max_penetration"].append(st.max_penetration.copy())

@@ -1,4 +1,4 @@
-"""ObstacleSet: the runtime (per-env) obstacle arrays handed to :mod:`sim.contact_kernels`.
+"""ObstacleSet: the runtime (per-env) obstacle arrays handed to the contact kernels (:mod:`sim.contact.obstacles`).
 
 Static data (kinds, box half extents, mesh triangles + BVH in each mesh's local frame) is built once and shared,
 read-only, by every copy. Per-env data (pose, capsule end points, radius, active flag) is part of the
@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .contact_mesh import build_bvh, cylinder_triangles, load_mesh_triangles
+from .contact.mesh import build_bvh, cylinder_triangles, load_mesh_triangles
 from .kinds import KIND_CODES
 from .obstacles import (
     BoxSpec,
@@ -36,13 +36,13 @@ REPORT_CAPACITY = 64
 PAIR_REPORT_CAPACITY = 64  # more StepStats contact rows when edge pairs may touch: two per pair in touch
 
 ContactData = namedtuple("ContactData", [
-    "kind", "p0", "p1", "rot", "radius", "half", "mesh_root", "tri", "node_lo", "node_hi", "node_child",
-    "node_range", "cand", "cand_count", "rod_radius", "active", "box", "iter_flag", "scratch_f", "scratch_m",
+    "kind", "p0", "p1", "rot", "obstacle_radius", "half", "mesh_root", "tri", "node_lo", "node_hi", "node_child",
+    "node_range", "cand", "cand_count", "broadphase_radius", "active", "box", "iter_flag", "scratch_f", "scratch_m",
     "scratch_i", "friction", "cand_merge"])
-ContactData.__doc__ = "Arrays read by :mod:`sim.contact_kernels` (fields documented there); a numba namedtuple."
+ContactData.__doc__ = "Arrays read by :mod:`sim.contact.obstacles` (fields documented there); a numba namedtuple."
 # the kernels' per-env work space: candidate pairs, their count, the rod's largest radius, first-iteration flag,
-# scratch, and the buffer contact_refresh merges candidate lists in
-ContactScratch = namedtuple("ContactScratch", ["cand", "cand_count", "rod_radius", "iter_flag", "scratch_f",
+# scratch, and the buffer merge_candidates merges candidate lists in
+ContactScratch = namedtuple("ContactScratch", ["cand", "cand_count", "broadphase_radius", "iter_flag", "scratch_f",
                                                "scratch_m", "scratch_i", "cand_merge"])
 _PER_ENV = ("position", "orientation", "local_a", "local_b", "radius", "active", "p0", "p1", "rot", "box")
 
@@ -54,7 +54,7 @@ def contact_scratch(envs: int, n_nodes: int, count: int, rod_radius) -> ContactS
     return ContactScratch(
         cand=np.zeros((B, max(int(n_nodes) * int(count), 1), 2), dtype=np.int64),
         cand_merge=np.zeros((B, 2 * max(int(n_nodes) * int(count), 1), 2), dtype=np.int64),
-        cand_count=np.zeros(B, dtype=np.int64), rod_radius=np.array([float(np.max(rod_radius))]),
+        cand_count=np.zeros(B, dtype=np.int64), broadphase_radius=np.array([float(np.max(rod_radius))]),
         iter_flag=np.ones(B, dtype=np.int64), scratch_f=np.zeros((B, 128)), scratch_m=np.zeros((B, 2, 6, 6)),
         scratch_i=np.zeros((B, 128), dtype=np.int64))
 
@@ -67,7 +67,7 @@ def contact_radii(edge_radius) -> np.ndarray:
 
 def node_radii(edge_radius) -> np.ndarray:
     """(N,) radius [m] at each node of a rod with (N-1,) edge radii: the larger of a node's two edges', the rule
-    the contact kernels use for plane contact (sim.contact_kernels._node_radius)."""
+    the contact kernels use for plane contact (sim.contact.imc.node_radius)."""
     er = np.asarray(edge_radius, dtype=np.float64).reshape(-1)
     return np.concatenate([er[:1], np.maximum(er[:-1], er[1:]), er[-1:]])
 
@@ -75,7 +75,7 @@ def node_radii(edge_radius) -> np.ndarray:
 def contact_data(obs: "ObstacleSet", scratch: ContactScratch) -> ContactData:
     """The kernels' view of the poses in ``obs`` (a state's obstacles) with the work space ``scratch``."""
     return ContactData(obs.kind, obs.p0, obs.p1, obs.rot, obs.radius, obs.half, obs.mesh_root, obs.tri, obs.node_lo,
-                       obs.node_hi, obs.node_child, obs.node_range, scratch.cand, scratch.cand_count, scratch.rod_radius,
+                       obs.node_hi, obs.node_child, obs.node_range, scratch.cand, scratch.cand_count, scratch.broadphase_radius,
                        obs.active, obs.box, scratch.iter_flag, scratch.scratch_f, scratch.scratch_m, scratch.scratch_i,
                        obs.friction, scratch.cand_merge)
 
@@ -339,7 +339,7 @@ class ObstacleSet:
     # ------------------------------------------------------------------ kernel data
     def kernel_data(self, envs: int | None = None, *, n_nodes: int | None = None,
                     rod_radius: float | np.ndarray | None = None) -> ContactData:
-        """The tuple of arrays read by :mod:`sim.contact_kernels` (layout documented there).
+        """The tuple of arrays read by :mod:`sim.contact.obstacles` (layout documented there).
 
         Re-allocates per-env arrays only if ``envs`` changes (then poses return to the spec); otherwise
         the same arrays are returned, so later ``set_pose``/``set_capsules`` calls are seen by the solver.

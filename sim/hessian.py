@@ -8,8 +8,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from .contact_kernels import contact_broadphase
-from .contact_rod import rod_pairs_broadphase
+from .contact import stages as contact
 from .kernels.data import KL_2D, KL_3D
 from .kernels.newton import assemble, positions
 from .kernels.workspace import alloc_workspace, copy_into
@@ -32,6 +31,7 @@ def static_jacobian(e, x, d1, t, beta, kb, tb, rod, prm_arr, cd):
     N = rod.vor_len.shape[0]
     kl = KL_2D if planar else KL_3D
     w = alloc_workspace(N, planar, rod.pairs.shape[0])
+    cs = contact.alloc(cd, N, rod.pairs.shape[0])
     copy_into(w.sub_x, x)
     copy_into(w.x, x)
     for k in range(n):
@@ -39,13 +39,11 @@ def static_jacobian(e, x, d1, t, beta, kb, tb, rod, prm_arr, cd):
     copy_into(w.sub_d1, d1)
     copy_into(w.sub_t, t)
     copy_into(w.sub_beta, beta)
-    if prm.n_obstacles > 0 or prm.rod_pairs:
+    if contact.present(prm):
         positions(planar, x, w.pos, prm.plane_y)
         positions(planar, x, w.pos0, prm.plane_y)
-    if prm.n_obstacles > 0:
-        contact_broadphase(e, cd, w.pos0, w.pos, prm.contact_margin, rod.link)
-    if prm.rod_pairs:
-        rod_pairs_broadphase(rod.pairs, w.pos0, w.pos, rod.radius, prm.contact_margin, w.rp_box, w.rp_cand, w.rp_n)
-    assemble(planar, e, w.x, _H_STATIC, kb, tb, rod, prm, cd, w, True, False)
-    K = w.wb_n[0]
-    return w.ab[:n + kl].copy(), w.wb_dof[:K].copy(), w.wb_M[:K, :K].copy()
+        contact.broadphase(e, prm, rod, cs, w.pos0, w.pos)
+    assemble(planar, e, w.x, _H_STATIC, kb, tb, rod, prm, cs, w, True, False)
+    cp = w.coupling
+    K = cp.count[0]
+    return w.ab[:n + kl].copy(), cp.dof[:K].copy(), cp.M[:K, :K].copy()

@@ -1,5 +1,5 @@
 """Obstacle kind codes: the one definition, read by the scene specs (:mod:`sim.obstacles`), the runtime arrays
-(:mod:`sim.contact_set`) and the numba contact kernels (:mod:`sim.contact_kernels`, as compile-time constants)."""
+(:mod:`sim.contact_set`) and the numba contact kernels (:mod:`sim.contact.obstacles`, as compile-time constants)."""
 from __future__ import annotations
 
 __all__ = ["PLANE", "SPHERE", "CAPSULE", "BOX", "MESH", "KIND_CODES"]
@@ -9,5 +9,5 @@ SPHERE = 1
 CAPSULE = 2
 BOX = 3
 MESH = 4
-# a flat-ended cylinder is contacted as a mesh (a closed 48-sided prism, sim/contact_mesh.py)
+# a flat-ended cylinder is contacted as a mesh (a closed 48-sided prism, sim/contact/mesh.py)
 KIND_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "box": BOX, "mesh": MESH, "cylinder": MESH}

@@ -14,7 +14,7 @@ Scene keys (SI units; every obstacle may carry ``name = "..."``)::
     [contact] stiffness [N/m] (1e6), delta [m] (5e-3), friction mu [-] (0),
               friction_velocity_tol [m/s] (1e-2), margin [m] (5e-2, broad-phase inflation), enabled (true),
               max_penetration [m] (4 * delta; a (sub)step ending deeper is retried with more sub-steps),
-              self_contact (false: edges of one rod touching each other, sim/contact_rod.py),
+              self_contact (false: edges of one rod touching each other, sim/contact/edge_pairs.py),
               rod_contact (default true when the scene has several rods: edges of different rods touching)
 
 Poses: every obstacle has a per-env pose (position, quaternion wxyz). For capsule/sphere/plane the spec's
@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from .contact_mesh import MeshError, load_mesh_triangles
+from .contact.mesh import MeshError, load_mesh_triangles
 from .kinds import KIND_CODES
 from .rotations import quat_to_matrix  # noqa: F401  (re-exported: sim.obstacles.quat_to_matrix)
 from .tomlio import SceneError, check_unknown, format_value, take_bool, take_float, take_str, take_vec3
@@ -147,7 +147,7 @@ class ContactSpec:
     enabled: bool = True
     max_penetration: float | None = None
     step_limit: bool = True
-    self_contact: bool = False          # edges of one rod touch each other (sim/contact_rod.py)
+    self_contact: bool = False          # edges of one rod touch each other (sim/contact/edge_pairs.py)
     rod_contact: bool | None = None     # edges of different rods touch; None: on when there are several rods
 
     @property

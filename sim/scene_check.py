@@ -1,7 +1,7 @@
 """Load-time scene checks that are warnings, not errors: a rod that starts inside an obstacle.
 
 :func:`rod_obstacle_overlaps` returns the obstacles that the rod's rest (initial) configuration penetrates,
-measured with the simulator's own contact geometry (sim/contact_kernels.py: the gap between the rod's surface,
+measured with the simulator's own contact geometry (sim/contact/obstacles.py: the gap between the rod's surface,
 radius ``rod.radius``, and the obstacle). Such a rod is pushed out violently in the first steps (the contact
 force of the penetration guard), so ``rodlab sim`` prints a warning and the workbench should show one.
 """
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contact_kernels import contact_broadphase, contact_min_gap
+from .contact.obstacles import find_candidates, smallest_gap
 from .contact_set import contact_radii
 
 __all__ = ["Overlap", "rod_obstacle_overlaps", "overlap_warning"]
@@ -44,8 +44,8 @@ def rod_obstacle_overlaps(model, *, tolerance: float = 0.0) -> list[Overlap]:
         link = np.asarray(model.edge_link, dtype=np.uint8)
     out = []
     for o in range(M):
-        contact_broadphase(o, cd, x, x, 0.0, link)
-        gap = float(contact_min_gap(o, cd, x, contact_radii(model.edge_radius)))
+        find_candidates(o, cd, x, x, 0.0, link)
+        gap = float(smallest_gap(o, cd, x, contact_radii(model.edge_radius)))
         if gap < -tolerance:
             spec = model.spec.obstacles[o]
             out.append(Overlap(o, getattr(spec, "name", "") or "", getattr(spec, "type", "?"), -gap))

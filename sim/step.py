@@ -10,7 +10,7 @@ import numpy as np
 
 from . import validate as _validate
 from .boundary import window_fraction
-from .contact_rod import model_pairs
+from .contact.edge_pairs import model_pairs
 from .contact_set import PAIR_REPORT_CAPACITY, contact_data, contact_scratch
 from .kernels.batch import step_kernel
 from .kernels.data import (

@@ -1,7 +1,7 @@
 """3-vector helpers of the numba kernels: vectors are float 3-tuples ``(x, y, z)`` (stack values, nothing allocated).
 
 The one set used by the frames (``frames.py``), the bending/twisting element (``energies/bend_twist.py``) and the
-contact geometry (``geometry_distance.py``, ``contact_kernels.py``, ``contact_rod.py``). Each is inlined into its
+contact geometry (``geometry_distance.py``, ``contact/obstacles.py``, ``contact/edge_pairs.py``). Each is inlined into its
 caller at numba's IR level (``inline="always"``), so it is compiled with the caller's options (fastmath for the
 elastic kernels, none for the contact kernels, whose results are compared bit for bit) and allocates nothing.
 """

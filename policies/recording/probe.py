@@ -26,7 +26,7 @@ from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
-from sim.contact_mesh import load_mesh_triangles
+from sim.contact.mesh import load_mesh_triangles
 from sim.curvature import material_curvature
 from sim.rotations import quat_to_matrix, quat_z_to, to_xyzw
 

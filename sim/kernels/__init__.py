@@ -12,6 +12,6 @@
     ladder        per env: the retry/guard ladder around the (sub)step, then the env's outputs
     batch         step_kernel: the parallel loop over chunks of envs
 
-Their numba options are in :mod:`sim.numba_options`; the contact kernels (sim.contact_kernels, sim.contact_rod)
+Their numba options are in :mod:`sim.numba_options`; the contact kernels (sim.contact)
 and the geometry below them stay in sim.
 """

@@ -10,8 +10,7 @@ import math
 
 from numba import njit
 
-from sim.contact_kernels import contact_accumulate
-from sim.contact_rod import reset_coupling, rod_pairs_accumulate
+from sim.contact import stages as contact
 from sim.energies.planar import planar_bend_element
 from sim.energies.stretch import stretch_element_2d
 from sim.frames import update_frames
@@ -24,7 +23,7 @@ __all__ = ["assemble_2d", "energies_2d", "frames_from_2d"]
 
 
 @njit(**OPT)
-def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
+def assemble_2d(e, x, h, kb, tb, rod, prm, cs, w, with_jac, sym):
     """2-D residual w.f and banded Jacobian w.ab (n + 5, 11) (see :func:`sim.kernels.assemble_3d.assemble_3d`; ``tb`` is
     unused). Returns (‖f‖, Es, Eb, 0, Ec)."""
     x0, u, f, ab = w.sub_x, w.sub_v, w.f, w.ab
@@ -81,7 +80,7 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                     ab[o + a, kl + b - a] += H6[a, b]
     ec = 0.0
     pos, pos0 = w.pos, w.pos0
-    if prm.n_obstacles > 0 or prm.rod_pairs:  # contact acts on the nodes in 3-D, in the plane y = plane_y
+    if contact.present(prm):  # IMC contact and friction (docs/physics.md §4), on the nodes in the plane y = plane_y
         py = prm.plane_y
         for k in range(N):
             pos[k, 0] = x[2 * k]
@@ -90,30 +89,7 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
             pos0[k, 0] = x0[2 * k]
             pos0[k, 1] = py
             pos0[k, 2] = x0[2 * k + 1]
-    if prm.n_obstacles > 0:  # IMC contact and friction (docs/physics.md §4)
-        cg, ch = w.cg, w.ch
-        cg[:, :] = 0.0
-        ch[:, :, :] = 0.0
-        ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
-                                prm.friction_nu, prm.friction_on, cg, ch, link)
-        for k in range(N):
-            f[2 * k] += cg[k, 0]
-            f[2 * k + 1] += cg[k, 2]
-        if with_jac:
-            for j in range(N - 1):
-                for a in range(4):
-                    la = (a // 2) * 3 + (0 if a % 2 == 0 else 2)
-                    r = 2 * j + a
-                    for b in range(a if sym else 0, 4):
-                        lb = (b // 2) * 3 + (0 if b % 2 == 0 else 2)
-                        c = 2 * j + b
-                        ab[r, kl + c - r] += ch[j, la, lb]
-    if prm.rod_pairs:  # edges touching edges in the plane (sim/contact_rod.py)
-        if with_jac:
-            reset_coupling(w.wb_slot, w.wb_dof, w.wb_n, w.wb_M)
-        ec += rod_pairs_accumulate(rod.pairs, w.rp_cand, w.rp_n, pos, pos0, h, 2, fixed, rod.radius, prm.contact_k,
-                                   prm.contact_delta, prm.friction, prm.friction_nu, f, ab, kl, sym, with_jac,
-                                   w.wb_slot, w.wb_dof, w.wb_n, w.wb_M, w.g12, w.H12, w.n12, w.ws12)
+        ec = contact.accumulate(e, prm, rod, cs, w, h, with_jac, sym)
     r2 = 0.0
     for k in range(n):  # constrained DOFs: identity rows and columns, zero residual
         if fixed[k]:

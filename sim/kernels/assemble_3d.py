@@ -10,8 +10,7 @@ import math
 
 from numba import njit
 
-from sim.contact_kernels import contact_accumulate
-from sim.contact_rod import reset_coupling, rod_pairs_accumulate
+from sim.contact import stages as contact
 from sim.energies.bend_twist import bend_twist_core, material_curvatures, material_directors
 from sim.energies.stretch import stretch_element
 from sim.frames import update_frames
@@ -23,7 +22,7 @@ __all__ = ["assemble_3d", "energies_3d"]
 
 
 @njit(**OPT)
-def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
+def assemble_3d(e, x, h, kb, tb, rod, prm, cs, w, with_jac, sym):
     """Residual w.f (n,) of the implicit (sub)step of size h from the sub-step start (w.sub_x, w.sub_v, frames
     w.sub_d1/sub_t/sub_beta) at iterate x and, if with_jac, its banded Jacobian w.ab (n + 10, 21); with ``sym``
     (no friction: the Jacobian is symmetric) only the upper half (for band_ldl_solve; the lower half is left
@@ -109,32 +108,11 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
                     ab[r, kl + b - a] += H11[a, b]
     ec = 0.0
     pos0 = w.pos0
-    if prm.n_obstacles > 0 or prm.rod_pairs:  # the sub-step start's nodes (friction velocities)
+    if contact.present(prm):  # IMC contact and friction (docs/physics.md §4); pos0: the sub-step start's nodes
         for k in range(N):
             for a in range(3):
                 pos0[k, a] = x0[4 * k + a]
-    if prm.n_obstacles > 0:  # IMC contact and friction (docs/physics.md §4)
-        cg, ch = w.cg, w.ch
-        cg[:, :] = 0.0
-        ch[:, :, :] = 0.0
-        ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
-                                prm.friction_nu, prm.friction_on, cg, ch, link)
-        for k in range(N):
-            for a in range(3):
-                f[4 * k + a] += cg[k, a]
-        if with_jac:
-            for j in range(N - 1):
-                for a in range(6):
-                    r = 4 * j + a if a < 3 else 4 * j + 1 + a
-                    for b in range(a if sym else 0, 6):
-                        c = 4 * j + b if b < 3 else 4 * j + 1 + b
-                        ab[r, kl + c - r] += ch[j, a, b]
-    if prm.rod_pairs:  # edges touching edges (sim/contact_rod.py): in-band blocks into ab, the rest listed
-        if with_jac:
-            reset_coupling(w.wb_slot, w.wb_dof, w.wb_n, w.wb_M)
-        ec += rod_pairs_accumulate(rod.pairs, w.rp_cand, w.rp_n, pos, pos0, h, 4, fixed, rod.radius, prm.contact_k,
-                                   prm.contact_delta, prm.friction, prm.friction_nu, f, ab, kl, sym, with_jac,
-                                   w.wb_slot, w.wb_dof, w.wb_n, w.wb_M, w.g12, w.H12, w.n12, w.ws12)
+        ec = contact.accumulate(e, prm, rod, cs, w, h, with_jac, sym)
     r2 = 0.0
     for k in range(n):  # constrained DOFs: identity rows and columns, zero residual
         if fixed[k]:

@@ -20,8 +20,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from sim.numba_options import OPT_CONTACT
+
 __all__ = ["band_ldl_solve", "band_lu_solve", "band_ldl_factor", "band_ldl_apply", "band_lu_factor", "band_lu_apply",
-           "dense_to_band", "solve_dense_banded"]
+           "dense_to_band", "solve_dense_banded", "dense_lu_solve"]
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"}, inline="always")
@@ -173,3 +175,40 @@ def solve_dense_banded(A: np.ndarray, kl: int, b: np.ndarray, *, symmetric: bool
     st = (_solve_band_sym if symmetric else _solve_band)(ab, n, kl, bb)
     assert not symmetric or np.isnan(ab[:, :kl]).all()
     return bb[:n].copy(), int(st)
+
+
+@njit(**OPT_CONTACT)  # as in the contact kernels: no fastmath (bitwise references)
+def dense_lu_solve(A, k, b, piv):
+    """Solve A[:k, :k] y = b[:k] in place (LU with partial pivoting; A overwritten, y into b). False if singular."""
+    for c in range(k):
+        p = c
+        big = abs(A[c, c])
+        for r in range(c + 1, k):
+            if abs(A[r, c]) > big:
+                big = abs(A[r, c])
+                p = r
+        if not (big > 0.0 and big < np.inf):
+            return False
+        piv[c] = p
+        if p != c:
+            for m in range(k):
+                tmp = A[c, m]
+                A[c, m] = A[p, m]
+                A[p, m] = tmp
+            tmp = b[c]
+            b[c] = b[p]
+            b[p] = tmp
+        ip = 1.0 / A[c, c]
+        for r in range(c + 1, k):
+            l = A[r, c] * ip
+            if l != 0.0:
+                A[r, c] = l
+                for m in range(c + 1, k):
+                    A[r, m] -= l * A[c, m]
+                b[r] -= l * b[c]
+    for r in range(k - 1, -1, -1):
+        v = b[r]
+        for m in range(r + 1, k):
+            v -= A[r, m] * b[m]
+        b[r] = v / A[r, r]
+    return True

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from numba import njit, prange
 
+from sim.contact import stages as contact
 from sim.numba_options import OPT, OPT_ALLOC
 
 from .ladder import env_step
@@ -39,7 +40,8 @@ def step_kernel(state, ctl, rod, prm_arr, cd, crep, out):
     """Advance all non-failed envs of ``state`` (:class:`sim.kernels.data.StateArrays`, dof/vel (B, n)) by
     prm.dt under ``ctl`` (:class:`sim.kernels.data.ControlArrays`) with the rod ``rod``
     (:class:`sim.kernels.data.RodData`), the parameters ``prm_arr`` (:meth:`sim.kernels.data.Params.record`) and
-    the obstacles ``cd`` (:class:`sim.contact_set.ContactData`); per-env results into ``out``
+    the obstacles ``cd`` (:class:`sim.contact_set.ContactData`, joined per chunk of envs with the contact
+    implementations' scratch into a :class:`sim.contact.ContactSets`); per-env results into ``out``
     (:class:`sim.kernels.data.StepOutput`) and the contact rows ``crep`` (:class:`sim.kernels.data.ContactReport`)."""
     dof, vel, ref_d1, tangent, ref_twist = state.dof, state.vel, state.ref_d1, state.tangent, state.ref_twist
     times, failed = state.time, state.failed  # unpacked before the parallel loop: writes must reach the caller's arrays
@@ -50,12 +52,13 @@ def step_kernel(state, ctl, rod, prm_arr, cd, crep, out):
     for chunk in prange(nch):  # workspaces are allocated once per chunk of envs, not per env-step
         prm = prm_arr[0]  # the parameters record, by reference
         w = alloc_workspace(N, prm.planar, rod.pairs.shape[0])
+        cs = contact.alloc(cd, N, rod.pairs.shape[0])
         for e in range(chunk * CHUNK, min(B, chunk * CHUNK + CHUNK)):
             _clear_outputs(out, e)
             if failed[e]:
                 continue
             ok = env_step(e, dof[e], vel[e], ref_d1[e], tangent[e], ref_twist[e], kappa_bar[e], tau_bar[e], rod, prm,
-                          cd, crep, out, w)
+                          cs, crep, out, w)
             if ok:
                 times[e] += prm.dt
             else:

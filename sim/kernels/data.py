@@ -14,7 +14,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from sim.contact_rod import model_pairs
+from sim.contact.edge_pairs import model_pairs
 from sim.contact_set import contact_radii
 from sim.model import planar_nodes
 
@@ -50,7 +50,7 @@ class Params:
     contact_delta/contact_margin/max_penetration/plane_y [m], contact_k [N/m], friction_nu [m/s]; the rest
     dimensionless. ``planar``: the 2-D model; ``midpoint``: implicit midpoint, else backward Euler; ``friction_on``:
     some obstacle has friction; ``rod_pairs``: edges of rods may touch each other (self- or rod–rod contact on and
-    allowed pairs exist, sim/contact_rod.py; they use contact_k, contact_delta, contact_margin and the [contact]
+    allowed pairs exist, sim/contact/edge_pairs.py; they use contact_k, contact_delta, contact_margin and the [contact]
     friction μ = friction); ``n_obstacles``: 0 when contact is disabled."""
 
     dt: float
@@ -82,7 +82,7 @@ class Params:
     @classmethod
     def from_model(cls, model: Any, *, pairs: np.ndarray | None = None) -> Params:
         """The parameters of ``model``'s step; ``pairs``: its edge pairs that may touch
-        (:func:`sim.contact_rod.model_pairs`, computed when not given)."""
+        (:func:`sim.contact.edge_pairs.model_pairs`, computed when not given)."""
         m = model
         c = m.spec.contact
         mp = getattr(c, "max_penetration", None)  # penetration guard [m]; None = 4 * delta
@@ -121,10 +121,10 @@ class RodData(NamedTuple):
     point loads): (1, n) shared by all envs, or (B, n) per env when time-windowed loads act (row min(e, rows - 1));
     the stiffnesses: EA [N] per edge (N-1,), EI1/EI2/GJ [N m²] per node (N,) (an interior node: the
     length-weighted mean of its two edges' compliances; docs/physics.md §1.5). The planar rod reads its in-plane
-    bending stiffness from EI1. radius [m]: (1,) for a rod of one radius, else (N-1,) per edge
-    (sim.contact_kernels). link (N-1,) uint8: 1 for a material edge, 0 for a joint edge between two rods of a
+    bending stiffness from EI1. edge_radius [m]: the contact radius, (1,) for a rod of one radius, else (N-1,) per
+    edge (sim.contact.imc). link (N-1,) uint8: 1 for a material edge, 0 for a joint edge between two rods of a
     scene (docs/physics.md §1.7): no stretching, no bending or twisting at its two nodes, no contact, its frame
-    carried along unchanged. pairs (P, 2) int64: the edge pairs that may touch (sim.contact_rod.allowed_pairs;
+    carried along unchanged. pairs (P, 2) int64: the edge pairs that may touch (sim.contact.edge_pairs.allowed_pairs;
     (0, 2) without self- or rod–rod contact)."""
 
     rest_len: np.ndarray
@@ -136,7 +136,7 @@ class RodData(NamedTuple):
     EI1: np.ndarray
     EI2: np.ndarray
     GJ: np.ndarray
-    radius: np.ndarray
+    edge_radius: np.ndarray
     link: np.ndarray
     pairs: np.ndarray
 
@@ -152,7 +152,7 @@ class RodData(NamedTuple):
         return cls(rest_len=np.array(m.rest_edge_length), vor_len=np.array(m.voronoi_length),
                    mass=np.array(m.dof_mass), fixed=np.array(m.dof_fixed), grav=np.array(m.dof_gravity)[None, :],
                    EA=np.array(m.edge_EA), EI1=np.array(ei1), EI2=np.array(m.node_EI2), GJ=np.array(m.node_GJ),
-                   radius=contact_radii(m.edge_radius), link=_edge_link(m),
+                   edge_radius=contact_radii(m.edge_radius), link=_edge_link(m),
                    pairs=model_pairs(m) if pairs is None else pairs)
 
 

@@ -8,8 +8,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from sim.contact_kernels import contact_accumulate, contact_broadphase, contact_report
-from sim.contact_rod import rod_pairs_broadphase, rod_pairs_report
+from sim.contact import stages as contact
 from sim.numba_options import OPT
 
 from .assemble_2d import frames_from_2d
@@ -40,7 +39,7 @@ def _copy_state(x, v, d1, t, beta, to_x, to_v, to_d1, to_t, to_beta):
 
 
 @njit(**OPT)
-def env_step(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
+def env_step(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cs, crep, out, w):
     """Advance env e (its state rows xs, us, d1s, ts, bs) by prm.dt through the retry/guard ladder; write its
     outputs. Returns False if the env failed (its state is then left as it was)."""
     planar = prm.planar
@@ -70,7 +69,7 @@ def env_step(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
         pen = 0.0
         grow = 0.0
         for s in range(ns):
-            st, it, conv, r, r0s, pen_s, pen0, fell = substep(e, h, kb, tb, rod, prm, cd, w, level == 0 and s == 0)
+            st, it, conv, r, r0s, pen_s, pen0, fell = substep(e, h, kb, tb, rod, prm, cs, w, level == 0 and s == 0)
             mfall += fell
             if s == 0:
                 r0 = r0s
@@ -106,7 +105,7 @@ def env_step(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
             frames_from_2d(xs, prm.plane_y, d1s, ts, bs, w, rod.link)
         else:
             _copy_state(w.sub_x, w.sub_v, w.sub_d1, w.sub_t, w.sub_beta, xs, us, d1s, ts, bs)
-    _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w)
+    _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cs, crep, out, w)
     out.residual[e] = r if np.isfinite(r) else np.inf
     out.residual0[e] = r0 if np.isfinite(r0) else np.inf
     out.newton_iters[e] = iters
@@ -118,42 +117,17 @@ def env_step(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
 
 
 @njit(**OPT)
-def _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, crep, out, w):
+def _write_outputs(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cs, crep, out, w):
     """Energies [J] of the (new or restored) state, whose stored frames are at xs, and its contact rows."""
     planar = prm.planar
     es, eb, et = energies(planar, xs, d1s, ts, bs, kb, tb, rod, prm, w)
     ec = 0.0
     pos, pos0 = w.pos, w.pos0
-    if prm.n_obstacles > 0 or prm.rod_pairs:
+    if contact.present(prm):
         positions(planar, xs, pos, prm.plane_y)
         # pos0: the step start by the step's velocity (the rows' friction velocity)
         predicted_positions(planar, xs, us, -prm.dt, pos0, prm.plane_y)
-    if prm.n_obstacles > 0:
-        # candidates of the state actually kept (a guard fallback or a restored state is not the configuration
-        # the last sub-step's list was built for): energy and report see every pair near it
-        contact_broadphase(e, cd, pos, pos, prm.contact_margin, rod.link)
-        w.cg[:, :] = 0.0
-        w.ch[:, :, :] = 0.0
-        ec = contact_accumulate(e, cd, pos, pos, prm.dt, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
-                                prm.friction_nu, prm.friction_on, w.cg, w.ch, rod.link)
-        contact_report(e, cd, pos, pos0, prm.dt, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
-                       prm.friction_nu, prm.friction_on, crep.count, crep.edge, crep.obstacle, crep.rod_point,
-                       crep.obstacle_point, crep.normal, crep.normal_force, crep.friction_force, crep.gap,
-                       crep.max_penetration, rod.link)
-    if prm.rod_pairs:  # edge pairs near the state kept: energy, deepest gap, rows after the obstacles'
-        rod_pairs_broadphase(rod.pairs, pos, pos, rod.radius, prm.contact_margin, w.rp_box, w.rp_cand, w.rp_n)
-        if prm.n_obstacles == 0:
-            crep.count[e] = 0
-        ep, smallest = rod_pairs_report(e, rod.pairs, w.rp_cand, w.rp_n, pos, pos0, prm.dt, rod.radius,
-                                        prm.contact_k, prm.contact_delta, prm.friction, prm.friction_nu, w.g12, w.H12,
-                                        w.n12, w.ws12, crep.count, crep.edge, crep.obstacle, crep.partner,
-                                        crep.rod_point, crep.obstacle_point, crep.normal, crep.normal_force,
-                                        crep.friction_force, crep.gap)
-        ec += ep
-        pen = max(0.0, -smallest)
-        if prm.n_obstacles > 0:
-            pen = max(pen, crep.max_penetration[e])
-        crep.max_penetration[e] = pen
+        ec = contact.report(e, prm, rod, cs, pos, pos0, crep)
     ek = 0.0
     eg = 0.0
     grav = rod.grav[min(e, rod.grav.shape[0] - 1)]  # external forces: (1, n) shared or (B, n) per env

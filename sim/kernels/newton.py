@@ -28,27 +28,13 @@ import math
 import numpy as np
 from numba import njit
 
-from sim.contact_kernels import (
-    contact_accumulate,
-    contact_broadphase,
-    contact_min_gap,
-    contact_refresh,
-    contact_step_limit,
-)
-from sim.contact_rod import (
-    dense_lu_solve,
-    rod_pairs_broadphase,
-    rod_pairs_energy,
-    rod_pairs_min_gap,
-    rod_pairs_refresh,
-    rod_pairs_step_limit,
-)
+from sim.contact import stages as contact
 from sim.frames import update_frames
 from sim.numba_options import OPT
 
 from .assemble_2d import assemble_2d, energies_2d
 from .assemble_3d import assemble_3d, energies_3d
-from .banded import band_ldl_apply, band_ldl_factor, band_lu_apply, band_lu_factor
+from .banded import band_ldl_apply, band_ldl_factor, band_lu_apply, band_lu_factor, dense_lu_solve
 from .data import (
     BAD_PIVOT,
     KL_2D,
@@ -70,35 +56,29 @@ __all__ = ["newton", "substep", "substep_with", "mech_energy", "assemble", "ener
 # ------------------------------------------------------------------------------------------- the solve's decisions
 @njit(inline="always", **OPT)
 def jacobian_symmetric(prm):
-    """Whether the Newton Jacobian is symmetric: yes unless friction acts (obstacles or edge pairs present and
-    μ > 0); the kernels then assemble only the band's upper half and factor it by LDLᵀ."""
-    return not ((prm.n_obstacles > 0 and prm.friction_on) or (prm.rod_pairs and prm.friction > 0))
+    """Whether the Newton Jacobian is symmetric: yes unless friction can act in a contact
+    (:func:`sim.contact.stages.symmetric`); the kernels then assemble only the band's upper half and factor it by
+    LDLᵀ."""
+    return contact.symmetric(prm)
 
 
 @njit(inline="always", **OPT)
-def has_candidates(prm, cd, e, w):
-    """Whether env ``e`` has contact candidates now: obstacle pairs (cd) or edge pairs (the Workspace's list)."""
-    return (prm.n_obstacles > 0 and cd.cand_count[e] > 0) or (prm.rod_pairs and w.rp_n[0] > 0)
-
-
-@njit(inline="always", **OPT)
-def lazy_line_search(prm, cd, e, w):
+def lazy_line_search(prm, cs, e):
     """Whether env ``e``'s Newton loop backtracks lazily (``line_search = "auto"``, the default): only in
     an env with contact candidates (obstacle or edge pairs: where friction's stick law and the stiff contact
     potential make full Newton steps overshoot), and only when an update raised ‖f‖; otherwise the full step
     costs nothing extra. The decision is read once per Newton solve (the candidate list is fixed during it)."""
-    return prm.line_search == LineSearch.AUTO and has_candidates(prm, cd, e, w)
+    return prm.line_search == LineSearch.AUTO and contact.has_candidates(e, prm, cs)
 
 
 @njit(inline="always", **OPT)
-def newton_dtol(prm, cd, e, w):
+def newton_dtol(prm, cs, e):
     """Displacement-test tolerance [m/s] of env ``e``'s Newton solve: ``newton_dtol``, capped at 1 % of the
     friction velocity tolerance ν where friction can act (contact candidates and μ > 0): the stick law
     γ(|v_t|/ν) resolves velocities on the scale ν, so an update that still changes velocities by ~ν is
     not converged (docs/physics.md §4.6)."""
     dtol = prm.newton_dtol
-    if ((prm.friction_on and prm.n_obstacles > 0 and cd.cand_count[e] > 0)
-            or (prm.friction > 0 and prm.rod_pairs and w.rp_n[0] > 0)):
+    if contact.friction_acts(e, prm, cs):
         dtol = min(dtol, 0.01 * prm.friction_nu)
     return dtol
 
@@ -114,11 +94,11 @@ def midpoint_gained_energy(e0, s0, e1, s1, tol):
 
 # ------------------------------------------------------------------------------------- the mode's element functions
 @njit(inline="always", **OPT)
-def assemble(planar, e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym):
+def assemble(planar, e, x, h, kb, tb, rod, prm, cs, w, with_jac, sym):
     """Frames at x, residual w.f and (with_jac) Jacobian w.ab; returns (‖f‖, Es, Eb, Et, Ec)."""
     if planar:
-        return assemble_2d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym)
-    return assemble_3d(e, x, h, kb, tb, rod, prm, cd, w, with_jac, sym)
+        return assemble_2d(e, x, h, kb, tb, rod, prm, cs, w, with_jac, sym)
+    return assemble_3d(e, x, h, kb, tb, rod, prm, cs, w, with_jac, sym)
 
 
 @njit(inline="always", **OPT)
@@ -197,7 +177,7 @@ def _band_apply(planar, sym, ab, n, b):
 @njit(inline="always", **OPT)
 def linear_solve(planar, w, n, sym):
     """dx = J⁻¹ f (in place in w.dx): the banded solve, plus the Woodbury correction when edge pairs coupled
-    DOFs outside the band (w.wb_n[0] > 0, :func:`_woodbury`); False on a bad pivot or a singular correction."""
+    DOFs outside the band (w.coupling.count[0] > 0, :func:`_woodbury`); False on a bad pivot or a singular correction."""
     dx = w.dx
     for k in range(n):
         dx[k] = w.f[k]
@@ -208,18 +188,19 @@ def linear_solve(planar, w, n, sym):
     if st != 0:
         return False
     _band_apply(planar, sym, w.ab, n, dx)
-    if w.wb_n[0] > 0:
+    if w.coupling.count[0] > 0:
         return _woodbury(planar, sym, w, n)
     return True
 
 
 @njit(**OPT)
 def _woodbury(planar, sym, w, n):
-    """Correct dx = B⁻¹ f (w.dx; B the factored band) to (B + E M Eᵀ)⁻¹ f, where M (w.wb_M, K × K) couples the
-    listed DOFs w.wb_dof (E their unit columns): dx − Z (I + M Eᵀ Z)⁻¹ M Eᵀ dx with Z = B⁻¹ E (docs/physics.md
+    """Correct dx = B⁻¹ f (w.dx; B the factored band) to (B + E M Eᵀ)⁻¹ f, where M (w.coupling.M, K × K) couples
+    the listed DOFs w.coupling.dof (E their unit columns): dx − Z (I + M Eᵀ Z)⁻¹ M Eᵀ dx with Z = B⁻¹ E (docs/physics.md
     §4.8). K band solves and one dense K × K solve."""
-    K = w.wb_n[0]
-    Z, M, C, r, dof, dx = w.wb_Z, w.wb_M, w.wb_C, w.wb_r, w.wb_dof, w.dx
+    cp = w.coupling
+    K = cp.count[0]
+    Z, M, C, r, dof, dx = cp.Z, cp.M, cp.C, cp.r, cp.dof, w.dx
     for b in range(K):
         zb = Z[b]
         for i in range(zb.shape[0]):
@@ -236,7 +217,7 @@ def _woodbury(planar, sym, w, n):
             for c in range(K):
                 v += M[a, c] * Z[b, dof[c]]
             C[a, b] = v + (1.0 if a == b else 0.0)
-    if not dense_lu_solve(C, K, r, w.wb_piv):
+    if not dense_lu_solve(C, K, r, cp.piv):
         return False
     for b in range(K):
         wv = r[b]
@@ -246,23 +227,18 @@ def _woodbury(planar, sym, w, n):
 
 
 @njit(inline="always", **OPT)
-def _limit_update(planar, e, rod, cd, prm, w):
+def _limit_update(planar, e, rod, cs, prm, w):
     """Shorten dx so that no update carries a rod edge through an obstacle or another edge (w.pos: the nodes
     at x)."""
-    _node_motion(planar, w.dx, w.cg)
-    tcap = 1.0
-    if prm.n_obstacles > 0 and cd.cand_count[e] > 0:
-        tcap = contact_step_limit(e, cd, w.pos, w.cg, rod.radius, prm.contact_delta)
-    if prm.rod_pairs and w.rp_n[0] > 0:
-        tcap = min(tcap, rod_pairs_step_limit(rod.pairs, w.rp_cand, w.rp_n, w.pos, w.cg, rod.radius,
-                                              prm.contact_delta))
+    _node_motion(planar, w.dx, w.dpos)
+    tcap = contact.step_limit(e, prm, rod, cs, w.pos, w.dpos)
     if tcap < 1.0:
         for k in range(w.x.shape[0]):
             w.dx[k] *= tcap
 
 
 @njit(**OPT)
-def _backtrack(planar, e, hs, rp, kb, tb, rod, prm, cd, w, sym):
+def _backtrack(planar, e, hs, rp, kb, tb, rod, prm, cs, w, sym):
     """Lazy line search: the last full update raised ‖f‖ above rp; step back along it (halving) until ‖f‖ ≤ rp
     or 4 halvings, then re-assemble with the Jacobian. Returns the new ‖f‖."""
     x, dx = w.x, w.dx
@@ -271,14 +247,14 @@ def _backtrack(planar, e, hs, rp, kb, tb, rod, prm, cd, w, sym):
         alpha *= 0.5
         for k in range(x.shape[0]):
             x[k] += alpha * dx[k]  # x = x_prev - alpha dx
-        rt = assemble(planar, e, x, hs, kb, tb, rod, prm, cd, w, False, sym)[0]
+        rt = assemble(planar, e, x, hs, kb, tb, rod, prm, cs, w, False, sym)[0]
         if rt <= rp:
             break
-    return assemble(planar, e, x, hs, kb, tb, rod, prm, cd, w, True, sym)[0]
+    return assemble(planar, e, x, hs, kb, tb, rod, prm, cs, w, True, sym)[0]
 
 
 @njit(**OPT)
-def _line_search(planar, e, hs, r, kb, tb, rod, prm, cd, w, sym):
+def _line_search(planar, e, hs, r, kb, tb, rod, prm, cs, w, sym):
     """Backtracking line search on ‖f‖: x ← x − α·dx with α = 1, ½, … (5 tries; the last is taken anyway)."""
     x, xt, dx = w.x, w.xt, w.dx
     n = x.shape[0]
@@ -286,7 +262,7 @@ def _line_search(planar, e, hs, r, kb, tb, rod, prm, cd, w, sym):
     for trial in range(5):
         for k in range(n):
             xt[k] = x[k] - alpha * dx[k]
-        rt = assemble(planar, e, xt, hs, kb, tb, rod, prm, cd, w, False, sym)[0]
+        rt = assemble(planar, e, xt, hs, kb, tb, rod, prm, cs, w, False, sym)[0]
         if (np.isfinite(rt) and rt <= r) or trial == 4:
             break
         alpha *= 0.5
@@ -305,7 +281,7 @@ def _max_position_update(dx, fixed, dpn):
 
 
 @njit(**OPT)
-def newton(e, hs, kb, tb, rod, prm, cd, w):
+def newton(e, hs, kb, tb, rod, prm, cs, w):
     """Newton iterations of one (sub)step of size hs from the sub-step start (w.sub_*), iterate in w.x.
 
     Returns (status, iterations, converged, ‖f‖ last, ‖f0‖); status OK (converged, or unconverged at the
@@ -316,10 +292,10 @@ def newton(e, hs, kb, tb, rod, prm, cd, w):
     dpn = 2 if planar else 4
     maxit = prm.newton_max_iter
     tol = prm.newton_tol
-    dtol = newton_dtol(prm, cd, e, w)
+    dtol = newton_dtol(prm, cs, e)
     sym = jacobian_symmetric(prm)
-    lazy = lazy_line_search(prm, cd, e, w)
-    limit = prm.step_limit and has_candidates(prm, cd, e, w)
+    lazy = lazy_line_search(prm, cs, e)
+    limit = prm.step_limit and contact.has_candidates(e, prm, cs)
     _predict(x, w.sub_x, w.sub_v, fixed, hs)
     r0 = 0.0
     r = 0.0
@@ -327,9 +303,9 @@ def newton(e, hs, kb, tb, rod, prm, cd, w):
     conv = False
     it = 0
     while it < maxit:
-        r = assemble(planar, e, x, hs, kb, tb, rod, prm, cd, w, True, sym)[0]
+        r = assemble(planar, e, x, hs, kb, tb, rod, prm, cs, w, True, sym)[0]
         if lazy and it > 0 and not r <= rp:
-            r = _backtrack(planar, e, hs, rp, kb, tb, rod, prm, cd, w, sym)
+            r = _backtrack(planar, e, hs, rp, kb, tb, rod, prm, cs, w, sym)
         if not np.isfinite(r):
             return NON_FINITE, it, False, r, r0
         if it == 0:
@@ -343,9 +319,9 @@ def newton(e, hs, kb, tb, rod, prm, cd, w):
         if not linear_solve(planar, w, n, sym):
             return BAD_PIVOT, it, False, r, r0
         if limit:
-            _limit_update(planar, e, rod, cd, prm, w)
+            _limit_update(planar, e, rod, cs, prm, w)
         if prm.line_search == LineSearch.BACKTRACK:
-            _line_search(planar, e, hs, r, kb, tb, rod, prm, cd, w, sym)
+            _line_search(planar, e, hs, r, kb, tb, rod, prm, cs, w, sym)
         else:
             for k in range(n):
                 x[k] -= dx[k]
@@ -361,7 +337,7 @@ def newton(e, hs, kb, tb, rod, prm, cd, w):
 
 # ------------------------------------------------------------------------------------------------ one (sub)step
 @njit(**OPT)
-def mech_energy(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, w, pos, pos0, h):
+def mech_energy(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cs, w, pos, pos0, h):
     """(E_total, E_total − E_gravity) [J] of a state whose frames (d1s, ts, bs) are at xs; contact energy over
     the current candidates (friction off), ``pos`` the node positions of xs."""
     es, eb, et = energies(prm.planar, xs, d1s, ts, bs, kb, tb, rod, prm, w)
@@ -372,12 +348,7 @@ def mech_energy(e, xs, us, d1s, ts, bs, kb, tb, rod, prm, cd, w, pos, pos0, h):
         if not rod.fixed[k]:
             ek += 0.5 * rod.mass[k] * us[k] * us[k]
         eg -= grav[k] * xs[k]
-    ec = 0.0
-    if prm.n_obstacles > 0 and cd.cand_count[e] > 0:
-        ec = contact_accumulate(e, cd, pos, pos0, h, rod.radius, prm.contact_k, prm.contact_delta, prm.friction,
-                                prm.friction_nu, False, w.cg, w.ch, rod.link)
-    if prm.rod_pairs and w.rp_n[0] > 0:
-        ec += rod_pairs_energy(rod.pairs, w.rp_cand, w.rp_n, pos, rod.radius, prm.contact_k, prm.contact_delta)
+    ec = contact.energy(e, prm, rod, cs, pos, pos0, h)
     e_in = es + eb + et + ek + ec
     return e_in + eg, e_in
 
@@ -413,7 +384,7 @@ def _strain_ok(pos, rest_len, link, max_strain):
 
 
 @njit(**OPT)
-def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
+def substep_with(e, h, kb, tb, rod, prm, cs, w, want_pen0, midpoint):
     """One (sub)step of size h from w.sub_* by implicit midpoint (``midpoint``) or backward Euler; on success
     w.sub_* hold the new state.
 
@@ -422,51 +393,33 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
     Status MIDPOINT_GAINED: a midpoint step gained energy (nothing committed)."""
     planar = prm.planar
     py = prm.plane_y
-    contact = prm.n_obstacles > 0
-    pairs = prm.rod_pairs
+    touch = contact.present(prm)
     x, dx, pos, pos0 = w.x, w.dx, w.pos, w.pos0
     x0, u = w.sub_x, w.sub_v
     hs = 0.5 * h if midpoint else h
     # predict: contact candidates over the predicted motion x0 → x0 + hs·u
     pen0 = 0.0
-    if contact or pairs:
+    if touch:
         positions(planar, x0, pos0, py)
         predicted_positions(planar, x0, u, hs, pos, py)
-    if contact:
-        contact_broadphase(e, cd, pos0, pos, prm.contact_margin, rod.link)
-        if want_pen0 and cd.cand_count[e] > 0:
-            pen0 = -contact_min_gap(e, cd, pos0, rod.radius)
-    if pairs:
-        rod_pairs_broadphase(rod.pairs, pos0, pos, rod.radius, prm.contact_margin, w.rp_box, w.rp_cand, w.rp_n)
-        if want_pen0 and w.rp_n[0] > 0:
-            pen0 = max(pen0, -rod_pairs_min_gap(rod.pairs, w.rp_cand, w.rp_n, pos0, rod.radius))
+        contact.broadphase(e, prm, rod, cs, pos0, pos)
+        if want_pen0:
+            pen0 = contact.penetration(e, prm, rod, cs, pos0)
     # newton
-    st, it, conv, r, r0 = newton(e, hs, kb, tb, rod, prm, cd, w)
+    st, it, conv, r, r0 = newton(e, hs, kb, tb, rod, prm, cs, w)
     if st != OK:
         return st, it, False, r, r0, 0.0, pen0
     # refresh: the solve can carry the rod onto pairs the predicted-motion list missed (a control change moves it
-    # far from x0 + h u); refresh the list over the motion actually taken and, if it gained pairs, solve again.
-    # Backward Euler ends where the solve ended: the refreshed list then covers the whole sub-step motion. Edge
-    # pairs added at a gap of δ or more exert no force at the solution, which then solves the longer list too: only
-    # an added pair in reach of the contact potential calls for the second solve.
+    # far from x0 + h u); refresh the lists over the motion actually taken and, if that calls for it, solve again
+    # (each implementation says when: sim.contact.stages.refresh). Backward Euler ends where the solve ended: the
+    # refreshed lists then cover the whole sub-step motion.
     list_covers_step = False
-    if contact or pairs:
+    if touch:
         positions(planar, x, pos, py)
-        list_covers_step = not midpoint
-        added = False
-        resolve = False
-        if contact:
-            added = contact_refresh(e, cd, pos0, pos, prm.contact_margin, rod.link)
-            resolve = added
-        if pairs:
-            added_pairs, added_gap = rod_pairs_refresh(rod.pairs, pos0, pos, rod.radius, prm.contact_margin,
-                                                       w.rp_box, w.rp_cand, w.rp_n)
-            added = added or added_pairs
-            resolve = resolve or added_gap < prm.contact_delta
-        if added:
-            list_covers_step = False
+        added, resolve = contact.refresh(e, prm, rod, cs, pos0, pos)
+        list_covers_step = not midpoint and not added
         if resolve:
-            st, it2, conv, r, r0 = newton(e, hs, kb, tb, rod, prm, cd, w)
+            st, it2, conv, r, r0 = newton(e, hs, kb, tb, rod, prm, cs, w)
             it += it2
             if st != OK:
                 return st, it, False, r, r0, 0.0, pen0
@@ -485,8 +438,8 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
             return NON_FINITE, it, conv, r, r0, 0.0, pen0
     if midpoint and prm.midpoint_energy_tol > 0:  # energy at the start (frames sub_*) and at the end (t, d1, beta)
         positions(planar, x0, pos0, py)
-        e0, s0 = mech_energy(e, x0, u, w.sub_d1, w.sub_t, w.sub_beta, kb, tb, rod, prm, cd, w, pos0, pos0, h)
-        e1, s1 = mech_energy(e, x, dx, w.d1, w.t, w.beta, kb, tb, rod, prm, cd, w, pos, pos0, h)
+        e0, s0 = mech_energy(e, x0, u, w.sub_d1, w.sub_t, w.sub_beta, kb, tb, rod, prm, cs, w, pos0, pos0, h)
+        e1, s1 = mech_energy(e, x, dx, w.d1, w.t, w.beta, kb, tb, rod, prm, cs, w, pos, pos0, h)
         if midpoint_gained_energy(e0, s0, e1, s1, prm.midpoint_energy_tol):
             return MIDPOINT_GAINED, it, conv, r, r0, 0.0, pen0
     # commit
@@ -501,28 +454,22 @@ def substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, midpoint):
     for k in range(x.shape[0]):
         u[k] = dx[k]
     pen = 0.0
-    if contact:  # pos: end of sub-step, pos0: its start; the list must cover the whole sub-step motion
+    if touch:  # pos: end of sub-step, pos0: its start; the lists must cover the whole sub-step motion
         if not list_covers_step:
-            contact_broadphase(e, cd, pos0, pos, prm.contact_margin, rod.link)
-        if cd.cand_count[e] > 0:
-            pen = -contact_min_gap(e, cd, pos, rod.radius)
-    if pairs:
-        if not list_covers_step:
-            rod_pairs_broadphase(rod.pairs, pos0, pos, rod.radius, prm.contact_margin, w.rp_box, w.rp_cand, w.rp_n)
-        if w.rp_n[0] > 0:
-            pen = max(pen, -rod_pairs_min_gap(rod.pairs, w.rp_cand, w.rp_n, pos, rod.radius))
+            contact.broadphase(e, prm, rod, cs, pos0, pos)
+        pen = contact.penetration(e, prm, rod, cs, pos)
     return OK, it, conv, r, r0, pen, pen0
 
 
 @njit(**OPT)
-def substep(e, h, kb, tb, rod, prm, cd, w, want_pen0):
+def substep(e, h, kb, tb, rod, prm, cs, w, want_pen0):
     """One (sub)step with the scene's integrator; a midpoint step that gains energy (see
     :func:`midpoint_gained_energy`) is redone by backward Euler. Returns what
     :func:`substep_with` does and, last, 1 if the (sub)step was redone by backward Euler, else 0."""
-    st, it, conv, r, r0, pen, pen0 = substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, prm.midpoint)
+    st, it, conv, r, r0, pen, pen0 = substep_with(e, h, kb, tb, rod, prm, cs, w, want_pen0, prm.midpoint)
     fell = 0
     if st == MIDPOINT_GAINED:
         fell = 1
-        st, it2, conv, r, r0, pen, pen0 = substep_with(e, h, kb, tb, rod, prm, cd, w, want_pen0, False)
+        st, it2, conv, r, r0, pen, pen0 = substep_with(e, h, kb, tb, rod, prm, cs, w, want_pen0, False)
         it += it2
     return st, it, conv, r, r0, pen, pen0, fell

@@ -3,8 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.contact_kernels import contact_accumulate, contact_broadphase, contact_report
+from sim.contact.obstacles import contact_rows, find_candidates, node_forces
 from sim.contact_set import ObstacleSet
+from sim.kernels.data import PARAMS_DTYPE, ContactReport
 
 K = 1e6
 DELTA = 5e-3
@@ -14,6 +15,13 @@ R_ROD = 0.05
 def radii(rod_radius) -> np.ndarray:
     """The contact kernels' radius argument: (1,) for one radius, else one per edge."""
     return np.atleast_1d(np.asarray(rod_radius, dtype=np.float64))
+
+
+def law(*, k=K, delta=DELTA, mu=0.0, nu=1e-2):
+    """The contact law's parameters as the kernels read them: a Params record with only the contact fields set."""
+    rec = np.zeros(1, dtype=PARAMS_DTYPE)
+    rec[0]["contact_k"], rec[0]["contact_delta"], rec[0]["friction"], rec[0]["friction_nu"] = k, delta, mu, nu
+    return rec[0]
 
 
 def make_set(specs, n_nodes, *, rod_radius=R_ROD, envs=1):
@@ -29,11 +37,11 @@ def accumulate(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, friction_on=Fals
     x = np.ascontiguousarray(x, dtype=np.float64)
     xp = x.copy() if x_prev is None else np.ascontiguousarray(x_prev, dtype=np.float64)
     if broadphase:
-        contact_broadphase(e, cd, x, x, margin)
+        find_candidates(e, cd, x, x, margin)
         cd.iter_flag[e] = 1  # evaluate as a Newton iteration >= 1 (friction is skipped on iteration 0)
     g = np.zeros_like(x)
     h = np.zeros((x.shape[0] - 1, 6, 6))
-    E = contact_accumulate(e, cd, x, xp, dt, radii(rod_radius), k, delta, mu, nu, friction_on, g, h)
+    E = node_forces(e, law(k=k, delta=delta, mu=mu, nu=nu), cd, x, xp, dt, radii(rod_radius), friction_on, g, h)
     return E, g, h
 
 
@@ -41,14 +49,9 @@ def report(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, cap=64, rod_radius=R
            delta=DELTA):
     x = np.ascontiguousarray(x, dtype=np.float64)
     xp = x.copy() if x_prev is None else np.ascontiguousarray(x_prev, dtype=np.float64)
-    out = dict(count=np.zeros(B, np.int64), edge=np.zeros((B, cap), np.int64), obstacle=np.zeros((B, cap), np.int64),
-               rod_point=np.zeros((B, cap, 3)), obstacle_point=np.zeros((B, cap, 3)), normal=np.zeros((B, cap, 3)),
-               normal_force=np.zeros((B, cap)), friction_force=np.zeros((B, cap, 3)), gap=np.zeros((B, cap)),
-               max_penetration=np.zeros(B))
-    E = contact_report(e, cd, x, xp, dt, radii(rod_radius), k, delta, mu, nu, True, out["count"], out["edge"],
-                       out["obstacle"], out["rod_point"], out["obstacle_point"], out["normal"], out["normal_force"],
-                       out["friction_force"], out["gap"], out["max_penetration"])
-    return E, out
+    rows = ContactReport.zeros(B, cap)
+    E = contact_rows(e, law(k=k, delta=delta, mu=mu, nu=nu), cd, x, xp, dt, radii(rod_radius), True, rows)
+    return E, rows._asdict()
 
 
 def dense_hessian(h, n):
@@ -84,7 +87,7 @@ def place_at_gap(cd, x, target, *, iters=3):
     """Translate the rod x (N, 3) along the contact normal until its smallest gap equals ``target`` [m]."""
     x = np.array(x, dtype=np.float64)
     for _ in range(iters):
-        contact_broadphase(0, cd, x, x, 1.0)
+        find_candidates(0, cd, x, x, 1.0)
         _, out = report(cd, x, x_prev=x, delta=1.0)
         if out["count"][0] == 0:
             raise AssertionError("place_at_gap: no contact within delta; start closer")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from contact_helpers import DELTA, R_ROD, K, accumulate, fd_check, make_set, place_at_gap, report
 
-from sim.contact_kernels import friction_block, imc_energy
+from sim.contact.imc import friction_block, imc_energy
 from sim.obstacles import BoxSpec, CapsuleSpec, MeshSpec, PlaneSpec, SphereSpec
 
 MESHES = Path(__file__).resolve().parents[2] / "assets" / "meshes"

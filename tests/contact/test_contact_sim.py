@@ -57,7 +57,7 @@ def test_rod_resting_on_plane_force_equals_weight():
     assert s.max_penetration[0] < DELTA
     assert s.converged[0]
     # §8D.4: the equilibrium gap of an interior node solves -E'(g) = m_k g
-    from sim.contact_kernels import imc_energy
+    from sim.contact.imc import imc_energy
     g_int = s.contact_gap[0, 5]
     assert -imc_energy(g_int, 1e6, DELTA)[1] == pytest.approx(weight / 20, rel=0.02)
 

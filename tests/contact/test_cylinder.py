@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from contact_helpers import R_ROD, make_set, report
 
-from sim.contact_kernels import contact_broadphase
+from sim.contact.obstacles import find_candidates
 from sim.obstacles import CapsuleSpec, CylinderSpec, dump_obstacles, parse_obstacles
 from sim.tomlio import SceneError
 
@@ -26,7 +26,7 @@ def test_cylinder_scene_round_trip_and_errors():
 def _gap(spec, seg):
     _, cd = make_set([spec], 2)
     x = np.array(seg, dtype=float)
-    contact_broadphase(0, cd, x, x, 1.0)
+    find_candidates(0, cd, x, x, 1.0)
     _, out = report(cd, x, delta=1.0)
     k = int(out["count"][0])
     assert k >= 1

@@ -1,5 +1,5 @@
 """Tunnelling safeguards (docs/physics.md §6.4): the Newton step limit
-(``contact_step_limit``) and the candidate refresh, unit-level and in the simulator."""
+(``update_fraction``) and the candidate refresh, unit-level and in the simulator."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sim import Simulator, build_model, parse_scene
-from sim.contact_kernels import contact_broadphase, contact_min_gap, contact_refresh, contact_step_limit
+from sim.contact.obstacles import find_candidates, merge_candidates, smallest_gap, update_fraction
 
 ROOT = Path(__file__).resolve().parents[2]
 DELTA = 5e-3
@@ -31,8 +31,8 @@ def capsule_sim():
 
 
 def gap(cd, x):
-    contact_broadphase(0, cd, x, x, 1.0)
-    return -contact_min_gap(0, cd, x, np.array([R_ROD]))   # penetration (>= 0)
+    find_candidates(0, cd, x, x, 1.0)
+    return -smallest_gap(0, cd, x, np.array([R_ROD]))   # penetration (>= 0)
 
 
 def test_update_through_an_obstacle_stops_at_delta():
@@ -41,8 +41,8 @@ def test_update_through_an_obstacle_stops_at_delta():
     cd, x = capsule_sim()
     d = np.zeros_like(x)
     d[:, 2] = -1.0
-    contact_broadphase(0, cd, x, x + d, 0.05)
-    t = contact_step_limit(0, cd, x, d, np.array([R_ROD]), DELTA)
+    find_candidates(0, cd, x, x + d, 0.05)
+    t = update_fraction(0, cd, x, d, np.array([R_ROD]), DELTA)
     assert 0.14 < t < 0.16
     assert gap(cd, x + t * d) == pytest.approx(DELTA, abs=1e-4)
 
@@ -52,8 +52,8 @@ def test_sliding_and_receding_updates_are_not_limited():
     x = x.copy()
     x[:, 2] = 0.2 + R_CAP + R_ROD - 0.002   # resting 2 mm deep on the capsule
     for d in (np.tile([0.0, 0.3, 0.0], (21, 1)), np.tile([0.0, 0.0, 0.2], (21, 1))):  # slide along y, lift off
-        contact_broadphase(0, cd, x, x + d, 0.05)
-        assert contact_step_limit(0, cd, x, d, np.array([R_ROD]), DELTA) == 1.0
+        find_candidates(0, cd, x, x + d, 0.05)
+        assert update_fraction(0, cd, x, d, np.array([R_ROD]), DELTA) == 1.0
 
 
 def test_penetrating_pair_goes_at_most_delta_deeper():
@@ -62,8 +62,8 @@ def test_penetrating_pair_goes_at_most_delta_deeper():
     x[:, 2] = 0.2 + R_CAP + R_ROD - 0.01    # 10 mm deep
     d = np.zeros_like(x)
     d[:, 2] = -0.1
-    contact_broadphase(0, cd, x, x + d, 0.05)
-    t = contact_step_limit(0, cd, x, d, np.array([R_ROD]), DELTA)
+    find_candidates(0, cd, x, x + d, 0.05)
+    t = update_fraction(0, cd, x, d, np.array([R_ROD]), DELTA)
     assert gap(cd, x + t * d) == pytest.approx(0.01 + DELTA, abs=1e-4)
 
 
@@ -75,10 +75,10 @@ def test_refresh_adds_the_pairs_of_the_motion_taken():
     up[:, 2] += 0.3
     down = x.copy()
     down[:, 2] -= 0.25
-    assert contact_broadphase(0, cd, x, up, 0.05) == 0
-    assert contact_refresh(0, cd, x, down, 0.05)
+    assert find_candidates(0, cd, x, up, 0.05) == 0
+    assert merge_candidates(0, cd, x, down, 0.05)
     assert cd.cand_count[0] > 0
-    assert not contact_refresh(0, cd, x, down, 0.05)
+    assert not merge_candidates(0, cd, x, down, 0.05)
 
 
 @pytest.mark.parametrize("mode", ["2d", "3d"])

@@ -15,7 +15,7 @@ def test_every_numba_module_is_hashed_or_self_contained():
                            if "__pycache__" not in p.parts and "@njit" in p.read_text(encoding="utf-8"))
     missing = [m for m in numba_modules if m not in _cache._SOURCES and m not in _cache.SELF_CONTAINED]
     assert not missing, f"sim/_cache.py _SOURCES lacks {missing}"
-    assert "contact_rod.py" in _cache._SOURCES
+    assert "contact/edge_pairs.py" in _cache._SOURCES
 
 
 def test_self_contained_modules_import_no_kernel_module():

@@ -11,7 +11,7 @@ import pytest
 
 from benchmarks.throughput_pairs import two_rod_doc
 from sim import Simulator, build_model
-from sim.contact_kernels import imc_energy
+from sim.contact.imc import imc_energy
 from sim.geometry_distance import closest_seg_seg
 from sim.scene import parse_scene
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from sim import Simulator, build_model, parse_scene
-from sim.contact_rod import model_pairs
+from sim.contact.edge_pairs import model_pairs
 from sim.geometry_distance import closest_seg_seg
 
 RADIUS = 0.02

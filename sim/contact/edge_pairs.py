@@ -3,44 +3,64 @@
 Each edge is a capsule of its radius. For an allowed pair of edges (i, j) (:func:`allowed_pairs`: both material
 edges, not neighbours along one rod) the gap is ``g = Δ − r_i − r_j`` with ``Δ`` the exact distance between the two
 centre-line segments (Lumelsky's closest points, docs/physics.md §4.2) and the energy the IMC softplus-squared
-``E(g)`` of the obstacles (:func:`sim.contact_kernels.imc_energy`). ``Δ``'s gradient and Hessian over the 12
+``E(g)`` of the obstacles (:func:`sim.contact.imc.imc_energy`). ``Δ``'s gradient and Hessian over the 12
 coordinates of the pair's four nodes follow from the envelope theorem and a Schur complement over the closest-point
 parameters that are interior (:func:`seg_seg_derivs`), so the Newton Jacobian is exact inside each region
 (point–point, point–edge, edge–edge).
 
 A pair couples nodes far apart along the chain, outside the band of the banded Jacobian. The assembly
-(:func:`rod_pairs_accumulate`) adds the blocks of each edge with itself into the band and collects the blocks
+(:func:`add_forces`) adds the blocks of each edge with itself into the band and collects the blocks
 between the two edges, entry by entry over the DOFs they touch, into a small dense coupling matrix ``M`` over a
-list of those DOFs (the Workspace's ``wb_*`` fields); :mod:`sim.kernels.newton` then solves ``(B + E M Eᵀ) dx = f``
+list of those DOFs (:class:`Coupling`, the Workspace's ``coupling``); :mod:`sim.kernels.newton` then solves ``(B + E M Eᵀ) dx = f``
 by the Woodbury identity on the banded factorisation of ``B`` (:func:`sim.kernels.newton._woodbury`). With no pair
 within reach the list is empty and the solve is the banded one.
 
 Candidates: once per (sub)step, over the predicted motion, every allowed pair whose swept boxes (each edge's box over
-the step's start and end, grown by its radius and half the contact margin) overlap (:func:`rod_pairs_broadphase`);
-refreshed over the motion actually taken like the obstacle candidates (:func:`rod_pairs_refresh`).
+the step's start and end, grown by its radius and half the contact margin) overlap (:func:`find_candidates`);
+refreshed over the motion actually taken like the obstacle candidates (:func:`add_candidates`).
 
 Friction (IMC friction, §4.6, lagged normal and closest-point weights): the contact points' relative velocity
 ``v = Σ c_k v_k`` with weights ``c = (1−s, s, −(1−t), −t)`` on the nodes (x_i, x_{i+1}, x_j, x_{j+1}); residual
 ``μ λ γ(|v_t|) c_k t̂`` on node k, ``λ = −E'(g)``.
 
-Positions are (N, 3) arrays; ``dpn`` DOFs per node: 4 (3-D: [x, y, z, θ]) or 2 (planar: [x, z], y fixed).
+Positions are (N, 3) arrays; ``dpn`` DOFs per node: 4 (3-D: [x, y, z, θ]) or 2 (planar: [x, z], y fixed); ``law``
+the contact law's parameters (a Params record: contact_k, contact_delta, friction, friction_nu).
+
+The end of the module is the contact protocol (:mod:`sim.contact.stages`) for edge pairs: the same functions, with
+the same arguments, as :mod:`sim.contact.obstacles`, on an :class:`EdgePairContact`.
 """
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
-from .contact_kernels import _edge_radius, _row3, coulomb_factor, friction_tangent_entry, imc_energy
-from .geometry_distance import closest_seg_seg
-from .numba_options import OPT_CONTACT
-from .vec3 import vcross, vdot, vlerp, vsub
+from sim.geometry_distance import closest_seg_seg
+from sim.numba_options import OPT_ALLOC, OPT_CONTACT
+from sim.vec3 import vcross, vdot, vlerp, vsub
 
-__all__ = ["allowed_pairs", "model_pairs", "edge_rods", "seg_seg_derivs", "rod_pairs_broadphase", "rod_pairs_refresh", "rod_pairs_accumulate",
-           "rod_pairs_min_gap", "rod_pairs_energy", "rod_pairs_report", "reset_coupling", "rod_pairs_step_limit", "dense_lu_solve"]
+from .imc import coulomb_factor, edge_radius, friction_tangent_entry, imc_energy, row3
+
+__all__ = ["allowed_pairs", "model_pairs", "edge_rods", "seg_seg_derivs", "find_candidates", "add_candidates",
+           "add_forces", "smallest_gap", "pair_energy", "pair_rows", "update_fraction", "Coupling", "alloc_coupling",
+           "reset_coupling", "EdgePairContact", "alloc", "present", "candidates", "friction_acts", "broadphase",
+           "refresh", "penetration", "step_limit", "accumulate", "energy", "report"]
 
 _EPS_PARAM = 1e-9  # a closest-point parameter this close to 0 or 1 counts as at the segment's end
+
+EdgePairContact = namedtuple("EdgePairContact", ["cand", "count", "box", "g12", "H12", "nhat", "ws"])
+EdgePairContact.__doc__ = """Edge-pair contact as the Newton stages see it (one thread's): candidate pair indices
+``cand`` (P,) into the allowed pairs and their ``count`` (1,), edge boxes ``box`` (N-1, 6), a pair's distance
+derivatives ``g12`` (12,), ``H12`` (12, 12), normal ``nhat`` (3,) and scratch ``ws`` (32,)."""
+
+Coupling = namedtuple("Coupling", ["slot", "dof", "count", "M", "Z", "C", "r", "piv"])
+Coupling.__doc__ = """The Jacobian's coupling outside the band (docs/physics.md §4.8), filled by :func:`add_forces` and
+solved by the Woodbury correction of sim.kernels.newton: DOF → list slot ``slot`` (n,) (-1: not listed), listed
+DOFs ``dof`` (K,) and their ``count`` (1,), coupling matrix ``M`` (K, K); the solve's scratch: B⁻¹ columns ``Z``
+(K, n + kl), capacitance ``C`` (K, K), its right-hand side ``r`` (K,) and pivots ``piv`` (K,). K = 3N (3-D) or 2N
+(planar) position DOFs; all empty without edge pairs."""
 
 
 def allowed_pairs(rest_edge_length: np.ndarray, edge_radius: np.ndarray, edge_rod: np.ndarray, *,
@@ -220,7 +240,7 @@ def _edge_boxes(x_start, x_end, radius, margin, box):
     """box (E, 6): each edge's axis-aligned box over its positions at the start and the end of the motion, grown
     by its radius and half the margin (two boxes overlap iff the grown-by-the-whole-margin test would pass)."""
     for j in range(box.shape[0]):
-        g = _edge_radius(radius, j) + 0.5 * margin
+        g = edge_radius(radius, j) + 0.5 * margin
         for a in range(3):
             lo = min(x_start[j, a], x_start[j + 1, a], x_end[j, a], x_end[j + 1, a])
             hi = max(x_start[j, a], x_start[j + 1, a], x_end[j, a], x_end[j + 1, a])
@@ -235,9 +255,10 @@ def _boxes_overlap(box, i, j):
 
 
 @njit(**OPT_CONTACT)
-def rod_pairs_broadphase(pairs, x_start, x_end, radius, margin, box, cand, ncand):
+def find_candidates(ep, pairs, x_start, x_end, radius, margin):
     """Candidates among the allowed ``pairs`` (P, 2) for a motion from ``x_start`` to ``x_end``: the indices into
-    ``pairs`` of the pairs whose swept boxes overlap, into ``cand`` (P,); ``ncand[0]`` their count."""
+    ``pairs`` of the pairs whose swept boxes overlap, into ``ep.cand`` (P,); ``ep.count[0]`` their count."""
+    box, cand, ncand = ep.box, ep.cand, ep.count
     _edge_boxes(x_start, x_end, radius, margin, box)
     n = 0
     for c in range(pairs.shape[0]):
@@ -249,10 +270,11 @@ def rod_pairs_broadphase(pairs, x_start, x_end, radius, margin, box, cand, ncand
 
 
 @njit(**OPT_CONTACT)
-def rod_pairs_refresh(pairs, x_start, x_end, radius, margin, box, cand, ncand):
+def add_candidates(ep, pairs, x_start, x_end, radius, margin):
     """Add to the candidate list the allowed pairs whose boxes over the motion ``x_start`` → ``x_end`` overlap and
     that are not in it yet (the list stays sorted). Returns (whether any pair was added, the smallest gap [m] at
     ``x_end`` of the pairs added (+inf when none was)): a pair added at a gap of δ or more exerts no force there."""
+    box, cand, ncand = ep.box, ep.cand, ep.count
     _edge_boxes(x_start, x_end, radius, margin, box)
     n0 = ncand[0]
     added = False
@@ -292,27 +314,27 @@ def _dof(dpn, k, a):
 
 
 @njit(inline="always", **OPT_CONTACT)
-def _slot(wb_slot, wb_dof, wb_n, d):
-    """Index of DOF d in the coupling list, appended if new."""
-    s = wb_slot[d]
+def _slot(cp, d):
+    """Index of DOF d in the coupling list ``cp``, appended if new."""
+    s = cp.slot[d]
     if s < 0:
-        s = wb_n[0]
-        wb_slot[d] = s
-        wb_dof[s] = d
-        wb_n[0] = s + 1
+        s = cp.count[0]
+        cp.slot[d] = s
+        cp.dof[s] = d
+        cp.count[0] = s + 1
     return s
 
 
 @njit(inline="always", **OPT_CONTACT)
 def _gap(x, radius, i, j):
     """Gap [m] of edges i and j at node positions x."""
-    a = _row3(x, i)
-    b = _row3(x, i + 1)
-    p = _row3(x, j)
-    q = _row3(x, j + 1)
+    a = row3(x, i)
+    b = row3(x, i + 1)
+    p = row3(x, j)
+    q = row3(x, j + 1)
     s, t = closest_seg_seg(a, b, p, q)
     u = vsub(vlerp(a, b, s), vlerp(p, q, t))
-    return math.sqrt(vdot(u, u)) - _edge_radius(radius, i) - _edge_radius(radius, j)
+    return math.sqrt(vdot(u, u)) - edge_radius(radius, i) - edge_radius(radius, j)
 
 
 @njit(inline="always", **OPT_CONTACT)
@@ -326,19 +348,19 @@ def _gap_bound(x, radius, i, j):
     ei = math.sqrt((x[i + 1, 0] - x[i, 0]) ** 2 + (x[i + 1, 1] - x[i, 1]) ** 2 + (x[i + 1, 2] - x[i, 2]) ** 2)
     ej = math.sqrt((x[j + 1, 0] - x[j, 0]) ** 2 + (x[j + 1, 1] - x[j, 1]) ** 2 + (x[j + 1, 2] - x[j, 2]) ** 2)
     slack = 1e-12 * (ei + ej + abs(x[i, 0]) + abs(x[i, 1]) + abs(x[i, 2]))  # rounding: never above the exact gap
-    return math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) - 0.5 * (ei + ej) - _edge_radius(radius, i) - _edge_radius(radius, j) \
+    return math.sqrt(c0 * c0 + c1 * c1 + c2 * c2) - 0.5 * (ei + ej) - edge_radius(radius, i) - edge_radius(radius, j) \
         - slack
 
 
 @njit(**OPT_CONTACT)
-def reset_coupling(wb_slot, wb_dof, wb_n, wb_M):
-    """Empty the coupling list (before a Jacobian assembly)."""
-    K = wb_n[0]
+def reset_coupling(cp):
+    """Empty the coupling list ``cp`` (before a Jacobian assembly)."""
+    K = cp.count[0]
     for s in range(K):
-        wb_slot[wb_dof[s]] = -1
+        cp.slot[cp.dof[s]] = -1
         for c in range(K):
-            wb_M[s, c] = 0.0
-    wb_n[0] = 0
+            cp.M[s, c] = 0.0
+    cp.count[0] = 0
 
 
 @njit(inline="always", **OPT_CONTACT)
@@ -377,21 +399,24 @@ def _pair_slip(x, x_prev, dt, nodes, cw, nhat, mu, nu, lam):
 
 
 @njit(**OPT_CONTACT)
-def rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, dpn, fixed, radius, k, delta, mu, nu, f, ab, kl, sym,
-                         with_jac, wb_slot, wb_dof, wb_n, wb_M, g12, H12, nhat, ws):
-    """Add the IMC energy and friction of the candidate pairs at node positions ``x`` (N, 3) to the residual ``f``
-    (DOFs) and, with ``with_jac``, the Jacobian: blocks of an edge with itself into the padded band ``ab``
-    (upper half only with ``sym``), blocks between the two edges into the coupling list (``wb_*``, entries on
-    constrained DOFs dropped: those rows and columns are identity). Velocities (x − x_prev)/dt. Returns the
-    energy [J]."""
+def add_forces(ep, pairs, law, x, x_prev, dt, dpn, fixed, radius, system, sym, with_jac):
+    """Add the IMC energy and friction of the candidate pairs at node positions ``x`` (N, 3) to the residual
+    ``system.f`` (DOFs) and, with ``with_jac``, the Jacobian: blocks of an edge with itself into the padded band
+    ``system.ab`` (upper half only with ``sym``), blocks between the two edges into the coupling list
+    ``system.coupling`` (entries on constrained DOFs dropped: those rows and columns are identity). ``system``: a
+    Workspace (sim.kernels.workspace). Velocities (x − x_prev)/dt. Returns the energy [J]."""
+    k, delta, mu, nu = law.contact_k, law.contact_delta, law.friction, law.friction_nu
+    cand, ncand, g12, H12, nhat, ws = ep.cand, ep.count, ep.g12, ep.H12, ep.nhat, ep.ws
+    f, ab, cp = system.f, system.ab, system.coupling
+    kl = ab.shape[1] // 2
     energy = 0.0
     for m in range(ncand[0]):
         i = pairs[cand[m], 0]
         j = pairs[cand[m], 1]
         if _gap_bound(x, radius, i, j) >= delta or _gap(x, radius, i, j) >= delta:  # most candidates: no touch
             continue
-        rs = _edge_radius(radius, i) + _edge_radius(radius, j)
-        dd, s, t = seg_seg_derivs(_row3(x, i), _row3(x, i + 1), _row3(x, j), _row3(x, j + 1), g12, H12, nhat, ws)
+        rs = edge_radius(radius, i) + edge_radius(radius, j)
+        dd, s, t = seg_seg_derivs(row3(x, i), row3(x, i + 1), row3(x, j), row3(x, j + 1), g12, H12, nhat, ws)
         gap = dd - rs
         E, dE, d2E = imc_energy(gap, k, delta)
         energy += E
@@ -436,15 +461,16 @@ def rod_pairs_accumulate(pairs, cand, ncand, x, x_prev, dt, dpn, fixed, radius, 
                                 continue
                             ab[r, kl + c - r] += v
                         else:
-                            wb_M[_slot(wb_slot, wb_dof, wb_n, r), _slot(wb_slot, wb_dof, wb_n, c)] += v
+                            cp.M[_slot(cp, r), _slot(cp, c)] += v
     return energy
 
 
 @njit(**OPT_CONTACT)
-def rod_pairs_min_gap(pairs, cand, ncand, x, radius):
+def smallest_gap(ep, pairs, x, radius):
     """Smallest gap [m] over the candidate pairs at positions ``x``, or +inf without candidates."""
+    cand = ep.cand
     best = np.inf
-    for m in range(ncand[0]):
+    for m in range(ep.count[0]):
         i = pairs[cand[m], 0]
         j = pairs[cand[m], 1]
         if _gap_bound(x, radius, i, j) >= best:
@@ -456,10 +482,11 @@ def rod_pairs_min_gap(pairs, cand, ncand, x, radius):
 
 
 @njit(**OPT_CONTACT)
-def rod_pairs_energy(pairs, cand, ncand, x, radius, k, delta):
+def pair_energy(ep, pairs, law, x, radius):
     """IMC energy [J] of the candidate pairs at positions ``x`` (no friction, no derivatives)."""
+    k, delta, cand = law.contact_k, law.contact_delta, ep.cand
     energy = 0.0
-    for m in range(ncand[0]):
+    for m in range(ep.count[0]):
         i = pairs[cand[m], 0]
         j = pairs[cand[m], 1]
         if _gap_bound(x, radius, i, j) >= delta:
@@ -471,20 +498,20 @@ def rod_pairs_energy(pairs, cand, ncand, x, radius, k, delta):
 
 
 @njit(**OPT_CONTACT)
-def rod_pairs_report(e, pairs, cand, ncand, x, x_prev, dt, radius, k, delta, mu, nu, g12, H12, nhat, ws,
-                     out_count, out_edge, out_obstacle, out_partner, out_rod_point, out_obstacle_point, out_normal,
-                     out_normal_force, out_friction_force, out_gap):
+def pair_rows(e, ep, pairs, law, x, x_prev, dt, radius, rows):
     """The candidate pairs at the state kept, in one pass: returns their IMC energy [J] (no friction) and smallest
     gap [m] (+inf without candidates), and appends env ``e``'s pairs in touch (gap < δ) to its contact rows after
-    the ``out_count[e]`` obstacle rows, up to the capacity C: two rows per pair, one for each edge, each the force
+    the ``rows.count[e]`` obstacle rows of ``rows`` (a :class:`sim.kernels.data.ContactReport`), up to its capacity C: two rows per pair, one for each edge, each the force
     *on* that edge. Row of edge i against edge j: edge i, obstacle −1, partner j, rod point on i's centre line,
     "obstacle point" the closest point on j's surface, unit normal from j to i, normal force λ = −E'(g) [N],
     friction force on i [N], gap g [m]; edge j's row mirrors it (normal and friction reversed), so each pair's two
     rows sum to zero. The obstacle rows' partner entries are set to −1. Velocities (x − x_prev)/dt."""
-    cap = out_gap.shape[1]
-    rc = out_count[e]
+    k, delta, mu, nu = law.contact_k, law.contact_delta, law.friction, law.friction_nu
+    cand, ncand, g12, H12, nhat, ws = ep.cand, ep.count, ep.g12, ep.H12, ep.nhat, ep.ws
+    cap = rows.gap.shape[1]
+    rc = rows.count[e]
     for r in range(rc):
-        out_partner[e, r] = -1
+        rows.partner[e, r] = -1
     energy = 0.0
     smallest = np.inf
     for m in range(ncand[0]):
@@ -493,12 +520,12 @@ def rod_pairs_report(e, pairs, cand, ncand, x, x_prev, dt, radius, k, delta, mu,
         bound = _gap_bound(x, radius, i, j)
         if bound >= delta and bound >= smallest:  # neither in touch nor the deepest
             continue
-        ri = _edge_radius(radius, i)
-        rj = _edge_radius(radius, j)
-        a = _row3(x, i)
-        b = _row3(x, i + 1)
-        p = _row3(x, j)
-        q = _row3(x, j + 1)
+        ri = edge_radius(radius, i)
+        rj = edge_radius(radius, j)
+        a = row3(x, i)
+        b = row3(x, i + 1)
+        p = row3(x, j)
+        q = row3(x, j + 1)
         s, t = closest_seg_seg(a, b, p, q)
         pi = vlerp(a, b, s)
         pj = vlerp(p, q, t)
@@ -526,18 +553,18 @@ def rod_pairs_report(e, pairs, cand, ncand, x, x_prev, dt, radius, k, delta, mu,
         cf = mu * lam * gam  # friction on edge i is −cf t̂ (t̂: i's slip relative to j)
         for side in range(2):
             sg = 1.0 if side == 0 else -1.0
-            out_edge[e, rc] = i if side == 0 else j
-            out_obstacle[e, rc] = -1
-            out_partner[e, rc] = j if side == 0 else i
+            rows.edge[e, rc] = i if side == 0 else j
+            rows.obstacle[e, rc] = -1
+            rows.partner[e, rc] = j if side == 0 else i
             for c in range(3):
-                out_rod_point[e, rc, c] = pi[c] if side == 0 else pj[c]
-                out_obstacle_point[e, rc, c] = pj[c] + rj * nhat[c] if side == 0 else pi[c] - ri * nhat[c]
-                out_normal[e, rc, c] = sg * nhat[c]
-                out_friction_force[e, rc, c] = -sg * cf * tv[c]
-            out_normal_force[e, rc] = lam
-            out_gap[e, rc] = gap
+                rows.rod_point[e, rc, c] = pi[c] if side == 0 else pj[c]
+                rows.obstacle_point[e, rc, c] = pj[c] + rj * nhat[c] if side == 0 else pi[c] - ri * nhat[c]
+                rows.normal[e, rc, c] = sg * nhat[c]
+                rows.friction_force[e, rc, c] = -sg * cf * tv[c]
+            rows.normal_force[e, rc] = lam
+            rows.gap[e, rc] = gap
             rc += 1
-    out_count[e] = rc
+    rows.count[e] = rc
     return energy, smallest
 
 
@@ -564,13 +591,14 @@ def _gap_floor(g, delta, rs):
 
 
 @njit(**OPT_CONTACT)
-def rod_pairs_step_limit(pairs, cand, ncand, x, dxp, radius, delta):
+def update_fraction(ep, pairs, x, dxp, radius, delta):
     """Largest fraction τ ∈ (0, 1] of the Newton update ``dxp`` ((N, 3) node displacements from positions ``x``)
     along which no candidate pair's gap falls below min(g0, 0) − δ (g0 its gap at τ = 0): one update can neither
     carry an edge through another nor push a touching pair more than δ deeper. Conservative advancement: the
     distance of two segments is Lipschitz in τ with the sum D of the two edges' largest node displacements."""
+    cand = ep.cand
     tmax = 1.0
-    for m in range(ncand[0]):
+    for m in range(ep.count[0]):
         i = pairs[cand[m], 0]
         j = pairs[cand[m], 1]
         Di = max(math.sqrt(dxp[i, 0] ** 2 + dxp[i, 1] ** 2 + dxp[i, 2] ** 2),
@@ -580,7 +608,7 @@ def rod_pairs_step_limit(pairs, cand, ncand, x, dxp, radius, delta):
         D = Di + Dj
         if D <= 0.0:
             continue
-        rs = _edge_radius(radius, i) + _edge_radius(radius, j)
+        rs = edge_radius(radius, i) + edge_radius(radius, j)
         gb = _gap_bound(x, radius, i, j)
         if gb >= 0.0 and gb - D * tmax >= _gap_floor(0.0, delta, rs):  # g ≥ gb ≥ 0: g's floor, and g passes too
             continue
@@ -602,38 +630,89 @@ def rod_pairs_step_limit(pairs, cand, ncand, x, dxp, radius, delta):
     return max(tmax, 1e-3)
 
 
-@njit(**OPT_CONTACT)
-def dense_lu_solve(A, k, b, piv):
-    """Solve A[:k, :k] y = b[:k] in place (LU with partial pivoting; A overwritten, y into b). False if singular."""
-    for c in range(k):
-        p = c
-        big = abs(A[c, c])
-        for r in range(c + 1, k):
-            if abs(A[r, c]) > big:
-                big = abs(A[r, c])
-                p = r
-        if not (big > 0.0 and big < np.inf):
-            return False
-        piv[c] = p
-        if p != c:
-            for m in range(k):
-                tmp = A[c, m]
-                A[c, m] = A[p, m]
-                A[p, m] = tmp
-            tmp = b[c]
-            b[c] = b[p]
-            b[p] = tmp
-        ip = 1.0 / A[c, c]
-        for r in range(c + 1, k):
-            l = A[r, c] * ip
-            if l != 0.0:
-                A[r, c] = l
-                for m in range(c + 1, k):
-                    A[r, m] -= l * A[c, m]
-                b[r] -= l * b[c]
-    for r in range(k - 1, -1, -1):
-        v = b[r]
-        for m in range(r + 1, k):
-            v -= A[r, m] * b[m]
-        b[r] = v / A[r, r]
-    return True
+# ------------------------------------------------------------------------------------- allocation
+@njit(**OPT_ALLOC)
+def alloc(N, P):
+    """One thread's :class:`EdgePairContact` for a rod of N nodes with P allowed pairs (empty arrays when P = 0)."""
+    return EdgePairContact(np.zeros(P, np.int64), np.zeros(1, np.int64), np.empty((N - 1 if P > 0 else 0, 6)),
+                           np.empty(12), np.empty((12, 12)), np.empty(3), np.empty(32))
+
+
+@njit(**OPT_ALLOC)
+def alloc_coupling(n, K, kl):
+    """An empty :class:`Coupling` over n DOFs with room for K listed DOFs (K = 0 without edge pairs)."""
+    return Coupling(np.full(n if K > 0 else 0, -1, np.int64), np.zeros(K, np.int64), np.zeros(1, np.int64),
+                    np.zeros((K, K)), np.empty((K, n + kl)), np.empty((K, K)), np.empty(K), np.empty(K, np.int64))
+
+
+# ------------------------------------------------------------------------------------- the contact protocol
+# The same functions, with the same arguments, as sim.contact.obstacles (see sim.contact.stages).
+@njit(inline="always", **OPT_CONTACT)
+def present(prm):
+    """Whether edges of the scene's rods may touch each other."""
+    return prm.rod_pairs
+
+
+@njit(inline="always", **OPT_CONTACT)
+def candidates(e, ep):
+    """The candidate count (``ep`` is the thread's, for the env it steps)."""
+    return ep.count[0]
+
+
+@njit(inline="always", **OPT_CONTACT)
+def friction_acts(prm):
+    """Whether friction can act between edges (the [contact] μ > 0)."""
+    return prm.friction > 0
+
+
+@njit(inline="always", **OPT_CONTACT)
+def broadphase(e, prm, rod, ep, pos0, pos):
+    """Candidates over the motion pos0 → pos."""
+    find_candidates(ep, rod.pairs, pos0, pos, rod.edge_radius, prm.contact_margin)
+
+
+@njit(inline="always", **OPT_CONTACT)
+def refresh(e, prm, rod, ep, pos0, pos):
+    """Candidates over the motion pos0 → pos added to the list: (whether pairs were added, whether the (sub)step must
+    be solved again: so an added pair is within reach of the potential, gap < δ)."""
+    added, added_gap = add_candidates(ep, rod.pairs, pos0, pos, rod.edge_radius, prm.contact_margin)
+    return added, added_gap < prm.contact_delta
+
+
+@njit(inline="always", **OPT_CONTACT)
+def penetration(e, prm, rod, ep, pos):
+    """Deepest penetration [m] (≥ 0) of the candidate pairs at ``pos``."""
+    return max(0.0, -smallest_gap(ep, rod.pairs, pos, rod.edge_radius))
+
+
+@njit(inline="always", **OPT_CONTACT)
+def step_limit(e, prm, rod, ep, pos, dpos):
+    """Largest fraction of the node update ``dpos`` that carries no edge through another (:func:`update_fraction`)."""
+    return update_fraction(ep, rod.pairs, pos, dpos, rod.edge_radius, prm.contact_delta)
+
+
+@njit(inline="always", **OPT_CONTACT)
+def accumulate(e, prm, rod, ep, w, h, with_jac, sym):
+    """Add the pairs' residual into ``w.f`` and (``with_jac``) their Jacobian into the band ``w.ab`` and the coupling
+    list ``w.coupling`` (emptied first) at the nodes w.pos, velocities from w.pos0 over h; returns the energy [J]."""
+    if with_jac:
+        reset_coupling(w.coupling)
+    return add_forces(ep, rod.pairs, prm, w.pos, w.pos0, h, 2 if prm.planar else 4, rod.fixed, rod.edge_radius, w,
+                      sym, with_jac)
+
+
+@njit(inline="always", **OPT_CONTACT)
+def energy(e, prm, rod, ep, pos, pos0, h):
+    """IMC energy [J] of the candidate pairs at ``pos``."""
+    return pair_energy(ep, rod.pairs, prm, pos, rod.edge_radius)
+
+
+@njit(inline="always", **OPT_CONTACT)
+def report(e, prm, rod, ep, pos, pos0, rows):
+    """The pairs in touch at the state kept (``pos``; velocities from pos0 over the step) over a fresh candidate list:
+    their rows appended after the obstacles' in ``rows``, the max penetration raised to theirs; returns the
+    energy [J]."""
+    find_candidates(ep, rod.pairs, pos, pos, rod.edge_radius, prm.contact_margin)
+    ec, smallest = pair_rows(e, ep, rod.pairs, prm, pos, pos0, prm.dt, rod.edge_radius, rows)
+    rows.max_penetration[e] = max(rows.max_penetration[e], max(0.0, -smallest))
+    return ec

@@ -20,114 +20,48 @@ strictly closer. So each local minimum of the distance along the rod is counted 
 Friction (§4.6 "rod vs rigid obstacle", [REC]): smooth Coulomb with lagged ``n`` and ``s`` (no
 derivatives through them), skipped when ``friction_on`` is False (Newton iteration 0).
 
-``cd`` is the :class:`sim.contact_set.ContactData` namedtuple built by
-:meth:`sim.contact_set.ObstacleSet.kernel_data`:
-``(kind (M,), p0 (B,M,3), p1 (B,M,3), rot (B,M,3,3), radius (B,M), half (M,3), mesh_root (M,),
+``cd`` is the :class:`sim.contact_set.ContactData` namedtuple (:func:`sim.contact_set.contact_data`):
+``(kind (M,), p0 (B,M,3), p1 (B,M,3), rot (B,M,3,3), obstacle_radius (B,M), half (M,3), mesh_root (M,),
 tri (T,3,3), node_lo (K,3), node_hi (K,3), node_child (K,2), node_range (K,2), cand (B,C,2) int64,
-cand_count (B,), rod_radius (1,) [m] (the broad phase's inflation), active (B,M) bool, box (B,M,2,3) world AABBs,
-iter_flag (B,) int64 (0 right after the broad phase: friction is skipped on that first Newton iteration),
-scratch_f (B,128), scratch_m (B,2,6,6), scratch_i (B,128) int64 per-env work space (no allocation in the kernels),
-friction (M,) per-obstacle μ (-1: use the kernels' scalar μ, the [contact] friction), cand_merge (B,2C,2) int64
-(the candidate lists merged by contact_refresh))``.
+cand_count (B,), broadphase_radius (1,) [m] (the rod's largest radius: the broad phase's inflation), active (B,M)
+bool, box (B,M,2,3) world AABBs, iter_flag (B,) int64 (0 right after the broad phase: friction is skipped on that
+first Newton iteration), scratch_f (B,128), scratch_m (B,2,6,6), scratch_i (B,128) int64 per-env work space (no
+allocation in the kernels), friction (M,) per-obstacle μ (-1: the contact law's μ, the [contact] friction),
+cand_merge (B,2C,2) int64 (the candidate lists merged by :func:`merge_candidates`))``.
 Kinds: 0 plane (p0 point, p1 unit normal), 1 sphere (p0 centre), 2 capsule (p0, p1 axis ends),
 3 box (p0 centre, rot, half), 4 mesh (p0, rot, mesh_root = BVH root node).
-``radius``: the rod's radii [m], (1,) for a rod of one radius or (N-1,) one per edge; an edge's capsule has its own
-radius, a node (plane contact) the larger of its two edges'.
-Shapes: ``x``, ``x_prev``, ``x_start``, ``x_guess`` (N, >=3) [m]; ``grad`` (N, 3); ``hess`` (N-1, 6, 6)
+``radius``: the rod's edge radii (:mod:`sim.contact.imc`). ``law``: the contact law's parameters, a
+:class:`sim.kernels.data.Params` record (contact_k, contact_delta, friction, friction_nu).
+Shapes: ``x``, ``x_prev``, ``x_start``, ``x_end`` (N, >=3) [m]; ``grad`` (N, 3); ``hess`` (N-1, 6, 6)
 (edge j's block over (x_j, x_{j+1}); row = residual component, may be non-symmetric).
+
+The end of the module is the contact protocol (:mod:`sim.contact.stages`) for obstacles: the same functions, with
+the same arguments, as :mod:`sim.contact.edge_pairs`, on an :class:`ObstacleContact`.
 """
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
-from .geometry_distance import (
+from sim.geometry_distance import (
     closest_seg_box,
     closest_seg_point,
     closest_seg_seg,
     closest_seg_triangle,
     dist_derivs,
 )
-from .kinds import BOX, CAPSULE, MESH, PLANE, SPHERE
-from .numba_options import OPT_CONTACT
-from .vec3 import vdot, vlerp, vmul, vsub
+from sim.kinds import BOX, CAPSULE, MESH, PLANE, SPHERE
+from sim.numba_options import OPT, OPT_ALLOC, OPT_CONTACT
+from sim.vec3 import vdot, vlerp, vmul, vsub
 
-__all__ = ["contact_broadphase", "contact_accumulate", "contact_report", "contact_min_gap", "imc_energy",
-           "friction_block", "PLANE", "SPHERE", "CAPSULE", "BOX", "MESH"]
+from .imc import edge_radius, friction_block, imc_energy, node_radius, row3
 
-
-
-@njit(**OPT_CONTACT)
-def imc_energy(g, k, delta):
-    """IMC squared-softplus energy of gap g [m]: returns (E [J], dE/dg [N], d2E/dg2 [N/m])."""
-    K1 = 15.0 / delta
-    s = -K1 * g
-    L = max(s, 0.0) + math.log1p(math.exp(-abs(s)))
-    if s >= 0.0:
-        sig = 1.0 / (1.0 + math.exp(-s))
-    else:
-        ex = math.exp(s)
-        sig = ex / (1.0 + ex)
-    return k * L * L / (K1 * K1), -2.0 * k * L * sig / K1, 2.0 * k * (sig * sig + L * sig * (1.0 - sig))
-
-
-@njit(inline="always", **OPT_CONTACT)
-def coulomb_factor(vtn, nu):
-    """Smooth Coulomb factor γ(|v_t|) and its derivative γ' (docs/physics.md §4.6): 1 and 0 when sliding
-    (|v_t| > ν), else tanh(K2 |v_t| / 2) with K2 = 15/ν."""
-    if vtn > nu:
-        return 1.0, 0.0
-    K2 = 15.0 / nu
-    gam = 2.0 / (1.0 + math.exp(-K2 * vtn)) - 1.0
-    return gam, 0.5 * K2 * (1.0 - gam * gam)
-
-
-@njit(inline="always", **OPT_CONTACT)
-def friction_tangent_entry(a1, dgam, gam, vtn, t, n, mu, d2E, i, j):
-    """Entry (i, j) of smooth Coulomb friction's 3×3 Jacobian block before the nodal weights (docs/physics.md §4.6):
-    a1 [γ' t tᵀ + γ/|v_t| (P − t tᵀ)] − μ E'' γ t nᵀ with a1 = μ λ / dt, P = I − n nᵀ (t, n unit 3-vectors)."""
-    P = (1.0 if i == j else 0.0) - n[i] * n[j]
-    return a1 * (dgam * t[i] * t[j] + gam / vtn * (P - t[i] * t[j])) - mu * d2E * gam * t[i] * n[j]
-
-
-@njit(**OPT_CONTACT)
-def friction_block(va, vb, s, n, lam, d2E, mu, nu, dt, fr, J):
-    """Smooth Coulomb friction of one contact on edge nodes (a, b), weights (1-s, s).
-
-    ``va``, ``vb`` node velocities [m/s] (obstacles are static), ``n`` unit normal (lagged), ``lam`` =
-    -E'(g) >= 0 normal force [N], ``d2E`` = E''(g). Writes the residual ``fr`` (6,) (= minus the friction
-    force on the nodes) and its Jacobian ``J`` (6, 6) w.r.t. the node positions (through the velocity
-    (x - x_prev)/dt and through lam; n and s held fixed). Returns the total friction force on the rod
-    as a tuple [N].
-    """
-    fr[:] = 0.0
-    J[:, :] = 0.0
-    w0 = 1.0 - s
-    w1 = s
-    vc = (w0 * va[0] + w1 * vb[0], w0 * va[1] + w1 * vb[1], w0 * va[2] + w1 * vb[2])
-    vn = vdot(vc, n)
-    vt = (vc[0] - vn * n[0], vc[1] - vn * n[1], vc[2] - vn * n[2])
-    vtn = math.sqrt(vdot(vt, vt))
-    if vtn <= 1e-15 or lam <= 0.0 or mu <= 0.0:
-        return (0.0, 0.0, 0.0)
-    t = (vt[0] / vtn, vt[1] / vtn, vt[2] / vtn)
-    gam, dgam = coulomb_factor(vtn, nu)
-    w = (w0, w1)
-    c = mu * lam * gam
-    for kk in range(2):
-        for i in range(3):
-            fr[3 * kk + i] = c * w[kk] * t[i]
-    # (mu lam / dt) [dgam t t^T + gam/|vt| (P - t t^T)] w_k w_l  -  mu E'' gam w_k w_l t n^T
-    a1 = mu * lam / dt
-    for i in range(3):
-        for j in range(3):
-            blk = friction_tangent_entry(a1, dgam, gam, vtn, t, n, mu, d2E, i, j)
-            for kk in range(2):
-                for ll in range(2):
-                    J[3 * kk + i, 3 * ll + j] = blk * w[kk] * w[ll]
-    return (-c * t[0], -c * t[1], -c * t[2])
+__all__ = ["find_candidates", "merge_candidates", "smallest_gap", "update_fraction", "node_forces", "contact_rows",
+           "ObstacleContact", "alloc", "present", "candidates", "friction_acts", "broadphase", "refresh",
+           "penetration", "step_limit", "accumulate", "energy", "report"]
 
 
 @njit(**OPT_CONTACT)
@@ -225,7 +159,7 @@ def _eval_edge(cd, e, o, a, b, r, reach, g6, H6, nhat, ws, stack, derivs=True):
     gap = inf otherwise.
     """
     kind, p0, p1, rot = cd.kind, cd.p0, cd.p1, cd.rot
-    rad, half, mroot, tri = cd.radius, cd.half, cd.mesh_root, cd.tri
+    rad, half, mroot, tri = cd.obstacle_radius, cd.half, cd.mesh_root, cd.tri
     nlo, nhi, nch, nrg = cd.node_lo, cd.node_hi, cd.node_child, cd.node_range
     z = (0.0, 0.0, 0.0)
     k = kind[o]
@@ -361,11 +295,6 @@ def _flat_face(cd, e, o, a, b, reach, stack):
     return _mesh_face(cd, e, o, a, b, reach, stack)
 
 
-@njit(**OPT_CONTACT)
-def _row3(x, k):
-    return (x[k, 0], x[k, 1], x[k, 2])
-
-
 @njit(inline="always", **OPT_CONTACT)
 def _scratch(cd, e):
     """Env ``e``'s distance scratch: (ws (64,), g6 (6,), nhat (3,), H6 (6, 6), BVH stack)."""
@@ -374,39 +303,29 @@ def _scratch(cd, e):
 
 
 @njit(inline="always", **OPT_CONTACT)
-def _report_row(e, rc, j, o, rod_point, base, scale, n, ff, normal_force, gap, out_edge, out_obstacle,
-                out_rod_point, out_obstacle_point, out_normal, out_normal_force, out_friction_force, out_gap):
-    """Write contact row ``rc`` of env ``e``: edge ``j`` against obstacle ``o``, rod point ``rod_point``, obstacle
-    surface point ``base + scale n``, normal ``n``, friction force ``ff``, normal force and gap."""
-    out_edge[e, rc] = j
-    out_obstacle[e, rc] = o
+def _report_row(e, rc, j, o, rod_point, base, scale, n, ff, normal_force, gap, rows):
+    """Write contact row ``rc`` of env ``e`` into ``rows``: edge ``j`` against obstacle ``o``, rod point
+    ``rod_point``, obstacle surface point ``base + scale n``, normal ``n``, friction force ``ff``, normal force and
+    gap."""
+    rows.edge[e, rc] = j
+    rows.obstacle[e, rc] = o
     for i in range(3):
-        out_rod_point[e, rc, i] = rod_point[i]
-        out_obstacle_point[e, rc, i] = base[i] + scale * n[i]
-        out_normal[e, rc, i] = n[i]
-        out_friction_force[e, rc, i] = ff[i]
-    out_normal_force[e, rc] = normal_force
-    out_gap[e, rc] = gap
-
-
-@njit(inline="always", **OPT_CONTACT)
-def _edge_radius(radius, j):
-    """Radius [m] of edge j: ``radius`` is (1,) for a rod of one radius or (N-1,) per edge."""
-    return radius[min(j, radius.shape[0] - 1)]
-
-
-@njit(inline="always", **OPT_CONTACT)
-def _node_radius(radius, k):
-    """Radius [m] at node k (plane contact): the larger of its edges' (``radius`` as in :func:`_edge_radius`)."""
-    m = radius.shape[0] - 1
-    return max(radius[min(max(k - 1, 0), m)], radius[min(k, m)])
+        rows.rod_point[e, rc, i] = rod_point[i]
+        rows.obstacle_point[e, rc, i] = base[i] + scale * n[i]
+        rows.normal[e, rc, i] = n[i]
+        rows.friction_force[e, rc, i] = ff[i]
+    rows.normal_force[e, rc] = normal_force
+    rows.gap[e, rc] = gap
 
 
 @njit(**OPT_CONTACT)
-def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, assemble, grad, hess, report,
-                  out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
-                  out_normal_force, out_friction_force, out_gap, out_max_penetration, link):
-    kind, p0, p1, rad = cd.kind, cd.p0, cd.p1, cd.radius
+def _contact_pass(e, law, cd, x, x_prev, dt, radius, link, friction_on, grad, hess, rows):
+    """One pass over env ``e``'s candidates at positions ``x``: returns the contact energy [J]; adds the residual
+    and Jacobian blocks into ``grad``/``hess`` unless they are None; writes the contact rows and max penetration
+    into ``rows`` unless it is None. ``law``: the contact law's parameters (a Params record: contact_k,
+    contact_delta, friction, friction_nu)."""
+    k, delta, mu, nu = law.contact_k, law.contact_delta, law.friction, law.friction_nu
+    kind, p0, p1, rad = cd.kind, cd.p0, cd.p1, cd.obstacle_radius
     cand, ccount, scf, scm = cd.cand, cd.cand_count, cd.scratch_f, cd.scratch_m
     sci, fric = cd.scratch_i, cd.friction
     ws = scf[e, 0:64]
@@ -422,7 +341,9 @@ def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, a
     nc = ccount[e]
     energy = 0.0
     rc = 0
-    cap = out_gap.shape[1] if report else 0
+    cap = 0
+    if rows is not None:
+        cap = rows.gap.shape[1]
     maxpen = 0.0
     prev_j = -2
     prev_o = -1
@@ -431,10 +352,10 @@ def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, a
         j = cand[e, c, 0]
         o = cand[e, c, 1]
         mu_o = fric[o] if fric[o] >= 0.0 else mu  # the obstacle's own μ, else the [contact] one
-        r = r0 if uniform else (_node_radius(radius, j) if kind[o] == PLANE else _edge_radius(radius, j))
+        r = r0 if uniform else (node_radius(radius, j) if kind[o] == PLANE else edge_radius(radius, j))
         do_fric = friction_on and mu_o > 0.0
         if kind[o] == PLANE:
-            xk = _row3(x, j)
+            xk = row3(x, j)
             n = (p1[e, o, 0], p1[e, o, 1], p1[e, o, 2])
             gap = n[0] * (xk[0] - p0[e, o, 0]) + n[1] * (xk[1] - p0[e, o, 1]) + n[2] * (xk[2] - p0[e, o, 2]) - r
             if gap >= delta:
@@ -445,10 +366,10 @@ def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, a
             sl = 3 * (j - blk)
             ff = (0.0, 0.0, 0.0)
             if do_fric:
-                xp = _row3(x_prev, j)
+                xp = row3(x_prev, j)
                 v = ((xk[0] - xp[0]) / dt, (xk[1] - xp[1]) / dt, (xk[2] - xp[2]) / dt)
                 ff = friction_block(v, v, 0.0, n, -dE, d2E, mu_o, nu, dt, fr, Jf)
-            if assemble:
+            if grad is not None:
                 for i in range(3):
                     grad[j, i] += dE * n[i]
                     for m in range(3):
@@ -458,16 +379,14 @@ def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, a
                         grad[j, i] += fr[i]
                         for m in range(3):
                             hess[blk, sl + i, sl + m] += Jf[i, m]
-            if report:
+            if rows is not None:
                 maxpen = max(maxpen, -gap)
                 if rc < cap:
-                    _report_row(e, rc, j, o, xk, xk, -(gap + r), n, ff, -dE, gap, out_edge, out_obstacle,
-                                out_rod_point, out_obstacle_point, out_normal, out_normal_force, out_friction_force,
-                                out_gap)
+                    _report_row(e, rc, j, o, xk, xk, -(gap + r), n, ff, -dE, gap, rows)
                     rc += 1
             continue
-        a = _row3(x, j)
-        b = _row3(x, j + 1)
+        a = row3(x, j)
+        b = row3(x, j + 1)
         if kind[o] == BOX or kind[o] == MESH:
             face, n, da, db = _flat_face(cd, e, o, a, b, r + delta, stack)
             if face:
@@ -490,13 +409,13 @@ def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, a
                     energy += w * E
                     dE *= w
                     d2E *= w
-                    xk = _row3(x, kk)
+                    xk = row3(x, kk)
                     ff = (0.0, 0.0, 0.0)
                     if do_fric:
-                        xp = _row3(x_prev, kk)
+                        xp = row3(x_prev, kk)
                         v = ((xk[0] - xp[0]) / dt, (xk[1] - xp[1]) / dt, (xk[2] - xp[2]) / dt)
                         ff = friction_block(v, v, float(end), n, -dE, d2E, mu_o, nu, dt, fr, Jf)
-                    if assemble:
+                    if grad is not None:
                         for i in range(3):
                             grad[kk, i] += dE * n[i]
                             for m in range(3):
@@ -506,12 +425,10 @@ def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, a
                                 grad[j + i // 3, i % 3] += fr[i]
                                 for m in range(6):
                                     hess[j, i, m] += Jf[i, m]
-                    if report:
+                    if rows is not None:
                         maxpen = max(maxpen, -gap)
                         if rc < cap:
-                            _report_row(e, rc, j, o, xk, xk, -(gap + r), n, ff, -dE, gap, out_edge, out_obstacle,
-                                        out_rod_point, out_obstacle_point, out_normal, out_normal_force, out_friction_force,
-                                        out_gap)
+                            _report_row(e, rc, j, o, xk, xk, -(gap + r), n, ff, -dE, gap, rows)
                             rc += 1
                 continue
         gap, s, q = _eval_edge(cd, e, o, a, b, r, r + delta, g6, H6, nhat, ws, stack)
@@ -531,12 +448,12 @@ def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, a
         n = (nhat[0], nhat[1], nhat[2])
         ff = (0.0, 0.0, 0.0)
         if do_fric:
-            xa0 = _row3(x_prev, j)
-            xb0 = _row3(x_prev, j + 1)
+            xa0 = row3(x_prev, j)
+            xb0 = row3(x_prev, j + 1)
             va = ((a[0] - xa0[0]) / dt, (a[1] - xa0[1]) / dt, (a[2] - xa0[2]) / dt)
             vb = ((b[0] - xb0[0]) / dt, (b[1] - xb0[1]) / dt, (b[2] - xb0[2]) / dt)
             ff = friction_block(va, vb, s, n, -dE, d2E, mu_o, nu, dt, fr, Jf)
-        if assemble:
+        if grad is not None:
             for i in range(3):
                 grad[j, i] += dE * g6[i]
                 grad[j + 1, i] += dE * g6[3 + i]
@@ -550,19 +467,17 @@ def _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, a
                 for i in range(6):
                     for m in range(6):
                         hess[j, i, m] += Jf[i, m]
-        if report:
+        if rows is not None:
             maxpen = max(maxpen, -gap)
             if rc < cap:
                 xr = vlerp(a, b, s)
                 # q is the closest point of a sphere's centre / a capsule's axis: step out to its surface
                 ro = rad[e, o] if (kind[o] == SPHERE or kind[o] == CAPSULE) else 0.0
-                _report_row(e, rc, j, o, xr, q, ro, n, ff, -dE, gap, out_edge, out_obstacle,
-                            out_rod_point, out_obstacle_point, out_normal, out_normal_force, out_friction_force,
-                            out_gap)
+                _report_row(e, rc, j, o, xr, q, ro, n, ff, -dE, gap, rows)
                 rc += 1
-    if report:
-        out_count[e] = rc
-        out_max_penetration[e] = maxpen
+    if rows is not None:
+        rows.count[e] = rc
+        rows.max_penetration[e] = maxpen
     return energy
 
 
@@ -575,7 +490,7 @@ def _plane_gap(cd, e, o, xx, kk):
 
 
 @njit(**OPT_CONTACT)
-def contact_broadphase(e, cd, x_start, x_guess, margin, link=None):
+def find_candidates(e, cd, x_start, x_guess, margin, link=None):
     """Fill env ``e``'s candidate list: pairs whose gap may fall below ``margin`` [m] anywhere on the straight
     path from ``x_start`` to ``x_guess`` (one test at the midway configuration, inflated by half the motion). Pass as ``x_guess`` the predicted end of the (sub)step ``x0 + h u`` so that the list covers
     the motion of the step (the Newton guess x0 + 0.01 h u also works for slow motion).
@@ -588,7 +503,7 @@ def contact_broadphase(e, cd, x_start, x_guess, margin, link=None):
     """
     kind, cand, ccount = cd.kind, cd.cand, cd.cand_count
     active, obox = cd.active, cd.box
-    r = cd.rod_radius[0]
+    r = cd.broadphase_radius[0]
     N = x_start.shape[0]
     M = kind.shape[0]
     cap = cand.shape[1]
@@ -637,10 +552,10 @@ def contact_broadphase(e, cd, x_start, x_guess, margin, link=None):
                 continue
             # midway configuration; every configuration on the straight path start -> predicted end is
             # within dmax (half the larger node motion) of it, and the gap is 1-Lipschitz in node motion
-            a = vlerp(_row3(x_start, j), _row3(x_guess, j), 0.5)
-            b = vlerp(_row3(x_start, j + 1), _row3(x_guess, j + 1), 0.5)
-            da = vsub(_row3(x_guess, j), _row3(x_start, j))
-            db = vsub(_row3(x_guess, j + 1), _row3(x_start, j + 1))
+            a = vlerp(row3(x_start, j), row3(x_guess, j), 0.5)
+            b = vlerp(row3(x_start, j + 1), row3(x_guess, j + 1), 0.5)
+            da = vsub(row3(x_guess, j), row3(x_start, j))
+            db = vsub(row3(x_guess, j + 1), row3(x_start, j + 1))
             dmax = 0.5 * math.sqrt(max(vdot(da, da), vdot(db, db)))
             gap, s, q = _eval_edge(cd, e, o, a, b, r, r + margin + dmax, g6, H6, nhat, ws, stack, False)
             hit = gap < margin + dmax
@@ -654,14 +569,14 @@ def contact_broadphase(e, cd, x_start, x_guess, margin, link=None):
 
 
 @njit(**OPT_CONTACT)
-def contact_refresh(e, cd, x_start, x_end, margin, link=None):
+def merge_candidates(e, cd, x_start, x_end, margin, link=None):
     """Re-run the broad phase of env ``e`` over the motion ``x_start`` -> ``x_end`` (the solved end of a step)
     and merge it with the current list. Returns True if that added pairs (the caller then solves again).
 
     The list built from the predicted motion x0 + h·u misses obstacles that a control change moves the rod
     onto within the step; this catches them (and the guard then sees their penetration). The merged list
     keeps the broad phase's order (obstacle-major, increasing edge/node index), truncated at capacity.
-    ``link``: as for :func:`contact_broadphase`.
+    ``link``: as for :func:`find_candidates`.
     """
     cand = cd.cand
     ccount = cd.cand_count
@@ -671,7 +586,7 @@ def contact_refresh(e, cd, x_start, x_end, margin, link=None):
     for c in range(n1):
         old[c, 0] = cand[e, c, 0]
         old[c, 1] = cand[e, c, 1]
-    n2 = contact_broadphase(e, cd, x_start, x_end, margin, link)
+    n2 = find_candidates(e, cd, x_start, x_end, margin, link)
     new = cd.cand_merge[e, cap:]
     for c in range(n2):
         new[c, 0] = cand[e, c, 0]
@@ -716,15 +631,15 @@ def _pair_gap(cd, e, c, x, dxp, t, radius, reach, g6, H6, nhat, ws, stack):
         p0 = cd.p0
         p1 = cd.p1
         return (p1[e, o, 0] * (a[0] - p0[e, o, 0]) + p1[e, o, 1] * (a[1] - p0[e, o, 1])
-                + p1[e, o, 2] * (a[2] - p0[e, o, 2])) - _node_radius(radius, j)
-    r = _edge_radius(radius, j)
+                + p1[e, o, 2] * (a[2] - p0[e, o, 2])) - node_radius(radius, j)
+    r = edge_radius(radius, j)
     b = (x[j + 1, 0] + t * dxp[j + 1, 0], x[j + 1, 1] + t * dxp[j + 1, 1], x[j + 1, 2] + t * dxp[j + 1, 2])
     gap, s, q = _eval_edge(cd, e, o, a, b, r, reach + r, g6, H6, nhat, ws, stack, False)
     return gap
 
 
 @njit(**OPT_CONTACT)
-def contact_step_limit(e, cd, x, dxp, radius, delta):
+def update_fraction(e, cd, x, dxp, radius, delta):
     """Largest fraction t ∈ (0, 1] of the Newton update ``dxp`` ((N, 3) node displacements from positions
     ``x``) that lets no candidate pair of env ``e`` go deeper than max-penetration allowance: a pair with
     gap g0 at t = 0 may reach min(g0, 0) − δ, not below. So one update can neither jump a rod edge across an
@@ -769,28 +684,26 @@ def contact_step_limit(e, cd, x, dxp, radius, delta):
 
 
 @njit(**OPT_CONTACT)
-def contact_accumulate(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, grad, hess, link=None):
+def node_forces(e, law, cd, x, x_prev, dt, radius, friction_on, grad, hess, link=None):
     """Add the contact (+ friction) residual into ``grad`` (N, 3) [N] and Jacobian blocks into ``hess``
-    (N-1, 6, 6) [N/m] for env ``e``'s candidates at positions ``x``; return the contact energy [J].
+    (N-1, 6, 6) [N/m] for env ``e``'s candidates at positions ``x``; return the contact energy [J]. ``law``: the
+    contact law (a Params record).
 
-    Friction (if ``friction_on``) is skipped on the first call after ``contact_broadphase`` (Newton
+    Friction (if ``friction_on``) is skipped on the first call after :func:`find_candidates` (Newton
     iteration 0 of the (sub)step, docs/physics.md §4.6). ``link`` (optional, RodData.link): tells a rod's end
     nodes next to a joint edge (several rods) for the flat-face weights."""
     fr_on = friction_on and cd.iter_flag[e] > 0
     cd.iter_flag[e] = 1
-    return _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, fr_on, True, grad, hess,
-                         False, cd.scratch_i[e, :0], cd.cand[e, :0], cd.cand[e, :0], cd.scratch_m[e, :0, :, :3],
-                         cd.scratch_m[e, :0, :, :3], cd.scratch_m[e, :0, :, :3], cd.scratch_f[e:e, :0], cd.scratch_m[e, :0, :, :3],
-                         cd.scratch_f[e:e, :0], cd.scratch_f[e, :0], link)
+    return _contact_pass(e, law, cd, x, x_prev, dt, radius, link, fr_on, grad, hess, None)
 
 
 @njit(**OPT_CONTACT)
-def contact_min_gap(e, cd, x, radius):
+def smallest_gap(e, cd, x, radius):
     """Smallest negative gap [m] over env ``e``'s current candidates at node positions ``x`` (N, >=3) [m];
-    0.0 when no candidate penetrates (so the max penetration is ``-contact_min_gap``).
+    0.0 when no candidate penetrates (so the max penetration is ``-smallest_gap``).
 
     No derivatives and no ownership filter (dropping non-minimal pairs cannot change the minimum), so
-    ``-contact_min_gap`` equals :func:`contact_report`'s max penetration for the same positions and candidates.
+    ``-smallest_gap`` equals :func:`contact_rows`' max penetration for the same positions and candidates.
     """
     kind, cand, ccount = cd.kind, cd.cand, cd.cand_count
     ws, g6, nhat, H6, stack = _scratch(cd, e)
@@ -799,26 +712,133 @@ def contact_min_gap(e, cd, x, radius):
         j = cand[e, c, 0]
         o = cand[e, c, 1]
         if kind[o] == PLANE:
-            gap = _plane_gap(cd, e, o, x, j) - _node_radius(radius, j)
+            gap = _plane_gap(cd, e, o, x, j) - node_radius(radius, j)
         else:
-            r = _edge_radius(radius, j)
-            gap, s, q = _eval_edge(cd, e, o, _row3(x, j), _row3(x, j + 1), r, r, g6, H6, nhat, ws, stack, False)
+            r = edge_radius(radius, j)
+            gap, s, q = _eval_edge(cd, e, o, row3(x, j), row3(x, j + 1), r, r, g6, H6, nhat, ws, stack, False)
         if gap < best:
             best = gap
     return best
 
 
 @njit(**OPT_CONTACT)
-def contact_report(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on,
-                   out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
-                   out_normal_force, out_friction_force, out_gap, out_max_penetration, link=None):
-    """Fill env ``e``'s StepStats contact rows (up to capacity C) and max penetration [m]; return energy [J].
+def contact_rows(e, law, cd, x, x_prev, dt, radius, friction_on, rows, link=None):
+    """Fill env ``e``'s contact rows in ``rows`` (a :class:`sim.kernels.data.ContactReport`, up to its capacity C)
+    and its max penetration [m]; return the energy [J].
 
     Rows: edge (node for planes), obstacle, rod point (on the rod's centre line) [m], obstacle point (the
     closest point on the obstacle's surface, for every kind) [m], unit normal (obstacle -> rod),
     normal force magnitude [N], friction force on the rod [N] (3,), gap [m]. Velocities (x - x_prev)/dt.
     """
-    return _contact_pass(e, cd, x, x_prev, dt, radius, k, delta, mu, nu, friction_on, False, cd.scratch_f[e:e, :3], cd.scratch_m[e, :0],
-                         True,
-                         out_count, out_edge, out_obstacle, out_rod_point, out_obstacle_point, out_normal,
-                         out_normal_force, out_friction_force, out_gap, out_max_penetration, link)
+    return _contact_pass(e, law, cd, x, x_prev, dt, radius, link, friction_on, None, None, rows)
+
+
+# ------------------------------------------------------------------------------------- the contact protocol
+ObstacleContact = namedtuple("ObstacleContact", ["data", "force", "jac"])
+ObstacleContact.__doc__ = """Obstacle contact as the Newton stages see it: ``data`` the obstacles' ContactData (all
+envs), and one thread's scratch for the node forces: ``force`` (N, 3) and the per-edge Jacobian blocks ``jac``
+(N-1, 6, 6)."""
+
+
+@njit(**OPT_ALLOC)
+def alloc(cd, N):
+    """One thread's :class:`ObstacleContact` for a rod of N nodes."""
+    return ObstacleContact(cd, np.zeros((N, 3)), np.zeros((N - 1, 6, 6)))
+
+
+@njit(inline="always", **OPT_CONTACT)
+def present(prm):
+    """Whether the scene has obstacle contact."""
+    return prm.n_obstacles > 0
+
+
+@njit(inline="always", **OPT_CONTACT)
+def candidates(e, oc):
+    """Env ``e``'s candidate count."""
+    return oc.data.cand_count[e]
+
+
+@njit(inline="always", **OPT_CONTACT)
+def friction_acts(prm):
+    """Whether friction can act (some obstacle has μ > 0)."""
+    return prm.friction_on
+
+
+@njit(inline="always", **OPT_CONTACT)
+def broadphase(e, prm, rod, oc, pos0, pos):
+    """Env ``e``'s candidates over the motion pos0 → pos."""
+    find_candidates(e, oc.data, pos0, pos, prm.contact_margin, rod.link)
+
+
+@njit(inline="always", **OPT_CONTACT)
+def refresh(e, prm, rod, oc, pos0, pos):
+    """Candidates over the motion pos0 → pos merged into the list: (whether pairs were added, whether the (sub)step
+    must be solved again: so they were)."""
+    added = merge_candidates(e, oc.data, pos0, pos, prm.contact_margin, rod.link)
+    return added, added
+
+
+@njit(inline="always", **OPT_CONTACT)
+def penetration(e, prm, rod, oc, pos):
+    """Deepest penetration [m] (≥ 0) of env ``e``'s candidates at ``pos``."""
+    return -smallest_gap(e, oc.data, pos, rod.edge_radius)
+
+
+@njit(inline="always", **OPT_CONTACT)
+def step_limit(e, prm, rod, oc, pos, dpos):
+    """Largest fraction of the node update ``dpos`` that lets no candidate tunnel (:func:`update_fraction`)."""
+    return update_fraction(e, oc.data, pos, dpos, rod.edge_radius, prm.contact_delta)
+
+
+@njit(**OPT)
+def accumulate(e, prm, rod, oc, w, h, with_jac, sym):
+    """Add the contact residual into ``w.f`` and (``with_jac``) its Jacobian into the band ``w.ab`` (upper half with
+    ``sym``) at the nodes w.pos, velocities from w.pos0 over h; returns the energy [J]. The node forces act on the
+    DOFs of the mode (planar: x, z; the y component is dropped)."""
+    force, jac = oc.force, oc.jac
+    force[:, :] = 0.0
+    jac[:, :, :] = 0.0
+    ec = node_forces(e, prm, oc.data, w.pos, w.pos0, h, rod.edge_radius, prm.friction_on, force, jac, rod.link)
+    f, ab = w.f, w.ab
+    N = force.shape[0]
+    if prm.planar:
+        kl = ab.shape[1] // 2
+        for k in range(N):
+            f[2 * k] += force[k, 0]
+            f[2 * k + 1] += force[k, 2]
+        if with_jac:
+            for j in range(N - 1):
+                for a in range(4):
+                    la = (a // 2) * 3 + (0 if a % 2 == 0 else 2)
+                    r = 2 * j + a
+                    for b in range(a if sym else 0, 4):
+                        lb = (b // 2) * 3 + (0 if b % 2 == 0 else 2)
+                        c = 2 * j + b
+                        ab[r, kl + c - r] += jac[j, la, lb]
+    else:
+        kl = ab.shape[1] // 2
+        for k in range(N):
+            for a in range(3):
+                f[4 * k + a] += force[k, a]
+        if with_jac:
+            for j in range(N - 1):
+                for a in range(6):
+                    r = 4 * j + a if a < 3 else 4 * j + 1 + a
+                    for b in range(a if sym else 0, 6):
+                        c = 4 * j + b if b < 3 else 4 * j + 1 + b
+                        ab[r, kl + c - r] += jac[j, a, b]
+    return ec
+
+
+@njit(inline="always", **OPT_CONTACT)
+def energy(e, prm, rod, oc, pos, pos0, h):
+    """Contact energy [J] of env ``e``'s candidates at ``pos`` (friction off)."""
+    return node_forces(e, prm, oc.data, pos, pos0, h, rod.edge_radius, False, oc.force, oc.jac, rod.link)
+
+
+@njit(inline="always", **OPT_CONTACT)
+def report(e, prm, rod, oc, pos, pos0, rows):
+    """Env ``e``'s contact rows at the state kept (``pos``; velocities from pos0 over the step) over a fresh
+    candidate list, written first in ``rows`` with the max penetration; returns the energy [J]."""
+    find_candidates(e, oc.data, pos, pos, prm.contact_margin, rod.link)
+    return contact_rows(e, prm, oc.data, pos, pos0, prm.dt, rod.edge_radius, prm.friction_on, rows, rod.link)
