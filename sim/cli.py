@@ -50,7 +50,8 @@ def sim_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--envs", type=int, default=1, help=f"number of environments (default 1, at most {_MAX_ENVS})")
     ap.add_argument("--every", type=int, default=1, help="record every K-th step (default 1)")
     ap.add_argument("--out", help="write time, node_pos (frames, envs, nodes of all rods, 3), edge_theta, "
-                                  "newton_iters, converged, midpoint_fallbacks, max_penetration, contact_count, contact_force (and "
+                                  "newton_iters, converged, midpoint_fallbacks, max_penetration, contact_count, contact_dropped "
+                                  "(rows not listed), contact_force (the total over every contact) (and "
                                   "per-contact rows: obstacle contacts and edge pairs), rod_node_offsets (where "
                                   "each rod's nodes start, then the total) and rod_names to this .npz; its folder "
                                   "is checked for writing before the simulation starts")
@@ -99,12 +100,13 @@ def sim_main(argv: list[str] | None = None) -> int:
     t_ready = time.perf_counter() - t0
     frames: dict[str, list] = {"time": [], "node_pos": [], "edge_theta": [], "newton_iters": [], "converged": [],
                                "midpoint_fallbacks": [], "max_penetration": [], "contact_count": [],
-                               "contact_force": []}
+                               "contact_dropped": [], "contact_force": []}
     crow = ("contact_edge", "contact_obstacle", "contact_partner_edge", "contact_rod_point", "contact_normal",
             "contact_normal_force", "contact_friction_force", "contact_gap") if first.contact_edge.shape[1] else ()
     for name in crow:
         frames[name] = []
     it_sum, it_max = 0, 0
+    dropped_rows = 0  # contact rows that did not fit a step's report (the totals count them; the rows list not)
     fell = np.zeros(a.envs, np.int64)  # midpoint sub-steps redone by backward Euler, per env
     subs = np.zeros(a.envs, np.int64)
     t1 = time.perf_counter()
@@ -123,20 +125,22 @@ def sim_main(argv: list[str] | None = None) -> int:
                 frames["newton_iters"].append(st.newton_iters.copy())
                 frames["converged"].append(st.converged.copy())
                 frames["midpoint_fallbacks"].append(st.midpoint_fallbacks.copy())
-                # contact (sim/contact/obstacles.py): max penetration (B,) [m], count (B,), total force on the rods
-                # (B, 3) [N] = sum of normal_force * normal + friction over the reported rows (the first
-                # contact_count; the rows after them are left from earlier steps); per-row (B, C, ...)
+                # contact (sim/contact): max penetration (B,) [m], count (B,) of the listed rows, rows dropped (B,)
+                # (not listed: the report was full), total force on the rods (B, 3) [N] over every contact, listed
+                # or not; per-row (B, C, ...) (the first contact_count; the rows after them are left from earlier
+                # steps; C grows when rows were dropped, so a step's rows are padded to the largest C)
                 frames["max_penetration"].append(st.max_penetration.copy())
                 frames["contact_count"].append(st.contact_count.copy())
-                live = np.arange(st.contact_normal_force.shape[1]) < st.contact_count[:, None]
-                frames["contact_force"].append(((st.contact_normal_force[..., None] * st.contact_normal
-                                                 + st.contact_friction_force) * live[..., None]).sum(axis=1))
+                frames["contact_dropped"].append(st.contact_dropped.copy())
+                frames["contact_force"].append(st.contact_force.copy())
                 for name in crow:
                     frames[name].append(getattr(st, name).copy())
+            dropped_rows += int(st.contact_dropped.sum())
     wall = time.perf_counter() - t1
     if a.out:
         try:
-            _atomic_savez(a.out, **{k: np.asarray(v) for k, v in frames.items()}, **_rod_arrays(model))
+            _atomic_savez(a.out, **{k: _stack_rows(v) if k in crow else np.asarray(v) for k, v in frames.items()},
+                          **_rod_arrays(model))
         except OSError as exc:
             return fail(f"{a.out}: cannot write: {exc.strerror or exc}")
         print(f"rodlab sim: wrote {len(frames['time'])} frames to {a.out}")
@@ -146,8 +150,22 @@ def sim_main(argv: list[str] | None = None) -> int:
           f"failed envs: {int(state.failed.sum())}")
     if model.integrator == "midpoint":
         print(_midpoint_line(fell, subs))
+    if dropped_rows:
+        print(f"contact rows: {dropped_rows} did not fit the steps' reports and are not listed (contact_dropped); "
+              "the total contact force and max penetration include them")
     print(f"time per step: {wall / n * 1e3:.3f} ms (kernels ready in {t_ready:.2f} s)")
     return 0
+
+
+def _stack_rows(frames: list) -> np.ndarray:
+    """Stack per-frame contact rows (B, C, ...) whose capacity C grew during the run: padded to the largest C (-1 for
+    the integer columns, 0 otherwise; the rows past contact_count are not contacts)."""
+    C = max(f.shape[1] for f in frames)
+    out = np.full((len(frames), frames[0].shape[0], C) + frames[0].shape[2:], -1 if frames[0].dtype.kind == "i" else 0,
+                  dtype=frames[0].dtype)
+    for k, f in enumerate(frames):
+        out[k, :, :f.shape[1]] = f
+    return out
 
 
 def _midpoint_line(fell: np.ndarray, subs: np.ndarray) -> str:

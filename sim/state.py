@@ -119,7 +119,9 @@ class StepStats:
     failed (B,) bool (failed in this step), energy_* (B,) [J] at the end of the step, max_penetration (B,) [m]
     (the deepest obstacle contact or edge pair), contact_* rows (docs/architecture.md): the obstacle contacts, then
     two rows per edge pair in touch (self- or rod–rod contact), one per edge with the force on it;
-    contact_obstacle is −1 on a pair row and contact_partner_edge the other edge (−1 on an obstacle row).
+    contact_obstacle is −1 on a pair row and contact_partner_edge the other edge (−1 on an obstacle row). Over every
+    contact, listed or not: contact_dropped (B,) int the rows that did not fit the report (the Simulator then grows
+    it for the next steps), contact_force (B, 3) [N] the total contact force (normal plus friction) on the rods.
     """
 
     newton_iters: np.ndarray
@@ -146,6 +148,8 @@ class StepStats:
     contact_friction_force: np.ndarray
     contact_gap: np.ndarray
     midpoint_fallbacks: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    contact_dropped: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    contact_force: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     @property
     def energy_elastic(self) -> np.ndarray:

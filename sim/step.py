@@ -6,13 +6,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numba
 import numpy as np
 
 from . import validate as _validate
 from .boundary import window_fraction
 from .contact.edge_pairs import model_pairs
 from .contact_set import PAIR_REPORT_CAPACITY, contact_data, contact_scratch
-from .kernels.batch import step_kernel
+from .kernels.batch import CHUNK, step_kernel
 from .kernels.data import (
     MIDPOINT_ENERGY_TOL,
     ContactReport,
@@ -56,6 +57,8 @@ class Simulator:
         self._no_obstacles = m.obstacles.for_envs(B) if m.obstacles.count == 0 else None
         C = int(m.obstacles.report_capacity) + (PAIR_REPORT_CAPACITY if pairs.shape[0] > 0 else 0)
         self._crep = ContactReport.zeros(B, C)
+        # the most rows a step can list: every obstacle candidate, two per edge pair (StepStats rows grow up to it)
+        self._max_rows = max(C, m.node_count * m.obstacles.count + 2 * pairs.shape[0])
         self._out = StepOutput.zeros(B)
 
     # ------------------------------------------------------------------ state / control construction
@@ -142,14 +145,35 @@ class Simulator:
         if self._loads:
             rod = rod._replace(grav=self._external_forces(state.time))
         moved = self._prescribe(state) if self._motion else None
-        step_kernel(StateArrays.of(state), ControlArrays.of(ctrl), rod, self._prm,
-                    contact_data(obstacles, self._scratch), self._crep, self._out)
+        # the kernel's parallel loop runs over chunks of CHUNK envs: more threads than chunks would only wake threads
+        # with nothing to do (one env would keep two cores busy), so the call uses at most one thread per chunk
+        threads = numba.get_num_threads()
+        use = min(threads, -(-self.envs // CHUNK))
+        if use < threads:
+            numba.set_num_threads(use)
+        try:
+            step_kernel(StateArrays.of(state), ControlArrays.of(ctrl), rod, self._prm,
+                        contact_data(obstacles, self._scratch), self._crep, self._out)
+        finally:
+            if use < threads:
+                numba.set_num_threads(threads)
         if moved is not None:  # the moved DOFs' velocities: their prescribed rates over the step
             ok = ~state.failed
             vel = state.dof_vel.reshape(self.envs, -1)
             sel = self._moving_dofs
             vel[np.ix_(ok, sel)] = moved[np.ix_(ok, sel)] / self.model.dt
-        return self._checked_stats(state)
+        stats = self._checked_stats(state)
+        self._grow_report()
+        return stats
+
+    def _grow_report(self) -> None:
+        """Rows dropped in the step just taken (StepStats.contact_dropped says how many): the next steps list up to
+        twice as many, at most every contact the scene can have."""
+        cr = self._crep
+        C = cr.gap.shape[1]
+        if C < self._max_rows and cr.dropped.any():
+            need = C + int(cr.dropped.max())
+            self._crep = ContactReport.zeros(self.envs, min(self._max_rows, max(2 * C, need)))
 
     def _external_forces(self, time: np.ndarray) -> np.ndarray:
         """(B, n) gravity plus the point loads, each weighted by the fraction of the env's step in its window."""
@@ -185,7 +209,7 @@ class Simulator:
             contact_rod_point=cr.rod_point.copy(),
             contact_obstacle_point=cr.obstacle_point.copy(), contact_normal=cr.normal.copy(),
             contact_normal_force=cr.normal_force.copy(), contact_friction_force=cr.friction_force.copy(),
-            contact_gap=cr.gap.copy())
+            contact_gap=cr.gap.copy(), contact_dropped=cr.dropped.copy(), contact_force=cr.force.copy())
 
     # ------------------------------------------------------------------ frames
     def material_frames(self, state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

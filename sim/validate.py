@@ -379,7 +379,7 @@ def quarantine_nonfinite(sim: Any, state: Any, stats: Any = None, also: np.ndarr
     arrays = [getattr(state, name) for name in floats]  # every state field, before and after
     if stats is not None:  # contact rows: only the filled ones (up to the largest contact_count)
         cmax = int(stats.contact_count.max()) if stats.contact_count.size else 0
-        arrays += [a[:, :cmax] if name.startswith("contact_") and a.ndim >= 2 else a
+        arrays += [a[:, :cmax] if name.startswith("contact_") and name != "contact_force" and a.ndim >= 2 else a
                    for name, a in vars(stats).items() if isinstance(a, np.ndarray) and a.dtype.kind == "f"]
     bad = np.zeros(state.dof.shape[0], dtype=bool)
     for a in arrays:

@@ -168,6 +168,9 @@ def _stats_scalars(stats: Any, e: int) -> dict[str, float]:
         out["contact/count"] = float(c)
         fn = np.asarray(stats.contact_normal_force)
         out["contact/max_normal_force"] = float(np.max(np.abs(fn[e, :c]))) if c else 0.0
+        dropped = getattr(stats, "contact_dropped", None)
+        if dropped is not None and np.asarray(dropped).shape[:1] == np.asarray(cnt).shape[:1]:
+            out["contact/dropped"] = float(dropped[e])  # rows not listed: the listed ones are not all
     return out
 
 

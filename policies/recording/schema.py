@@ -80,7 +80,7 @@ STANDARD_SCALARS = (
     "energy/stretch", "energy/bend", "energy/twist", "energy/contact", "energy/kinetic", "energy/gravity",
     "solver/newton_iters", "solver/residual", "solver/converged", "solver/substeps", "solver/midpoint_fallbacks",
     "solver/wall_time",
-    "contact/count", "contact/max_normal_force", "contact/max_penetration",
+    "contact/count", "contact/max_normal_force", "contact/max_penetration", "contact/dropped",
 )
 _SCALAR_NAME = re.compile(r"^[A-Za-z0-9_.\-]+(/[A-Za-z0-9_.\-]+)*$")
 

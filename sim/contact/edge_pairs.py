@@ -505,7 +505,8 @@ def pair_rows(e, ep, pairs, law, x, x_prev, dt, radius, rows):
     *on* that edge. Row of edge i against edge j: edge i, obstacle −1, partner j, rod point on i's centre line,
     "obstacle point" the closest point on j's surface, unit normal from j to i, normal force λ = −E'(g) [N],
     friction force on i [N], gap g [m]; edge j's row mirrors it (normal and friction reversed), so each pair's two
-    rows sum to zero. The obstacle rows' partner entries are set to −1. Velocities (x − x_prev)/dt."""
+    rows sum to zero. The obstacle rows' partner entries are set to −1; pairs in touch beyond the capacity add two
+    to ``rows.dropped[e]`` each. Velocities (x − x_prev)/dt."""
     k, delta, mu, nu = law.contact_k, law.contact_delta, law.friction, law.friction_nu
     cand, ncand, g12, H12, nhat, ws = ep.cand, ep.count, ep.g12, ep.H12, ep.nhat, ep.ws
     cap = rows.gap.shape[1]
@@ -538,6 +539,7 @@ def pair_rows(e, ep, pairs, law, x, x_prev, dt, radius, rows):
         E, dE, _ = imc_energy(gap, k, delta)
         energy += E
         if rc + 2 > cap:
+            rows.dropped[e] += 2  # the two rows' forces cancel: the total force needs neither
             continue
         e1 = vsub(b, a)
         e2 = vsub(q, p)

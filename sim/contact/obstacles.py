@@ -318,6 +318,13 @@ def _report_row(e, rc, j, o, rod_point, base, scale, n, ff, normal_force, gap, r
     rows.gap[e, rc] = gap
 
 
+@njit(inline="always", **OPT_CONTACT)
+def _tally(e, rows, n, ff, normal_force):
+    """Add a contact's force (normal force along ``n`` plus friction ``ff``) to env ``e``'s total in ``rows``."""
+    for i in range(3):
+        rows.force[e, i] += normal_force * n[i] + ff[i]
+
+
 @njit(**OPT_CONTACT)
 def _contact_pass(e, law, cd, x, x_prev, dt, radius, link, friction_on, grad, hess, rows):
     """One pass over env ``e``'s candidates at positions ``x``: returns the contact energy [J]; adds the residual
@@ -345,6 +352,7 @@ def _contact_pass(e, law, cd, x, x_prev, dt, radius, link, friction_on, grad, he
     if rows is not None:
         cap = rows.gap.shape[1]
     maxpen = 0.0
+    dropped = 0
     prev_j = -2
     prev_o = -1
     prev_gap = np.inf
@@ -381,9 +389,12 @@ def _contact_pass(e, law, cd, x, x_prev, dt, radius, link, friction_on, grad, he
                             hess[blk, sl + i, sl + m] += Jf[i, m]
             if rows is not None:
                 maxpen = max(maxpen, -gap)
+                _tally(e, rows, n, ff, -dE)
                 if rc < cap:
                     _report_row(e, rc, j, o, xk, xk, -(gap + r), n, ff, -dE, gap, rows)
                     rc += 1
+                else:
+                    dropped += 1
             continue
         a = row3(x, j)
         b = row3(x, j + 1)
@@ -427,9 +438,12 @@ def _contact_pass(e, law, cd, x, x_prev, dt, radius, link, friction_on, grad, he
                                     hess[j, i, m] += Jf[i, m]
                     if rows is not None:
                         maxpen = max(maxpen, -gap)
+                        _tally(e, rows, n, ff, -dE)
                         if rc < cap:
                             _report_row(e, rc, j, o, xk, xk, -(gap + r), n, ff, -dE, gap, rows)
                             rc += 1
+                        else:
+                            dropped += 1
                 continue
         gap, s, q = _eval_edge(cd, e, o, a, b, r, r + delta, g6, H6, nhat, ws, stack)
         keep = gap < delta
@@ -469,15 +483,19 @@ def _contact_pass(e, law, cd, x, x_prev, dt, radius, link, friction_on, grad, he
                         hess[j, i, m] += Jf[i, m]
         if rows is not None:
             maxpen = max(maxpen, -gap)
+            _tally(e, rows, n, ff, -dE)
             if rc < cap:
                 xr = vlerp(a, b, s)
                 # q is the closest point of a sphere's centre / a capsule's axis: step out to its surface
                 ro = rad[e, o] if (kind[o] == SPHERE or kind[o] == CAPSULE) else 0.0
                 _report_row(e, rc, j, o, xr, q, ro, n, ff, -dE, gap, rows)
                 rc += 1
+            else:
+                dropped += 1
     if rows is not None:
         rows.count[e] = rc
         rows.max_penetration[e] = maxpen
+        rows.dropped[e] += dropped
     return energy
 
 
@@ -723,8 +741,9 @@ def smallest_gap(e, cd, x, radius):
 
 @njit(**OPT_CONTACT)
 def contact_rows(e, law, cd, x, x_prev, dt, radius, friction_on, rows, link=None):
-    """Fill env ``e``'s contact rows in ``rows`` (a :class:`sim.kernels.data.ContactReport`, up to its capacity C)
-    and its max penetration [m]; return the energy [J].
+    """Fill env ``e``'s contact rows in ``rows`` (a :class:`sim.kernels.data.ContactReport`, up to its capacity C),
+    its max penetration [m], and over every contact, listed or not, the rows dropped and the total force on the rod
+    (added to ``rows.dropped``/``rows.force``); return the energy [J].
 
     Rows: edge (node for planes), obstacle, rod point (on the rod's centre line) [m], obstacle point (the
     closest point on the obstacle's surface, for every kind) [m], unit normal (obstacle -> rod),

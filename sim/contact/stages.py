@@ -138,11 +138,14 @@ def energy(e, prm, rod, cs, pos, pos0, h):
 
 @njit(inline="always", **OPT_CONTACT)
 def report(e, prm, rod, cs, pos, pos0, rows):
-    """Env ``e``'s contact rows and max penetration at the state kept (``pos``; ``pos0`` the step's start by its
+    """Env ``e``'s contact rows, max penetration, dropped rows and total force at the state kept (``pos``; ``pos0`` the step's start by its
     velocity), over fresh candidate lists (a guard fallback or a restored state is not the configuration the last
     sub-step's lists were built for); returns the contact energy [J]."""
     rows.count[e] = 0
     rows.max_penetration[e] = 0.0
+    rows.dropped[e] = 0
+    for a in range(3):
+        rows.force[e, a] = 0.0
     ec = 0.0
     if obstacles.present(prm):
         ec += obstacles.report(e, prm, rod, cs.obstacles, pos, pos0, rows)

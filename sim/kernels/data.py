@@ -229,7 +229,9 @@ class StepOutput(NamedTuple):
 class ContactReport(NamedTuple):
     """The per-env contact rows the step kernels write for StepStats (leading axis B; C = report capacity):
     count (B,), edge/obstacle/partner (B, C) int64, rod_point/obstacle_point/normal/friction_force (B, C, 3),
-    normal_force/gap (B, C), max_penetration (B,); obstacle rows first, then two rows per edge pair in touch."""
+    normal_force/gap (B, C), max_penetration (B,); obstacle rows first, then two rows per edge pair in touch. Over
+    every contact, listed or not: dropped (B,) int64 the rows that did not fit the capacity, force (B, 3) [N] the total
+    contact force (normal plus friction) on the rods (edge pairs add none: their two rows cancel)."""
 
     count: np.ndarray
     edge: np.ndarray
@@ -242,6 +244,8 @@ class ContactReport(NamedTuple):
     friction_force: np.ndarray
     gap: np.ndarray
     max_penetration: np.ndarray
+    dropped: np.ndarray
+    force: np.ndarray
 
     @classmethod
     def zeros(cls, envs: int, capacity: int) -> ContactReport:
@@ -249,4 +253,5 @@ class ContactReport(NamedTuple):
         return cls(count=np.zeros(B, np.int64), edge=np.zeros((B, C), np.int64), obstacle=np.zeros((B, C), np.int64),
                    partner=np.full((B, C), -1, np.int64), rod_point=np.zeros((B, C, 3)),
                    obstacle_point=np.zeros((B, C, 3)), normal=np.zeros((B, C, 3)), normal_force=np.zeros((B, C)),
-                   friction_force=np.zeros((B, C, 3)), gap=np.zeros((B, C)), max_penetration=np.zeros(B))
+                   friction_force=np.zeros((B, C, 3)), gap=np.zeros((B, C)), max_penetration=np.zeros(B),
+                   dropped=np.zeros(B, np.int64), force=np.zeros((B, 3)))

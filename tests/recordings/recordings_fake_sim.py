@@ -63,7 +63,8 @@ class FakeSim(FakeSimBase):
             contact_edge=np.tile(np.arange(cap), (B, 1)), contact_obstacle=np.zeros((B, cap), np.int64),
             contact_partner_edge=np.full((B, cap), -1, np.int64),
             contact_rod_point=pts, contact_obstacle_point=pts.copy(), contact_normal=nrm, contact_normal_force=fn,
-            contact_friction_force=np.zeros((B, cap, 3)), contact_gap=np.zeros((B, cap)))
+            contact_friction_force=np.zeros((B, cap, 3)), contact_gap=np.zeros((B, cap)),
+            contact_dropped=np.zeros(B, np.int64), contact_force=(fn[..., None] * nrm).sum(axis=1))
 
 
 def fake_make_simulator(config, *, envs, task=None):
