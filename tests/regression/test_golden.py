@@ -23,8 +23,9 @@ def test_contact_trajectories_match_golden():
     """Obstacle contact of every kind with friction (3-D and planar) against
     tests/regression/golden/contact_trajectories.npz (tests/regression/golden_contact.py). Sliding and sticking
     friction amplify rounding: a relative perturbation of 1e-15 of the start moves these trajectories by up to 1e-5 m/s
-    in 40 steps (and a kernel build's FMA contraction is such a perturbation), so positions are compared to 0.1 mm
-    and velocities to 1 mm/s; a change of the physics moves them by far more."""
+    in 40 steps (and a kernel build's FMA contraction is such a perturbation), so positions are compared to 0.1 mm,
+    velocities to 1 mm/s and contact energies to 0.1 % of their largest; a change of the physics moves them by far
+    more."""
     from tests.regression.golden_contact import CASES
     from tests.regression.golden_contact import GOLDEN as CONTACT_GOLDEN
     from tests.regression.golden_contact import run as run_contact
@@ -35,8 +36,8 @@ def test_contact_trajectories_match_golden():
         assert ref[f"{case}/contact_count"].max() > 0, case  # the case does touch
         np.testing.assert_allclose(got["dof"], ref[f"{case}/dof"], rtol=0, atol=1e-4, err_msg=case)
         np.testing.assert_allclose(got["dof_vel"], ref[f"{case}/dof_vel"], rtol=0, atol=1e-3, err_msg=case)
-        np.testing.assert_allclose(got["energy_contact"], ref[f"{case}/energy_contact"], rtol=1e-4, atol=1e-9,
-                                   err_msg=case)
+        e_ref = ref[f"{case}/energy_contact"]
+        np.testing.assert_allclose(got["energy_contact"], e_ref, rtol=0, atol=1e-3 * e_ref.max(), err_msg=case)
         np.testing.assert_allclose(got["max_penetration"], ref[f"{case}/max_penetration"], rtol=0, atol=1e-6,
                                    err_msg=case)
         assert np.array_equal(got["contact_count"], ref[f"{case}/contact_count"]), case
