@@ -24,7 +24,7 @@ from .kernels.data import (
     StepOutput,
 )
 from .model import Model, planar_nodes
-from .state import Control, State, StepStats
+from .state import STATE_ARRAYS, Control, State, StepStats
 
 __all__ = ["Simulator", "MIDPOINT_ENERGY_TOL"]
 
@@ -106,7 +106,7 @@ class Simulator:
         a (B,) boolean mask, or integer env indices (list/tuple/int array/int); see :func:`sim.validate.env_mask`."""
         mask = _validate.env_mask(mask, self.envs)
         fresh = self.reset()
-        for name in ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time", "failed"):
+        for name in STATE_ARRAYS:
             getattr(state, name)[mask] = getattr(fresh, name)[mask]
         if state.obstacles is not None and state.obstacles.count:
             state.obstacles.reset_envs(mask)
