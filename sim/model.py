@@ -46,8 +46,8 @@ class Model:
     newton_max_iter: int
     accept_unconverged: bool
     divergence_guard: float          # [-] residual growth factor that retries an accepted unconverged step; 0 off
-    radius: float                    # [m] (non-circular sections: the circumscribed radius contact uses;
-                                     # per-edge radii: the largest)
+    radius_max: float                # [m] the largest contact radius over the edges (non-circular sections: the
+                                     # circumscribed radius); the step uses the per-edge edge_radius
     EA_max: float                    # [N]      the largest stiffnesses over the edges (all edges' for a uniform
     EI1_max: float                   # [N m^2]  rod; with per-edge radius or youngs_modulus lists, or several
     EI2_max: float                   # [N m^2]  rods, the largest): summaries only; the step uses the per-edge
@@ -285,7 +285,7 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         spec=spec, mode=sim.mode, node_count=N, dt=sim.dt, gravity=_ro(g), damping=sim.damping,
         integrator=sim.integrator, line_search=sim.line_search, newton_tol=sim.newton_tol,
         newton_dtol=sim.newton_dtol, newton_max_iter=sim.newton_max_iter, divergence_guard=sim.divergence_guard,
-        accept_unconverged=sim.accept_unconverged, radius=float(r.max()), EA_max=float(EA.max()),
+        accept_unconverged=sim.accept_unconverged, radius_max=float(r.max()), EA_max=float(EA.max()),
         EI1_max=float(EI1.max()), EI2_max=float(EI2.max()), GJ_max=float(GJ.max()), edge_radius=_ro(r), edge_EA=_ro(EA),
         node_EI1=_ro(node_EI1), node_EI2=_ro(node_EI2), node_GJ=_ro(node_GJ),
         rest_node_pos=_ro(x), rest_edge_length=_ro(lbar), voronoi_length=_ro(vor), node_mass=_ro(mass),

@@ -139,5 +139,5 @@ def policy_episode(task: str, policy: str, *, seed: int = 0, max_sim_steps: int 
             break
     pos, t, tg = zip(*frames)
     return PolicyEpisode(np.stack(pos), np.array(t), None if tg[0] is None else np.stack(tg),
-                         float(core.model.radius), {"task": s.task, "policy": s.name},
+                         float(core.model.radius_max), {"task": s.task, "policy": s.name},
                          getattr(core.model, "rod_node_offsets", None))

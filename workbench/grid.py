@@ -54,7 +54,7 @@ class GridSession:
         self._rng = np.random.default_rng(seed)
         x0 = np.asarray(self.core.state.node_pos[0], np.float64)
         self.rod_length = float(np.linalg.norm(np.diff(x0, axis=0), axis=1).sum())
-        self.rod_radius = float(self.core.model.radius)
+        self.rod_radius = float(self.core.model.radius_max)
         self.n_nodes = int(x0.shape[0])
         self.spacing = 2.0 * max(self.rod_length, 0.25)
         # default: the grid starts one cell behind the live rod (at the origin), which stays where it was

@@ -118,10 +118,8 @@ class LiveSim:
 
     @property
     def rod_radius(self) -> float:
-        for name in ("rod_radius", "radius"):
-            if hasattr(self.model, name):
-                return float(getattr(self.model, name))
-        return 0.05
+        """The rod's largest contact radius [m] (the tube drawn for one radius)."""
+        return float(self.model.radius_max)
 
     @property
     def node_radius(self) -> np.ndarray | None:

@@ -95,7 +95,7 @@ def boundary_of(model) -> Boundary:
     lt = np.array([ld.torque for ld in loads], dtype=np.float64)
     lw = np.asarray(model.load_window, dtype=np.float64).reshape(len(loads), 2)  # [start, stop), stop = inf if open
     length = float(np.sum(np.asarray(model.rest_edge_length)[link]))
-    size = max(GLYPH_RADII * float(model.radius), GLYPH_MIN * length)
+    size = max(GLYPH_RADII * float(model.radius_max), GLYPH_MIN * length)
     return Boundary(n_nodes=N, fixed_nodes=nodes, fixed_axes=axes, fixed_kind=kind,
                     twist_edges=np.flatnonzero(twist), load_nodes=ln, load_force=lf, load_torque=lt,
                     load_window=lw, size=size)

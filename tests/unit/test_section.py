@@ -48,14 +48,14 @@ def test_section_constants_and_model():
     assert s.I2 == pytest.approx(0.04 * 0.01 ** 3 / 12) and s.I1 / s.I2 == pytest.approx(16.0)
     m = build_model(rect)
     assert m.EI1_max == pytest.approx(1e6 * s.I1) and m.GJ_max == pytest.approx(1e6 / 3 * s.J)
-    assert m.radius == pytest.approx(0.5 * math.hypot(0.04, 0.01))  # contact: circumscribed circle
+    assert m.radius_max == pytest.approx(0.5 * math.hypot(0.04, 0.01))  # contact: circumscribed circle
     assert m.node_mass[1] == pytest.approx(1000 * 4e-4 * 0.1)
     assert m.edge_twist_inertia[0] == pytest.approx(1000 * (s.I1 + s.I2) * 0.1)
     ell = _scene('cross_section = "ellipse"\nsemi_axes = [0.03, 0.01]\n')
     e = section_of(ell.rod)
     assert e.I1 == pytest.approx(math.pi * 0.03 ** 3 * 0.01 / 4) and e.I2 == pytest.approx(math.pi * 0.03 * 1e-6 / 4)
     assert e.J == pytest.approx(math.pi * 0.03 ** 3 * 0.01 ** 3 / (0.03 ** 2 + 0.01 ** 2))
-    assert build_model(ell).radius == 0.03
+    assert build_model(ell).radius_max == 0.03
     circ = _scene("radius = 0.02\n")
     c = section_of(circ.rod)
     assert c.J == pytest.approx(c.I1 + c.I2) and build_model(circ).EI1_max == pytest.approx(1e6 * math.pi * 0.02 ** 4 / 4)

@@ -131,7 +131,7 @@ def test_chain_model_has_joint_edges_without_material():
     fixed = m.dof_fixed.reshape(-1, 4)
     assert fixed[j, 3] and fixed[-1, 3] and fixed[0].all() and not fixed[11].any()  # a clamped, b free
     assert m.locked_edges == (0,)
-    assert m.radius == 0.02 and m.EA_max == ma.EA_max
+    assert m.radius_max == 0.02 and m.EA_max == ma.EA_max
     sl = m.rod_slices()
     assert sl == {"a": slice(0, 11), "b": slice(11, 17)}
     parts = m.split_rods(np.zeros((2, 3, 17, 3)))

@@ -45,7 +45,7 @@ def test_cantilever_period_and_amplitude_midpoint(scenes_dir):
     spec = load_scene(scenes_dir / "cantilever_dynamic.toml")
     sim, t, z = _run_cantilever(spec, 19.0)
     m = sim.model
-    rho_a = m.spec.rod.density * np.pi * m.radius ** 2
+    rho_a = m.spec.rod.density * np.pi * m.radius_max ** 2
     w1 = BL ** 2 * np.sqrt(m.EI1_max / rho_a)
     T1, amp = 2 * np.pi / w1, 5e-3 / w1
     assert abs(T1 - 12.636) < 0.01

@@ -87,7 +87,7 @@ def test_masses_and_stiffnesses_follow_the_per_edge_sections():
     np.testing.assert_allclose(m.node_GJ[1:-1], harm(GJ), rtol=1e-14)
     np.testing.assert_allclose(m.node_EI1[[0, -1]], EI[[0, -1]], rtol=1e-14)
     np.testing.assert_allclose(m.edge_radius, r)
-    assert m.radius == r.max() and m.EA_max == pytest.approx((E * np.pi * r ** 2).max())
+    assert m.radius_max == r.max() and m.EA_max == pytest.approx((E * np.pi * r ** 2).max())
 
 
 def test_node_stiffness_weights_the_compliances_by_the_half_edges():

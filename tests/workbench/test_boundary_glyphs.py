@@ -224,7 +224,7 @@ def test_scene_view_draws_them_for_live_frames_only():
         assert view.boundary.nodes == []
         view.set_boundary(boundary_of(model))
         x = np.asarray(model.rest_node_pos, np.float64)
-        fr = Frame(node_pos=x, rod_radius=float(model.radius), time=0.0)
+        fr = Frame(node_pos=x, rod_radius=float(model.radius_max), time=0.0)
         view.render(fr)
         assert all(h.visible for h in view.boundary.nodes)
         view.overlays.arrows, view.overlays.force_scale = "linear", 2.0
