@@ -148,24 +148,27 @@ def test_tip_frame_beside_the_ik_target_frame(wb_page):
         wait_for(lambda: wb.mode == "policy" and view.target_frame.visible and view.rod.tip_frame.visible
                  and view.last_frame is not None and view.last_frame.target_wxyz is not None,
                  timeout=120, what="IK task with both frames")
-        # paused; a step under way at the pause is drawn by the first redraw at the latest, so the second redraw
-        # after the pause draws the paused state (the hooks see each frame just after the view drew it)
+        # each drawn frame with the tip frame as the view left it for that frame (the hooks run in the drawing
+        # thread, right after the view drew the frame: nothing else can draw in between)
         drawn: list = []
-        app.render_hooks.append(drawn.append)
+
+        def seen(fr) -> None:
+            drawn.append((fr, np.array(view.rod.tip_frame.position), np.array(view.rod.tip_frame.wxyz)))
+
+        app.render_hooks.append(seen)
         try:
             wb.set_playing(False)
-            for _ in range(2):
-                n = len(drawn)
-                app.request_render()
-                wait_for(lambda n=n: len(drawn) > n, what="a redraw of the paused session")
+            n = len(drawn)
+            app.request_render()
+            wait_for(lambda: len(drawn) > n, what="a redraw of the paused session")
         finally:
-            app.render_hooks.remove(drawn.append)
-        fr = drawn[-1]
+            app.render_hooks.remove(seen)
+        fr, position, wxyz = drawn[-1]
         assert fr.target_wxyz is not None
-        np.testing.assert_allclose(view.rod.tip_frame.position, fr.node_pos[-1], rtol=0.0, atol=1e-9)
+        np.testing.assert_allclose(position, fr.node_pos[-1], rtol=0.0, atol=1e-9)
         from workbench.frame import quat_to_matrix
 
-        R = quat_to_matrix(np.asarray(view.rod.tip_frame.wxyz))
+        R = quat_to_matrix(wxyz)
         np.testing.assert_allclose(R[:, 0], fr.m1[-1], atol=1e-6)
         np.testing.assert_allclose(R[:, 2], (fr.node_pos[-1] - fr.node_pos[-2]) / np.linalg.norm(
             fr.node_pos[-1] - fr.node_pos[-2]), atol=1e-6)
