@@ -124,16 +124,21 @@ def cap_uploads(server, limit: int, on_refused: Callable[[str, int], None]) -> b
 
 
 MAX_TEXT = 1000  # characters of a text value from the page (names of scenes, recordings, frames)
+MAX_NUMBER = 2.0 ** 53  # magnitude of a number from the page: viser casts a value to its element's type (an
+# int element turns 1e308 into a 309-digit int) and sends it to every page; msgpack encodes no int beyond 64 bits,
+# so such a value would end every page's connection. Every number of the page's elements is far below this.
 
 
 def value_problem(current, value) -> str | None:
     """Why ``value`` cannot be a value of a GUI element whose value is now ``current``, or None when it can:
-    the same kind (a switch or button: a bool; a number: a finite int/float; a text: a string of at most
+    the same kind (a switch or button: a bool; a number: a finite int/float of magnitude at most
+    :data:`MAX_NUMBER`; a text: a string of at most
     :data:`MAX_TEXT` characters; a vector or colour: as many finite numbers). Ranges and options are the
     panels' checks (they say why in the page); this one keeps values of the wrong kind out of viser's casts
     and the callbacks."""
     def finite_number(x) -> bool:
-        return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+        return (isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                and abs(x) <= MAX_NUMBER)
 
     if isinstance(current, bool):
         return None if isinstance(value, bool) else "not true/false"

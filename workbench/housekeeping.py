@@ -5,8 +5,11 @@ however fast a client sends.
   leaves a tombstone there that viser sweeps only when a client connects; a session where one page keeps
   loading scenes, policies and grids piles them up. The sweep runs here every few seconds (viser deletes only
   what every connected page has already been sent).
-* Page actions run on a pool of threads; glibc keeps memory freed by a thread in that thread's arena.
-  ``malloc_trim`` hands it back to the system, so resident memory follows what the session holds.
+* Page actions run on a pool of threads (viser's, up to 32 per API); glibc gives each thread that allocates at
+  once its own arena, up to 8 per core, and keeps memory freed by a thread in that thread's arena, fragmented.
+  The session's arenas are capped at :data:`ARENAS` (``mallopt(M_ARENA_MAX)``, before the pool's threads start:
+  a few arenas shared by the pool instead of one per busy thread) and ``malloc_trim`` hands free memory back to
+  the system every few seconds, so resident memory follows what the session holds.
 """
 from __future__ import annotations
 
@@ -16,18 +19,35 @@ import threading
 from collections.abc import Callable
 
 PERIOD_S = 5.0
+ARENAS = 4  # glibc malloc arenas of a workbench process
+_M_ARENA_MAX = -8  # mallopt parameter (malloc.h)
+
+
+def _glibc(name: str):
+    """The glibc function ``name``, or None (not glibc: musl, macOS)."""
+    lib = ctypes.util.find_library("c")
+    try:
+        return getattr(ctypes.CDLL(lib), name) if lib else None
+    except (OSError, AttributeError):
+        return None
 
 
 def _malloc_trim() -> Callable[[], None] | None:
-    name = ctypes.util.find_library("c")
-    try:
-        fn = ctypes.CDLL(name).malloc_trim if name else None
-    except (OSError, AttributeError):  # not glibc (musl, macOS): nothing to hand back this way
-        return None
+    fn = _glibc("malloc_trim")
     if fn is None:
         return None
     fn.argtypes, fn.restype = [ctypes.c_size_t], ctypes.c_int
     return lambda: fn(0)
+
+
+def limit_arenas(arenas: int = ARENAS) -> bool:
+    """Cap glibc's malloc arenas of this process at ``arenas`` (threads started later share them); False where
+    the C library is not glibc."""
+    fn = _glibc("mallopt")
+    if fn is None:
+        return False
+    fn.argtypes, fn.restype = [ctypes.c_int, ctypes.c_int], ctypes.c_int
+    return bool(fn(_M_ARENA_MAX, int(arenas)))
 
 
 def sweep_removed(server) -> None:
@@ -43,6 +63,7 @@ class Housekeeping:
             raise RuntimeError("viser changed: the workbench cannot sweep its message buffer")
         self.server, self.period = server, period
         self.rounds = 0
+        self.arenas_capped = limit_arenas()
         self._trim = _malloc_trim()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True, name="workbench-housekeeping")

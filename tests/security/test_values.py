@@ -15,6 +15,8 @@ from workbench.gui_guard import MAX_TEXT, value_problem
     (True, False, True), (True, 1, False), (True, "yes", False), (True, None, False),
     (1.0, 2, True), (1.0, 2.5, True), (1.0, True, False), (1.0, math.nan, False), (1.0, math.inf, False),
     (1.0, "1", False), (1.0, [1.0], False), (1.0, None, False), (3, 4.0, True),
+    (3, 1e308, False), (3, -1e308, False), (3, 2 ** 64, False), (1.0, 1e17, False), (1.0, -2.0 ** 53, True),
+    ((0.0, 0.0, 0.0), (1e300, 0.0, 0.0), False),
     ("a", "b", True), ("a", 1, False), ("a", "x" * MAX_TEXT, True), ("a", "x" * (MAX_TEXT + 1), False),
     ((0.0, 0.0, 0.0), [1, 2, 3], True), ((0.0, 0.0, 0.0), (1.0, 2.0), False),
     ((0.0, 0.0, 0.0), (1.0, math.nan, 3.0), False), ((0.0, 0.0, 0.0), "abc", False),
@@ -65,6 +67,26 @@ def test_values_of_the_wrong_kind_are_dropped_and_reported(app, capsys):
         assert "Traceback" not in out.err
     finally:
         client.close()
+
+
+def test_a_huge_number_for_an_int_element_leaves_every_page_connected(app):
+    """viser casts a value to its element's type and sends it to every page: 1e308 for an int slider would be a
+    309-digit int no page message can carry, ending every page's connection. It is refused first."""
+    envs = app.grid.envs
+    page = HostileClient(app)  # another page, reading what the server sends
+    client = HostileClient(app)
+    try:
+        before = envs.value
+        for bad in (1e308, -1e308, 2 ** 63):
+            client.set(envs, bad)
+        applied_after(app, client)
+        applied_after(app, page)  # the other page still answers
+        assert envs.value == before
+        assert app.refused_values[(envs.label, "not a finite number")] >= 3
+        assert page.closed_by is None and client.closed_by is None
+    finally:
+        client.close()
+        page.close()
 
 
 def test_a_refused_action_is_said_in_the_status_line(app, capsys):
