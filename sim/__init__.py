@@ -13,6 +13,9 @@ name="a"), RodSpec(..., name="b")))`` (``[[rod]]`` tables in a file): one chain 
 ``model.split_rods(state.node_pos)`` -> {name: (B, n_rod, 3)}, ``model.rod_slices()`` -> {name: slice}, fixes and
 loads name their ``rod`` (docs/physics.md §1.7).
 
+Derivatives of a rollout (tangent and adjoint modes, docs/physics.md §3.9): ``tape = sim.gradients.rollout(sim,
+state, controls)``; ``tape.jvp({...})``, ``tape.vjp({...})``.
+
 Compiling the kernels ahead of time: ``python -m sim.warmup`` (not imported here, so running it as a module is clean).
 """
 from ._cache import invalidate_if_sources_changed as _invalidate
