@@ -37,14 +37,11 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from numba import njit
+import scipy.linalg
 
-from sim.contact import stages as contact
 from sim.contact_set import contact_data, contact_scratch
 from sim.kernels.data import KL_2D, KL_3D
-from sim.kernels.newton import assemble
-from sim.kernels.workspace import alloc_workspace, copy_into
-from sim.numba_options import OPT_ALLOC
+from sim.kernels.probe import assemble_at
 
 __all__ = ["GradientError", "Tape", "rollout", "PARAMETERS"]
 
@@ -54,25 +51,6 @@ PARAMETERS = ("dof0", "vel0", "kappa_bar", "tau_bar", "log_youngs_modulus", "log
 
 class GradientError(ValueError):
     """A rollout or a request the derivatives do not cover, with what and where."""
-
-
-@njit(**OPT_ALLOC)
-def _assemble_at(e, x, x0, u0, d1s, ts, bs, h, kb, tb, rod, prm_arr, cd, f_out, ab_out):
-    """Residual f_out (n,) and banded Jacobian ab_out (n + kl, 2 kl + 1) (full band) of env ``e``'s step of size h
-    from (x0, u0, frames d1s/ts/bs) at the DOFs x. A workspace per call: an analysis path, not the step's."""
-    prm = prm_arr[0]
-    N = bs.shape[0]
-    w = alloc_workspace(N, prm.planar, rod.pairs.shape[0])
-    cs = contact.alloc(cd, N, rod.pairs.shape[0])
-    copy_into(w.sub_x, x0)
-    copy_into(w.sub_v, u0)
-    copy_into(w.sub_d1, d1s)
-    copy_into(w.sub_t, ts)
-    copy_into(w.sub_beta, bs)
-    copy_into(w.x, x)
-    assemble(prm.planar, e, w.x, h, kb, tb, rod, prm, cs, w, True, False)
-    copy_into(f_out, w.f)
-    copy_into(ab_out, w.ab)
 
 
 def _dense(ab: np.ndarray, n: int, kl: int) -> np.ndarray:
@@ -97,6 +75,13 @@ class _Lin:
     a: np.ndarray | None
     b: np.ndarray | None
     P: dict
+    lu: tuple | None = None
+
+    def solve(self, rhs: np.ndarray, *, transpose: bool = False) -> np.ndarray:
+        """J⁻¹ rhs (or J⁻ᵀ rhs), with J factored once."""
+        if self.lu is None:
+            self.lu = scipy.linalg.lu_factor(self.J, check_finite=True)
+        return scipy.linalg.lu_solve(self.lu, rhs, trans=1 if transpose else 0)
 
 
 @dataclasses.dataclass
@@ -130,7 +115,7 @@ class Tape:
         n = x.shape[0]
         kl = KL_2D if sim.model.mode == "2d" else KL_3D
         f, ab = np.empty(n), np.empty((n + kl, 2 * kl + 1))
-        _assemble_at(0, x, self.dof[k, e], self.vel[k, e], self.ref_d1[k, e], self.tangent[k, e],
+        assemble_at(0, x, self.dof[k, e], self.vel[k, e], self.ref_d1[k, e], self.tangent[k, e],
                      self.ref_twist[k, e], sim.model.dt, np.ascontiguousarray(kb), np.ascontiguousarray(tb), rod, prm,
                      self._cd, f, ab)
         return f, ab
@@ -274,36 +259,45 @@ class Tape:
         raise GradientError(f"unknown parameter {name!r}; known: {', '.join(PARAMETERS)}")
 
     # ------------------------------------------------------------------ forward mode
-    def jvp(self, tangents: dict) -> dict:
+    def jvp(self, tangents: dict | list[dict]) -> dict:
         """Tangents of every state of the rollout for the parameter tangents ``tangents`` (name -> array shaped as
-        in the module docstring; absent = 0). Returns {"dof": (T + 1, B, n), "vel": (T + 1, B, n)}."""
+        in the module docstring; absent = 0). Returns {"dof": (T + 1, B, n), "vel": (T + 1, B, n)}; for a list of
+        P tangent dicts, arrays (P, T + 1, B, n) (one factorisation per step serves them all)."""
+        many = isinstance(tangents, (list, tuple))
+        tans = [_checked(t, self) for t in (tangents if many else [tangents])]
         T, B, n = self.steps, self.dof.shape[1], self.dof.shape[2]
-        tan = _checked(tangents, self)
+        P = len(tans)
         planar = self.sim.model.mode == "2d"
-        ddof = np.zeros((T + 1, B, n))
-        dvel = np.zeros((T + 1, B, n))
+        ddof = np.zeros((P, T + 1, B, n))
+        dvel = np.zeros((P, T + 1, B, n))
         h = self.sim.model.dt
+        E = self.ref_d1.shape[2]
+        names = tuple(sorted({nm for t in tans for nm in t if nm not in ("dof0", "vel0")}))
+        zero = np.zeros(n)
         for e in range(B):
-            dx = tan.get("dof0", np.zeros((B, n)))[e].copy()
-            du = tan.get("vel0", np.zeros((B, n)))[e].copy()
-            E = self.ref_d1.shape[2]
-            phi = np.zeros(E)
-            ddof[0, e], dvel[0, e] = dx, du
-            names = tuple(nm for nm in tan if nm not in ("dof0", "vel0"))
+            dx = np.stack([t["dof0"][e] if "dof0" in t else zero for t in tans], axis=1)  # (n, P)
+            du = np.stack([t["vel0"][e] if "vel0" in t else zero for t in tans], axis=1)
+            phi = np.zeros((E, P))
+            ddof[:, 0, e], dvel[:, 0, e] = dx.T, du.T
             for k in range(T):
                 lin = self._linear(k, e, names)
-                rhs = lin.Fx * dx + lin.Fu * du
+                rhs = lin.Fx[:, None] * dx + lin.Fu[:, None] * du
                 if not planar:
-                    rhs = rhs + lin.G @ (phi + lin.a @ dx)
+                    rhs += lin.G @ (phi + lin.a @ dx)
                 for nm in names:
-                    rhs = rhs + lin.P[nm] @ _param_tangent(tan[nm], nm, k, e)
-                dx1 = -np.linalg.solve(lin.J, rhs)
+                    cols = lin.P[nm]
+                    for q, t in enumerate(tans):
+                        if nm in t:
+                            rhs[:, q] += cols @ _param_tangent(t[nm], nm, k, e)
+                dx1 = -lin.solve(rhs)
                 du = (dx1 - dx) / h
                 if not planar:
                     phi = phi + lin.a @ dx + lin.b @ dx1
                 dx = dx1
-                ddof[k + 1, e], dvel[k + 1, e] = dx, du
-        return {"dof": ddof, "vel": dvel}
+                ddof[:, k + 1, e], dvel[:, k + 1, e] = dx.T, du.T
+        if many:
+            return {"dof": ddof, "vel": dvel}
+        return {"dof": ddof[0], "vel": dvel[0]}
 
     # ------------------------------------------------------------------ reverse mode
     def vjp(self, cotangents: dict, params=PARAMETERS) -> dict:
@@ -332,7 +326,7 @@ class Tape:
                 gx1 = gx + gu / h
                 if not planar:
                     gx1 = gx1 + lin.b.T @ gphi
-                lam = np.linalg.solve(lin.J.T, gx1)  # x_{k+1} = −J⁻¹ rhs  ⇒  ∂/∂rhs = −λ
+                lam = lin.solve(gx1, transpose=True)  # x_{k+1} = −J⁻¹ rhs  ⇒  ∂/∂rhs = −λ
                 for nm in names:
                     out[nm] += _param_gradient(-(lin.P[nm].T @ lam), nm, k, e, out[nm])
                 gx_prev = -lin.Fx * lam - gu / h + cx[k, e]

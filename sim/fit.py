@@ -1,0 +1,702 @@
+"""``rodlab fit``: calibrate a scene's parameters so that the simulated rod moves like measured motion.
+
+    rodlab fit SCENE.toml DATA --params youngs_modulus,damping [--controls CONTROLS.csv] [--out FITTED.toml]
+               [--report DIR] [--holdout 0.2] [--json]
+
+DATA: a CSV with columns ``t,s,x,y,z`` (time [s] from the scene's initial state, arclength [m] from the rod's first
+node along its rest shape, position [m] in the scene's frame) and a ``rod`` column naming the rod when the scene has
+several (a missing point is simply absent); or an ``.npz`` with ``t (T,)``, ``s (M,)``, ``pos (T, M, 3)`` (NaN =
+missing). Measurements need not fall on nodes or step times: the simulated positions are interpolated linearly along
+the rod and in time. CONTROLS: commanded natural curvature ``t,node,kappa1,kappa2,twist`` (integrated curvature at
+a node, as the tasks command it), held from each row's time until the node's next row; absent = the rest controls.
+In 2-D, kappa1 is the in-plane curvature.
+
+Parameters (``--params``, comma separated): ``youngs_modulus``, ``shear_modulus`` (moves ν), ``density`` (each a
+factor on every rod, fitted in log space), ``damping`` [1/s], ``gravity`` (the vector; its in-plane components in
+2-D), and the actuation map from commanded to actual natural curvature, actual = gain · commanded + offset, per
+commanded node: ``actuation_gain`` (also on the twist) and ``actuation_offset`` (κ1 and κ2).
+
+The fit is trust-region least squares on the position residuals with the Jacobian from the tangent mode of
+:mod:`sim.gradients` (docs/physics.md §3.9). The result: the fitted scene as a new TOML (never over an existing file),
+values ± standard errors from the Gauss–Newton covariance, their correlation, the RMS residual (and on a held-out
+final part of the motion with ``--holdout``), with ``--report`` a folder with ``fit.json`` and ``residuals.csv``.
+Ctrl-C keeps the best parameters so far.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sim import gradients as G
+from sim.model import build_model
+from sim.scene import SceneError, dump_scene, load_scene
+from sim.step import Simulator
+from sim.support.atomicio import write_text
+from sim.support.paths import check_output_path
+from sim.support.progress import add_progress_flag, progress_bar, progress_wanted
+
+__all__ = ["FIT_PARAMETERS", "FitError", "Measurements", "Commands", "FitResult", "load_measurements",
+           "load_controls", "fit", "main"]
+
+FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "damping", "gravity", "actuation_gain",
+                  "actuation_offset")
+_LOG = ("youngs_modulus", "shear_modulus", "density")  # positive, fitted as ln of a factor on the scene's value
+MAX_TIME_S = 3600.0  # longest motion a fit simulates
+UNIT_FACTOR = 100.0  # a measured point farther than this many rod lengths from the rod's start is in wrong units
+
+
+class FitError(ValueError):
+    """Bad data, controls or parameter names for a fit, said with the file, row or name."""
+
+
+# ---------------------------------------------------------------------------------------------------- input files
+@dataclasses.dataclass(frozen=True)
+class Measurements:
+    """Measured points, one per row: time t [s], arclength s [m] along rod ``rod`` (index into the scene's rods),
+    position pos [m]."""
+
+    t: np.ndarray  # (M,)
+    s: np.ndarray  # (M,)
+    rod: np.ndarray  # (M,) int
+    pos: np.ndarray  # (M, 3)
+
+    def subset(self, mask: np.ndarray) -> "Measurements":
+        return Measurements(self.t[mask], self.s[mask], self.rod[mask], self.pos[mask])
+
+
+@dataclasses.dataclass(frozen=True)
+class Commands:
+    """Commanded natural curvature rows: time [s], node, (κ1, κ2), twist."""
+
+    t: np.ndarray  # (R,)
+    node: np.ndarray  # (R,) int
+    kappa: np.ndarray  # (R, 2)
+    twist: np.ndarray  # (R,)
+
+    @property
+    def nodes(self) -> np.ndarray:
+        """The commanded nodes, sorted."""
+        return np.unique(self.node)
+
+
+def _rod_lengths(spec) -> list[float]:
+    return [float(r.length) for r in spec.rods]
+
+
+def _read_csv(path: Path, required: tuple[str, ...], optional: tuple[str, ...] = ()) -> list[tuple[int, dict]]:
+    try:
+        fh = path.open(newline="", encoding="utf-8")
+    except OSError as exc:
+        raise FitError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    with fh:
+        reader = csv.DictReader(fh)
+        cols = [c.strip() for c in (reader.fieldnames or [])]
+        missing = [c for c in required if c not in cols]
+        if missing:
+            raise FitError(f"{path}: missing column(s) {', '.join(missing)} (has: {', '.join(cols) or 'none'}); "
+                           f"expected {','.join(required + optional)}")
+        rows = []
+        for i, row in enumerate(reader, start=2):  # line 1 is the header
+            rows.append((i, {k.strip(): (v or "").strip() for k, v in row.items() if k is not None}))
+    if not rows:
+        raise FitError(f"{path}: no rows")
+    return rows
+
+
+def _number(path: Path, line: int, name: str, text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise FitError(f"{path}:{line}: {name} = {text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise FitError(f"{path}:{line}: {name} = {text!r} is not finite")
+    return v
+
+
+def load_measurements(path, spec) -> Measurements:
+    """Read measured motion (CSV or .npz, module docstring) for the scene ``spec``, checking every row."""
+    path = Path(path)
+    names = [r.name for r in spec.rods]
+    lengths = _rod_lengths(spec)
+    if path.suffix == ".npz":
+        t, s, pos = _read_npz(path)
+        T, M = t.shape[0], s.shape[0]
+        tt, ss = np.repeat(t, M), np.tile(s, T)
+        pp = pos.reshape(T * M, 3)
+        keep = ~np.any(np.isnan(pp), axis=1)
+        meas = Measurements(tt[keep], ss[keep], np.zeros(int(keep.sum()), int), pp[keep])
+        where = [f"{path}: t[{i // M}], s[{i % M}]" for i in np.flatnonzero(keep)]
+    else:
+        rows = _read_csv(path, ("t", "s", "x", "y", "z"), ("rod",))
+        t, s, rod, pos, where = [], [], [], [], []
+        for line, row in rows:
+            if len(spec.rods) > 1 or row.get("rod"):
+                name = row.get("rod", "")
+                if name not in names:
+                    raise FitError(f"{path}:{line}: rod {name!r} is not a rod of the scene ({', '.join(names)})")
+                rod.append(names.index(name))
+            else:
+                rod.append(0)
+            t.append(_number(path, line, "t", row["t"]))
+            s.append(_number(path, line, "s", row["s"]))
+            pos.append([_number(path, line, c, row[c]) for c in ("x", "y", "z")])
+            where.append(f"{path}:{line}")
+        meas = Measurements(np.array(t), np.array(s), np.array(rod, int), np.array(pos, float).reshape(-1, 3))
+    if meas.t.size == 0:
+        raise FitError(f"{path}: no measured points (every position is missing)")
+    for i in range(meas.t.size):
+        L = lengths[meas.rod[i]]
+        if meas.t[i] < 0.0:
+            raise FitError(f"{where[i]}: t = {meas.t[i]:g} s is before the scene's initial state (t = 0)")
+        if meas.t[i] > MAX_TIME_S:
+            raise FitError(f"{where[i]}: t = {meas.t[i]:g} s is beyond {MAX_TIME_S:g} s (times in seconds?)")
+        if not -1e-9 * L <= meas.s[i] <= L * (1.0 + 1e-9):
+            raise FitError(f"{where[i]}: s = {meas.s[i]:g} m is off the rod (its length is {L:g} m)")
+        if np.linalg.norm(meas.pos[i]) > UNIT_FACTOR * max(1.0, L) + np.linalg.norm(spec.rods[meas.rod[i]].start):
+            raise FitError(f"{where[i]}: position {meas.pos[i].tolist()} is more than {UNIT_FACTOR:g} rod lengths "
+                           "away: are the units metres?")
+    return meas
+
+
+def _read_npz(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            missing = [k for k in ("t", "s", "pos") if k not in z.files]
+            if missing:
+                raise FitError(f"{path}: missing array(s) {', '.join(missing)} (expected t (T,), s (M,), "
+                               "pos (T, M, 3))")
+            t, s, pos = (np.asarray(z[k], dtype=np.float64) for k in ("t", "s", "pos"))
+    except (OSError, ValueError) as exc:
+        if isinstance(exc, FitError):
+            raise
+        raise FitError(f"{path}: not a readable .npz ({exc})") from None
+    if t.ndim != 1 or s.ndim != 1 or pos.shape != (t.shape[0], s.shape[0], 3):
+        raise FitError(f"{path}: shapes t {t.shape}, s {s.shape}, pos {pos.shape}; expected t (T,), s (M,), "
+                       "pos (T, M, 3)")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(s))):
+        raise FitError(f"{path}: t and s must be finite (mark a missing point with NaN in pos)")
+    if np.any(np.diff(t) <= 0.0):
+        i = int(np.flatnonzero(np.diff(t) <= 0.0)[0])
+        raise FitError(f"{path}: t is not increasing at t[{i + 1}] = {t[i + 1]:g} (after {t[i]:g})")
+    bad = np.isinf(pos).any(axis=2)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise FitError(f"{path}: pos[{i}, {j}] is infinite (mark a missing point with NaN)")
+    return t, s, pos
+
+
+def load_controls(path, model) -> Commands:
+    """Read commanded natural curvature (CSV ``t,node,kappa1,kappa2,twist``) for ``model``; rows of one node must
+    come in increasing time."""
+    path = Path(path)
+    rows = _read_csv(path, ("t", "node", "kappa1", "kappa2", "twist"))
+    N = model.node_count
+    t, node, kap, tw = [], [], [], []
+    last: dict[int, float] = {}
+    for line, row in rows:
+        ti = _number(path, line, "t", row["t"])
+        ni = _number(path, line, "node", row["node"])
+        if ni != int(ni) or not 1 <= int(ni) <= N - 2:
+            raise FitError(f"{path}:{line}: node {row['node']!r} is not an interior node (1 … {N - 2})")
+        ni = int(ni)
+        if ti < 0.0:
+            raise FitError(f"{path}:{line}: t = {ti:g} s is before the scene's initial state (t = 0)")
+        if ni in last and ti <= last[ni]:
+            raise FitError(f"{path}:{line}: time {ti:g} s of node {ni} does not come after its previous row "
+                           f"({last[ni]:g} s)")
+        last[ni] = ti
+        t.append(ti)
+        node.append(ni)
+        kap.append([_number(path, line, "kappa1", row["kappa1"]), _number(path, line, "kappa2", row["kappa2"])])
+        tw.append(_number(path, line, "twist", row["twist"]))
+    return Commands(np.array(t), np.array(node, int), np.array(kap), np.array(tw))
+
+
+def command_schedule(cmds: Commands | None, steps: int, dt: float, N: int) -> tuple[np.ndarray, np.ndarray]:
+    """(κ (T, N, 2), twist (T, N)) commanded at each step (a row holds from its time; a node before its first row,
+    or not commanded: 0, unused)."""
+    kap = np.zeros((steps, N, 2))
+    tw = np.zeros((steps, N))
+    if cmds is None:
+        return kap, tw
+    times = np.arange(steps) * dt
+    for n in cmds.nodes:
+        sel = np.flatnonzero(cmds.node == n)
+        idx = np.searchsorted(cmds.t[sel], times + 1e-9 * dt, side="right") - 1
+        on = idx >= 0
+        kap[on, n] = cmds.kappa[sel[idx[on]]]
+        tw[on, n] = cmds.twist[sel[idx[on]]]
+    return kap, tw
+
+
+# ---------------------------------------------------------------------------------------------------- the problem
+@dataclasses.dataclass(frozen=True)
+class Unknown:
+    """One fitted number: parameter ``name`` (component ``index``: a gravity axis, a commanded node's entry)."""
+
+    name: str
+    index: int = 0
+    label: str = ""
+
+
+class Problem:
+    """The simulated positions at the measured points as a function of the unknowns z (log factors, damping,
+    gravity, actuation map), and their Jacobian by the tangent mode."""
+
+    def __init__(self, spec, meas: Measurements, cmds: Commands | None, params: list[str]):
+        self.spec, self.meas, self.cmds = spec, meas, cmds
+        bad = [p for p in params if p not in FIT_PARAMETERS]
+        if bad:
+            raise FitError(f"unknown parameter(s) {', '.join(repr(b) for b in bad)}; known: "
+                           f"{', '.join(FIT_PARAMETERS)}")
+        if not params:
+            raise FitError("--params names no parameter")
+        model = build_model(spec)
+        self.model0 = model
+        self.planar = model.mode == "2d"
+        self.dt = model.dt
+        self.steps = max(1, int(math.ceil(float(meas.t.max()) / self.dt - 1e-9)))
+        if (cmds is None) and any(p.startswith("actuation_") for p in params):
+            raise FitError("the actuation map (actuation_gain, actuation_offset) needs --controls: the commanded "
+                           "curvature it maps")
+        if "shear_modulus" in params and self.planar:
+            raise FitError("shear_modulus: a 2-D scene has no twist, so the data cannot tell the shear modulus")
+        self.rest_kb, self.rest_tb = Simulator(model, 1)._rest_control_arrays()
+        self.cmd_kb, self.cmd_tb = command_schedule(cmds, self.steps, self.dt, model.node_count)
+        self.unknowns = self._unknowns(params)
+        self._weights()
+
+    def _unknowns(self, params: list[str]) -> list[Unknown]:
+        out: list[Unknown] = []
+        for p in dict.fromkeys(params):
+            if p == "gravity":
+                axes = (0, 2) if self.planar else (0, 1, 2)
+                out += [Unknown(p, a, f"gravity_{'xyz'[a]}") for a in axes]
+            elif p == "actuation_gain":
+                out += [Unknown(p, int(n), f"actuation_gain[{int(n)}]") for n in self.cmds.nodes]
+            elif p == "actuation_offset":
+                comps = (0,) if self.planar else (0, 1)
+                out += [Unknown(p, 2 * int(n) + c, f"actuation_offset[{int(n)}].kappa{c + 1}")
+                        for n in self.cmds.nodes for c in comps]
+            else:
+                out.append(Unknown(p, 0, p))
+        return out
+
+    def _weights(self) -> None:
+        """Interpolation of node positions at step states to the measured points: 4 (step, node) pairs each."""
+        m, meas = self.model0, self.meas
+        slices = list(m.rod_slices().values())
+        kf = meas.t / self.dt
+        k0 = np.clip(np.floor(kf).astype(int), 0, self.steps - 1)
+        wt = np.clip(kf - k0, 0.0, 1.0)
+        nodes = np.zeros((meas.t.size, 2), int)
+        ws = np.zeros(meas.t.size)
+        lengths = np.asarray(m.rest_edge_length)
+        for r, sl in enumerate(slices):
+            sel = meas.rod == r
+            if not sel.any():
+                continue
+            idx = np.arange(sl.start, sl.stop)
+            arc = np.concatenate([[0.0], np.cumsum(lengths[idx[:-1]])])
+            arc *= float(self.spec.rods[r].length) / arc[-1]
+            j = np.clip(np.searchsorted(arc, meas.s[sel], side="right") - 1, 0, idx.size - 2)
+            nodes[sel, 0], nodes[sel, 1] = idx[j], idx[j + 1]
+            ws[sel] = np.clip((meas.s[sel] - arc[j]) / (arc[j + 1] - arc[j]), 0.0, 1.0)
+        self._k = np.stack([k0, k0, k0 + 1, k0 + 1], axis=1)
+        self._n = np.stack([nodes[:, 0], nodes[:, 1], nodes[:, 0], nodes[:, 1]], axis=1)
+        self._w = np.stack([(1 - wt) * (1 - ws), (1 - wt) * ws, wt * (1 - ws), wt * ws], axis=1)
+        self._axes = [0, 2] if self.planar else [0, 1, 2]
+
+    def _node_pos(self, dof: np.ndarray, plane_y: float | None) -> np.ndarray:
+        """(..., n) DOFs -> (..., N, 3) node positions (2-D: y = plane_y, or 0 for tangents)."""
+        if self.planar:
+            q = dof.reshape(dof.shape[:-1] + (-1, 2))
+            out = np.zeros(q.shape[:-1] + (3,))
+            out[..., 0], out[..., 2] = q[..., 0], q[..., 1]
+            if plane_y is not None:
+                out[..., 1] = plane_y
+            return out
+        return dof.reshape(dof.shape[:-1] + (-1, 4))[..., :3]
+
+    def predict(self, node_pos: np.ndarray) -> np.ndarray:
+        """(T + 1, N, 3) -> the positions at the measured points (M, 3)."""
+        return np.einsum("mq,mqc->mc", self._w, node_pos[self._k, self._n])
+
+    # the scene and controls at z
+    def spec_at(self, z: np.ndarray):
+        vals = dict(zip([u.label for u in self.unknowns], z))
+        spec = self.spec
+        fE = math.exp(vals.get("youngs_modulus", 0.0))
+        fG = math.exp(vals.get("shear_modulus", 0.0))
+        fR = math.exp(vals.get("density", 0.0))
+        rods = []
+        for r in spec.rods:
+            nu = (1.0 + r.poisson_ratio) / fG - 1.0
+            edge_e = None if r.edge_youngs_modulus is None else tuple(fE * v for v in r.edge_youngs_modulus)
+            rods.append(dataclasses.replace(r, youngs_modulus=r.youngs_modulus * fE, poisson_ratio=nu,
+                                            density=r.density * fR, edge_youngs_modulus=edge_e))
+        g = list(spec.sim.gravity)
+        for a, c in enumerate("xyz"):
+            if f"gravity_{c}" in vals:
+                g[a] = float(vals[f"gravity_{c}"])
+        sim = dataclasses.replace(spec.sim, gravity=tuple(g),
+                                  damping=float(vals.get("damping", spec.sim.damping)))
+        return dataclasses.replace(spec, sim=sim, rods=tuple(rods))
+
+    def controls_at(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(κ̄ (T, N, 2), τ̄ (T, N)) the rod is driven with: rest values, and gain · commanded + offset at the
+        commanded nodes."""
+        T = self.steps
+        kb = np.broadcast_to(self.rest_kb, (T,) + self.rest_kb.shape).copy()
+        tb = np.broadcast_to(self.rest_tb, (T,) + self.rest_tb.shape).copy()
+        if self.cmds is None:
+            return kb, tb
+        gains = {u.index: zi for u, zi in zip(self.unknowns, z) if u.name == "actuation_gain"}
+        offs = {u.index: zi for u, zi in zip(self.unknowns, z) if u.name == "actuation_offset"}
+        for n in self.cmds.nodes:
+            g = gains.get(int(n), 1.0)
+            kb[:, n] = g * self.cmd_kb[:, n] + np.array([offs.get(2 * int(n), 0.0), offs.get(2 * int(n) + 1, 0.0)])
+            tb[:, n] = g * self.cmd_tb[:, n]
+        if self.planar:
+            kb[..., 1] = 0.0
+        return kb, tb
+
+    def z0(self) -> np.ndarray:
+        z = []
+        for u in self.unknowns:
+            if u.name in _LOG:
+                z.append(0.0)
+            elif u.name == "damping":
+                z.append(float(self.spec.sim.damping))
+            elif u.name == "gravity":
+                z.append(float(self.spec.sim.gravity[u.index]))
+            elif u.name == "actuation_gain":
+                z.append(1.0)
+            else:
+                z.append(0.0)
+        return np.array(z)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lo, hi = [], []
+        for u in self.unknowns:
+            if u.name in _LOG:
+                lo.append(math.log(1e-4))
+                hi.append(math.log(1e4))
+            elif u.name == "damping":
+                lo.append(0.0)
+                hi.append(1e6)
+            else:
+                lo.append(-np.inf)
+                hi.append(np.inf)
+        return np.array(lo), np.array(hi)
+
+    def rollout(self, z: np.ndarray) -> G.Tape:
+        spec = self.spec_at(z)
+        try:
+            model = build_model(spec)
+        except (SceneError, ValueError) as exc:
+            raise FitError(f"parameters {self.describe(z)} make no valid scene: {exc}") from None
+        sim = Simulator(model, 1)
+        kb, tb = self.controls_at(z)
+        ctrls = []
+        for k in range(self.steps):
+            c = sim.make_control()
+            c.kappa_bar[0] = kb[k]
+            c.tau_bar[0] = tb[k]
+            ctrls.append(c)
+        return G.rollout(sim, sim.reset(), ctrls)
+
+    def residuals(self, tape: G.Tape) -> np.ndarray:
+        pos = self._node_pos(tape.dof[:, 0], self.model0.plane_y if self.planar else None)
+        return (self.predict(pos) - self.meas.pos)[:, self._axes].reshape(-1)
+
+    def jacobian(self, tape: G.Tape, z: np.ndarray) -> np.ndarray:
+        tangents = [self._tangent(u, z) for u in self.unknowns]
+        d = tape.jvp(tangents)["dof"][:, :, 0]  # (P, T + 1, n)
+        cols = [(self.predict(self._node_pos(d[q], None)))[:, self._axes].reshape(-1) for q in range(len(tangents))]
+        return np.stack(cols, axis=1)
+
+    def _tangent(self, u: Unknown, z: np.ndarray) -> dict:
+        T, N = self.steps, self.model0.node_count
+        if u.name == "youngs_modulus":
+            return {"log_youngs_modulus": np.ones(1), "log_shear_modulus": np.ones(1)}
+        if u.name == "shear_modulus":
+            return {"log_shear_modulus": np.ones(1)}
+        if u.name == "density":
+            return {"log_density": np.ones(1)}
+        if u.name == "damping":
+            return {"damping": np.ones(1)}
+        if u.name == "gravity":
+            g = np.zeros((1, 3))
+            g[0, u.index] = 1.0
+            return {"gravity": g}
+        kb = np.zeros((T, 1, N, 2))
+        tb = np.zeros((T, 1, N))
+        if u.name == "actuation_gain":
+            kb[:, 0, u.index] = self.cmd_kb[:, u.index]
+            tb[:, 0, u.index] = self.cmd_tb[:, u.index]
+            if self.planar:
+                kb[..., 1] = 0.0
+                tb[:] = 0.0
+            return {"kappa_bar": kb, "tau_bar": tb}
+        kb[:, 0, u.index // 2, u.index % 2] = 1.0
+        return {"kappa_bar": kb}
+
+    def values(self, z: np.ndarray) -> dict[str, float]:
+        """The unknowns in the scene's units (log factors turned into the fitted values of the first rod)."""
+        rod = self.spec.rods[0]
+        out = {}
+        for u, zi in zip(self.unknowns, z):
+            if u.name == "youngs_modulus":
+                out[u.label] = rod.youngs_modulus * math.exp(zi)
+            elif u.name == "shear_modulus":
+                zE = dict(zip([v.label for v in self.unknowns], z)).get("youngs_modulus", 0.0)
+                out[u.label] = rod.youngs_modulus / (2.0 * (1.0 + rod.poisson_ratio)) * math.exp(zE + zi)
+            elif u.name == "density":
+                out[u.label] = rod.density * math.exp(zi)
+            else:
+                out[u.label] = float(zi)
+        return out
+
+    def describe(self, z: np.ndarray) -> str:
+        return ", ".join(f"{k} = {v:.6g}" for k, v in self.values(z).items())
+
+
+# ---------------------------------------------------------------------------------------------------- the fit
+@dataclasses.dataclass
+class FitResult:
+    """Fitted values and their standard errors (scene units), correlation, RMS residual [m] (per measured
+    coordinate), the held-out RMS (NaN without a held-out part), iterations, seconds, and whether Ctrl-C ended it."""
+
+    params: dict
+    stderr: dict
+    correlation: np.ndarray
+    rms_m: float
+    holdout_rms_m: float
+    iterations: int
+    seconds: float
+    interrupted: bool
+    spec: object
+    residual_rows: list
+    unconverged_steps: int
+    confounded: list = dataclasses.field(default_factory=list)  # groups of unknowns the data cannot separate
+
+    def summary(self) -> dict:
+        return {"params": self.params, "stderr": {k: (None if math.isinf(v) else v) for k, v in self.stderr.items()},
+                "not_separable": self.confounded, "rms_m": self.rms_m,
+                "holdout_rms_m": None if math.isnan(self.holdout_rms_m) else self.holdout_rms_m,
+                "iterations": self.iterations, "seconds": round(self.seconds, 3)}
+
+
+def fit(spec, meas: Measurements, params: list[str], *, cmds: Commands | None = None, holdout: float = 0.0,
+        max_iterations: int = 50, progress: bool = False, log=None) -> FitResult:
+    """Fit ``params`` of ``spec`` to ``meas`` (see the module docstring)."""
+    import scipy.optimize
+
+    if not 0.0 <= holdout < 1.0:
+        raise FitError(f"--holdout must be in [0, 1), got {holdout!r}")
+    t_cut = np.inf
+    if holdout > 0.0:
+        t_cut = float(np.quantile(meas.t, 1.0 - holdout))
+        train = meas.subset(meas.t < t_cut)
+        if train.t.size < 2:
+            raise FitError(f"--holdout {holdout}: no measured points left to fit")
+    else:
+        train = meas
+    prob = Problem(spec, train, cmds, params)
+    m_res = 3 * train.t.size
+    if m_res < len(prob.unknowns):
+        raise FitError(f"{train.t.size} measured points cannot determine {len(prob.unknowns)} unknowns")
+    t0 = time.perf_counter()
+    best = {"cost": np.inf, "z": prob.z0()}
+    cache: dict = {}
+    bar = progress_bar(max_iterations, desc="rodlab fit", unit="eval", enabled=progress)
+
+    def tape_at(z):
+        key = z.tobytes()
+        if key not in cache:
+            cache.clear()
+            cache[key] = prob.rollout(z)
+        return cache[key]
+
+    def fun(z):
+        try:
+            r = prob.residuals(tape_at(z))
+        except G.GradientError as exc:
+            raise FitError(f"at {prob.describe(z)}: {exc}") from None
+        cost = float(r @ r)
+        if cost < best["cost"]:
+            best.update(cost=cost, z=z.copy())
+        bar.update(1)
+        bar.set_postfix_str(f"rms {math.sqrt(cost / max(r.size, 1)) * 1e3:.3g} mm")
+        if log is not None:
+            log(f"rodlab fit: {prob.describe(z)}: rms {math.sqrt(cost / max(r.size, 1)):.4g} m")
+        return r
+
+    def jac(z):
+        return prob.jacobian(tape_at(z), z)
+
+    interrupted = False
+    nit = 0
+    lo, hi = prob.bounds()
+    try:
+        res = scipy.optimize.least_squares(fun, prob.z0(), jac=jac, bounds=(lo, hi), method="trf", x_scale="jac",
+                                           max_nfev=max_iterations, xtol=1e-10, ftol=1e-12, gtol=1e-12)
+        nit = int(res.nfev)
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        bar.close()
+    z = best["z"]
+    tape = tape_at(z)
+    r = prob.residuals(tape)
+    Jm = prob.jacobian(tape, z)
+    dof = max(r.size - z.size, 1)
+    sigma2 = float(r @ r) / dof
+    cov, confounded = _covariance(Jm, sigma2, [u.label for u in prob.unknowns])
+    sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(sd, sd)
+    vals = prob.values(z)
+    stderr = {}
+    for u, zi, si in zip(prob.unknowns, z, sd):
+        stderr[u.label] = vals[u.label] * si if u.name in _LOG else float(si)  # d(e^z) = e^z dz
+    rows = _residual_rows(prob, tape, r)
+    hold = math.nan
+    if holdout > 0.0:
+        full = Problem(spec, meas, cmds, params)
+        rf = full.residuals(full.rollout(z)).reshape(meas.t.size, -1)
+        held = meas.t >= t_cut
+        hold = float(np.sqrt(np.mean(rf[held] ** 2)))
+    return FitResult(params=vals, stderr=stderr, correlation=corr, rms_m=float(np.sqrt(np.mean(r ** 2))),
+                     holdout_rms_m=hold, iterations=nit, seconds=time.perf_counter() - t0, interrupted=interrupted,
+                     spec=prob.spec_at(z), residual_rows=rows, unconverged_steps=tape.unconverged,
+                     confounded=confounded)
+
+
+CONFOUNDED_RCOND = 1e-7  # a direction of the unknowns whose scaled singular value is below this fraction of the
+# largest moves the simulated points by less than the rounding of the fit: the data set only a combination
+
+
+def _covariance(Jm: np.ndarray, sigma2: float, labels: list[str]) -> tuple[np.ndarray, list[list[str]]]:
+    """σ² (JᵀJ)⁻¹ of the unknowns, and the groups of unknowns the data cannot separate (their variances are then
+    infinite): the parameters that make up each near-null direction of J (columns scaled to unit norm)."""
+    norms = np.linalg.norm(Jm, axis=0)
+    scale = np.where(norms > 0, norms, 1.0)
+    U, S, Vt = np.linalg.svd(Jm / scale, full_matrices=False)
+    weak = S < CONFOUNDED_RCOND * (S[0] if S.size else 1.0)
+    groups = []
+    for v in Vt[weak]:
+        big = np.abs(v) > 0.1 * np.abs(v).max()
+        groups.append([labels[i] for i in np.flatnonzero(big)])
+    for i in np.flatnonzero(norms == 0):
+        groups.append([labels[i]])
+    Sinv = np.where(weak, 0.0, 1.0 / np.where(S > 0, S, 1.0))
+    cov = (Vt.T * Sinv**2) @ Vt * sigma2 / np.outer(scale, scale)
+    for g in groups:
+        for lab in g:
+            i = labels.index(lab)
+            cov[i, i] = np.inf
+    return cov, groups
+
+
+def _residual_rows(prob: Problem, tape: G.Tape, r: np.ndarray) -> list:
+    rr = r.reshape(prob.meas.t.size, -1)
+    names = [rod.name for rod in prob.spec.rods]
+    out = []
+    for i in range(prob.meas.t.size):
+        d = np.zeros(3)
+        d[prob._axes] = rr[i]
+        out.append((float(prob.meas.t[i]), float(prob.meas.s[i]), names[prob.meas.rod[i]], *d.tolist(),
+                    float(np.linalg.norm(d))))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------- command line
+def _free_name(scene: Path) -> Path:
+    base = scene.with_name(f"{scene.stem}_fitted.toml")
+    k = 2
+    while base.exists():
+        base = scene.with_name(f"{scene.stem}_fitted_{k}.toml")
+        k += 1
+    return base
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="rodlab fit", description=__doc__.split("\n\n")[0])
+    ap.add_argument("scene", help="scene TOML file")
+    ap.add_argument("data", help="measured motion: CSV t,s,x,y,z[,rod] or .npz (t, s, pos)")
+    ap.add_argument("--params", required=True, help=f"comma-separated: {', '.join(FIT_PARAMETERS)}")
+    ap.add_argument("--controls", help="commanded curvature CSV t,node,kappa1,kappa2,twist")
+    ap.add_argument("--out", help="fitted scene TOML (default: SCENE_fitted.toml beside the scene; never over an "
+                                  "existing file)")
+    ap.add_argument("--report", help="folder for fit.json and residuals.csv")
+    ap.add_argument("--holdout", type=float, default=0.0, help="fraction of the motion (the last part) held out")
+    ap.add_argument("--max-iterations", type=int, default=50, help="most residual evaluations (default 50)")
+    ap.add_argument("--json", action="store_true", help="print one JSON object on the last line")
+    add_progress_flag(ap)
+    args = ap.parse_args(argv)
+    try:
+        return _run(args)
+    except (FitError, SceneError, G.GradientError) as exc:
+        print(f"rodlab fit: {exc}", file=sys.stderr)
+        return 2
+
+
+def _run(args) -> int:
+    scene = Path(args.scene)
+    spec = load_scene(scene)
+    out = Path(args.out) if args.out else _free_name(scene)
+    if out.exists():
+        what = "the input scene" if out.resolve() == scene.resolve() else "an existing file"
+        raise FitError(f"--out {out} is {what}; the fitted scene is always written to a new file")
+    try:
+        check_output_path(out, suffix=".toml")
+        if args.report:
+            check_output_path(args.report, folder=True)
+    except ValueError as exc:
+        raise FitError(str(exc)) from None
+    if args.max_iterations < 1:
+        raise FitError(f"--max-iterations must be >= 1, got {args.max_iterations}")
+    params = [p.strip() for p in args.params.split(",") if p.strip()]
+    meas = load_measurements(args.data, spec)
+    cmds = load_controls(args.controls, build_model(spec)) if args.controls else None
+    res = fit(spec, meas, params, cmds=cmds, holdout=args.holdout, max_iterations=args.max_iterations,
+              progress=progress_wanted(args.progress, json_output=args.json))
+    dump_scene(res.spec, out)
+    if args.report:
+        folder = Path(args.report)
+        doc = dict(res.summary(), scene=str(scene), data=str(args.data), fitted_scene=str(out),
+                   correlation={"labels": list(res.params), "matrix": np.nan_to_num(res.correlation).tolist()},
+                   interrupted=res.interrupted, unconverged_steps=res.unconverged_steps)
+        write_text(folder / "fit.json", json.dumps(doc, indent=1))
+        lines = ["t,s,rod,dx,dy,dz,distance"] + [",".join(f"{v:.9g}" if isinstance(v, float) else str(v) for v in row)
+                                                  for row in res.residual_rows]
+        write_text(folder / "residuals.csv", "\n".join(lines) + "\n")
+    if not args.json:
+        print(f"rodlab fit: {'interrupted: best so far' if res.interrupted else 'done'} after {res.iterations} "
+              f"evaluations in {res.seconds:.1f} s; rms {res.rms_m:.4g} m"
+              + ("" if math.isnan(res.holdout_rms_m) else f", held out {res.holdout_rms_m:.4g} m"))
+        for k, v in res.params.items():
+            print(f"  {k:<28} {v:.6g} ± {res.stderr[k]:.2g}")
+        for g in res.confounded:
+            print(f"  the data cannot separate {', '.join(g)}: they move the rod the same way (fix all but one, "
+                  "e.g. weigh the rod for its density)")
+        if res.unconverged_steps:
+            print(f"  ({res.unconverged_steps} steps ended unconverged and were differentiated as if converged)")
+        print(f"rodlab fit: wrote {out}")
+    else:
+        print(json.dumps(res.summary()))
+    return 130 if res.interrupted else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
