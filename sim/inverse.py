@@ -1,0 +1,140 @@
+"""Inverse statics: the natural curvature that puts a rod's tip at a target at equilibrium (docs/physics.md §3.10).
+
+    from sim.inverse import reach
+    res = reach(spec, targets)        # targets (B, 3): one per env; res.kappa_bar (B, N, 2), res.tip, res.error
+
+Each iteration relaxes every env to static equilibrium (:func:`sim.static.solve_static`, warm-started from the last
+one), then takes a damped Gauss–Newton step on the control nodes' natural curvature: with g(x, κ̄) = ∇E − F = 0 at
+equilibrium, dx/dκ̄ = −K⁻¹ ∂g/∂κ̄ (K the static Hessian, exact at the stored frames; ∂g/∂κ̄ the difference of two
+residuals of the step's own elements, exact as g is affine in κ̄), so the tip's Jacobian costs one factorisation per
+env and iteration. Steps are limited to a trust region and κ̄ to ``|κ̄| ≤ bound`` per component. A target out of
+reach ends at the closest equilibrium found, with ``converged`` False.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import scipy.linalg
+
+from .contact_set import contact_data, contact_scratch
+from .kernels.data import KL_2D, KL_3D
+from .kernels.probe import assemble_at
+from .model import build_model
+from .static import solve_static, static_hessian
+from .step import Simulator
+
+__all__ = ["ReachResult", "ReachError", "reach"]
+
+_H_STATIC = 1e150  # [s] pseudo-time step: the inertia term M/h² vanishes (sim.hessian)
+
+
+class ReachError(ValueError):
+    """A reach request that cannot be served, said with what is wrong."""
+
+
+@dataclasses.dataclass
+class ReachResult:
+    """Per env (leading axis B): the natural curvature found (B, N, 2) (rest values off the control nodes), the
+    tip's equilibrium position (B, 3) [m], its distance to the target (B,) [m], whether it is within ``tol``, and the
+    iterations taken."""
+
+    kappa_bar: np.ndarray
+    tip: np.ndarray
+    error: np.ndarray
+    converged: np.ndarray
+    iterations: int
+    state: object
+
+
+def _tip_rows(model, tip: int) -> list[int]:
+    dpn = model.dofs_per_node
+    return [dpn * tip, dpn * tip + 1] if dpn == 2 else [4 * tip, 4 * tip + 1, 4 * tip + 2]
+
+
+def _positions(model, state, tip: int) -> np.ndarray:
+    return np.asarray(state.node_pos)[:, tip, :]
+
+
+def reach(spec, targets, *, nodes=None, tip: int = -1, bound: float = 1.0, tol: float = 1e-5,
+          max_iterations: int = 40, trust: float = 0.2, regularisation: float = 1e-9) -> ReachResult:
+    """Natural curvature at ``nodes`` (default: every interior node) that puts node ``tip`` of ``spec``'s rod at
+    ``targets`` (B, 3) [m] (2-D: the x–z components count) at static equilibrium; ``bound`` the largest |κ̄| per
+    component [rad, integrated curvature], ``trust`` the largest change of κ̄ per iteration (2-norm), ``tol`` [m]."""
+    model = build_model(spec)
+    targets = np.atleast_2d(np.asarray(targets, dtype=np.float64))
+    if targets.ndim != 2 or targets.shape[1] != 3 or not np.all(np.isfinite(targets)):
+        raise ReachError(f"targets must be finite (B, 3) positions [m], got shape {targets.shape}")
+    if not (bound > 0 and tol > 0 and trust > 0 and max_iterations >= 1):
+        raise ReachError("reach: need bound > 0, tol > 0, trust > 0, max_iterations >= 1")
+    N = model.node_count
+    tip = int(tip) % N
+    planar = model.mode == "2d"
+    if nodes is None:
+        nodes = np.arange(1, N - 1)
+    nodes = np.asarray(nodes, dtype=int)
+    if nodes.size == 0 or nodes.min() < 1 or nodes.max() > N - 2:
+        raise ReachError(f"reach: control nodes must be interior nodes 1 … {N - 2}, got {nodes.tolist()}")
+    comps = (0,) if planar else (0, 1)
+    B = targets.shape[0]
+    sim = Simulator(model, envs=B)
+    if int(sim._prm[0]["n_obstacles"]) > 0 or bool(sim._prm[0]["rod_pairs"]):
+        raise ReachError("reach: scenes with contact are not supported yet (disable [contact] or remove the "
+                         "obstacles)")
+    state, ctrl = sim.reset(), sim.make_control()
+    axes = [0, 2] if planar else [0, 1, 2]
+    rows = _tip_rows(model, tip)
+    kl = KL_2D if planar else KL_3D
+    n = state.dof.reshape(B, -1).shape[1]
+    cd = contact_data(model.obstacles.for_envs(1), contact_scratch(1, N, 0, model.edge_radius))
+    fixed = sim._rod.fixed.astype(bool)
+    conv = np.zeros(B, bool)
+    it = 0
+    err = np.full(B, np.inf)
+    for it in range(1, max_iterations + 1):
+        solve_static(spec, state, ctrl, check_stability=False)
+        pos = _positions(model, state, tip)
+        resid = (targets - pos)[:, axes]
+        err = np.linalg.norm(resid, axis=1)
+        conv = err <= tol
+        if conv.all():
+            break
+        for e in np.flatnonzero(~conv):
+            K = static_hessian(sim, state, ctrl, e)
+            x = np.ascontiguousarray(state.dof.reshape(B, -1)[e])
+            args = (x, x, np.zeros(n), np.ascontiguousarray(state.edge_ref_d1[e]),
+                    np.ascontiguousarray(state.edge_tangent[e]), np.ascontiguousarray(state.node_ref_twist[e]),
+                    _H_STATIC)
+            tb = np.ascontiguousarray(ctrl.tau_bar[e], dtype=np.float64)
+            rod = sim._rod._replace(grav=sim._rod.grav[:1])
+            f0, ab = np.empty(n), np.empty((n + kl, 2 * kl + 1))
+            kb = np.ascontiguousarray(ctrl.kappa_bar[e], dtype=np.float64)
+            assemble_at(0, *args, kb, tb, rod, sim._prm, cd, f0, ab)
+            cols = []
+            for i in nodes:
+                for c in comps:
+                    kb1 = kb.copy()
+                    kb1[i, c] += 1.0
+                    f1 = np.empty(n)
+                    assemble_at(0, *args, kb1, tb, rod, sim._prm, cd, f1, ab)
+                    d = f1 - f0
+                    d[fixed] = 0.0
+                    cols.append(d)
+            C = np.stack(cols, axis=1)
+            dx = -scipy.linalg.solve(K, C, assume_a="sym")
+            Jt = dx[rows]  # (2 or 3, m)
+            m = Jt.shape[1]
+            A = Jt.T @ Jt
+            lam = regularisation * max(float(np.trace(A)) / m, 1e-300)
+            step = np.linalg.solve(A + lam * np.eye(m), Jt.T @ resid[e])
+            norm = float(np.linalg.norm(step))
+            if norm > trust:
+                step *= trust / norm
+            k = 0
+            for i in nodes:
+                for c in comps:
+                    ctrl.kappa_bar[e, i, c] = np.clip(ctrl.kappa_bar[e, i, c] + step[k], -bound, bound)
+                    k += 1
+    tips = _positions(model, state, tip).copy()
+    return ReachResult(kappa_bar=ctrl.kappa_bar.copy(), tip=tips, error=err, converged=conv, iterations=it,
+                       state=state)
