@@ -15,7 +15,8 @@
 
 ``callback(step: EvalStep) -> bool | None`` is called after every batched step; returning True stops.
 ``policy_or_path`` may be a path (policy zip or SB3 checkpoint), an SB3 model or policy, or
-``"random"`` (uniform random actions; baseline). Loading a path never unpickles: a full SB3 checkpoint is
+``"random"`` (uniform random actions; baseline) or ``"inverse-statics"`` (the model-based baseline of
+:mod:`policies.model_based`). Loading a path never unpickles: a full SB3 checkpoint is
 refused unless ``trust_pickle=True`` (``rodlab eval --trust-pickle``; see ``policies.sac.load_policy``).
 """
 from __future__ import annotations
@@ -30,6 +31,7 @@ import numpy as np
 from sim.rotations import from_xyzw, quat_yaw
 
 from policies.elastica import make_elastica_vec_env
+from policies.model_based import MODEL_BASED, InverseStaticsController
 from policies.sac import PolicyLoadError, load_policy
 from policies.sb3_env import make_sb3_env, task_short_name
 from policies.vec_env import SB3VecEnvAdapter
@@ -110,8 +112,8 @@ def task_metrics(task: str, obs: np.ndarray, layout: dict | None = None) -> dict
 
 
 def _resolve_policy(policy_or_path, trust_pickle: bool = False) -> tuple[Any, dict]:
-    if isinstance(policy_or_path, str) and policy_or_path == "random":
-        return "random", {"task": None}
+    if isinstance(policy_or_path, str) and policy_or_path in ("random",) + MODEL_BASED:
+        return policy_or_path, {"task": None}
     if isinstance(policy_or_path, (str, os.PathLike)):
         return load_policy(policy_or_path, trust_pickle=trust_pickle)
     pol = getattr(policy_or_path, "policy", policy_or_path)  # SB3 model -> its policy
@@ -196,7 +198,10 @@ def _run_episodes(policy, task, episodes, seed, n, deterministic, callback, gamm
     else:
         raise ValueError(f"unknown backend {backend!r}; expected 'dismech' or 'elastica'")
     try:
-        if policy != "random":
+        controller = None
+        if policy in MODEL_BASED:  # the inverse-statics baseline (policies.model_based), built for this env
+            controller = InverseStaticsController.for_env(env)
+        elif policy != "random":
             check_compatible(policy, env, task, source)
         if env_hook is not None:
             env_hook(env)
@@ -212,7 +217,9 @@ def _run_episodes(policy, task, episodes, seed, n, deterministic, callback, gamm
         obs = env.reset()
         t = 0
         while np.any(count < quota):
-            if policy == "random":
+            if controller is not None:
+                action, _ = controller.predict(obs)
+            elif policy == "random":
                 action = np.stack([env.action_space.sample() for _ in range(n)])
             else:
                 action, _ = policy.predict(obs, deterministic=deterministic)

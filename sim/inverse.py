@@ -36,8 +36,8 @@ class ReachError(ValueError):
 @dataclasses.dataclass
 class ReachResult:
     """Per env (leading axis B): the natural curvature found (B, N, 2) (rest values off the control nodes), the
-    tip's equilibrium position (B, 3) [m], its distance to the target (B,) [m], whether it is within ``tol``, and the
-    iterations taken."""
+    tip's equilibrium position (B, 3) [m], its distance to the target (B,) [m], whether it is within ``tol``, the
+    iterations taken, the equilibrium State and the coefficients found."""
 
     kappa_bar: np.ndarray
     tip: np.ndarray
@@ -45,6 +45,7 @@ class ReachResult:
     converged: np.ndarray
     iterations: int
     state: object
+    coefficients: np.ndarray  # (B, P, components) the unknowns found (κ̄ at the control nodes without a basis)
 
 
 def _tip_rows(model, tip: int) -> list[int]:
@@ -56,11 +57,16 @@ def _positions(model, state, tip: int) -> np.ndarray:
     return np.asarray(state.node_pos)[:, tip, :]
 
 
-def reach(spec, targets, *, nodes=None, tip: int = -1, bound: float = 1.0, tol: float = 1e-5,
-          max_iterations: int = 40, trust: float = 0.2, regularisation: float = 1e-9) -> ReachResult:
+def reach(spec, targets, *, nodes=None, basis=None, tip: int = -1, bound: float = 1.0, tol: float = 1e-5,
+          max_iterations: int = 40, trust: float = 0.2, regularisation: float = 1e-9,
+          warm: ReachResult | None = None) -> ReachResult:
     """Natural curvature at ``nodes`` (default: every interior node) that puts node ``tip`` of ``spec``'s rod at
     ``targets`` (B, 3) [m] (2-D: the x–z components count) at static equilibrium; ``bound`` the largest |κ̄| per
-    component [rad, integrated curvature], ``trust`` the largest change of κ̄ per iteration (2-norm), ``tol`` [m]."""
+    component [rad, integrated curvature], ``trust`` the largest change of κ̄ per iteration (2-norm), ``tol`` [m].
+
+    ``basis`` (N, P): the unknowns are P coefficients per component instead, κ̄ = rest + basis @ K (a task's control
+    points spread over their regions), ``bound`` then on |K|. ``warm``: the result of a previous call with the same
+    scene, nodes and envs, to start from (its equilibrium and coefficients)."""
     model = build_model(spec)
     targets = np.atleast_2d(np.asarray(targets, dtype=np.float64))
     if targets.ndim != 2 or targets.shape[1] != 3 or not np.all(np.isfinite(targets)):
@@ -75,6 +81,13 @@ def reach(spec, targets, *, nodes=None, tip: int = -1, bound: float = 1.0, tol: 
     nodes = np.asarray(nodes, dtype=int)
     if nodes.size == 0 or nodes.min() < 1 or nodes.max() > N - 2:
         raise ReachError(f"reach: control nodes must be interior nodes 1 … {N - 2}, got {nodes.tolist()}")
+    if basis is None:
+        basis = np.zeros((N, nodes.size))
+        basis[nodes, np.arange(nodes.size)] = 1.0
+    basis = np.asarray(basis, dtype=np.float64)
+    if basis.ndim != 2 or basis.shape[0] != N or not np.all(np.isfinite(basis)):
+        raise ReachError(f"reach: basis must be finite (N = {N}, P), got shape {basis.shape}")
+    P = basis.shape[1]
     comps = (0,) if planar else (0, 1)
     B = targets.shape[0]
     sim = Simulator(model, envs=B)
@@ -82,6 +95,19 @@ def reach(spec, targets, *, nodes=None, tip: int = -1, bound: float = 1.0, tol: 
         raise ReachError("reach: scenes with contact are not supported yet (disable [contact] or remove the "
                          "obstacles)")
     state, ctrl = sim.reset(), sim.make_control()
+    rest = ctrl.kappa_bar.copy()
+    coef = np.zeros((B, P, len(comps)))
+    if warm is not None:
+        if warm.coefficients.shape != coef.shape:
+            raise ReachError(f"reach: warm start has coefficients {warm.coefficients.shape}, expected {coef.shape}")
+        state = warm.state.copy()
+        coef = warm.coefficients.copy()
+
+    def set_controls():
+        for i, c in enumerate(comps):
+            ctrl.kappa_bar[:, :, c] = rest[:, :, c] + coef[:, :, i] @ basis.T
+
+    set_controls()
     axes = [0, 2] if planar else [0, 1, 2]
     rows = _tip_rows(model, tip)
     kl = KL_2D if planar else KL_3D
@@ -91,13 +117,13 @@ def reach(spec, targets, *, nodes=None, tip: int = -1, bound: float = 1.0, tol: 
     conv = np.zeros(B, bool)
     it = 0
     err = np.full(B, np.inf)
-    for it in range(1, max_iterations + 1):
+    for it in range(max_iterations + 1):  # the last pass only measures the equilibrium of the last update
         solve_static(spec, state, ctrl, check_stability=False)
         pos = _positions(model, state, tip)
         resid = (targets - pos)[:, axes]
         err = np.linalg.norm(resid, axis=1)
         conv = err <= tol
-        if conv.all():
+        if conv.all() or it == max_iterations:
             break
         for e in np.flatnonzero(~conv):
             K = static_hessian(sim, state, ctrl, e)
@@ -111,10 +137,10 @@ def reach(spec, targets, *, nodes=None, tip: int = -1, bound: float = 1.0, tol: 
             kb = np.ascontiguousarray(ctrl.kappa_bar[e], dtype=np.float64)
             assemble_at(0, *args, kb, tb, rod, sim._prm, cd, f0, ab)
             cols = []
-            for i in nodes:
+            for p in range(P):
                 for c in comps:
                     kb1 = kb.copy()
-                    kb1[i, c] += 1.0
+                    kb1[:, c] += basis[:, p]
                     f1 = np.empty(n)
                     assemble_at(0, *args, kb1, tb, rod, sim._prm, cd, f1, ab)
                     d = f1 - f0
@@ -130,11 +156,8 @@ def reach(spec, targets, *, nodes=None, tip: int = -1, bound: float = 1.0, tol: 
             norm = float(np.linalg.norm(step))
             if norm > trust:
                 step *= trust / norm
-            k = 0
-            for i in nodes:
-                for c in comps:
-                    ctrl.kappa_bar[e, i, c] = np.clip(ctrl.kappa_bar[e, i, c] + step[k], -bound, bound)
-                    k += 1
+            coef[e] = np.clip(coef[e] + step.reshape(P, len(comps)), -bound, bound)
+        set_controls()
     tips = _positions(model, state, tip).copy()
     return ReachResult(kappa_bar=ctrl.kappa_bar.copy(), tip=tips, error=err, converged=conv, iterations=it,
-                       state=state)
+                       state=state, coefficients=coef)
