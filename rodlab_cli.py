@@ -33,6 +33,7 @@ BENCH: dict[str, tuple[str, str]] = {
     "throughput": ("benchmarks.throughput:main", "throughput and scaling, with PyElastica"),
     "train": ("policies.cli:bench_train_main", "time one training iteration (env step + updates)"),
     "order": ("benchmarks.time_order:main", "observed time order of the integrators (fitted first mode)"),
+    "gradients": ("benchmarks.gradients:main", "derivative cost, fit vs finite-difference probing, inverse statics"),
     "fuzz": ("benchmarks.fuzz:main", "random bad input: tried / clear error / crash / silent-wrong counts"),
 }
 

@@ -37,11 +37,10 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import scipy.linalg
 
 from sim.contact_set import contact_data, contact_scratch
 from sim.kernels.data import KL_2D, KL_3D
-from sim.kernels.probe import assemble_at
+from sim.kernels.linearise import linearise_step
 
 __all__ = ["GradientError", "Tape", "rollout", "PARAMETERS"]
 
@@ -54,19 +53,24 @@ class GradientError(ValueError):
 
 
 def _dense(ab: np.ndarray, n: int, kl: int) -> np.ndarray:
-    """The n × n matrix of a full band ab[r, kl + c − r] = J[r, c]."""
-    J = np.zeros((n, n))
+    """The (..., n, n) matrices of full bands (..., n + kl, 2 kl + 1), ab[r, kl + c − r] = J[r, c]."""
+    J = np.zeros(ab.shape[:-2] + (n, n))
     for d in range(2 * kl + 1):
         off = d - kl
         r = np.arange(max(0, -off), min(n, n - off))
-        J[r, r + off] = ab[r, d]
+        J[..., r, r + off] = ab[..., r, d]
     return J
+
+
+_SCALARS = ("log_youngs_modulus", "log_shear_modulus", "log_density", "damping")
+_CACHE_BYTES = 256 * 2**20  # linearisations kept for further passes while they fit in this
 
 
 @dataclasses.dataclass
 class _Lin:
-    """One env's step linearised at its solution: J (n, n); the start-state columns F_x, F_u (n,) (diagonal);
-    frame maps G (n, E) (∂f/∂φ), a, b (E, n) (φ' = φ + a δx + b δx'); the parameter columns (name -> (n, k))."""
+    """All envs' step linearised at its solution: J (B, n, n) (constrained DOFs: identity); the start-state columns
+    Fx, Fu (n,) (diagonal); frame maps G (B, n, E) (∂f/∂φ), a, b (B, E, n) (φ' = φ + a δx + b δx'); parameter
+    columns P (name -> (B, n, k))."""
 
     J: np.ndarray
     Fx: np.ndarray
@@ -75,13 +79,11 @@ class _Lin:
     a: np.ndarray | None
     b: np.ndarray | None
     P: dict
-    lu: tuple | None = None
 
     def solve(self, rhs: np.ndarray, *, transpose: bool = False) -> np.ndarray:
-        """J⁻¹ rhs (or J⁻ᵀ rhs), with J factored once."""
-        if self.lu is None:
-            self.lu = scipy.linalg.lu_factor(self.J, check_finite=True)
-        return scipy.linalg.lu_solve(self.lu, rhs, trans=1 if transpose else 0)
+        """J⁻¹ rhs or J⁻ᵀ rhs for every env: rhs (B, n, P)."""
+        J = self.J.transpose(0, 2, 1) if transpose else self.J
+        return np.linalg.solve(J, rhs)
 
 
 @dataclasses.dataclass
@@ -105,196 +107,151 @@ class Tape:
     def steps(self) -> int:
         return self.kappa_bar.shape[0]
 
-    # ------------------------------------------------------------------ linearisation of one step
-    def _residual(self, k: int, e: int, x: np.ndarray, *, rod=None, prm=None, kb=None, tb=None):
-        sim = self.sim
-        rod = self._rod_at(k, e) if rod is None else rod
-        prm = sim._prm if prm is None else prm
-        kb = self.kappa_bar[k, e] if kb is None else kb
-        tb = self.tau_bar[k, e] if tb is None else tb
-        n = x.shape[0]
-        kl = KL_2D if sim.model.mode == "2d" else KL_3D
-        f, ab = np.empty(n), np.empty((n + kl, 2 * kl + 1))
-        assemble_at(0, x, self.dof[k, e], self.vel[k, e], self.ref_d1[k, e], self.tangent[k, e],
-                     self.ref_twist[k, e], sim.model.dt, np.ascontiguousarray(kb), np.ascontiguousarray(tb), rod, prm,
-                     self._cd, f, ab)
-        return f, ab
-
-    def _rod_at(self, k: int, e: int, *, free: bool = False):
-        """The kernels' rod data of step k of env e (its external forces; ``free``: no DOF constrained)."""
-        rod = self.sim._rod._replace(grav=self.grav[k, e][None, :])
-        return rod._replace(fixed=np.zeros_like(rod.fixed)) if free else rod
+    # ------------------------------------------------------------------ linearisation of one step (all envs)
+    def _rods(self, k: int):
+        """The kernels' rod data of step k (each env's external forces; no DOF constrained) and its variants with
+        the stiffness, twisting stiffness or mass doubled."""
+        m = self.sim.model
+        rod = self.sim._rod._replace(grav=np.ascontiguousarray(self.grav[k]))
+        rod = rod._replace(fixed=np.zeros_like(rod.fixed))
+        weight = np.asarray(m.dof_gravity)[None, :]
+        rod_e = rod._replace(EA=2.0 * rod.EA, EI1=2.0 * rod.EI1, EI2=2.0 * rod.EI2)
+        rod_g = rod._replace(GJ=2.0 * rod.GJ)
+        rod_m = rod._replace(mass=2.0 * rod.mass, grav=np.ascontiguousarray(rod.grav + weight))
+        return rod, rod_e, rod_g, rod_m
 
     @property
     def _cd(self):
-        sim = self.sim
         if "cd" not in self._lin:
-            m = sim.model
+            m = self.sim.model
             self._lin["cd"] = contact_data(m.obstacles.for_envs(1), contact_scratch(1, m.node_count, 0, m.edge_radius))
         return self._lin["cd"]
 
-    def _linear(self, k: int, e: int, names: tuple[str, ...]) -> _Lin:
-        key = (k, e)
-        lin = self._lin.get(key)
-        if lin is None:
-            lin = self._lin[key] = self._linearise(k, e)
-        for name in names:
-            if name not in lin.P:
-                lin.P[name] = self._param_columns(k, e, name)
+    def _linear(self, k: int, names: tuple[str, ...]) -> _Lin:
+        lin = self._lin.get(k)
+        if lin is None or any(nm not in lin.P for nm in names if nm != "gravity"):
+            lin = self._linearise(k, names)
+            B, n = self.dof.shape[1], self.dof.shape[2]
+            if len(self._lin) * B * n * n * 8 < _CACHE_BYTES:
+                self._lin[k] = lin
         return lin
 
-    def _linearise(self, k: int, e: int) -> _Lin:
+    def _linearise(self, k: int, names: tuple[str, ...]) -> _Lin:
         sim, m = self.sim, self.sim.model
         h = m.dt
         planar = m.mode == "2d"
         kl = KL_2D if planar else KL_3D
-        x1 = self.dof[k + 1, e]
-        n = x1.shape[0]
-        rod_free = self._rod_at(k, e, free=True)
-        _, ab = self._residual(k, e, x1, rod=rod_free)
+        B, n = self.dof.shape[1], self.dof.shape[2]
+        N = self.ref_twist.shape[2]
+        E = N - 1
+        want_kb, want_tb = "kappa_bar" in names, "tau_bar" in names
+        want_sc = any(nm in _SCALARS[:3] for nm in names)
+        ab = np.zeros((B, n + kl, 2 * kl + 1))
+        kbc = np.zeros((B, n, N, 2) if want_kb or want_tb else (1, 1, 1, 2))
+        tbc = np.zeros((B, n, N) if want_tb else (1, 1, 1))
+        sc = np.zeros((B, n, 3) if want_sc else (1, 1, 3))
+        rod, rod_e, rod_g, rod_m = self._rods(k)
+        c = np.ascontiguousarray
+        linearise_step(c(self.dof[k]), c(self.vel[k]), c(self.ref_d1[k]), c(self.tangent[k]), c(self.ref_twist[k]),
+                       c(self.dof[k + 1]), c(self.kappa_bar[k]), c(self.tau_bar[k]), h, rod, rod_e, rod_g, rod_m,
+                       sim._prm, self._cd, want_kb, want_tb, want_sc, ab, kbc, tbc, sc)
         Jf = _dense(ab, n, kl)  # ∂f/∂x' with no DOF constrained
-        if not planar:
-            self._position_columns(k, e, x1, rod_free, Jf)
         fixed = sim._rod.fixed.astype(bool)
         J = Jf.copy()  # constrained DOFs: identity rows and columns (their residual is 0 and they do not move)
-        J[fixed, :] = 0.0
-        J[:, fixed] = 0.0
-        J[fixed, fixed] = 1.0
+        J[:, fixed, :] = 0.0
+        J[:, :, fixed] = 0.0
+        J[:, fixed, fixed] = 1.0
         mass = sim._rod.mass
         damp = float(sim._prm[0]["damping"])
         pos_dof = np.ones(n, bool) if planar else (np.arange(n) % 4 != 3)
         Fx = -(mass / h**2 + np.where(pos_dof, damp * mass / h, 0.0))
         Fu = -mass / h
         Fx[fixed], Fu[fixed] = 0.0, 0.0
+        P: dict = {}
+        if want_kb:
+            P["kappa_bar"] = kbc.reshape(B, n, 2 * N) * ~fixed[None, :, None]
+        if want_tb:
+            P["tau_bar"] = tbc * ~fixed[None, :, None]
+        for j, nm in enumerate(_SCALARS[:3]):
+            if want_sc and nm in names:
+                P[nm] = sc[:, :, j:j + 1] * ~fixed[None, :, None]
+        if "damping" in names:  # the damping force c m (x' − x)/h on positions
+            P["damping"] = ((mass * pos_dof * ~fixed)[None, :] * (self.dof[k + 1] - self.dof[k]) / h)[:, :, None]
         if planar:
-            return _Lin(J, Fx, Fu, None, None, None, {})
-        N = n // 4
-        E = N - 1
+            return _Lin(J, Fx, Fu, None, None, None, P)
         th = 4 * np.arange(E) + 3
-        G = Jf[:, th].copy()
-        G[th, np.arange(E)] -= mass[th] / h**2  # ∂f/∂φ: the elastic part of ∂f/∂θ (θ's inertia is not a frame's)
-        G[fixed, :] = 0.0
+        G = Jf[:, :, th].copy()
+        G[:, th, np.arange(E)] -= (mass[th] / h**2)[None, :]  # ∂f/∂φ: the elastic part of ∂f/∂θ
+        G[:, fixed, :] = 0.0
         link = sim._rod.link.astype(bool)
-        t0, t1 = self.tangent[k, e], self.tangent[k + 1, e]
-        kvec = np.cross(t1, t0) / (1.0 + np.einsum("ij,ij->i", t0, t1))[:, None]
-        a = _turn_map(kvec, self.dof[k, e], t0, link)
-        b = _turn_map(kvec, x1, t1, link)
-        return _Lin(J, Fx, Fu, G, a, b, {})
+        t0, t1 = self.tangent[k], self.tangent[k + 1]
+        kvec = np.cross(t1, t0) / (1.0 + np.einsum("bij,bij->bi", t0, t1))[..., None]
+        a = _turn_map(kvec, self.dof[k], t0, link)
+        b = _turn_map(kvec, self.dof[k + 1], t1, link)
+        return _Lin(J, Fx, Fu, G, a, b, P)
 
-    def _position_columns(self, k: int, e: int, x1: np.ndarray, rod, Jf: np.ndarray) -> None:
-        """Replace the position columns of the 3-D ∂f/∂x' by central differences of the residual (relative error
-        ~1e-9). The step's Newton Jacobian is symmetric: it leaves out how the time-parallel reference frames turn
-        with the new positions (their holonomy) and some second-order frame terms, which the derivatives need
-        (docs/physics.md §3.9); its θ columns are exact and kept."""
-        n = x1.shape[0]
-        scale = max(1.0, float(np.max(np.abs(x1.reshape(-1, 4)[:, :3]))))
-        eps = 1e-6 * scale
-        for c in range(n):
-            if c % 4 == 3:
-                continue
-            xp, xm = x1.copy(), x1.copy()
-            xp[c] += eps
-            xm[c] -= eps
-            Jf[:, c] = (self._residual(k, e, xp, rod=rod)[0] - self._residual(k, e, xm, rod=rod)[0]) / (2.0 * eps)
+    def _gravity_columns(self) -> np.ndarray:
+        """(n, 3) ∂f/∂g (the same for every env and step)."""
+        rod = self.sim._rod
+        n = self.dof.shape[2]
+        out = np.zeros((n, 3))
+        mass = rod.mass
+        if self.sim.model.mode == "2d":
+            out[0::2, 0] = -mass[0::2]
+            out[1::2, 2] = -mass[1::2]
+        else:
+            for c in range(3):
+                out[c::4, c] = -mass[c::4]
+        out[rod.fixed.astype(bool)] = 0.0
+        return out
 
-    def _param_columns(self, k: int, e: int, name: str) -> np.ndarray:
-        """∂f/∂p (n, k) at step k's solution for the parameter ``name`` (the residual is affine in each: a
-        difference of two residuals)."""
-        sim, m = self.sim, self.sim.model
-        rod = sim._rod
-        x1 = self.dof[k + 1, e]
-        n = x1.shape[0]
-        planar = m.mode == "2d"
-        f0, _ = self._residual(k, e, x1)
-        fixed = rod.fixed.astype(bool)
-
-        def col(**kw):
-            f1, _ = self._residual(k, e, x1, **kw)
-            d = f1 - f0
-            d[fixed] = 0.0
-            return d
-
-        if name == "log_youngs_modulus":  # f = f_rest + E·g: a unit change of ln E doubles... d/d ln E = E·g
-            return col(rod=rod._replace(EA=2.0 * rod.EA, EI1=2.0 * rod.EI1, EI2=2.0 * rod.EI2))[:, None]
-        if name == "log_shear_modulus":
-            return col(rod=rod._replace(GJ=2.0 * rod.GJ))[:, None]
-        if name == "log_density":
-            grav_rho = np.asarray(m.dof_gravity)[None, :]
-            return col(rod=rod._replace(mass=2.0 * rod.mass, grav=rod.grav + grav_rho))[:, None]
-        if name == "damping":
-            prm = sim._prm.copy()
-            prm[0]["damping"] += 1.0
-            return col(prm=prm)[:, None]
+    def _rhs_params(self, lin: _Lin, name: str, tan: np.ndarray, k: int) -> np.ndarray:
+        """(B, n) ∂f/∂p · δp of step k for the tangent ``tan`` of parameter ``name``."""
         if name == "gravity":
-            out = np.zeros((n, 3))
-            mass = rod.mass
-            if planar:
-                out[0::2, 0] = -mass[0::2]
-                out[1::2, 2] = -mass[1::2]
-            else:
-                for c in range(3):
-                    out[c::4, c] = -mass[c::4]
-            out[fixed] = 0.0
-            return out
+            return tan @ self._gravity_columns().T
         if name == "kappa_bar":
-            kb = self.kappa_bar[k, e]
-            N = kb.shape[0]
-            cols = np.zeros((n, N * 2))
-            for i in range(N):
-                for c in range(1 if planar else 2):
-                    kb1 = kb.copy()
-                    kb1[i, c] += 1.0
-                    cols[:, 2 * i + c] = col(kb=kb1)
-            return cols
-        if name == "tau_bar":
-            tb = self.tau_bar[k, e]
-            N = tb.shape[0]
-            cols = np.zeros((n, N))
-            if not planar:
-                for i in range(N):
-                    tb1 = tb.copy()
-                    tb1[i] += 1.0
-                    cols[:, i] = col(tb=tb1)
-            return cols
-        raise GradientError(f"unknown parameter {name!r}; known: {', '.join(PARAMETERS)}")
+            v = tan[k].reshape(tan.shape[1], -1)
+        elif name == "tau_bar":
+            v = tan[k]
+        else:
+            v = tan[:, None]
+        return np.einsum("bnk,bk->bn", lin.P[name], v)
 
     # ------------------------------------------------------------------ forward mode
     def jvp(self, tangents: dict | list[dict]) -> dict:
         """Tangents of every state of the rollout for the parameter tangents ``tangents`` (name -> array shaped as
         in the module docstring; absent = 0). Returns {"dof": (T + 1, B, n), "vel": (T + 1, B, n)}; for a list of
-        P tangent dicts, arrays (P, T + 1, B, n) (one factorisation per step serves them all)."""
+        Q tangent dicts, arrays (Q, T + 1, B, n) (one linearisation and factorisation per step serves them all)."""
         many = isinstance(tangents, (list, tuple))
         tans = [_checked(t, self) for t in (tangents if many else [tangents])]
         T, B, n = self.steps, self.dof.shape[1], self.dof.shape[2]
-        P = len(tans)
+        Q = len(tans)
         planar = self.sim.model.mode == "2d"
-        ddof = np.zeros((P, T + 1, B, n))
-        dvel = np.zeros((P, T + 1, B, n))
         h = self.sim.model.dt
         E = self.ref_d1.shape[2]
+        ddof = np.zeros((Q, T + 1, B, n))
+        dvel = np.zeros((Q, T + 1, B, n))
         names = tuple(sorted({nm for t in tans for nm in t if nm not in ("dof0", "vel0")}))
-        zero = np.zeros(n)
-        for e in range(B):
-            dx = np.stack([t["dof0"][e] if "dof0" in t else zero for t in tans], axis=1)  # (n, P)
-            du = np.stack([t["vel0"][e] if "vel0" in t else zero for t in tans], axis=1)
-            phi = np.zeros((E, P))
-            ddof[:, 0, e], dvel[:, 0, e] = dx.T, du.T
-            for k in range(T):
-                lin = self._linear(k, e, names)
-                rhs = lin.Fx[:, None] * dx + lin.Fu[:, None] * du
-                if not planar:
-                    rhs += lin.G @ (phi + lin.a @ dx)
+        zero = np.zeros((B, n))
+        dx = np.stack([t.get("dof0", zero) for t in tans], axis=2)  # (B, n, Q)
+        du = np.stack([t.get("vel0", zero) for t in tans], axis=2)
+        phi = np.zeros((B, E, Q))
+        ddof[:, 0], dvel[:, 0] = dx.transpose(2, 0, 1), du.transpose(2, 0, 1)
+        for k in range(T):
+            lin = self._linear(k, names)
+            rhs = lin.Fx[None, :, None] * dx + lin.Fu[None, :, None] * du
+            if not planar:
+                rhs += lin.G @ (phi + lin.a @ dx)
+            for q, t in enumerate(tans):
                 for nm in names:
-                    cols = lin.P[nm]
-                    for q, t in enumerate(tans):
-                        if nm in t:
-                            rhs[:, q] += cols @ _param_tangent(t[nm], nm, k, e)
-                dx1 = -lin.solve(rhs)
-                du = (dx1 - dx) / h
-                if not planar:
-                    phi = phi + lin.a @ dx + lin.b @ dx1
-                dx = dx1
-                ddof[:, k + 1, e], dvel[:, k + 1, e] = dx.T, du.T
+                    if nm in t:
+                        rhs[:, :, q] += self._rhs_params(lin, nm, t[nm], k)
+            dx1 = -lin.solve(rhs)
+            du = (dx1 - dx) / h
+            if not planar:
+                phi = phi + lin.a @ dx + lin.b @ dx1
+            dx = dx1
+            ddof[:, k + 1], dvel[:, k + 1] = dx.transpose(2, 0, 1), du.transpose(2, 0, 1)
         if many:
             return {"dof": ddof, "vel": dvel}
         return {"dof": ddof[0], "vel": dvel[0]}
@@ -316,48 +273,55 @@ class Tape:
         E = self.ref_d1.shape[2]
         out = {nm: np.zeros(_param_shape(nm, T, B, n, N)) for nm in params}
         names = tuple(nm for nm in params if nm not in ("dof0", "vel0"))
-        for e in range(B):
-            gx = cx[T, e].copy()  # adjoint of x_k (total, including the later steps' dependence)
-            gu = cu[T, e].copy()
-            gphi = np.zeros(E)
-            for k in range(T - 1, -1, -1):
-                lin = self._linear(k, e, names)
-                # x_{k+1} enters: u_{k+1} = (x_{k+1} − x_k)/h and φ_{k+1} = φ_k + a x_k + b x_{k+1}
-                gx1 = gx + gu / h
-                if not planar:
-                    gx1 = gx1 + lin.b.T @ gphi
-                lam = lin.solve(gx1, transpose=True)  # x_{k+1} = −J⁻¹ rhs  ⇒  ∂/∂rhs = −λ
-                for nm in names:
-                    out[nm] += _param_gradient(-(lin.P[nm].T @ lam), nm, k, e, out[nm])
-                gx_prev = -lin.Fx * lam - gu / h + cx[k, e]
-                gu_prev = -lin.Fu * lam + cu[k, e]
-                if not planar:
-                    Gl = -(lin.G.T @ lam)
-                    gx_prev = gx_prev + lin.a.T @ (Gl + gphi)
-                    gphi = gphi + Gl
-                gx, gu = gx_prev, gu_prev
-            if "dof0" in out:
-                out["dof0"][e] = gx
-            if "vel0" in out:
-                out["vel0"][e] = gu
+        gx = cx[T].copy()  # (B, n) adjoint of x_k (total, including the later steps' dependence)
+        gu = cu[T].copy()
+        gphi = np.zeros((B, E))
+        for k in range(T - 1, -1, -1):
+            lin = self._linear(k, names)
+            # x_{k+1} enters u_{k+1} = (x_{k+1} − x_k)/h and φ_{k+1} = φ_k + a x_k + b x_{k+1}
+            gx1 = gx + gu / h
+            if not planar:
+                gx1 = gx1 + np.einsum("ben,be->bn", lin.b, gphi)
+            lam = lin.solve(gx1[:, :, None], transpose=True)[:, :, 0]  # x_{k+1} = −J⁻¹ rhs ⇒ ∂/∂rhs = −λ
+            for nm in names:
+                if nm == "gravity":
+                    out[nm] += -(lam @ self._gravity_columns())
+                    continue
+                g = -np.einsum("bnk,bn->bk", lin.P[nm], lam)
+                if nm == "kappa_bar":
+                    out[nm][k] = g.reshape(B, N, 2)
+                elif nm == "tau_bar":
+                    out[nm][k] = g
+                else:
+                    out[nm] += g[:, 0]
+            gx_prev = -lin.Fx * lam - gu / h + cx[k]
+            gu_prev = -lin.Fu * lam + cu[k]
+            if not planar:
+                Gl = -np.einsum("bne,bn->be", lin.G, lam)
+                gx_prev = gx_prev + np.einsum("ben,be->bn", lin.a, Gl + gphi)
+                gphi = gphi + Gl
+            gx, gu = gx_prev, gu_prev
+        if "dof0" in out:
+            out["dof0"][:] = gx
+        if "vel0" in out:
+            out["vel0"][:] = gu
         return out
 
 
 def _turn_map(kvec: np.ndarray, x: np.ndarray, t: np.ndarray, link: np.ndarray) -> np.ndarray:
-    """(E, n) map of a change δx of the 3-D DOFs x to kvec_j · δt_j per edge, δt = (I − t tᵀ) δe / |e| (a joint edge
-    keeps its frame: 0)."""
-    E = t.shape[0]
-    n = x.shape[0]
-    pos = x.reshape(E + 1, 4)[:, :3]
-    le = np.linalg.norm(pos[1:] - pos[:-1], axis=1)
-    # row j: w_j · δe_j with w_j = (I − t tᵀ) kvec_j / |e_j|
-    w = (kvec - np.einsum("ij,ij->i", t, kvec)[:, None] * t) / le[:, None]
-    w[~link] = 0.0
-    out = np.zeros((E, n))
+    """(B, E, n) map of a change δx of the 3-D DOFs x (B, n) to kvec_j · δt_j per edge, δt = (I − t tᵀ) δe / |e|
+    (a joint edge keeps its frame: 0)."""
+    B, E = t.shape[0], t.shape[1]
+    n = x.shape[1]
+    pos = x.reshape(B, E + 1, 4)[:, :, :3]
+    le = np.linalg.norm(pos[:, 1:] - pos[:, :-1], axis=2)
+    w = (kvec - np.einsum("bij,bij->bi", t, kvec)[..., None] * t) / le[..., None]  # (B, E, 3)
+    w[:, ~link] = 0.0
+    out = np.zeros((B, E, n))
     j = np.arange(E)
     for c in range(3):
-        out[j, 4 * (j + 1) + c] = w[:, c]
-        out[j, 4 * j + c] = -w[:, c]
+        out[:, j, 4 * (j + 1) + c] = w[:, :, c]
+        out[:, j, 4 * j + c] = -w[:, :, c]
     return out
 
 
@@ -365,29 +329,6 @@ def _param_shape(name, T, B, n, N):
     return {"dof0": (B, n), "vel0": (B, n), "kappa_bar": (T, B, N, 2), "tau_bar": (T, B, N),
             "log_youngs_modulus": (B,), "log_shear_modulus": (B,), "log_density": (B,), "damping": (B,),
             "gravity": (B, 3)}[name]
-
-
-def _param_tangent(v, name, k, e):
-    if name == "kappa_bar":
-        return v[k, e].reshape(-1)
-    if name == "tau_bar":
-        return v[k, e]
-    if name == "gravity":
-        return v[e]
-    return np.array([v[e]])
-
-
-def _param_gradient(g, name, k, e, acc):
-    out = np.zeros_like(acc)
-    if name == "kappa_bar":
-        out[k, e] = g.reshape(acc.shape[2:])
-    elif name == "tau_bar":
-        out[k, e] = g
-    elif name == "gravity":
-        out[e] = g
-    else:
-        out[e] = g[0]
-    return out
 
 
 def _checked(tangents: dict, tape: Tape) -> dict:

@@ -96,3 +96,15 @@ def test_throughput_pairs_tiny():
     # the rods apart touch only the floor: the same contact energy with rod contact on and off
     assert res["two_rods_apart"]["contact_energy_mean"] == res["two_rods_apart_rod_contact_off"]["contact_energy_mean"]
     assert res["ratio_rod_contact_on_over_off_apart"] > 0 and res["ratio_self_contact_on_over_off"] > 0
+
+
+def test_gradients_bench_tiny_measures_a_step_and_both_fits():
+    from benchmarks import gradients as gb
+
+    st = gb.bench_step(2, 1)
+    assert st["forward_ms_per_env"] > 0 and st["backward_ms_per_env"] > st["backward_cached_ms_per_env"] > 0
+    assert st["record_bytes_per_env_step"] > 0 and st["linearisation_bytes_per_env_step"] > 0
+    ft = gb.bench_fit(0.5, 1)
+    for how in ("exact", "probing"):  # both methods fit the synthetic data to its noise
+        assert ft[how]["rms_m"] < 2e-3 and ft[how]["seconds_median"] > 0
+    assert ft["probing_over_exact"] > 0

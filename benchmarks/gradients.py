@@ -1,0 +1,180 @@
+"""Derivatives, fitting and inverse statics (``rodlab bench gradients``): what they cost and what they give.
+
+* step derivative: one backward (adjoint) step against one forward step of the paper's arm, per env, and the memory a
+  rollout keeps per step (the recorded states, and the linearisation cached for repeated passes);
+* fit: 3 parameters (Young's modulus, damping, the actuation gain of one commanded node) of the paper's arm from 10 s
+  of synthetic marker data (5 markers at 30 Hz, 1 mm noise) with the exact Jacobian of the tangent mode, and the
+  same fit with the Jacobian by finite-difference probing (one extra simulation per parameter: the real2sim
+  approach), in the same run;
+* the inverse-statics baseline against the shipped SAC policy on Follow Target and 4D IK (same seeds).
+
+Writes ``gradients.json`` into ``--out`` and prints a table.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+
+from benchmarks.common import base_parser, machine_info, write_json
+
+
+def _arm_spec(converged: bool = True):
+    from sim import load_scene
+    from sim.support.assets import asset_path
+
+    spec = load_scene(asset_path("scenes/arm.toml"))
+    if converged:  # derivatives are of the converged step: let Newton converge
+        spec = dataclasses.replace(spec, sim=dataclasses.replace(spec.sim, newton_tol=1e-10, newton_max_iter=30,
+                                                                 accept_unconverged=False, newton_dtol=1e-9))
+    return spec
+
+
+def bench_step(envs: int, repeats: int) -> dict:
+    """Forward step vs the backward pass of one step (linearisation included), per env."""
+    from sim import build_model
+    from sim import gradients as G
+    from sim.step import Simulator
+
+    spec = _arm_spec()
+    sim = Simulator(build_model(spec), envs=envs)
+    state, ctrl = sim.reset(), sim.make_control()
+    rng = np.random.default_rng(0)
+    ctrl.kappa_bar[:, 1:-1] += rng.normal(0.0, 0.05, ctrl.kappa_bar[:, 1:-1].shape)
+    for _ in range(3):
+        sim.step(state, ctrl)  # moving, bent
+    G.rollout(sim, state.copy(), [ctrl])._linear(0, ("kappa_bar",))  # load the kernels (untimed)
+    fwd, bwd, lin = [], [], []
+    for _ in range(repeats):
+        st = state.copy()
+        t0 = time.perf_counter()
+        sim.step(st, ctrl)
+        fwd.append(time.perf_counter() - t0)
+        st = state.copy()
+        tape = G.rollout(sim, st, [ctrl])
+        n = tape.dof.shape[2]
+        t0 = time.perf_counter()
+        tape._linear(0, ("kappa_bar",))
+        lin.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        tape.vjp({"dof": np.ones((envs, n))}, params=("kappa_bar", "dof0", "vel0"))  # the cached linearisation
+        bwd.append(time.perf_counter() - t0)
+    N = sim.model.node_count
+    rec = (2 * n + 2 * (N - 1) * 3 + N + 2 * N + N + n) * 8  # dof, vel, d1, t, β, κ̄, τ̄, external forces
+    lin_bytes = (n * n + 2 * n + n * (N - 1) + 2 * (N - 1) * n + n * 2 * N) * 8  # J, F, G, a, b, ∂f/∂κ̄
+    f, b, li = (float(np.median(v)) for v in (fwd, bwd, lin))
+    return {"envs": envs, "nodes": N, "dofs": n, "forward_ms_per_env": 1e3 * f / envs,
+            "backward_ms_per_env": 1e3 * (b + li) / envs, "linearise_ms_per_env": 1e3 * li / envs,
+            "backward_cached_ms_per_env": 1e3 * b / envs, "backward_over_forward": (b + li) / f, "record_bytes_per_env_step": rec,
+            "linearisation_bytes_per_env_step": lin_bytes}
+
+
+def bench_fit(seconds: float, repeats: int) -> dict:
+    """3 parameters from ``seconds`` of motion: exact Jacobian vs finite-difference probing."""
+    import tempfile
+    from pathlib import Path
+
+    import scipy.optimize
+
+    from sim import build_model
+    from sim import fit as F
+
+    spec = _arm_spec()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "commands.csv"
+        rows = ["t,node,kappa1,kappa2,twist"]
+        for k, t in enumerate(np.arange(0.0, seconds, 1.0)):  # a new command every second
+            rows.append(f"{t:.3f},10,{0.15 * math.sin(1.3 * k + 0.2):.5f},{0.1 * math.cos(0.7 * k):.5f},0")
+        path.write_text("\n".join(rows) + "\n")
+        cmds = F.load_controls(path, build_model(spec))
+    params = ["youngs_modulus", "damping", "actuation_gain"]
+    t = np.arange(0.0, seconds + 1e-9, 1.0 / 30.0)
+    s = np.linspace(0.2, 1.0, 5)
+    meas0 = F.Measurements(np.repeat(t, 5), np.tile(s, t.size), np.zeros(t.size * 5, int), np.zeros((t.size * 5, 3)))
+    prob = F.Problem(spec, meas0, cmds, params)
+    z_true = np.array([math.log(1.3), 0.3, 0.8])
+    pos = prob.predict(prob._node_pos(prob.rollout(z_true).dof[:, 0], None))
+    meas = F.Measurements(meas0.t, meas0.s, meas0.rod, pos + np.random.default_rng(1).normal(0.0, 1e-3, pos.shape))
+    truth = prob.values(z_true)
+    out: dict = {"seconds_of_motion": seconds, "steps": prob.steps, "points": int(meas.t.size), "params": params,
+                 "truth": truth}
+    exact, probe = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        res = F.fit(spec, meas, params, cmds=cmds)
+        exact.append(time.perf_counter() - t0)
+        out["exact"] = {"values": res.params, "stderr": res.stderr, "rms_m": res.rms_m, "evaluations": res.iterations,
+                        "relative_error": {k: abs(res.params[k] - v) / abs(v) for k, v in truth.items()}}
+        pr = F.Problem(spec, meas, cmds, params)
+        lo, hi = pr.bounds()
+        t0 = time.perf_counter()
+        ls = scipy.optimize.least_squares(lambda z: pr.residuals(pr.rollout(z)), pr.z0(), jac="2-point",
+                                          bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=50, xtol=1e-10,
+                                          ftol=1e-12, gtol=1e-12)
+        probe.append(time.perf_counter() - t0)
+        vals = pr.values(ls.x)
+        out["probing"] = {"values": vals, "rms_m": float(np.sqrt(np.mean(ls.fun ** 2))), "evaluations": int(ls.nfev),
+                          "relative_error": {k: abs(vals[k] - v) / abs(v) for k, v in truth.items()}}
+    out["exact"]["seconds_median"] = float(np.median(exact))
+    out["probing"]["seconds_median"] = float(np.median(probe))
+    out["probing_over_exact"] = out["probing"]["seconds_median"] / out["exact"]["seconds_median"]
+    return out
+
+
+def bench_baseline(episodes: int) -> dict:
+    from pathlib import Path
+
+    import policies
+    from policies.evaluate import evaluate
+
+    out = {}
+    root = Path(policies.__file__).parent / "pretrained"
+    for task, zip_name in (("follow_target", "follow_target.zip"), ("ik4d", "ik4d.zip")):
+        row = {}
+        for name, pol in (("inverse_statics", "inverse-statics"), ("sac", str(root / zip_name))):
+            r = evaluate(pol, task, episodes=episodes, num_envs=min(episodes, 10), seed=0)
+            row[name] = {k: r.get(k) for k in ("avg_discounted_return_mean", "avg_discounted_return_std",
+                                               "final_tip_error_mean", "final_orientation_error_deg_mean",
+                                               "reached_rate", "wall_s")}
+        out[task] = row
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = base_parser("rodlab bench gradients", __doc__.split("\n")[0])
+    p.add_argument("--envs", type=int, default=50, help="envs of the step-derivative timing (default 50)")
+    p.add_argument("--fit-seconds", type=float, default=10.0, help="seconds of motion to fit (default 10)")
+    p.add_argument("--episodes", type=int, default=10, help="episodes per task of the baseline comparison")
+    p.add_argument("--parts", default="step,fit,baseline")
+    args = p.parse_args(argv)
+    parts = set(args.parts.split(","))
+    reps = args.repeats or (1 if args.quick else 3)
+    out: dict = {"machine": machine_info()}
+    if "step" in parts:
+        out["step"] = bench_step(4 if args.quick else args.envs, reps)
+        st = out["step"]
+        print(f"step ({st['envs']} envs): forward {st['forward_ms_per_env']:.3f} ms/env, backward "
+              f"{st['backward_ms_per_env']:.3f} ms/env ({st['backward_over_forward']:.0f}x; linearisation "
+              f"{st['linearise_ms_per_env']:.3f}); memory {st['record_bytes_per_env_step']} B recorded + "
+              f"{st['linearisation_bytes_per_env_step']} B linearisation per env-step")
+    if "fit" in parts:
+        out["fit"] = bench_fit(1.0 if args.quick else args.fit_seconds, reps)
+        ft = out["fit"]
+        print(f"fit ({ft['seconds_of_motion']:g} s, {ft['points']} points): exact {ft['exact']['seconds_median']:.1f} s "
+              f"({ft['exact']['evaluations']} evaluations), probing {ft['probing']['seconds_median']:.1f} s "
+              f"({ft['probing']['evaluations']}); ratio {ft['probing_over_exact']:.2f}; errors "
+              f"{ {k: round(v, 4) for k, v in ft['exact']['relative_error'].items()} }")
+    if "baseline" in parts:
+        out["baseline"] = bench_baseline(2 if args.quick else args.episodes)
+        for task, row in out["baseline"].items():
+            print(task, {k: round(v["avg_discounted_return_mean"], 2) for k, v in row.items()})
+    out["machine"]["loadavg_at_end"] = machine_info()["loadavg_at_start"]
+    path = write_json(args.out, "gradients.json", out)
+    print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

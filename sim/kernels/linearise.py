@@ -1,0 +1,126 @@
+"""The linearisation of recorded steps for their derivatives (sim.gradients; docs/physics.md §3.9), all envs of a step
+in one parallel call.
+
+Per env: the full band of ∂f/∂x' at the step's solution with no DOF constrained; in 3-D its position columns by
+central differences of the residual, grouped so that one pair of residual evaluations gives 2·kl + 1 columns at once
+(columns 2·kl + 1 apart touch disjoint rows of the band); the columns of the residual's dependence on the natural
+curvature and twist of every node (affine: a unit change, nodes three apart in one evaluation: their elements share
+no row) and on the stiffness and mass factors (a second rod record with the factor doubled). A
+workspace per env: an analysis path, not the step's.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from sim.contact import stages as contact
+from sim.numba_options import OPT_ALLOC
+
+from .data import KL_2D, KL_3D
+from .newton import assemble
+from .workspace import alloc_workspace, copy_into
+
+__all__ = ["linearise_step"]
+
+
+@njit(**OPT_ALLOC)
+def _residual(e, x, kb, tb, h, rod, prm, cs, w, out):
+    """out = f(x) of env e from the start state already in w.sub_*."""
+    copy_into(w.x, x)
+    assemble(prm.planar, e, w.x, h, kb, tb, rod, prm, cs, w, False, False)
+    copy_into(out, w.f)
+
+
+@njit(parallel=True, **OPT_ALLOC)
+def linearise_step(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g, rod_m, prm_arr, cd,
+                   want_kb, want_tb, want_scalars, ab_out, kb_out, tb_out, sc_out):
+    """For every env e of one recorded step: ab_out[e] (n + kl, 2 kl + 1) the band of ∂f/∂x' at x1s[e];
+    kb_out[e] (n, N, 2) ∂f/∂κ̄, tb_out[e] (n, N) ∂f/∂τ̄ (if wanted); sc_out[e] (n, 3) the columns of the
+    factors on stiffness (rod_e), twisting stiffness (rod_g) and mass (rod_m), each doubled, if wanted (damping's
+    column is m (x' − x)/h: the caller's). ``rod``'s fixed flags must be all 0 (the caller constrains afterwards)."""
+    B = x1s.shape[0]
+    n = x1s.shape[1]
+    N = bs.shape[1]
+    planar = prm_arr[0].planar
+    kl = KL_2D if planar else KL_3D
+    dpn = 2 if planar else 4
+    for ep in prange(B):
+        e = np.int64(ep)  # a signed index: the kernels take min(e, rows - 1) (an unsigned one would turn it float)
+        prm = prm_arr[0]  # the parameters record, by reference (read inside the parallel loop, as the step does)
+        w = alloc_workspace(N, planar, rod.pairs.shape[0])
+        cs = contact.alloc(cd, N, rod.pairs.shape[0])
+        copy_into(w.sub_x, x0s[e])
+        copy_into(w.sub_v, u0s[e])
+        copy_into(w.sub_d1, d1s[e])
+        copy_into(w.sub_t, ts[e])
+        copy_into(w.sub_beta, bs[e])
+        x1 = x1s[e]
+        kb = kbs[e]
+        tb = tbs[e]
+        copy_into(w.x, x1)
+        assemble(planar, e, w.x, h, kb, tb, rod, prm, cs, w, True, False)
+        ab = ab_out[e]
+        copy_into(ab, w.ab)
+        f0 = w.xt.copy()
+        _residual(e, x1, kb, tb, h, rod, prm, cs, w, f0)
+        fp = f0.copy()
+        fm = f0.copy()
+        xp = x1.copy()
+        if not planar:  # position columns by central differences, 2 kl + 1 columns per pair of evaluations
+            scale = 1.0
+            for k in range(N):
+                for a in range(3):
+                    scale = max(scale, abs(x1[4 * k + a]))
+            eps = 1e-6 * scale
+            stride = 2 * kl + 1
+            for color in range(stride):
+                copy_into(xp, x1)
+                for c in range(color, n, stride):
+                    if c % 4 != 3:
+                        xp[c] += eps
+                _residual(e, xp, kb, tb, h, rod, prm, cs, w, fp)
+                copy_into(xp, x1)
+                for c in range(color, n, stride):
+                    if c % 4 != 3:
+                        xp[c] -= eps
+                _residual(e, xp, kb, tb, h, rod, prm, cs, w, fm)
+                for c in range(color, n, stride):
+                    if c % 4 == 3:
+                        continue
+                    for r in range(max(0, c - kl), min(n, c + kl + 1)):
+                        ab[r, kl + c - r] = (fp[r] - fm[r]) / (2.0 * eps)
+        if want_kb or want_tb:
+            kb1 = kb.copy()
+            tb1 = tb.copy()
+            ncomp = 1 if planar else 2
+            for color in range(3):
+                for comp in range(ncomp + (1 if want_tb and not planar else 0)):
+                    if comp < ncomp and not want_kb:
+                        continue
+                    copy_into(kb1, kb)
+                    copy_into(tb1, tb)
+                    for i in range(1 + color, N - 1, 3):
+                        if comp < ncomp:
+                            kb1[i, comp] += 1.0
+                        else:
+                            tb1[i] += 1.0
+                    _residual(e, x1, kb1, tb1, h, rod, prm, cs, w, fp)
+                    for i in range(1 + color, N - 1, 3):
+                        lo = dpn * (i - 1)
+                        hi = min(n, dpn * (i + 2))
+                        for r in range(lo, hi):
+                            d = fp[r] - f0[r]
+                            if comp < ncomp:
+                                kb_out[e, r, i, comp] = d
+                            else:
+                                tb_out[e, r, i] = d
+        if want_scalars:
+            _residual(e, x1, kb, tb, h, rod_e, prm, cs, w, fp)
+            for r in range(n):
+                sc_out[e, r, 0] = fp[r] - f0[r]
+            _residual(e, x1, kb, tb, h, rod_g, prm, cs, w, fp)
+            for r in range(n):
+                sc_out[e, r, 1] = fp[r] - f0[r]
+            _residual(e, x1, kb, tb, h, rod_m, prm, cs, w, fp)
+            for r in range(n):
+                sc_out[e, r, 2] = fp[r] - f0[r]
