@@ -71,6 +71,49 @@ def bench_step(envs: int, repeats: int) -> dict:
             "linearisation_bytes_per_env_step": lin_bytes}
 
 
+def bench_unconverged_gap(steps: int, iterations=(2, 3, 5, 30)) -> dict:
+    """The paper's arm as the tasks run it (2 Newton iterations, accepted unconverged), and with 3, 5 and 30: the
+    derivative the implicit function theorem gives (that of the converged steps) against central differences of
+    what was computed. The force tolerance is set far below reach, so each step takes exactly its iteration cap
+    (or converges) and the computed map is smooth; the 30-iteration row is the check (converged: the gap is the
+    finite differences' own error)."""
+    from sim import build_model
+    from sim import gradients as G
+    from sim.step import Simulator
+
+    base = _arm_spec(converged=False)
+    rng = np.random.default_rng(0)
+    out = {"steps": steps, "rows": []}
+    for it in iterations:
+        spec = dataclasses.replace(base, sim=dataclasses.replace(base.sim, newton_max_iter=int(it), newton_tol=1e-13,
+                                                                 newton_dtol=1e-12))
+        sim = Simulator(build_model(spec), envs=1)
+        N = sim.model.node_count
+        kb = np.random.default_rng(0).normal(0.0, 0.03, (steps, 1, N, 2)).cumsum(axis=0)  # a drifting command
+        direction = rng.normal(0.0, 1.0, kb.shape)
+
+        def run(k, tape=False, sim=sim):
+            st = sim.reset()
+            ctrls = []
+            for i in range(steps):
+                c = sim.make_control()
+                c.kappa_bar[:] = k[i]
+                ctrls.append(c)
+            if tape:
+                return G.rollout(sim, st, ctrls)
+            for c in ctrls:
+                sim.step(st, c)
+            return st.dof.reshape(1, -1).copy()
+
+        tape = run(kb, tape=True)
+        jvp = tape.jvp({"kappa_bar": direction})["dof"][-1]
+        eps = 1e-6
+        fd = (run(kb + eps * direction) - run(kb - eps * direction)) / (2 * eps)
+        out["rows"].append({"newton_iterations": int(it), "unconverged_steps": tape.unconverged,
+                            "relative_gap": float(np.linalg.norm(jvp - fd) / np.linalg.norm(fd))})
+    return out
+
+
 def bench_fit(seconds: float, repeats: int) -> dict:
     """3 parameters from ``seconds`` of motion: exact Jacobian vs finite-difference probing."""
     import tempfile
@@ -147,7 +190,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--envs", type=int, default=50, help="envs of the step-derivative timing (default 50)")
     p.add_argument("--fit-seconds", type=float, default=10.0, help="seconds of motion to fit (default 10)")
     p.add_argument("--episodes", type=int, default=10, help="episodes per task of the baseline comparison")
-    p.add_argument("--parts", default="step,fit,baseline")
+    p.add_argument("--parts", default="step,gap,fit,baseline")
     args = p.parse_args(argv)
     parts = set(args.parts.split(","))
     reps = args.repeats or (1 if args.quick else 3)
@@ -159,6 +202,11 @@ def main(argv: list[str] | None = None) -> int:
               f"{st['backward_ms_per_env']:.3f} ms/env ({st['backward_over_forward']:.0f}x; linearisation "
               f"{st['linearise_ms_per_env']:.3f}); memory {st['record_bytes_per_env_step']} B recorded + "
               f"{st['linearisation_bytes_per_env_step']} B linearisation per env-step")
+    if "gap" in parts:
+        out["unconverged_gap"] = g = bench_unconverged_gap(10 if args.quick else 40)
+        for row in g["rows"]:
+            print(f"paper arm, {g['steps']} steps of {row['newton_iterations']} Newton iterations "
+                  f"({row['unconverged_steps']} unconverged): relative gap {row['relative_gap']:.3g}")
     if "fit" in parts:
         out["fit"] = bench_fit(1.0 if args.quick else args.fit_seconds, reps)
         ft = out["fit"]
