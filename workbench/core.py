@@ -55,6 +55,7 @@ class Workbench:
         self.obstacles: list[obst.ObstacleEdit] = obst.edits_from_spec(spec)
         self.on_scene_changed: list[Callable[[], None]] = []
         self._last_scalars: dict = {}
+        self._reach_warm = None  # the last inverse-statics answer of reach_to (its warm start)
         self._push_snapshot()
 
     @classmethod
@@ -174,6 +175,51 @@ class Workbench:
     def set_teleop_value(self, k: int, comp: int, value: float) -> None:
         with self.lock:
             self.teleop.set_value(k, comp, value)
+
+    def reach_to(self, target) -> float:
+        """Teleop by inverse statics (docs/physics.md §3.10): set the steered rod's absolute natural curvature at the
+        control points to what holds its tip on ``target`` (3,) [m] at equilibrium, obstacles and contact left out
+        (the rod may press against an obstacle on its way); the twist sliders go to 0. A few Gauss–Newton iterations
+        per call, warm-started from the last call, so repeated calls (a dragged target) converge as they go.
+        Returns the distance [m] between the target and the equilibrium tip of the curvature set. Raises
+        ActionRefused in policy mode or with several rods, ValueError for a target that is not 3 finite numbers."""
+        import dataclasses
+
+        from sim.inverse import reach
+        from workbench.teleop import KAPPA_LIMIT
+
+        tgt = np.asarray(target, dtype=np.float64).reshape(-1)
+        if tgt.shape != (3,) or not np.all(np.isfinite(tgt)):
+            raise ValueError(f"reach target must be 3 finite numbers [m], got {target!r}")
+        with self.lock:
+            if self.mode != "teleop":
+                raise ActionRefused("reach steers the rod by hand: stop the policy (or take over) first")
+            if len(self.teleop_rods()) > 1:
+                raise ActionRefused("reach steers a scene of one rod")
+            spec = self.live.current_spec()
+            contact = spec.contact
+            if hasattr(contact, "enabled"):
+                contact = dataclasses.replace(contact, enabled=False)
+            spec = dataclasses.replace(spec, obstacles=(), contact=contact)
+            cfg = self.teleop.converter.cfg
+            from policies.control import smoothing_weights
+
+            owner, weight = smoothing_weights(cfg.n_nodes, cfg.control_points, cfg.smoothing)
+            basis = np.zeros((cfg.n_nodes, cfg.n_points))
+            on = owner >= 0
+            basis[np.flatnonzero(on), owner[on]] = weight[on]
+            key = (id(self.live.base_spec), self.live.gravity)  # a warm start holds for one scene only
+            warm = self._reach_warm[1] if self._reach_warm is not None and self._reach_warm[0] == key else None
+            tel = self.teleop
+        res = reach(spec, tgt[None], basis=basis, bound=KAPPA_LIMIT, max_iterations=4, warm=warm)  # outside the lock
+        with self.lock:
+            self._reach_warm = (key, res)
+            if tel is self.teleop and self.mode == "teleop":
+                if tel.mode != "absolute":
+                    tel.set_mode("absolute")
+                tel.values[:, :2] = res.coefficients[0]
+                tel.values[:, 2] = 0.0
+        return float(res.error[0])
 
     def teleop_rods(self) -> list[str]:
         """Names of the rods teleop can steer (the live scene's rods)."""

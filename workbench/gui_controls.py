@@ -19,6 +19,10 @@ KEYS_HELP = ("Keys: **space** play / pause · **→** one step (pauses) · **r**
 TABS = ("Run", "Teleop", "Obstacles", "Policy", "Recordings", "Plots", "Display")
 
 
+REACH_GIZMO_SCALE = 0.2  # [m] size of the Reach target's gizmo
+REACH_LIMIT_M = 10.0  # [m] targets farther from the origin are not taken
+
+
 def slider_label(k: int, comp: int) -> str:
     """Label of the teleop slider for control point k (0..4) and component comp (0..2)."""
     return f"{COMP_LABELS[comp]} at node {CONTROL_NODES[k]} [rad]"
@@ -110,6 +114,11 @@ class ControlsPanel:
                     row.append(s)
                 self.sliders.append(row)
             self.zero_btn = gui.add_button("Zero sliders", hint="every slider back to 0")
+            self.reach = gui.add_checkbox("Reach", initial_value=False,
+                                          hint="drag the target at the tip and the arm follows: the sliders become the "
+                                               "curvature that holds the tip there at equilibrium (inverse statics, "
+                                               "docs/physics.md §3.10; obstacles left out)")
+        self.reach_gizmo = None  # the target's transform gizmo while Reach is on
         self._syncing = False
         for h in (self.speed, self.color_by, self.color_range, self.color_max, self.arrows, self.force_scale, self.mode, self.rod, *(s for row in self.sliders for s in row)):
             app.checks.track(h)
@@ -229,6 +238,10 @@ class ControlsPanel:
             if self.camera.value in CAMERAS:
                 app.view.set_camera(self.camera.value)
 
+        @self.reach.on_update
+        def _(_e) -> None:
+            self.show_reach(bool(self.reach.value))
+
         @self.zero_btn.on_click
         def _(_e) -> None:
             with wb.lock:
@@ -236,6 +249,35 @@ class ControlsPanel:
                     for c in range(3):
                         wb.set_teleop_value(k, c, 0.0)
             self.sync_sliders()
+
+    def show_reach(self, on: bool) -> None:
+        """Reach on: a target gizmo at the tip, each move of it sets the sliders by inverse statics
+        (``Workbench.reach_to``); off: the gizmo goes."""
+        app, wb = self.app, self.app.wb
+        if self.reach_gizmo is not None:
+            self.reach_gizmo.remove()
+            self.reach_gizmo = None
+        if not on:
+            return
+        if wb.mode != "teleop" or len(wb.teleop_rods()) > 1:
+            self.reach.value = False
+            self._say("Reach steers one rod by hand: stop the policy (or take over), one rod in the scene")
+            return
+        g = app.server.scene.add_transform_controls("/reach_target", scale=REACH_GIZMO_SCALE, disable_rotations=True,
+                                                    position=tuple(float(v) for v in wb.tip), depth_test=False)
+
+        def _moved(_event) -> None:
+            pos = np.asarray(g.position, dtype=np.float64)
+            if pos.shape != (3,) or not np.all(np.isfinite(pos)) or np.abs(pos).max() > REACH_LIMIT_M:
+                self._say(f"Reach: a target beyond ±{REACH_LIMIT_M:g} m is ignored")
+                return
+            err = wb.reach_to(pos)
+            self.sync_sliders()
+            self._say("" if err < 1e-3 else f"Reach: the closest equilibrium found is {err * 100:.1f} cm from the "
+                                              "target (out of reach, or still converging: move on)")
+
+        g.on_update(_moved)
+        self.reach_gizmo = g
 
     def set_rods(self, names: list[str], current: int) -> None:
         """The rods of the live scene in the Rod dropdown (shown only with several rods)."""

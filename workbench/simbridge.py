@@ -77,6 +77,10 @@ class LiveSim:
 
     owner = None  # a task core whose simulator this wraps (policy mode), else None
 
+    def current_spec(self):
+        """The scene the live rod runs now (gravity as switched)."""
+        return self._spec_for_build()
+
     def _build(self, *, keep_state: bool) -> None:
         if self.owner is not None:
             raise ActionRefused("this simulator belongs to a task; stop the policy to edit the scene")

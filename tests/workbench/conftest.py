@@ -65,6 +65,8 @@ def wb_page(shared):
     wb.stop_policy()
     while wb.obstacles:
         wb.delete_obstacle(len(wb.obstacles) - 1)
+    app.controls.reach.value = False
+    app.controls.show_reach(False)
     wb.set_teleop_mode("absolute")
     wb.reset()
     wb.set_playing(True)
