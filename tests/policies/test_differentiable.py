@@ -2,46 +2,23 @@
 central differences; a torch optimiser uses it to bend a rod's tip onto a target."""
 from __future__ import annotations
 
-import tomllib
-
 import numpy as np
 import pytest
 import torch
 
 from policies.differentiable import DifferentiableRollout
 from sim.model import build_model
-from sim.scene import parse_scene
 from sim.step import Simulator
+from tests.unit._rodspec import make_spec
 
-SCENE = """
-[sim]
-dt = 0.05
-gravity = [0.0, 0.0, -9.8]
-damping = 2.0
-newton_tol = 1e-12
-newton_max_iter = 40
-accept_unconverged = false
-mode = "3d"
-integrator = "backward_euler"
-line_search = "none"
-newton_dtol = 1e-12
-[rod]
-nodes = 7
-length = 0.6
-radius = 0.03
-density = 1000.0
-youngs_modulus = 1e6
-poisson_ratio = 0.5
-start = [0.0, 0.0, 0.0]
-direction = [0.0, 0.0, 1.0]
-clamp = "first_edge"
-"""
 T, B = 8, 2
 
 
 @pytest.fixture(scope="module")
 def roll():
-    sim = Simulator(build_model(parse_scene(tomllib.loads(SCENE))), envs=B)
+    spec = make_spec(nodes=7, length=0.6, radius=0.03, dt=0.05, gravity=(0.0, 0.0, -9.8), damping=2.0, tol=1e-12,
+                     dtol=1e-12, max_iter=40, direction=(0.0, 0.0, 1.0))
+    sim = Simulator(build_model(spec), envs=B)
     return DifferentiableRollout(sim, sim.reset())
 
 

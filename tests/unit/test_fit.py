@@ -13,38 +13,18 @@ import numpy as np
 import pytest
 
 from sim import fit as F
-from sim.scene import load_scene
+from sim.scene import dump_scene, load_scene
+from tests.unit._rodspec import make_spec
 
-SCENE_3D = """
-[sim]
-dt = 0.02
-gravity = [0.0, 0.0, -9.8]
-damping = 0.2
-newton_tol = 1e-10
-newton_max_iter = 30
-accept_unconverged = false
-mode = "{mode}"
-integrator = "backward_euler"
-line_search = "none"
-newton_dtol = 1e-9
-
-[rod]
-nodes = 9
-length = 1.0
-radius = 0.02
-density = 1000.0
-youngs_modulus = 1e6
-poisson_ratio = 0.5
-start = [0.0, 0.0, 0.0]
-direction = [1.0, 0.0, 0.3]
-clamp = "first_edge"
-"""
 NOISE_M = 1e-3
 
 
 def scene(tmp_path: Path, mode: str = "3d") -> Path:
+    """A 9-node clamped rod leaning over under gravity, damped, Newton converged tightly, as a scene file."""
     p = tmp_path / f"rod_{mode}.toml"
-    p.write_text(SCENE_3D.format(mode=mode))
+    direction = tuple(np.array([1.0, 0.0, 0.3]) / np.hypot(1.0, 0.3))
+    dump_scene(make_spec(nodes=9, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.2, max_iter=30, mode=mode,
+                         direction=direction), p)
     return p
 
 

@@ -3,7 +3,8 @@ rollouts for every parameter in 2-D and 3-D, with a step-size study; the adjoint
 is not covered is refused by name."""
 from __future__ import annotations
 
-import tomllib
+import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -11,40 +12,19 @@ import pytest
 from sim import gradients as G
 from sim.frames import update_frames
 from sim.model import build_model
-from sim.scene import parse_scene
+from sim.obstacles import SphereSpec
 from sim.step import Simulator
+from tests.unit._rodspec import make_spec
 
 T, B = 5, 2
-SCENE = """
-[sim]
-dt = 0.02
-gravity = [0.0, 0.0, -9.8]
-damping = 0.3
-newton_tol = 1e-13
-newton_max_iter = 60
-accept_unconverged = false
-mode = "{mode}"
-integrator = "backward_euler"
-line_search = "none"
-newton_dtol = 1e-13
-[rod]
-nodes = 8
-length = 1.0
-radius = 0.05
-density = 1000.0
-youngs_modulus = 1e6
-poisson_ratio = 0.5
-start = [0.0, 0.0, 0.0]
-direction = [0.3, 0.0, 1.0]
-clamp = "first_edge"
-"""
+DIRECTION = tuple(np.array([0.3, 0.0, 1.0]) / np.hypot(0.3, 1.0))  # leaning over: gravity bends it
 
 
-def simulator(mode: str, edit=None) -> Simulator:
-    doc = tomllib.loads(SCENE.format(mode=mode))
-    if edit is not None:
-        edit(doc)
-    return Simulator(build_model(parse_scene(doc)), envs=B)
+def simulator(mode: str, **kw) -> Simulator:
+    """A bent-over clamped rod of 8 nodes under gravity, damped, Newton converged tightly; ``kw`` as make_spec."""
+    args = dict(nodes=8, radius=0.05, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.3, tol=1e-13, dtol=1e-13,
+                max_iter=60, direction=DIRECTION, mode=mode)
+    return Simulator(build_model(make_spec(**{**args, **kw})), envs=B)
 
 
 def controls(sim, kb, tb):
@@ -97,12 +77,6 @@ def case(request):
     return mode, sim, kb, tb, tape, rng
 
 
-def scaled(section, key, change):
-    def edit(doc):
-        doc[section][key] = change(doc[section][key])
-    return edit
-
-
 def perturbations(mode, sim, kb, tb, tape, rng):
     """name -> (tangent dict, function eps -> final DOFs of the rollout with the parameters moved by eps·tangent)."""
     n = tape.dof.shape[2]
@@ -118,13 +92,12 @@ def perturbations(mode, sim, kb, tb, tape, rng):
     out = {
         # the scene ties G to E through ν: a change of E there is a change of both factors
         "log_youngs_modulus": ({"log_youngs_modulus": one, "log_shear_modulus": one}, lambda eps: final_dof(
-            simulator(mode, scaled("rod", "youngs_modulus", lambda v: v * np.exp(eps))), kb, tb)),
+            simulator(mode, E=1e6 * math.exp(eps)), kb, tb)),
         "log_density": ({"log_density": one}, lambda eps: final_dof(
-            simulator(mode, scaled("rod", "density", lambda v: v * np.exp(eps))), kb, tb)),
-        "damping": ({"damping": one}, lambda eps: final_dof(
-            simulator(mode, scaled("sim", "damping", lambda v: v + eps)), kb, tb)),
+            simulator(mode, density=1000.0 * math.exp(eps)), kb, tb)),
+        "damping": ({"damping": one}, lambda eps: final_dof(simulator(mode, damping=0.3 + eps), kb, tb)),
         "gravity": ({"gravity": np.tile(g, (B, 1))}, lambda eps: final_dof(
-            simulator(mode, scaled("sim", "gravity", lambda v: list(np.array(v) + eps * g))), kb, tb)),
+            simulator(mode, gravity=tuple(np.array([0.0, 0.0, -9.8]) + eps * g)), kb, tb)),
         "kappa_bar": ({"kappa_bar": dk}, lambda eps: final_dof(sim, kb + eps * dk, tb)),
         "vel0": ({"vel0": v0}, lambda eps: final_dof(sim, kb, tb, vel0=tape.vel[0] + eps * v0)),
         "dof0": ({"dof0": x0}, lambda eps: final_dof(sim, kb, tb, dof0=tape.dof[0] + eps * x0)),
@@ -172,13 +145,12 @@ def test_envs_of_a_batch_are_differentiated_alone(case):
 
 
 def test_what_is_not_covered_is_refused_by_name():
-    sim = simulator("3d", scaled("sim", "integrator", lambda v: "midpoint"))
+    sim = simulator("3d", integrator="midpoint")
     with pytest.raises(G.GradientError, match="midpoint"):
         G.rollout(sim, sim.reset(), [sim.make_control()])
-
-    def with_sphere(doc):
-        doc["obstacle"] = [{"type": "sphere", "name": "ball", "center": [0.5, 0.0, 0.5], "radius": 0.1}]
-    sim = simulator("3d", with_sphere)
+    spec = make_spec(nodes=8, direction=DIRECTION)
+    ball = SphereSpec(center=(0.5, 0.0, 0.5), radius=0.1, name="ball")
+    sim = Simulator(build_model(dataclasses.replace(spec, obstacles=(ball,))), envs=B)
     with pytest.raises(G.GradientError, match="contact"):
         G.rollout(sim, sim.reset(), [sim.make_control()])
     sim = simulator("2d")
