@@ -11,7 +11,8 @@ from tools import soak
 from tools.browser import wait_for
 from tools.hostile_client import HostileClient
 
-SOAK_S = 90.0  # after a warm-up that has set every element once (what a session loads once is then loaded)
+SOAK_S = 150.0  # after a warm-up that has set every element once (what a session loads once is then loaded); the
+# first third lets actions running at once reach their working set, which takes ~45 s beside two busy processes
 GROWTH_MB = 100.0  # between the lowest resident memory of the second and of the last third (heavy actions
 # running at once make peaks of several hundred MB that the upkeep hands back; a leak lifts the floor)
 GROWTH_THREADS = 8

@@ -65,8 +65,10 @@ def test_follow_tip(wb_page):
             wait_for(lambda f=f: wb.frame_index > f + 40, timeout=60, what="the tip to move")
             _pause(app)
             tip = _tip(app)
-            wait_for(lambda tip=tip: np.allclose(cam.look_at, tip, atol=1e-6), what="look-at on the tip")
-            np.testing.assert_allclose(np.asarray(cam.position) - np.asarray(cam.look_at), offset0, atol=1e-6)
+            # the page reports position and look-at of one camera state; read both until they are of the same one
+            wait_for(lambda tip=tip: np.allclose(cam.look_at, tip, atol=1e-6)
+                     and np.allclose(np.asarray(cam.position) - np.asarray(cam.look_at), offset0, atol=1e-6),
+                     what=f"look-at on the tip {tip}, at the offset {offset0}")
 
             def orange_centre() -> bool:  # the page really looks at the tip: the rod's end is in the middle
                 p = _centre(canvas_png(page))
