@@ -8,7 +8,7 @@ import io
 import numpy as np
 import pytest
 
-from tools.browser import canvas_png, expand_folder, newest_client, project, wait_for
+from tools.browser import canvas_png, expand_folder, newest_client, project, retry_until, wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -148,24 +148,28 @@ def test_tip_frame_beside_the_ik_target_frame(wb_page):
         wait_for(lambda: wb.mode == "policy" and view.target_frame.visible and view.rod.tip_frame.visible
                  and view.last_frame is not None and view.last_frame.target_wxyz is not None,
                  timeout=120, what="IK task with both frames")
-        # each drawn frame with the tip frame as the view left it for that frame (the hooks run in the drawing
-        # thread, right after the view drew the frame: nothing else can draw in between)
+        # each drawn frame with the tip frame as the view left it, read in the drawing thread right after the view
+        # drew it. Another thread may draw at the same moment (a render requested from the page), so the paused
+        # session is redrawn until a frame's own tip frame is read: the check is that the view draws it right
         drawn: list = []
 
         def seen(fr) -> None:
             drawn.append((fr, np.array(view.rod.tip_frame.position), np.array(view.rod.tip_frame.wxyz)))
 
+        def at_its_tip(entry) -> bool:
+            fr, position, _ = entry
+            return bool(np.allclose(position, fr.node_pos[-1], rtol=0.0, atol=1e-9))
+
         app.render_hooks.append(seen)
         try:
             wb.set_playing(False)
             n = len(drawn)
-            app.request_render()
-            wait_for(lambda: len(drawn) > n, what="a redraw of the paused session")
+            retry_until(app.request_render, lambda: any(at_its_tip(e) for e in drawn[n:]), attempt_s=2.0,
+                        what="a redraw of the paused session with the tip frame at its tip")
         finally:
             app.render_hooks.remove(seen)
-        fr, position, wxyz = drawn[-1]
+        fr, position, wxyz = next(e for e in drawn[n:] if at_its_tip(e))
         assert fr.target_wxyz is not None
-        np.testing.assert_allclose(position, fr.node_pos[-1], rtol=0.0, atol=1e-9)
         from workbench.frame import quat_to_matrix
 
         R = quat_to_matrix(wxyz)
