@@ -46,6 +46,7 @@ __all__ = [
     "Smoothing",
     "control_config",
     "smoothing_weights",
+    "smoothing_basis",
     "CONTROL_POINTS",
     "STATE_NODES",
 ]
@@ -142,6 +143,16 @@ def control_config(kind: ControlKind, *, substeps: int, smoothing: Smoothing = "
         raise ValueError(f"unknown control kind {kind!r}; expected one of {_KINDS}")
     kw.setdefault("kappa_scale", _SCALES[kind])
     return ControlConfig(kind=kind, substeps=substeps, smoothing=smoothing, **kw)
+
+
+def smoothing_basis(cfg: ControlConfig) -> np.ndarray:
+    """(N, P) node curvature per unit accumulated curvature of each control point: the converter's spatial
+    weights as a matrix (node κ̄ = basis @ K), for solvers that work on the control points' values."""
+    owner, weight = smoothing_weights(cfg.n_nodes, cfg.control_points, cfg.smoothing)
+    basis = np.zeros((cfg.n_nodes, cfg.n_points))
+    on = np.flatnonzero(owner >= 0)
+    basis[on, owner[on]] = weight[on]
+    return basis
 
 
 def smoothing_weights(

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from sim.inverse import reach
 
-from .control import smoothing_weights
+from .control import smoothing_basis
 
 __all__ = ["InverseStaticsController", "MODEL_BASED"]
 
@@ -33,10 +33,7 @@ class InverseStaticsController:
         self.cfg = cfg
         self.planar = core.planar
         self.plane_y = float(core.model.plane_y) if core.planar else 0.0
-        owner, weight = smoothing_weights(cfg.n_nodes, cfg.control_points, cfg.smoothing)
-        self.basis = np.zeros((cfg.n_nodes, cfg.n_points))
-        on = owner >= 0
-        self.basis[np.flatnonzero(on), owner[on]] = weight[on]
+        self.basis = smoothing_basis(cfg)
         off = 0
         self.slices = {}
         for name, size in core.obs_fields:

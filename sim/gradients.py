@@ -369,7 +369,7 @@ def rollout(sim, state, controls) -> Tape:
     :class:`sim.Control`, one per step) and record what :class:`Tape` needs to differentiate it. Raises
     :class:`GradientError` for what the derivatives do not cover (contact, implicit midpoint, prescribed motion,
     a step that failed or took the retry ladder)."""
-    if int(sim._prm[0]["n_obstacles"]) > 0 or bool(sim._prm[0]["rod_pairs"]):
+    if sim.has_contact:
         raise GradientError("derivatives through contact are not available yet: disable [contact] or remove the "
                             "obstacles and self-contact of this scene")
     if bool(sim._prm[0]["midpoint"]):

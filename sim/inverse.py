@@ -53,7 +53,7 @@ def _tip_rows(model, tip: int) -> list[int]:
     return [dpn * tip, dpn * tip + 1] if dpn == 2 else [4 * tip, 4 * tip + 1, 4 * tip + 2]
 
 
-def _positions(model, state, tip: int) -> np.ndarray:
+def _positions(state, tip: int) -> np.ndarray:
     return np.asarray(state.node_pos)[:, tip, :]
 
 
@@ -91,7 +91,7 @@ def reach(spec, targets, *, nodes=None, basis=None, tip: int = -1, bound: float 
     comps = (0,) if planar else (0, 1)
     B = targets.shape[0]
     sim = Simulator(model, envs=B)
-    if int(sim._prm[0]["n_obstacles"]) > 0 or bool(sim._prm[0]["rod_pairs"]):
+    if sim.has_contact:
         raise ReachError("reach: scenes with contact are not supported yet (disable [contact] or remove the "
                          "obstacles)")
     state, ctrl = sim.reset(), sim.make_control()
@@ -119,7 +119,7 @@ def reach(spec, targets, *, nodes=None, basis=None, tip: int = -1, bound: float 
     err = np.full(B, np.inf)
     for it in range(max_iterations + 1):  # the last pass only measures the equilibrium of the last update
         solve_static(spec, state, ctrl, check_stability=False)
-        pos = _positions(model, state, tip)
+        pos = _positions(state, tip)
         resid = (targets - pos)[:, axes]
         err = np.linalg.norm(resid, axis=1)
         conv = err <= tol
@@ -158,6 +158,6 @@ def reach(spec, targets, *, nodes=None, basis=None, tip: int = -1, bound: float 
                 step *= trust / norm
             coef[e] = np.clip(coef[e] + step.reshape(P, len(comps)), -bound, bound)
         set_controls()
-    tips = _positions(model, state, tip).copy()
+    tips = _positions(state, tip).copy()
     return ReachResult(kappa_bar=ctrl.kappa_bar.copy(), tip=tips, error=err, converged=conv, iterations=it,
                        state=state, coefficients=coef)

@@ -132,6 +132,12 @@ class Simulator:
         """ctrl.tau_bar[envs, nodes] += delta [rad]."""
         ctrl.tau_bar[_ix(envs), _ix(nodes)] += delta
 
+    @property
+    def has_contact(self) -> bool:
+        """Whether the scene's steps compute any contact (obstacles with contact on, or edge pairs that may touch)."""
+        prm = self._prm[0]
+        return int(prm["n_obstacles"]) > 0 or bool(prm["rod_pairs"])
+
     # ------------------------------------------------------------------ stepping
     def _check(self, state: State, ctrl: Control) -> None:
         _validate.check_step_inputs(self, state, ctrl)  # every field named (sim/validate.py)

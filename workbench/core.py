@@ -10,18 +10,21 @@ and GUI callbacks call them concurrently.
 """
 from __future__ import annotations
 
+import dataclasses
 import threading
 from pathlib import Path
 from typing import Callable, Literal
 
 import numpy as np
 
+from policies.control import smoothing_basis
+from sim.inverse import reach
 from workbench import obstacles as obst
 from workbench.frame import Frame
 from workbench.history import History, Snapshot
 from workbench.session_recorder import SessionRecorder
 from workbench.simbridge import ActionRefused, LiveSim, builtin_spec, load
-from workbench.teleop import Teleop
+from workbench.teleop import KAPPA_LIMIT, Teleop
 
 Mode = Literal["teleop", "policy", "replay"]
 
@@ -183,11 +186,6 @@ class Workbench:
         per call, warm-started from the last call, so repeated calls (a dragged target) converge as they go.
         Returns the distance [m] between the target and the equilibrium tip of the curvature set. Raises
         ActionRefused in policy mode or with several rods, ValueError for a target that is not 3 finite numbers."""
-        import dataclasses
-
-        from sim.inverse import reach
-        from workbench.teleop import KAPPA_LIMIT
-
         tgt = np.asarray(target, dtype=np.float64).reshape(-1)
         if tgt.shape != (3,) or not np.all(np.isfinite(tgt)):
             raise ValueError(f"reach target must be 3 finite numbers [m], got {target!r}")
@@ -201,13 +199,7 @@ class Workbench:
             if hasattr(contact, "enabled"):
                 contact = dataclasses.replace(contact, enabled=False)
             spec = dataclasses.replace(spec, obstacles=(), contact=contact)
-            cfg = self.teleop.converter.cfg
-            from policies.control import smoothing_weights
-
-            owner, weight = smoothing_weights(cfg.n_nodes, cfg.control_points, cfg.smoothing)
-            basis = np.zeros((cfg.n_nodes, cfg.n_points))
-            on = owner >= 0
-            basis[np.flatnonzero(on), owner[on]] = weight[on]
+            basis = smoothing_basis(self.teleop.converter.cfg)
             key = (id(self.live.base_spec), self.live.gravity)  # a warm start holds for one scene only
             warm = self._reach_warm[1] if self._reach_warm is not None and self._reach_warm[0] == key else None
             tel = self.teleop
