@@ -387,7 +387,8 @@ def rollout(sim, state, controls) -> Tape:
     kbs, tbs, gravs = [], [], []
     unconverged = 0
     for k, ctrl in enumerate(controls):
-        gravs.append(sim._external_forces(state.time) if sim._loads else
+        force = getattr(ctrl, "force", None)  # node forces: held over the step, known inputs like gravity
+        gravs.append(sim._external_forces(state.time, force) if sim._loads or force is not None else
                      np.broadcast_to(sim._rod.grav, (B, sim._rod.grav.shape[1])).copy())
         kbs.append(np.array(ctrl.kappa_bar, dtype=np.float64))
         tbs.append(np.array(ctrl.tau_bar, dtype=np.float64))

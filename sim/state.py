@@ -99,13 +99,17 @@ class Control:
               2-D mode: only kappa_bar[..., 0] is used; it is the 3-D component that is in-plane for the
               rod's direction (κ1 for a +z rod), see docs/conventions.md.
     tau_bar   (B, N) integrated natural twist [rad] at nodes (rows 0, N-1 unused; ignored in 2-D).
+    force     (B, N, 3) point forces [N] on the nodes during the step, world axes (in 2-D the y component is
+              ignored), or None: a hand pulling the rod, a disturbance. They add to gravity and the scene's loads as
+              external forces held over the step (docs/physics.md §3.1); energy_gravity then holds their potential too.
     """
 
     kappa_bar: np.ndarray
     tau_bar: np.ndarray
+    force: np.ndarray | None = None
 
     def copy(self) -> "Control":
-        return Control(self.kappa_bar.copy(), self.tau_bar.copy())
+        return Control(self.kappa_bar.copy(), self.tau_bar.copy(), None if self.force is None else self.force.copy())
 
 
 @dataclass(eq=False)

@@ -148,8 +148,8 @@ class Simulator:
         self._check(state, ctrl)
         obstacles = self._no_obstacles if state.obstacles is None else state.obstacles
         rod = self._rod
-        if self._loads:
-            rod = rod._replace(grav=self._external_forces(state.time))
+        if self._loads or ctrl.force is not None:
+            rod = rod._replace(grav=self._external_forces(state.time, ctrl.force))
         moved = self._prescribe(state) if self._motion else None
         # the kernel's parallel loop runs over chunks of CHUNK envs: more threads than chunks would only wake threads
         # with nothing to do (one env would keep two cores busy), so the call uses at most one thread per chunk
@@ -181,11 +181,21 @@ class Simulator:
             need = C + int(cr.dropped.max())
             self._crep = ContactReport.zeros(self.envs, min(self._max_rows, max(2 * C, need)))
 
-    def _external_forces(self, time: np.ndarray) -> np.ndarray:
-        """(B, n) gravity plus the point loads, each weighted by the fraction of the env's step in its window."""
+    def _external_forces(self, time: np.ndarray, force: np.ndarray | None = None) -> np.ndarray:
+        """(B, n) gravity plus the point loads, each weighted by the fraction of the env's step in its window, plus
+        the control's node forces ``force`` (B, N, 3) [N] (in 2-D its x and z components)."""
         m = self.model
-        frac = window_fraction(time, m.dt, m.load_window)
-        return np.ascontiguousarray(self._rod.grav + frac @ m.load_force)
+        grav = self._rod.grav
+        if self._loads:
+            grav = grav + window_fraction(time, m.dt, m.load_window) @ m.load_force
+        if force is not None:
+            node = np.zeros((self.envs, m.node_count, 4 if m.mode == "3d" else 2))
+            if m.mode == "3d":
+                node[:, :, :3] = force
+            else:
+                node[:, :, 0], node[:, :, 1] = force[:, :, 0], force[:, :, 2]
+            grav = grav + node.reshape(self.envs, -1)
+        return np.ascontiguousarray(np.broadcast_to(grav, (self.envs, grav.shape[-1])))
 
     def _prescribe(self, state: State) -> np.ndarray:
         """Move the prescribed DOFs of every non-failed env to their values at the step end (the kernel keeps

@@ -368,6 +368,10 @@ def check_step_inputs(sim: Any, state: Any, ctrl: Any) -> None:
         a = _array(ctrl, "ctrl", name, shp, np.float64, writable=False)
         if not np.isfinite(a).all():
             raise ValueError(f"ctrl.{name}: contains NaN or inf")
+    if getattr(ctrl, "force", None) is not None:
+        a = _array(ctrl, "ctrl", "force", (B, N, 3), np.float64, writable=False)
+        if not np.isfinite(a).all():
+            raise ValueError("ctrl.force: contains NaN or inf")
 
 
 def quarantine_nonfinite(sim: Any, state: Any, stats: Any = None, also: np.ndarray | None = None) -> np.ndarray:

@@ -16,6 +16,7 @@ SOAK_S = 150.0  # after a warm-up that has set every element once (what a sessio
 GROWTH_MB = 100.0  # between the lowest resident memory of the second and of the last third (heavy actions
 # running at once make peaks of several hundred MB that the upkeep hands back; a leak lifts the floor)
 GROWTH_THREADS = 8
+HISTORY_BYTES = 4 * 2**20  # the rewind history's bound in this session
 
 
 @pytest.fixture
@@ -23,7 +24,12 @@ def app(tmp_path):
     from workbench.app import WorkbenchApp
     from workbench.core import Workbench
 
-    a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, wait_for_browser=False,
+    wb = Workbench.builtin()
+    # the rewind history grows by design up to its bound (workbench.history.MAX_BYTES, 200 MB; tested in
+    # tests/workbench/test_core.py), filling over minutes at the session's frame rate: kept small here, it is full
+    # within the warm-up and what the soak watches is growth beyond the designed bounds
+    wb.history.max_bytes = HISTORY_BYTES
+    a = WorkbenchApp(wb, port=0, env_map=False, wait_for_browser=False,
                      scenes_dir=tmp_path / "scenes", recordings_dir=tmp_path / "recordings").start()
     yield a
     wait_for(lambda: soak.idle(a), what="the page actions still running")  # none left running at exit

@@ -179,3 +179,37 @@ def test_prescribed_motion_planar():
         assert state.dof[0, 0].tolist() == pytest.approx([0.0, 0.3 * 0.01 * k], abs=1e-14)
         assert state.dof_vel[0, 0].tolist() == pytest.approx([0.0, 0.3], abs=1e-12)
         assert state.dof[0, -1].tolist() == pytest.approx([1.0, 0.0], abs=1e-14)
+
+
+@pytest.mark.parametrize("mode", ["3d", "2d"])
+def test_control_force_is_a_point_load_for_one_step(mode):
+    """Control.force on a node acts as a [[load]] of the same force does (same trajectory to round-off), per env:
+    an env without force does not move, and in 2-D the y component is ignored."""
+    F = (0.5, 0.7 if mode == "3d" else 0.0, -2.0)
+    base = make_spec(clamp="first_edge", dt=0.01, mode=mode)
+    loaded = Simulator(build_model(dataclasses.replace(base, loads=(LoadSpec(node=-1, force=F),))), envs=1)
+    pulled = Simulator(build_model(base), envs=2)
+    s1, c1 = loaded.reset(), loaded.make_control()
+    s2, c2 = pulled.reset(), pulled.make_control()
+    c2.force = np.zeros((2, pulled.model.node_count, 3))
+    c2.force[0, -1] = F
+    c2.force[1, -1] = (0.0, 9.0, 0.0) if mode == "2d" else (0.0, 0.0, 0.0)  # the plane's normal: no effect in 2-D
+    for _ in range(20):
+        loaded.step(s1, c1)
+        st = pulled.step(s2, c2)
+    assert st.converged.all()
+    np.testing.assert_allclose(s2.dof[0], s1.dof[0], rtol=0, atol=1e-12)
+    assert np.abs(s2.dof[1] - pulled.reset().dof[1]).max() < 1e-12
+    assert np.abs(s2.dof[0] - pulled.reset().dof[0]).max() > 1e-3  # it did move the rod
+
+
+def test_control_force_is_checked():
+    sim = Simulator(build_model(make_spec()), envs=1)
+    state, ctrl = sim.reset(), sim.make_control()
+    ctrl.force = np.zeros((1, 3, 3))
+    with pytest.raises(ValueError, match=r"ctrl.force: expected shape \(1, 11, 3\)"):
+        sim.step(state, ctrl)
+    ctrl.force = np.zeros((1, 11, 3))
+    ctrl.force[0, 4, 1] = np.nan
+    with pytest.raises(ValueError, match="ctrl.force: contains NaN"):
+        sim.step(state, ctrl)
