@@ -9,9 +9,12 @@ sim thread (``runner.SimThread``) and redraws the scene (``view_scene.SceneView`
 """
 from __future__ import annotations
 
+import collections
 import threading
 import time
 from pathlib import Path
+
+import numpy as np
 
 from workbench.core import Workbench
 from workbench.files import Folders
@@ -33,11 +36,15 @@ from workbench.gui_render import RenderPanel
 from workbench.gui_replay import ReplayPanel
 from workbench.handshake import Guard, start_viser
 from workbench.housekeeping import Housekeeping
+from workbench.pins import ray_nearest_node
+from workbench.pull import point
 from workbench.runner import SimThread
 from workbench.simbridge import ActionRefused
 from workbench.view_boundary import boundary_of
 from workbench.view_rod import scene_info
 from workbench.view_scene import SceneView
+
+HAND_EVENTS = 256  # hand gestures queued for the sim thread at most (a flood from a client drops the oldest)
 
 
 class WorkbenchApp:
@@ -88,7 +95,10 @@ class WorkbenchApp:
         self.status_note = ""  # a line appended to the status (video progress)
         self.notice = ("", 0.0)  # (text, when): why the last page action failed, shown for NOTICE_S
         self.compiling = ""  # what kernel is being compiled (shown in the status line); "" when none
-        self.thread = SimThread(wb, self._render, speed=speed, prepare=self._compile_kernels)
+        # the page's hand gestures (press on the tube and drag), in the page's order; the sim thread applies them
+        self._hand_events: collections.deque = collections.deque(maxlen=HAND_EVENTS)
+        self.thread = SimThread(wb, self._render, speed=speed, prepare=self._compile_kernels,
+                                inputs=self._apply_hand_events)
         self.housekeeping = Housekeeping(self.server)
         self.controls = ControlsPanel(self)
         self.panels = [self.controls]
@@ -98,6 +108,7 @@ class WorkbenchApp:
         self._planar = False
         wb.on_scene_changed.append(self._scene_changed)
         self._scene_changed()
+        self._bind_hand()
 
     def _build_optional_panels(self) -> None:
         self.obstacles = ObstaclesPanel(self)
@@ -234,6 +245,48 @@ class WorkbenchApp:
         self.wb.set_obstacle_pose(index, *pose)
         self.obstacles.show_pose(index)
         self.request_render()
+
+    def _bind_hand(self) -> None:
+        """Press on the rod and drag: the hand pulls the rod (``Workbench.grab`` / ``move_hand`` /
+        ``release``, workbench.pull). The callback runs on the server's event loop, in the order the page sent the
+        drag's start, moves and end, and only queues them: the sim thread applies them between steps."""
+        async def on_drag(ev) -> None:
+            self._hand_events.append((ev.phase, ev.start_position, ev.end_position))
+            self.request_render()
+
+        self.view.rod.on_grab(on_drag)
+        self.view.rod.on_pick(self._pick)
+
+    def _pick(self, edge: int, ev) -> None:
+        """A click on the rod pins (or unpins) a readout at the nearer node of the clicked edge (workbench.pins)."""
+        fr = self.view.last_frame
+        if fr is None or not 0 <= edge < len(fr.node_pos) - 1:
+            return
+        try:
+            origin, direction = point(ev.ray_origin, "ray origin"), point(ev.ray_direction, "ray direction")
+        except ValueError:  # not a ray a page sends
+            return
+        self.view.toggle_pin(ray_nearest_node(np.asarray(fr.node_pos), (edge, edge + 1), origin, direction))
+        self.request_render()
+
+    def _apply_hand_events(self) -> bool:
+        """Apply the queued hand gestures (in the sim thread); a refused one is said in the status line. Returns
+        whether there were any."""
+        any_ = False
+        while self._hand_events:
+            phase, start, end = self._hand_events.popleft()
+            any_ = True
+            try:
+                if phase == "start":
+                    self.wb.grab(start)
+                    self.wb.move_hand(end)
+                elif phase == "update":
+                    self.wb.move_hand(end)
+                else:
+                    self.wb.release()
+            except (ValueError, ActionRefused) as exc:
+                self.notice = (f"⚠ {exc}", time.monotonic())
+        return any_
 
     def _render(self, fr: Frame) -> None:
         # one frame drawn at a time: the sim thread and a video being recorded both draw, and a frame's tube,

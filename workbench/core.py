@@ -22,6 +22,7 @@ from sim.inverse import reach
 from workbench import obstacles as obst
 from workbench.frame import Frame
 from workbench.history import History, Snapshot
+from workbench.pull import Pull, grab, held_point, point, spring_forces
 from workbench.session_recorder import SessionRecorder
 from workbench.simbridge import ActionRefused, LiveSim, builtin_spec, load
 from workbench.teleop import KAPPA_LIMIT, Teleop
@@ -59,6 +60,7 @@ class Workbench:
         self.on_scene_changed: list[Callable[[], None]] = []
         self._last_scalars: dict = {}
         self._reach_warm = None  # the last inverse-statics answer of reach_to (its warm start)
+        self.pull: Pull | None = None  # a hand on the live rod (workbench.pull), None when nothing is held
         self._push_snapshot()
 
     @classmethod
@@ -79,6 +81,7 @@ class Workbench:
                     self.replay.advance()
                 return
             scalars: dict = {}
+            self._apply_hand()
             if self.policy is not None and self.mode == "policy":
                 hand = self.teleop if self.hand_control else None
                 scalars = self.policy.sim_step(self.live, hand=hand)
@@ -91,6 +94,43 @@ class Workbench:
             self._push_snapshot()
             if self.recorder is not None:
                 self.recorder.log(self.frame())
+
+    # ------------------------------------------------------------------ the hand
+    def grab(self, at) -> int:
+        """Grab the live rod at the node nearest the point ``at`` (3,) [m] (its neighbours held too,
+        workbench.pull); from the next step a spring pulls them toward the hand (:meth:`move_hand`), in teleop and
+        under a running policy alike (the policy sees the disturbance). Returns the grabbed node. ActionRefused in
+        replay; ValueError for a point that is not 3 finite numbers."""
+        with self.lock:
+            if self.mode == "replay":
+                raise ActionRefused("a recording cannot be pulled: close it to pull the live rod")
+            self.pull = grab(self.live.state.node_pos[0], at, self.live.rod_offsets)
+            return self.pull.node
+
+    def move_hand(self, to) -> None:
+        """Move the hand of the grab in progress to ``to`` (3,) [m] (nothing held: ignored)."""
+        p = point(to, "hand position")
+        with self.lock:
+            if self.pull is not None:
+                self.pull.pointer = p
+
+    def release(self) -> None:
+        """Let go of the rod (from the next step no force)."""
+        with self.lock:
+            self.pull = None
+
+    def _apply_hand(self) -> None:
+        """Set the stepped control's node forces to the hand's springs (None when nothing is held)."""
+        ctrl, pull = self.live.ctrl, self.pull
+        if pull is None:
+            ctrl.force = None
+            return
+        st, m = self.live.state, self.live.model
+        F = spring_forces(pull, st.node_pos[0], st.node_vel[0], np.asarray(m.node_mass), float(m.dt))
+        force = np.zeros((1, m.node_count, 3))
+        force[0, pull.nodes] = F
+        ctrl.force = force
+        pull.force = F.sum(axis=0)
 
     def advance(self) -> bool:
         """Step if playing; returns whether anything moved."""
@@ -141,6 +181,9 @@ class Workbench:
             fr = self.live.frame(targets=targets, scalars=self._last_scalars)
             if self.policy is not None:
                 fr.target_wxyz = self.policy.target_wxyz()
+            if self.pull is not None:
+                fr.hand = np.stack([held_point(self.pull, fr.node_pos), self.pull.pointer])
+                fr.hand_force = self.pull.force.copy()
             return fr
 
     @property
@@ -247,6 +290,7 @@ class Workbench:
             self._policy_obstacles_version = -1
             self._sync_policy_obstacles(notify=False)
             self.mode = "policy"
+            self.pull = None  # the hand lets go when the rod it held changes
             self.hand_control = False
             self.frame_index = 0
             self._last_scalars = {}
@@ -278,6 +322,7 @@ class Workbench:
             self.policy = None
             self.hand_control = False
             self.mode = "teleop"
+            self.pull = None  # the hand lets go when the rod it held changes
             self.live = getattr(self, "_teleop_live", self.live)
             self.obstacles = obst.edits_from_spec(self.live.base_spec)
             self.frame_index = 0
@@ -311,6 +356,7 @@ class Workbench:
         with self.lock:
             self.replay = session
             self.mode = "replay"
+            self.pull = None  # the hand lets go when the rod it held changes
 
     def close_replay(self) -> None:
         with self.lock:
@@ -322,6 +368,8 @@ class Workbench:
         if self.recorder is not None:
             self.recorder.new_episode()
         self.live.set_spec(spec, keep_state=keep_state)
+        if self.pull is not None and self.pull.nodes.max() >= self.live.n_nodes:  # the held nodes are gone
+            self.pull = None
         first, n = _rod_span(self.live, self.teleop_rod)
         if n is None:  # the scene lost the steered rod: back to the first one
             self.teleop_rod, self._teleops = 0, {}

@@ -20,6 +20,7 @@ class Frame:
 
     Attributes:
         node_pos: (N, 3) node positions [m].
+        node_vel: (N, 3) node velocities [m/s] (live sessions), or None.
         rod_radius: cross-section radius [m] (a non-uniform rod: its largest).
         node_radius: (N,) radius at each node [m] of a non-uniform rod (the tube follows it), or None.
         m1, m2: (N-1, 3) material directors per edge (unit) or None when unknown.
@@ -33,6 +34,8 @@ class Frame:
         scalars: named live values (reward, reward terms, tip error, newton_iters, ...).
         rod_offsets: (R+1,) where each rod's nodes start in ``node_pos`` (then N) when the scene has several rods
             (``sim.Model.rod_node_offsets``; drawn as separate tubes), else None.
+        hand: (2, 3) [m] the grabbed node and the hand while the rod is pulled (``workbench.pull``), else None;
+            hand_force: the pull's total force [N].
     """
 
     node_pos: np.ndarray
@@ -52,6 +55,9 @@ class Frame:
     time: float = 0.0
     scalars: dict[str, float] = dataclasses.field(default_factory=dict)
     rod_offsets: np.ndarray | None = None
+    hand: np.ndarray | None = None
+    node_vel: np.ndarray | None = None
+    hand_force: np.ndarray | None = None
 
     @property
     def tip(self) -> np.ndarray:

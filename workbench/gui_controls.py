@@ -15,7 +15,8 @@ NOTICE_S = 10.0  # [s] a failed page action is named in the status line this lon
 
 
 KEYS_HELP = ("Keys: **space** play / pause · **→** one step (pauses) · **r** reset "
-             "(not while typing in a field)")
+             "(not while typing in a field) · **drag the rod** to pull it (a spring from your hand, its force shown "
+             "in N; release lets go) · **click the rod** to pin a readout at a node · drag empty space to turn the view")
 TABS = ("Run", "Teleop", "Obstacles", "Policy", "Recordings", "Plots", "Display")
 
 
@@ -90,6 +91,11 @@ class ControlsPanel:
                                                   "axis fixed; white: some axes fixed), rings on edges whose twist "
                                                   "is fixed, and an arrow along each point load while it acts "
                                                   "(length as the force arrows; its force in N, torque in N·m)")
+            self.clear_pins = gui.add_button("Clear pins",
+                                             hint="click the rod to pin a readout at the nearest node (position, "
+                                                  "speed, κ1/κ2 against the commanded natural curvature, twist, "
+                                                  "strain; up to 4, following the node live and in replays); click "
+                                                  "a pinned node again to unpin it")
             self.camera = gui.add_button_group("Camera", ("front", "side", "top", "iso"),
                                                hint="view presets: front looks along +y at the x-z plane")
             self.follow = gui.add_checkbox("Follow tip", initial_value=False,
@@ -233,6 +239,11 @@ class ControlsPanel:
 
                 s.on_update(_cb)
 
+        @self.clear_pins.on_click
+        def _(_e) -> None:
+            app.view.pins = []
+            app.request_render()
+
         @self.camera.on_click
         def _(_e) -> None:
             if self.camera.value in CAMERAS:
@@ -358,6 +369,8 @@ class ControlsPanel:
             lines = [head,
                      f"real-time factor **{th.rtf:.2f}** · step {th.step_ms:.1f} ms · {th.fps:.0f} frames/s",
                      f"tip ({tip[0]:+.3f}, {tip[1]:+.3f}, {tip[2]:+.3f}) m"]
+        if fr is not None and getattr(fr, "hand", None) is not None and fr.hand_force is not None:
+            lines.append(f"pulling by hand · **{float(np.linalg.norm(fr.hand_force)):.3g} N** · release to let go")
         if fr is not None and len(fr.contact_points):
             total = float(np.linalg.norm(fr.contact_forces, axis=1).sum())
             lines.append(f"contacts {len(fr.contact_points)} · total contact force **{total:.3g} N**")

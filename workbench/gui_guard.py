@@ -198,15 +198,16 @@ def only_value_updates(server, on_refused: Callable[[str, str], None] | None = N
 
 
 # The message types the workbench's page sends (docs/architecture.md, "Security"): values of GUI elements and
-# button presses, mesh uploads, clicks on scene nodes, the obstacle gizmo, the camera and the screenshot's
-# render. viser's server also handles share-tunnel requests (which ask a public relay to publish the session),
-# button-hold, form, command-palette, node-drag, pointer and local-storage messages; the page has no control
-# that sends them, so a client that does is not the page.
+# button presses, mesh uploads, clicks on scene nodes, drags on the rod (the hand pulling it), the obstacle
+# gizmo, the camera and the screenshot's render. viser's server also handles share-tunnel requests (which ask a
+# public relay to publish the session), button-hold, form, command-palette, pointer and local-storage messages;
+# the page has no control that sends them, so a client that does is not the page.
 PAGE_MESSAGES = (
     "GuiUpdateMessage",
     "FileTransferStartUpload",
     "FileTransferPart",
     "SceneNodeClickMessage",
+    "SceneNodeDragMessage",
     "TransformControlsUpdateMessage",
     "TransformControlsDragStartMessage",
     "TransformControlsDragEndMessage",

@@ -21,13 +21,15 @@ class SimThread:
         render: called with each new frame (``SceneView.render`` + GUI readouts).
         speed: target real-time factor (1.0 = real time).
         prepare: called once in the thread before the first step (the app compiles the kernels there).
+        inputs: called in the thread before each step (the app applies the page's hand gestures there).
     """
 
     def __init__(self, wb: Workbench, render: Callable, *, speed: float = 1.0, max_fps: float = 60.0,
-                 prepare: Callable[[], None] | None = None):
+                 prepare: Callable[[], None] | None = None, inputs: Callable[[], bool] | None = None):
         self.wb = wb
         self.render = render
         self.prepare = prepare  # run first in the thread, before any step (compiling the kernels)
+        self.inputs = inputs  # applies what the page asked for since the last step; True when anything changed
         self.speed = speed
         self.max_fps = max_fps  # scene updates per second at most (the newest frame wins)
         self._stop = threading.Event()
@@ -68,6 +70,8 @@ class SimThread:
         pending = False
         while not self._stop.is_set():
             try:
+                if self.inputs is not None and self.inputs():
+                    self._dirty.set()
                 moved = wb.advance()
                 if moved:
                     self.steps += 1

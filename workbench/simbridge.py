@@ -203,7 +203,8 @@ class LiveSim:
                      node_curvature=curv, edge_strain=edge_strain(x, self.rest_length),
                      contact_points=cp, contact_forces=cf, contact_normals=cn, contact_normal_force=cfn,
                      targets=np.zeros((0, 3)) if targets is None else np.asarray(targets).reshape(-1, 3),
-                     time=float(np.asarray(self.state.time)[0]), scalars=sc, rod_offsets=off)
+                     time=float(np.asarray(self.state.time)[0]), scalars=sc, rod_offsets=off,
+                     node_vel=np.asarray(self.state.node_vel[0], dtype=np.float64).copy())
 
 
 def contacts_from_stats(st, env: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -13,10 +13,11 @@ import threading
 import numpy as np
 import trimesh
 
-from workbench.frame import Frame, quat_from_matrix
+from workbench.frame import Frame, quat_from_matrix, rod_edges
 from workbench.tube import SIDES, glb_bytes, rods_mesh, tube_mesh
 
 SWAP_DELAY = 0.08  # [s] a tube sent this long ago is shown even if no newer frame comes
+GRIP_SCALE = 1.4  # the grip's radius over the rod's (around the tube and the control points' beads)
 TRAIL_SECONDS = 2.0  # [s] of simulated time kept in the tip trail
 REST_OPACITY = 0.18
 CONTROL_COLOR = (250, 210, 30)
@@ -100,6 +101,15 @@ class RodView:
                                           thickness_units="screen", visible=False)
         self.trail_points: collections.deque = collections.deque()
         self.tip_frame = sc.add_frame(f"{name}/tip_frame", axes_length=0.1, axes_radius=0.006, visible=False)
+        # what the pointer grabs: one unseen cylinder per edge around the tube. The tube's GLB is sent anew every
+        # frame, and the page drops a drag when its node's mesh is replaced; the grip's cylinders only move.
+        cyl = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=8)
+        self._cylinder = cyl
+        self.grip = None
+        self._grip_edges = -1
+        self._edges = np.zeros(0, dtype=np.int64)  # the rod edge of each grip cylinder
+        self._on_grab = None
+        self._on_pick = None
 
     # ------------------------------------------------------------------ per scene
     def set_scene(self, rest_nodes: np.ndarray | None, control_nodes, radius: float, rod_offsets=None) -> None:
@@ -155,6 +165,62 @@ class RodView:
             self.controls.visible = show_c
         self._trail(fr, bool(ov.trail))
         self._tip_frame(fr, x, m1, bool(ov.tip_frame))
+        self._grip(x, r, getattr(fr, "rod_offsets", None))
+
+    # ------------------------------------------------------------------ the grip (workbench.pull)
+    def on_grab(self, callback) -> None:
+        """``callback(event)`` on every phase of a left-button drag that starts on the rod (viser's
+        ``SceneNodeDragEvent``; ``start_position`` is where the rod was pressed)."""
+        self._on_grab = callback
+        if self.grip is not None:
+            self.grip.on_drag("left")(callback)
+
+    def on_pick(self, callback) -> None:
+        """``callback(edge, event)`` on a click on the rod: the rod's edge under the pointer (an index into the
+        frame's edges, ``frame.rod_edges``) and viser's ``SceneNodePointerEvent`` (its ray)."""
+        self._on_pick = callback
+        if self.grip is not None:
+            self._bind_pick()
+
+    def _bind_pick(self) -> None:
+        edges = self._edges
+
+        def picked(ev) -> None:
+            i = ev.instance_index
+            if isinstance(i, int) and 0 <= i < len(edges):
+                self._on_pick(int(edges[i]), ev)
+
+        self.grip.on_click(picked)
+
+    def _grip(self, x: np.ndarray, r: float, rod_offsets) -> None:
+        k = rod_edges(len(x), rod_offsets)
+        e = x[k + 1] - x[k]
+        length = np.linalg.norm(e, axis=1)
+        t = e / np.maximum(length, 1e-12)[:, None]
+        # the rotation taking +z to t: axis z × t, w = 1 + z·t (t = −z: half a turn about x)
+        q = np.stack([1.0 + t[:, 2], -t[:, 1], t[:, 0], np.zeros(len(t))], 1)
+        flip = q[:, 0] < 1e-9
+        q[flip] = (0.0, 1.0, 0.0, 0.0)
+        q /= np.linalg.norm(q, axis=1, keepdims=True)
+        scales = np.stack([np.full(len(k), GRIP_SCALE * r), np.full(len(k), GRIP_SCALE * r), length], 1)
+        mid = 0.5 * (x[k] + x[k + 1])
+        if self.grip is None or self._grip_edges != len(k) or not np.array_equal(self._edges, k):
+            if self.grip is not None:
+                self.grip.remove()
+            c = self._cylinder
+            self.grip = self.server.scene.add_batched_meshes_simple(
+                f"{self._name}/grip", c.vertices, c.faces, batched_wxyzs=q, batched_positions=mid,
+                batched_scales=scales, opacity=0.0, cast_shadow=False, receive_shadow=False, lod="off")
+            self._grip_edges = len(k)
+            self._edges = k
+            if self._on_grab is not None:
+                self.grip.on_drag("left")(self._on_grab)
+            if self._on_pick is not None:
+                self._bind_pick()
+            return
+        self.grip.batched_wxyzs = q
+        self.grip.batched_positions = mid
+        self.grip.batched_scales = scales
 
     def _trail(self, fr: Frame, on: bool) -> None:
         pts = self.trail_points

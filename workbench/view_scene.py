@@ -17,6 +17,7 @@ import viser
 from workbench import coloring
 from workbench.frame import Frame, quat_from_matrix, rod_edges
 from workbench.obstacles import ObstacleEdit, mesh_for_edit
+from workbench.pins import MAX_PINS, node_readout, readout_text
 from workbench.view_boundary import Boundary, BoundaryView
 from workbench.view_rod import RodView
 
@@ -27,6 +28,7 @@ ARROW_MAX = 0.25  # [m] longest contact arrow ("log" / "auto")
 ARROW_F0 = 1.0  # [N] force scale of the "log" arrows: length ∝ log(1 + |f| / ARROW_F0)
 ARROW_MODES = ("log", "auto", "linear")
 N_FORCE_LABELS = 6  # force labels drawn (the largest contacts)
+HAND_COLOR = (30, 140, 255)  # the pull's spring and hand
 
 
 def arrow_vectors(forces: np.ndarray, mode: str, scale: float) -> np.ndarray:
@@ -140,6 +142,16 @@ class SceneView:
         self.force_labels = [sc.add_label(f"/contacts/label_{j}", "", visible=False, depth_test=False,
                                           anchor="bottom-left") for j in range(N_FORCE_LABELS)]
         self.target = sc.add_icosphere("/target", radius=0.03, color=(40, 200, 60), visible=False)
+        # the hand pulling the rod (workbench.pull): its spring from the grabbed node, the hand and the force
+        self.hand_line = sc.add_line_segments("/rod/hand/spring", np.zeros((1, 2, 3)), HAND_COLOR, thickness=4.0,
+                                              thickness_units="screen", visible=False)
+        self.hand_point = sc.add_icosphere("/rod/hand/point", radius=0.02, color=HAND_COLOR, visible=False)
+        self.hand_label = sc.add_label("/rod/hand/label", "", visible=False, depth_test=False, anchor="bottom-left")
+        # readouts pinned at nodes (workbench.pins), oldest first
+        self.pins: list[int] = []
+        self.pin_labels = [sc.add_label(f"/rod/pins/{j}", "", visible=False, depth_test=False, anchor="top-left")
+                           for j in range(MAX_PINS)]
+        self.pin_texts: list[str] = []  # what the labels said in the last frame (tests)
         self.target_frame = sc.add_frame("/target/frame", axes_length=0.1, axes_radius=0.006,
                                          visible=False)
         self.obstacle_nodes: list[tuple] = []
@@ -151,6 +163,48 @@ class SceneView:
         self.last_frame: Frame | None = None
 
     # ------------------------------------------------------------------ per frame
+    def toggle_pin(self, node: int) -> None:
+        """Pin a readout at ``node`` (a fifth replaces the oldest), or unpin it if it has one."""
+        pins = list(self.pins)
+        if node in pins:
+            pins.remove(node)
+        else:
+            pins = (pins + [int(node)])[-MAX_PINS:]
+        self.pins = pins
+
+    def _render_pins(self, fr: Frame) -> None:
+        n = len(fr.node_pos)
+        pins = [p for p in self.pins if 0 <= p < n]
+        texts = []
+        for j, lab in enumerate(self.pin_labels):
+            if j < len(pins):
+                text = readout_text(pins[j], node_readout(fr, pins[j]))
+                texts.append(text)
+                lab.text = text
+                lab.position = tuple(np.asarray(fr.node_pos[pins[j]], np.float64))
+                if not lab.visible:
+                    lab.visible = True
+            elif lab.visible:
+                lab.visible = False
+        self.pin_texts = texts
+
+    def _render_hand(self, fr: Frame) -> None:
+        hand = getattr(fr, "hand", None)
+        parts = (self.hand_line, self.hand_point, self.hand_label)
+        if hand is None:
+            for p in parts:
+                if p.visible:
+                    p.visible = False
+            return
+        self.hand_line.points = hand[None]
+        self.hand_point.position = tuple(hand[1])
+        f = np.linalg.norm(fr.hand_force) if fr.hand_force is not None else 0.0
+        self.hand_label.text = f"pull {f:.3g} N"
+        self.hand_label.position = tuple(hand[1])
+        for p in parts:
+            if not p.visible:
+                p.visible = True
+
     def render(self, fr: Frame, *, boundary: bool = True) -> None:
         """Push one frame (all node updates in one atomic message batch); ``boundary``: the frame is of the live
         scene, whose fixes and loads are drawn (when their overlay is on)."""
@@ -166,6 +220,8 @@ class SceneView:
             self.color_range = ("none", 0.0, 1.0)
         with self.server.atomic():
             self.rod.render(fr, node_c, ov)
+            self._render_hand(fr)
+            self._render_pins(fr)
             self.boundary.render(x, fr.time, ov.boundary and boundary,
                                  lambda f: arrow_vectors(f, ov.arrows, ov.force_scale))
             if ov.frames and fr.m1 is not None and fr.m2 is not None:

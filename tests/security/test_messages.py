@@ -63,9 +63,6 @@ def app(tmp_path_factory):
 
 def refused_messages():
     """One message of each type viser's server handles that the page never sends."""
-    drag = dict(phase="start", name="/rod", instance_index=None, start_position=(0.0, 0.0, 0.0),
-                start_screen_pos=(0.5, 0.5), end_position=(0.0, 0.0, 0.0), end_screen_pos=(0.5, 0.5),
-                button="left", modifier=None, owner="")
     return [
         vm.ShareUrlRequest(),
         vm.ShareUrlDisconnect(),
@@ -73,7 +70,6 @@ def refused_messages():
         vm.GuiFormSubmitMessage(uuid="x"),
         vm.GuiFormDirtyMessage(uuid="x"),
         vm.CommandTriggerMessage(uuid="x"),
-        vm.SceneNodeDragMessage(**drag),
         vm.ScenePointerMessage(event_type="click", ray_origin=(0.0, 0.0, 1.0), ray_direction=(0.0, 0.0, -1.0),
                                screen_pos=((0.5, 0.5),), modifier=None),
         vm.LocalStorageGetItemResponseMessage(value="v", error=None, request_uuid="x"),

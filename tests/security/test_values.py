@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from tools.browser import wait_for
@@ -130,3 +131,37 @@ def test_an_unexpected_error_is_said_and_logged_once(app, capsys):
         client.close()
         btn.remove()
 
+
+
+def _drag(name: str, phase: str, start, end):
+    from viser import _messages as vm
+
+    return vm.SceneNodeDragMessage(phase=phase, name=name, instance_index=None, start_position=tuple(start),
+                                   start_screen_pos=(0.5, 0.5), end_position=tuple(end), end_screen_pos=(0.5, 0.5),
+                                   button="left", modifier=None, owner="")
+
+
+def test_drags_on_the_rod_from_a_raw_client_are_checked(app):
+    """A drag on the tube grabs the rod only at a finite point within reach; a hand moved to a non-finite or far point
+    stays where it was; the end lets go. Every refusal is said in the status line."""
+    wb = app.wb
+    tube = app.view.rod.tube.visible_node.name
+    tip = wb.tip
+    client = HostileClient(app)
+    try:
+        client.send(_drag(tube, "start", (math.nan, 0.0, 0.0), tip))
+        wait_for(lambda: "grab point must be 3 finite numbers" in app.notice[0], what="a non-finite grab refused")
+        assert wb.pull is None
+        client.send(_drag(tube, "start", tip, tip))
+        wait_for(lambda: wb.pull is not None, what="the rod grabbed at its tip")
+        assert wb.pull.node == wb.live.n_nodes - 1
+        client.send(_drag(tube, "update", tip, (1e6, 0.0, 0.0)))
+        wait_for(lambda: "more than 100 m from the origin" in app.notice[0], what="a far hand refused")
+        client.send(_drag(tube, "update", tip, (math.inf, 0.0, 0.0)))
+        wait_for(lambda: "hand position must be 3 finite numbers" in app.notice[0], what="an infinite hand refused")
+        np.testing.assert_allclose(wb.pull.pointer, tip)
+        client.send(_drag(tube, "end", tip, tip))
+        wait_for(lambda: wb.pull is None, what="let go")
+    finally:
+        client.close()
+        wb.release()
