@@ -256,6 +256,20 @@ class WorkbenchApp:
 
         self.view.rod.on_grab(on_drag)
         self.view.rod.on_pick(self._pick)
+        self.view.rod.on_bend(self._bend)
+
+    def _bend(self, node: int, ev) -> None:
+        """A control point's bead dragged: the sliders become the curvature that holds that node where the pointer
+        is, at equilibrium (``Workbench.reach_to``, as Reach does for the tip); the live rod follows."""
+        if ev.phase == "start":
+            return
+        try:
+            target = point(ev.end_position, "control point target")
+        except ValueError as exc:
+            self.notice = (f"⚠ {exc}", time.monotonic())
+            return
+        self.wb.reach_to(target, node=node)
+        self.controls.sync_sliders()
 
     def _pick(self, edge: int, ev) -> None:
         """A click on the rod pins (or unpins) a readout at the nearer node of the clicked edge (workbench.pins)."""

@@ -222,12 +222,13 @@ class Workbench:
         with self.lock:
             self.teleop.set_value(k, comp, value)
 
-    def reach_to(self, target) -> float:
+    def reach_to(self, target, *, node: int = -1) -> float:
         """Teleop by inverse statics (docs/physics.md §3.10): set the steered rod's absolute natural curvature at the
-        control points to what holds its tip on ``target`` (3,) [m] at equilibrium, obstacles and contact left out
+        control points to what holds its node ``node`` (default the tip; a control point dragged in the page) on
+        ``target`` (3,) [m] at equilibrium, obstacles and contact left out
         (the rod may press against an obstacle on its way); the twist sliders go to 0. A few Gauss–Newton iterations
         per call, warm-started from the last call, so repeated calls (a dragged target) converge as they go.
-        Returns the distance [m] between the target and the equilibrium tip of the curvature set. Raises
+        Returns the distance [m] between the target and the equilibrium node of the curvature set. Raises
         ActionRefused in policy mode or with several rods, ValueError for a target that is not 3 finite numbers."""
         tgt = np.asarray(target, dtype=np.float64).reshape(-1)
         if tgt.shape != (3,) or not np.all(np.isfinite(tgt)):
@@ -246,7 +247,8 @@ class Workbench:
             key = (id(self.live.base_spec), self.live.gravity)  # a warm start holds for one scene only
             warm = self._reach_warm[1] if self._reach_warm is not None and self._reach_warm[0] == key else None
             tel = self.teleop
-        res = reach(spec, tgt[None], basis=basis, bound=KAPPA_LIMIT, max_iterations=4, warm=warm)  # outside the lock
+        res = reach(spec, tgt[None], basis=basis, tip=node, bound=KAPPA_LIMIT, max_iterations=4,  # outside the lock
+                    warm=warm)
         with self.lock:
             self._reach_warm = (key, res)
             if tel is self.teleop and self.mode == "teleop":

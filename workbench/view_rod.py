@@ -17,7 +17,7 @@ from workbench.frame import Frame, quat_from_matrix, rod_edges
 from workbench.tube import SIDES, glb_bytes, rods_mesh, tube_mesh
 
 SWAP_DELAY = 0.08  # [s] a tube sent this long ago is shown even if no newer frame comes
-GRIP_SCALE = 1.4  # the grip's radius over the rod's (around the tube and the control points' beads)
+GRIP_SCALE = 1.15  # the grip's radius over the rod's (around the tube; the control points' beads, 1.3, stand out)
 TRAIL_SECONDS = 2.0  # [s] of simulated time kept in the tip trail
 REST_OPACITY = 0.18
 CONTROL_COLOR = (250, 210, 30)
@@ -110,6 +110,7 @@ class RodView:
         self._edges = np.zeros(0, dtype=np.int64)  # the rod edge of each grip cylinder
         self._on_grab = None
         self._on_pick = None
+        self._on_bend = None
 
     # ------------------------------------------------------------------ per scene
     def set_scene(self, rest_nodes: np.ndarray | None, control_nodes, radius: float, rod_offsets=None) -> None:
@@ -136,6 +137,8 @@ class RodView:
                 batched_scales=np.full(k, 1e-4), batched_colors=np.tile(CONTROL_COLOR, (k, 1)), lod="off",
                 visible=False)
             self.control_nodes = cn
+            if self._on_bend is not None:
+                self._bind_bend()
         self.clear_trail()
 
     def clear_trail(self) -> None:
@@ -181,6 +184,23 @@ class RodView:
         self._on_pick = callback
         if self.grip is not None:
             self._bind_pick()
+
+    def on_bend(self, callback) -> None:
+        """``callback(node, event)`` on every phase of a left-button drag that starts on a control point's bead:
+        the control node and viser's ``SceneNodeDragEvent``."""
+        self._on_bend = callback
+        if self.controls is not None:
+            self._bind_bend()
+
+    def _bind_bend(self) -> None:
+        nodes = self.control_nodes
+
+        def dragged(ev) -> None:
+            i = ev.instance_index
+            if isinstance(i, int) and 0 <= i < len(nodes):
+                self._on_bend(int(nodes[i]), ev)
+
+        self.controls.on_drag("left")(dragged)
 
     def _bind_pick(self) -> None:
         edges = self._edges

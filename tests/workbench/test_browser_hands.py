@@ -102,3 +102,34 @@ def test_clicking_the_rod_pins_a_readout_that_follows_the_node(wb_page):
     expand_folder(page, "Display", "Clear pins")
     page.get_by_role("button", name="Clear pins").click()
     wait_for(lambda: view.pins == [] and not view.pin_labels[0].visible, what="the pins cleared")
+
+
+def test_dragging_a_control_point_bends_the_rod_there(wb_page):
+    app, page = wb_page
+    wb = app.wb
+    wait_for(lambda: wb.frame_index > 3, what="sim running")
+    node = wb.teleop.control_nodes()[2]
+    x0 = np.asarray(wb.live.state.node_pos[0, node], dtype=np.float64).copy()
+    client = newest_client(app)
+    eye, at = (0.3, -1.8, 0.5), (0.3, 0.0, 0.5)
+    place_camera(client, eye, at)
+    wait_for(lambda: np.allclose(client.camera.position, eye, atol=1e-3)
+             and np.allclose(client.camera.look_at, at, atol=1e-3), what="camera in front of the arm")
+    box = page.locator("canvas").first.bounding_box()
+    # the bead's front, toward the camera, and 12 cm to its right in the same plane
+    front = x0 + [0.0, -1.3 * wb.live.rod_radius, 0.0]
+    uv = project(client.camera, np.stack([front, front + [0.12, 0.0, 0.0]]), box["width"], box["height"])
+    uv += np.array([box["x"], box["y"]])
+
+    def drag() -> None:
+        page.mouse.move(*uv[0])
+        page.mouse.down()
+        page.mouse.move(*uv[1], steps=10)
+        page.mouse.move(uv[1][0], uv[1][1] + 1.0)  # one more move after the page's throttle sends the last place
+        page.mouse.up()
+
+    retry_until(drag, lambda: wb.live.state.node_pos[0, node, 0] - x0[0] > 0.06, attempt_s=20.0,
+                what=f"control node {node} bent toward +x (at {np.round(wb.live.state.node_pos[0, node], 3)})")
+    assert wb.pull is None  # a bead is not the rod's grip: nothing was pulled
+    wait_for(lambda: abs(app.controls.sliders[0][0].value - round(float(wb.teleop.values[0, 0]), 2)) < 1e-9,
+             what="the page's sliders show the values")
