@@ -37,14 +37,12 @@ from workbench.gui_replay import ReplayPanel
 from workbench.handshake import Guard, start_viser
 from workbench.housekeeping import Housekeeping
 from workbench.pins import ray_nearest_node
-from workbench.pull import point
+from workbench.pull import HAND_EVENTS, point
 from workbench.runner import SimThread
 from workbench.simbridge import ActionRefused
 from workbench.view_boundary import boundary_of
 from workbench.view_rod import scene_info
 from workbench.view_scene import SceneView
-
-HAND_EVENTS = 256  # hand gestures queued for the sim thread at most (a flood from a client drops the oldest)
 
 
 class WorkbenchApp:

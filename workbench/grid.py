@@ -14,6 +14,7 @@ import numpy as np
 
 from workbench.obstacles import ObstacleEdit, edits_from_spec
 from workbench.policy_session import act, load_for
+from workbench.pull import Pull, grab, held_point, point, spring_forces
 from workbench.replay import quat_z_to
 
 MAX_ENVS = 36
@@ -71,15 +72,61 @@ class GridSession:
         self.episodes = np.zeros(self.n, dtype=np.int64)
         self.steps = 0
         self.obstacles_version = 0
+        self.pull: Pull | None = None  # a hand on one env's rod (workbench.pull), in that env's own coordinates
+        self.pull_env = -1
 
     @property
     def control_dt(self) -> float:
         """Simulated seconds per control step."""
         return float(self.core.model.dt) * int(self.core.config.substeps)
 
+    # ------------------------------------------------------------------ the hand
+    def grab(self, env: int, at) -> int:
+        """Grab env ``env``'s rod at the node nearest ``at`` (3,) [m, page coordinates: the env's cell]; from the next
+        control step a spring pulls it toward the hand (:meth:`move_hand`); the policy feels it. Returns the node."""
+        if not (isinstance(env, (int, np.integer)) and 0 <= int(env) < self.n):
+            raise ValueError(f"env must be an index in [0, {self.n}), got {env!r}")
+        env = int(env)
+        x = np.asarray(self.core.state.node_pos[env], np.float64)
+        self.pull = grab(x, point(at, "grab point") - self.offsets[env])
+        self.pull_env = env
+        return self.pull.node
+
+    def move_hand(self, to) -> None:
+        """Move the hand to ``to`` (3,) [m, page coordinates] (nothing held: ignored)."""
+        p = point(to, "hand position")
+        if self.pull is not None:
+            self.pull.pointer = p - self.offsets[self.pull_env]
+
+    def release(self) -> None:
+        self.pull = None
+
+    def hand(self) -> np.ndarray | None:
+        """(2, 3) [m, page coordinates]: where the hand holds the rod and the hand; None when nothing is held."""
+        if self.pull is None:
+            return None
+        x = np.asarray(self.core.state.node_pos[self.pull_env], np.float64)
+        return np.stack([held_point(self.pull, x), self.pull.pointer]) + self.offsets[self.pull_env]
+
+    def _apply_hand(self) -> None:
+        """The pulled env's node forces for the next control step (held over its sim steps, so the springs are
+        scaled to the control step), None for every env when nothing is held."""
+        ctrl, pull = self.core.ctrl, self.pull
+        if pull is None:
+            ctrl.force = None
+            return
+        st, m, e = self.core.state, self.core.model, self.pull_env
+        F = spring_forces(pull, np.asarray(st.node_pos[e]), np.asarray(st.node_vel[e]), np.asarray(m.node_mass),
+                          self.control_dt)
+        force = np.zeros((self.n, m.node_count, 3))
+        force[e, pull.nodes] = F
+        ctrl.force = force
+        pull.force = F.sum(axis=0)
+
     def step(self) -> None:
         """One control step of every env; finished episodes restart (each env on its own)."""
         a = act(self.policy, self.obs, self.core.action_dim, self._rng, self.deterministic)
+        self._apply_hand()
         obs, reward, terminated, truncated, info = self.core.step(a)
         self.last_reward = np.asarray(reward, np.float64)
         self.returns += self.last_reward
@@ -88,6 +135,8 @@ class GridSession:
             self.tip_error = np.asarray(d, np.float64).reshape(self.n)
         done = np.asarray(terminated, bool) | np.asarray(truncated, bool)
         if done.any():
+            if self.pull is not None and done[self.pull_env]:  # a new episode: the hand lets go
+                self.pull = None
             obs = self.core.reset(done)
             self.returns[done] = 0.0
             self.episodes[done] += 1

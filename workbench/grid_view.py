@@ -15,7 +15,7 @@ from sim.rotations import quat_to_matrix
 from workbench.frame import quat_z_to
 from workbench.obstacles import mesh_for_edit
 from workbench.view_boundary import Boundary, BoundaryView, boundary_of
-from workbench.view_scene import CAMERAS, ROD_COLOR, Overlays, arrow_vectors, place_camera
+from workbench.view_scene import CAMERAS, HAND_COLOR, ROD_COLOR, Overlays, arrow_vectors, place_camera
 
 FOCUS_COLOR = np.array([40, 110, 230], dtype=np.uint8)
 ROOT = "/grid"
@@ -45,7 +45,8 @@ class GridView:
     (default: ``boundary_of`` the session's model)."""
 
     def __init__(self, server: viser.ViserServer, session, on_focus: Callable[[int], None] | None = None, *,
-                 overlays: Overlays | None = None, boundary: Boundary | None = None):
+                 overlays: Overlays | None = None, boundary: Boundary | None = None,
+                 on_grab: Callable[[int, object], None] | None = None):
         self.server, self.s = server, session
         self.overlays = overlays if overlays is not None else Overlays()
         sc = server.scene
@@ -84,6 +85,17 @@ class GridView:
             if self.targets is not None:
                 self.targets.on_click(lambda ev: on_focus(int(ev.instance_index))
                                       if ev.instance_index is not None else None)
+        # a drag on an env's rod pulls it (workbench.pull): ``on_grab(env, event)`` on the server's event loop, in the
+        # order of the drag's phases
+        self.hand_line = sc.add_line_segments(f"{ROOT}/hand", np.zeros((1, 2, 3)), HAND_COLOR, thickness=4.0,
+                                              thickness_units="screen", visible=False)
+        if on_grab is not None:
+            for node, per_env in ((self.rods, N - 1), (self.joints, N)):
+                async def dragged(ev, per_env=per_env) -> None:
+                    if ev.instance_index is not None:
+                        on_grab(int(ev.instance_index) // per_env, ev)
+
+                node.on_drag("left")(dragged)
         self.frames = 0
 
     def _colors(self, per_env: int) -> np.ndarray:
@@ -135,6 +147,11 @@ class GridView:
             self.joints.batched_scales = np.full(len(x.reshape(-1, 3)), r)
             if tg is not None:
                 self.targets.batched_positions = tg
+            hand = s.hand()
+            if hand is not None:
+                self.hand_line.points = hand[None]
+            if self.hand_line.visible != (hand is not None):
+                self.hand_line.visible = hand is not None
             ov = self.overlays
             self.boundary.render(x, s.times(), ov.boundary, lambda f: arrow_vectors(f, ov.arrows, ov.force_scale),
                                  label_env=self.focus)
@@ -150,6 +167,7 @@ class GridView:
         self.frames += 1
 
     def remove(self) -> None:
-        for h in (self.rods, self.joints, self.targets, self.obstacles, *self.labels, *self.boundary.nodes):
+        for h in (self.rods, self.joints, self.targets, self.obstacles, self.hand_line, *self.labels,
+                  *self.boundary.nodes):
             if h is not None:
                 h.remove()

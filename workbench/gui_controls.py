@@ -269,9 +269,12 @@ class ControlsPanel:
         if self.reach_gizmo is not None:
             self.reach_gizmo.remove()
             self.reach_gizmo = None
+        app.view.rod.grip_enabled = not on  # the target's gizmo sits on the tip: a press there is the gizmo's
+        app.request_render()
         if not on:
             return
         if wb.mode != "teleop" or len(wb.teleop_rods()) > 1:
+            app.view.rod.grip_enabled = True
             self.reach.value = False
             self._say("Reach steers one rod by hand: stop the policy (or take over), one rod in the scene")
             return

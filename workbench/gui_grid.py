@@ -3,6 +3,7 @@ in their own thread (``workbench.grid``) and drawn vectorised (``workbench.grid_
 Focus env slider) moves the camera to that env and shows its readouts. The live session pauses meanwhile."""
 from __future__ import annotations
 
+import collections
 import threading
 import time
 from pathlib import Path
@@ -16,6 +17,7 @@ from workbench.grid_view import GridView
 from workbench.gui_host import PanelHost
 from workbench.gui_policy import NO_POLICY
 from workbench.policy_session import PRETRAINED
+from workbench.pull import HAND_EVENTS
 from workbench.view_scene import GROUND_SIZE, place_camera
 
 STATUS_S = 0.2  # [s] the readouts follow the running grid this often
@@ -27,10 +29,11 @@ class GridRunner:
     refreshes them while the grid runs."""
 
     def __init__(self, session: GridSession, view: GridView, *, max_fps: float = 30.0, speed: float = 1.0,
-                 on_status: Callable[[], None] | None = None):
+                 on_status: Callable[[], None] | None = None, inputs: Callable[[], None] | None = None):
         self.s, self.view = session, view
         self.max_fps, self.speed = max_fps, speed
         self.on_status = on_status
+        self.inputs = inputs  # applies what the page asked for since the last step (under the lock)
         self.lock = threading.Lock()
         self.error: BaseException | None = None
         self.frames = 0  # redraws pushed to the page
@@ -59,6 +62,8 @@ class GridRunner:
         while not self._stop.is_set():
             try:
                 with self.lock:
+                    if self.inputs is not None:
+                        self.inputs()
                     self.s.step()
                 win_steps += 1
                 now = time.perf_counter()
@@ -86,6 +91,7 @@ class GridRunner:
 class GridPanel:
     def __init__(self, app: PanelHost):
         self.app = app
+        self._hand_events: collections.deque = collections.deque(maxlen=HAND_EVENTS)  # drags for the grid's thread
         gui = app.server.gui
         with app.tabs["Policy"], gui.add_folder("Grid of envs"):
             self.envs = gui.add_slider("Envs", min=1, max=MAX_ENVS, step=1, initial_value=16,
@@ -169,7 +175,9 @@ class GridPanel:
         app.view.show_live(False)
         app.view.set_ground(max(GROUND_SIZE, float(np.ptp(session.offsets[:, :2], axis=0).max()) + session.spacing))
         self.session = session
-        self.view = GridView(app.server, session, on_focus=self.set_focus, overlays=app.view.overlays)
+        self._hand_events.clear()
+        self.view = GridView(app.server, session, on_focus=self.set_focus, overlays=app.view.overlays,
+                             on_grab=self._grabbed)
         self.view.render()
         self._syncing = True
         try:
@@ -179,9 +187,33 @@ class GridPanel:
             self._syncing = False
         app.checks.accept(self.focus)
         self.view.look_at(None)
-        self.runner = GridRunner(session, self.view, max_fps=max_fps, speed=speed, on_status=self._refresh).start()
+        self.runner = GridRunner(session, self.view, max_fps=max_fps, speed=speed, on_status=self._refresh,
+                                 inputs=self._apply_hand_events).start()
         self.update_status()
         return session
+
+    def _grabbed(self, env: int, ev) -> None:
+        """A drag on env ``env``'s rod (on the event loop): queued for the grid's thread."""
+        self._hand_events.append((env, ev.phase, ev.start_position, ev.end_position))
+
+    def _apply_hand_events(self) -> None:
+        """The queued drags, in order, on the running grid (its thread, under its lock): the hand pulls that env's
+        rod (``GridSession.grab`` / ``move_hand`` / ``release``); a refused one is said in the status line."""
+        s = self.session
+        while self._hand_events:
+            env, phase, start, end = self._hand_events.popleft()
+            if s is None:
+                continue
+            try:
+                if phase == "start":
+                    s.grab(env, start)
+                    s.move_hand(end)
+                elif phase == "update":
+                    s.move_hand(end)
+                else:
+                    s.release()
+            except ValueError as exc:
+                self._say(f"⚠ {exc}")
 
     def _camera_poses(self) -> dict[int, tuple[tuple, tuple]]:
         out = {}

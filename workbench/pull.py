@@ -24,6 +24,7 @@ PATCH = 2  # nodes on each side of the grabbed one that the hand holds (on the s
 STIFFNESS = 1.0  # α: spring k_j = α m_j / h² [N/m] per held node
 DAMPING = 0.8  # β: damper c_j = β m_j / h [N s/m] per held node
 MAX_REACH_M = 100.0  # a pointer farther than this from the origin is refused (not a place on the page)
+HAND_EVENTS = 256  # the page's drag phases queued for the stepping thread at most (a flood drops the oldest)
 
 
 @dataclasses.dataclass

@@ -13,7 +13,7 @@ import threading
 import numpy as np
 import trimesh
 
-from workbench.frame import Frame, quat_from_matrix, rod_edges
+from workbench.frame import Frame, quat_from_matrix, quat_z_to, rod_edges
 from workbench.tube import SIDES, glb_bytes, rods_mesh, tube_mesh
 
 SWAP_DELAY = 0.08  # [s] a tube sent this long ago is shown even if no newer frame comes
@@ -111,6 +111,7 @@ class RodView:
         self._on_grab = None
         self._on_pick = None
         self._on_bend = None
+        self.grip_enabled = True  # off: presses go through the rod (Reach's target gizmo sits on the tip)
 
     # ------------------------------------------------------------------ per scene
     def set_scene(self, rest_nodes: np.ndarray | None, control_nodes, radius: float, rod_offsets=None) -> None:
@@ -216,12 +217,7 @@ class RodView:
         k = rod_edges(len(x), rod_offsets)
         e = x[k + 1] - x[k]
         length = np.linalg.norm(e, axis=1)
-        t = e / np.maximum(length, 1e-12)[:, None]
-        # the rotation taking +z to t: axis z × t, w = 1 + z·t (t = −z: half a turn about x)
-        q = np.stack([1.0 + t[:, 2], -t[:, 1], t[:, 0], np.zeros(len(t))], 1)
-        flip = q[:, 0] < 1e-9
-        q[flip] = (0.0, 1.0, 0.0, 0.0)
-        q /= np.linalg.norm(q, axis=1, keepdims=True)
+        q = quat_z_to(e / np.maximum(length, 1e-12)[:, None])
         scales = np.stack([np.full(len(k), GRIP_SCALE * r), np.full(len(k), GRIP_SCALE * r), length], 1)
         mid = 0.5 * (x[k] + x[k + 1])
         if self.grip is None or self._grip_edges != len(k) or not np.array_equal(self._edges, k):
@@ -230,7 +226,8 @@ class RodView:
             c = self._cylinder
             self.grip = self.server.scene.add_batched_meshes_simple(
                 f"{self._name}/grip", c.vertices, c.faces, batched_wxyzs=q, batched_positions=mid,
-                batched_scales=scales, opacity=0.0, cast_shadow=False, receive_shadow=False, lod="off")
+                batched_scales=scales, opacity=0.0, cast_shadow=False, receive_shadow=False, lod="off",
+                visible=self.grip_enabled)
             self._grip_edges = len(k)
             self._edges = k
             if self._on_grab is not None:
@@ -241,6 +238,8 @@ class RodView:
         self.grip.batched_wxyzs = q
         self.grip.batched_positions = mid
         self.grip.batched_scales = scales
+        if self.grip.visible != self.grip_enabled:
+            self.grip.visible = self.grip_enabled
 
     def _trail(self, fr: Frame, on: bool) -> None:
         pts = self.trail_points

@@ -175,3 +175,40 @@ def test_stop_grid_goes_back_to_the_live_scene(wb_page):
              what="camera back on the live scene")
     shown = {"/rod": True, "/boundary": True, "/contacts": True, "/obstacles": True, "/target": False}  # teleop: no target
     wait_for(lambda: page.evaluate(LIVE_JS) == shown, what="the live scene shown again")
+
+
+def test_dragging_an_envs_rod_pulls_that_env(wb_page):
+    """In the grid, a drag on one env's rod pulls that env (the hand drawn while held); release lets go."""
+    app, page = wb_page
+    _start_grid(app, page, 4)
+    try:
+        s, view = app.grid.session, app.grid.view
+        k = 1
+        cam = newest_client(app).camera
+        box = page.locator("canvas").first.bounding_box()
+        corner = np.array([box["x"], box["y"]])
+        held = {"down": False}
+
+        def press_and_drag() -> None:
+            if held["down"]:
+                page.mouse.up()
+            with app.grid.runner.lock:
+                a = s.positions()[k, s.n_nodes - 3]
+            uv = project(cam, np.stack([a, a + [0.3, 0.0, 0.0]]), box["width"], box["height"]) + corner
+            page.mouse.move(*uv[0])
+            page.mouse.down()
+            held["down"] = True
+            page.mouse.move(*uv[1], steps=10)
+            page.mouse.move(uv[1][0], uv[1][1] + 1.0)
+
+        retry_until(press_and_drag, lambda: s.pull is not None, what=f"env {k}'s rod grabbed")
+        assert s.pull_env == k
+        wait_for(lambda: view.hand_line.visible, what="the hand drawn in the grid")
+        wait_for(lambda: s.core.ctrl.force is not None and np.abs(s.core.ctrl.force[k]).max() > 0,
+                 what="a force on that env")
+        assert not np.delete(s.core.ctrl.force, k, axis=0).any()  # on that env only
+        page.mouse.up()
+        held["down"] = False
+        wait_for(lambda: s.pull is None and not view.hand_line.visible, what="let go")
+    finally:
+        app.grid.stop()

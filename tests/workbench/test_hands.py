@@ -101,3 +101,28 @@ def test_a_control_point_moved_by_hand_holds_there_at_equilibrium():
     for _ in range(400):
         wb.step()
     assert np.linalg.norm(wb.live.state.node_pos[0, node] - target) < 3e-3
+
+
+def test_a_pulled_env_of_the_grid_moves_and_the_others_do_not():
+    from workbench.grid import GridSession
+
+    g = GridSession("follow_target", "zero", n=3, centred=True)
+    g.step()
+    t0 = np.asarray(g.core.state.node_pos[:, -1]).copy()
+    tip_page = t0[1] + g.offsets[1]
+    assert g.grab(1, tip_page) == g.n_nodes - 1
+    g.move_hand(tip_page + [0.3, 0.0, 0.0])
+    np.testing.assert_allclose(g.hand()[1], tip_page + [0.3, 0.0, 0.0])
+    for _ in range(30):
+        g.step()
+    moved = np.asarray(g.core.state.node_pos[:, -1]) - t0
+    assert moved[1, 0] > 0.05 and np.abs(moved[[0, 2]]).max() < 1e-4  # a zero policy: the others stay (settling)
+    np.testing.assert_array_equal(moved[0], moved[2])  # and alike: nothing of the pull reached them
+    assert g.core.ctrl.force is not None and not g.core.ctrl.force[[0, 2]].any()
+    g.release()
+    for _ in range(60):
+        g.step()
+    assert g.core.ctrl.force is None and g.hand() is None
+    assert np.abs(np.asarray(g.core.state.node_pos[1, -1]) - t0[1]).max() < 2e-3
+    with pytest.raises(ValueError, match="env must be an index"):
+        g.grab(3, tip_page)
