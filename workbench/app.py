@@ -212,6 +212,7 @@ class WorkbenchApp:
             return
         planar = bool(getattr(self.wb.policy, "planar", False))
         self.controls.set_planar(planar)
+        self.controls.sync_gravity()
         if planar != self._planar:  # a 2-D task opens facing its plane; back to the oblique view after it
             self._planar = planar
             self.view.set_camera("front" if planar else "iso")

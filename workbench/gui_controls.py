@@ -157,7 +157,8 @@ class ControlsPanel:
 
         @self.gravity.on_update
         def _(_e) -> None:
-            wb.set_gravity(self.gravity.value)
+            if not self._syncing:  # not when the box only shows a new scene's gravity
+                wb.set_gravity(self.gravity.value)
 
         @self.speed.on_update
         def _(_e) -> None:
@@ -307,6 +308,20 @@ class ControlsPanel:
         self.rod.visible = len(names) > 1
         self.app.checks.accept(self.rod)
 
+    def sync_gravity(self) -> None:
+        """The Gravity box of the live scene: ticked when gravity acts, greyed out where there is none to switch (a
+        scene without gravity) or it is the task's (a policy run)."""
+        wb = self.app.wb
+        with wb.lock:
+            spec = getattr(wb.live, "base_spec", None)
+            g = np.asarray(getattr(getattr(spec, "sim", None), "gravity", (0.0, 0.0, 0.0)), dtype=np.float64)
+            has = bool(np.any(g != 0.0))
+            on = has and bool(wb.live.gravity)
+            task = wb.policy is not None
+        self.gravity.disabled = not has or task
+        if self.gravity.value != on:
+            self.set_quiet(self.gravity, on)
+
     def set_planar(self, planar: bool) -> None:
         """2-D tasks: only the in-plane (κ1) sliders are shown."""
         for row in self.sliders:
@@ -364,6 +379,8 @@ class ControlsPanel:
                 head += f" · compiling kernels: {compiling} (first start only, cached afterwards) …"
             elif app.waiting_for_browser:
                 head += " · paused until a browser connects"
+            elif not wb.playing:
+                head += " · paused"
         grid = getattr(app, "grid", None)
         grid_lines = grid.status_lines() if grid is not None else None
         if grid_lines:  # a grid of envs is drawn in place of the paused live scene: the status is the grid's
