@@ -21,6 +21,7 @@ from workbench.files import Folders
 from workbench.frame import Frame
 from workbench.gui_compare import ComparePanel
 from workbench.gui_controls import ControlsPanel
+from workbench.gui_events import EventsPanel
 from workbench.gui_grid import GridPanel
 from workbench.gui_guard import (
     GuiGuard,
@@ -116,7 +117,9 @@ class WorkbenchApp:
         self.pictures = RenderPanel(self)
         self.grid = GridPanel(self)
         self.compare = ComparePanel(self)
-        self.panels += [self.obstacles, self.policy, self.replay, self.plots, self.pictures, self.grid, self.compare]
+        self.events = EventsPanel(self)
+        self.panels += [self.obstacles, self.policy, self.replay, self.plots, self.pictures, self.grid, self.compare,
+                        self.events]
 
     def _value_refused(self, label: str, why: str) -> None:
         n = self.refused_values.get((label, why), 0)

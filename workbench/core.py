@@ -90,7 +90,9 @@ class Workbench:
                 self.teleop.apply(self.live.ctrl, self.live.rest_ctrl)
                 self.live.step()
             self.frame_index += 1
-            self._last_scalars = {**self.live.step_scalars(), **scalars}
+            hand = {"pull_force": float(np.linalg.norm(self.pull.force)) if self.pull is not None else 0.0,
+                    "hand": float(self.hand_control)}
+            self._last_scalars = {**self.live.step_scalars(), **scalars, **hand}
             self._push_snapshot()
             if self.recorder is not None:
                 self.recorder.log(self.frame())

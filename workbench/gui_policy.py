@@ -199,6 +199,16 @@ class PolicyPanel:
                 self.rec_msg.content = f"saved `{out}`" if out else "nothing recorded"
                 app.replay.refresh_list()
 
+    def choose_rewind_frame(self, frame: int) -> None:
+        """Put the Rewind slider on ``frame`` as if the page had chosen it (it stops following the newest frame)."""
+        h = self.app.wb.history
+        frame = min(max(int(frame), h.first_index), max(h.last_index, h.first_index + 1))
+        self._rewind_chosen = True
+        self._rewind_touched = time.monotonic()
+        self.rewind.value = frame
+        self._rewind_set = frame
+        self.app.checks.accept(self.rewind)
+
     def update_status(self) -> None:
         """Rewind range + reward line (called a few times per second)."""
         wb = self.app.wb

@@ -110,6 +110,10 @@ class History:
         keep = index - self.first_index + 1
         del self._items[max(keep, 0):]
 
+    def scalars(self) -> list[dict]:
+        """The held snapshots' scalars, oldest first (frame ``first_index`` first)."""
+        return [s.scalars for s in self._items]
+
     def series(self, key: str) -> tuple[list[float], list[float]]:
         """(times, values) of one scalar over the held history (missing values skipped)."""
         ts, vs = [], []

@@ -1,4 +1,5 @@
-"""Keyboard shortcuts of the workbench page: space = play / pause, → = one step, r = reset.
+"""Keyboard shortcuts of the workbench page: space = play / pause, → = one step, r = reset, [ / ] = previous / next
+event.
 
 viser has no key events for the server. The workbench adds a small static script to the page it serves
 (``workbench.handshake`` inserts it into viser's ``index.html``); on a key press outside text fields the script
@@ -12,7 +13,8 @@ from __future__ import annotations
 import gzip
 
 #: key (``KeyboardEvent.key``) -> (kind, label) of the control it operates
-SHORTCUTS = {" ": ("checkbox", "Playing"), "ArrowRight": ("button", "Step"), "r": ("button", "Reset")}
+SHORTCUTS = {" ": ("checkbox", "Playing"), "ArrowRight": ("button", "Step"), "r": ("button", "Reset"),
+             "[": ("button", "Previous event"), "]": ("button", "Next event")}
 
 SCRIPT = """<script data-rodlab="keys">(() => {
   const shortcuts = %(shortcuts)s;

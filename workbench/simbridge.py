@@ -159,15 +159,17 @@ class LiveSim:
         return self.last_stats
 
     def step_scalars(self) -> dict[str, float]:
-        """Solver/contact values of the last step: newton_iters, contact_force (largest normal contact
-        force [N]), max_penetration [m] (empty before the first step)."""
+        """Solver/contact values of the last step: newton_iters, converged and failed (1 or 0), contact_count,
+        contact_force (largest normal contact force [N]), max_penetration [m] (empty before the first step)."""
         st = self.last_stats
         if st is None:
             return {}
-        out = {"newton_iters": float(np.asarray(st.newton_iters)[0])}
+        out = {"newton_iters": float(np.asarray(st.newton_iters)[0]),
+               "converged": float(bool(np.asarray(st.converged)[0])), "failed": float(bool(np.asarray(st.failed)[0]))}
         if hasattr(st, "max_penetration"):
             out["max_penetration"] = float(np.asarray(st.max_penetration)[0])
         k = int(np.asarray(st.contact_count)[0]) if hasattr(st, "contact_count") else 0
+        out["contact_count"] = float(k)
         out["contact_force"] = float(np.abs(np.asarray(st.contact_normal_force)[0, :k]).max()) if k else 0.0
         return out
 

@@ -150,7 +150,7 @@ def _task_obstacles(core: Any, env: int, model: Any) -> StaticScene:
 _STAT_SCALARS = (("energy/stretch", "energy_stretch"), ("energy/bend", "energy_bend"), ("energy/twist", "energy_twist"),
                  ("energy/contact", "energy_contact"), ("energy/kinetic", "energy_kinetic"),
                  ("energy/gravity", "energy_gravity"), ("solver/residual", "residual"),
-                 ("solver/converged", "converged"), ("solver/substeps", "substeps"),
+                 ("solver/converged", "converged"), ("solver/failed", "failed"), ("solver/substeps", "substeps"),
                  ("solver/midpoint_fallbacks", "midpoint_fallbacks"),
                  ("solver/newton_iters", "newton_iters"), ("contact/max_penetration", "max_penetration"))
 

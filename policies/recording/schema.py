@@ -78,9 +78,10 @@ RODS_PROPERTY = "rods"       # /__properties/rods: node_offsets, names (absent: 
 STANDARD_SCALARS = (
     "reward", "tip_error", "ori_error",
     "energy/stretch", "energy/bend", "energy/twist", "energy/contact", "energy/kinetic", "energy/gravity",
-    "solver/newton_iters", "solver/residual", "solver/converged", "solver/substeps", "solver/midpoint_fallbacks",
-    "solver/wall_time",
+    "solver/newton_iters", "solver/residual", "solver/converged", "solver/failed", "solver/substeps",
+    "solver/midpoint_fallbacks", "solver/wall_time",
     "contact/count", "contact/max_normal_force", "contact/max_penetration", "contact/dropped",
+    "hand/pull_force", "hand/take_over",
 )
 _SCALAR_NAME = re.compile(r"^[A-Za-z0-9_.\-]+(/[A-Za-z0-9_.\-]+)*$")
 

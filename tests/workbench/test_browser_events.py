@@ -1,0 +1,94 @@
+"""Events in a real browser: a recording with a contact, a pull and a forced failure opened in the page; the timeline
+marks its events, "Next event" / "Previous event" (and the keys ] and [) seek to them; live, they move the Rewind
+slider."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tools.browser import expand_folder, wait_for
+from workbench import events as ev
+from workbench.obstacles import ObstacleEdit
+
+pytestmark = pytest.mark.browser
+
+
+def _blur(page) -> None:
+    page.evaluate("() => { if (document.activeElement) document.activeElement.blur(); }")
+
+
+def _record(wb, path):
+    """A short live session into ``path``: a pull onto a sphere, a release and a forced failure."""
+    wb.set_playing(False)
+    wb.add_obstacle(ObstacleEdit("sphere", position=np.array([0.3, 0.0, 0.75]), radius=0.1))
+    wb.start_recording(path)
+    for _ in range(3):
+        wb.step()
+    wb.grab(wb.live.state.node_pos[0, 15])
+    wb.move_hand(wb.live.state.node_pos[0, 15] + [0.6, 0.0, 0.0])
+    for _ in range(40):
+        wb.step()
+    wb.release()
+    wb.step()
+    wb.live.state.dof[0, 8, 0] = np.nan
+    for _ in range(4):
+        wb.step()
+    return wb.stop_recording()
+
+
+def test_next_and_previous_event_seek_the_replay(wb_page):
+    app, page = wb_page
+    wb = app.wb
+    path = _record(wb, app.recordings_dir / "events.rrd")
+    app.replay.refresh_list()
+    rs = app.replay.open(path)
+    frames = sorted({e.frame for e in ev.from_episode(rs.ep)})
+    kinds = {e.kind for e in ev.from_episode(rs.ep)}
+    assert {"pull", "first contact", "released", "failed step"} <= kinds
+    wait_for(lambda: app.replay.timeline._marks is not None
+             and [m.value for m in app.replay.timeline._marks] == [float(f) for f in frames], what="timeline marks")
+    expand_folder(page, "Recordings", "Open recording")
+    wait_for(lambda: page.locator(".mantine-Slider-mark").count() >= len(frames), what="the marks in the page")
+    expand_folder(page, "Run", "Next event")
+    want = [f for f in frames if f > 0]
+    for f in want[:3]:
+        page.get_by_role("button", name="Next event").click()
+        wait_for(lambda f=f: rs.index == f and int(app.replay.timeline.value) == f, what=f"replay at event frame {f}")
+    wait_for(lambda: f"**{want[2]}:" in app.events.list.content, what="the list shows the current event")
+    _blur(page)
+    page.keyboard.press("[")
+    wait_for(lambda: rs.index == want[1], what="[ goes to the previous event")
+    page.keyboard.press("]")
+    wait_for(lambda: rs.index == want[2], what="] goes to the next event")
+    wb.close_replay()
+
+
+def test_previous_event_moves_the_rewind_slider_live(wb_page):
+    app, page = wb_page
+    wb = app.wb
+    wb.set_playing(False)
+    for _ in range(3):
+        wb.step()
+    x = wb.live.state.node_pos[0, 15]
+    wb.grab(x)
+    wb.move_hand(x + [0.2, 0.0, 0.0])
+    grabbed = wb.frame_index + 1
+    for _ in range(10):
+        wb.step()
+    wb.release()
+    for _ in range(3):
+        wb.step()
+    newest = wb.frame_index
+    app.request_render()
+    wait_for(lambda: int(app.policy.rewind.max) == newest, what="the rewind slider's range")
+    app.policy.choose_rewind_frame(newest)
+    found = ev.from_scalars(wb.history.scalars(), first_frame=wb.history.first_index)
+    assert {"pull", "released"} <= {e.kind for e in found}
+    back = sorted({e.frame for e in found if grabbed <= e.frame < newest}, reverse=True)  # release ... pull
+    expand_folder(page, "Run", "Previous event")
+    for f in back:
+        page.get_by_role("button", name="Previous event").click()
+        wait_for(lambda f=f: int(app.policy.rewind.value) == f, what=f"the rewind slider at frame {f}")
+    assert back[-1] == grabbed and wb.frame_index == newest  # moving the slider does not rewind: Rewind does
+    page.get_by_role("button", name="Rewind", exact=True).click()
+    wait_for(lambda: wb.frame_index == grabbed, what="rewound to the pull")
