@@ -4,7 +4,6 @@ Previous / Next event moving the cursor."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from workbench import events as ev
 from workbench.core import Workbench
