@@ -198,6 +198,11 @@ def _read_store(reader, entry) -> EpisodeData:
         if path.startswith(prefix) and ent.batches:
             _, v = _ragged(ent.column("Scalars:scalars"), 1)
             ep.scalars[path[len(prefix):]] = dense(ent, np.asarray(v, np.float64).reshape(-1))
+    ev = ents.get(S.EVENTS)
+    if ev is not None and ev.batches:
+        texts = ev.column("TextLog:text").to_pylist()
+        ep.events = sorted((int(f), str(t[0] if isinstance(t, list) else t))
+                           for f, t in zip(rows_of(ev), texts))
     return ep
 
 

@@ -39,6 +39,8 @@ import rerun_bindings
 from sim.rotations import quat_z_to, to_xyzw
 
 from . import schema as S
+from .events import LEVELS as EVENT_LEVELS
+from .events import from_columns as find_events
 from .schema import RecordingError, StaticScene
 
 __all__ = ["Recorder", "rerun_cli"]
@@ -530,6 +532,26 @@ class Recorder:
         for key, (fr, vals) in cols.items():
             rec.send_columns(f"{S.SCALARS}/{key}", indexes=idx(fr),
                              columns=rr.Scalars.columns(scalars=np.asarray(vals, np.float64)))
+        self._send_events(rec, idx, ep, cols)
+
+    @staticmethod
+    def _send_events(rec, idx, ep: _Episode, cols: dict[str, tuple[list[int], list[float]]]) -> None:
+        """The episode's events (``events.py``) as text at ``events``, found from the scalars just sent."""
+        nf = len(ep.pos)
+        dense = {}
+        for key, (fr, vals) in cols.items():
+            a = np.full(nf, np.nan)
+            a[np.asarray(fr, np.int64)] = vals
+            dense[key] = a
+        cc = None
+        if "contact/count" not in dense and "contacts" in ep.rows:
+            fr, rows = ep.rows["contacts"]
+            cc = np.zeros(nf)
+            cc[np.asarray(fr, np.int64)] = [len(c.points) for c in rows]
+        found = find_events(nf, dense, cc)
+        if found:
+            rec.send_columns(S.EVENTS, indexes=idx([e.frame for e in found]), columns=rr.TextLog.columns(
+                text=[e.text for e in found], level=[EVENT_LEVELS.get(e.kind, "INFO") for e in found]))
 
     def _send_blueprint(self, ep: _Episode, paths: set[str]) -> None:
         """Default viewer layout (with the first episode of the file only), as the file's first part."""

@@ -39,6 +39,9 @@ Inside every recording (all positions in metres, world frame, z up):
                                     ``reward_terms/<term>``, ``tip_error``, ``energy/<kind>``,
                                     ``solver/newton_iters``, ``solver/residual``,
                                     ``solver/converged``, ``solver/wall_time``, ...)
+``events``                          TextLog at the frames of the episode's events (``events.py``:
+                                    episode start/end, first contact, failed and unconverged steps,
+                                    reward spikes, pulls, take-overs), found from the scalars
 ==================================  ===========================================================
 
 The first episode of a file also carries a default viewer layout (blueprint).
@@ -71,6 +74,7 @@ OBSTACLES = "world/obstacles"
 CURVATURE = "curvature"
 CURVATURE_KINDS = ("kappa1", "kappa2", "twist")
 SCALARS = "scalars"
+EVENTS = "events"
 META_PROPERTY = "episode"
 RODS_PROPERTY = "rods"       # /__properties/rods: node_offsets, names (absent: one rod)
 
@@ -231,6 +235,7 @@ class EpisodeData:
     target_pos: np.ndarray | None = None
     target_quat: np.ndarray | None = None
     scalars: dict[str, np.ndarray] = field(default_factory=dict)
+    events: list[tuple[int, str]] = field(default_factory=list)
     recording_id: str = ""
 
     @property

@@ -98,3 +98,23 @@ def test_a_recorded_session_shows_the_live_events_at_the_same_frames(tmp_path):
     assert {ev.Event(e.frame + first, e.kind, e.text) for e in rec} == {e for e in live if e.kind != "reward spike"}
     ends = kinds_at(ev.from_episode(rs.ep))
     assert "episode start" in ends[0] and "episode end" in ends[len(rs.ep.positions) - 1]
+
+
+def test_a_recording_carries_its_events_as_text(tmp_path):
+    """The recorder writes the episode's events at ``events`` (the rerun viewer lists them); read back, they are the
+    events found from the recorded scalars, at the same frames."""
+    wb = Workbench.builtin()
+    wb.start_recording(tmp_path / "ep.rrd")
+    for _ in range(3):
+        wb.step()
+    wb.grab(wb.live.state.node_pos[0, 15])
+    wb.move_hand(wb.live.state.node_pos[0, 15] + [0.3, 0.0, 0.0])
+    for _ in range(5):
+        wb.step()
+    wb.release()
+    for _ in range(3):
+        wb.step()
+    rs = ReplaySession.open(wb.stop_recording())
+    found = ev.from_episode(rs.ep)
+    assert {"pull", "released"} <= {e.kind for e in found}
+    assert rs.ep.events == sorted((e.frame, e.text) for e in found)
