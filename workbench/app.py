@@ -273,16 +273,17 @@ class WorkbenchApp:
         self.wb.reach_to(target, node=node)
         self.controls.sync_sliders()
 
-    def _pick(self, edge: int, ev) -> None:
-        """A click on the rod pins (or unpins) a readout at the nearer node of the clicked edge (workbench.pins)."""
+    def _pick(self, nodes: tuple[int, ...], ev) -> None:
+        """A click on the rod pins (or unpins) a readout at the clicked node nearest the pointer's ray
+        (workbench.pins)."""
         fr = self.view.last_frame
-        if fr is None or not 0 <= edge < len(fr.node_pos) - 1:
+        if fr is None or not all(0 <= k < len(fr.node_pos) for k in nodes):
             return
         try:
             origin, direction = point(ev.ray_origin, "ray origin"), point(ev.ray_direction, "ray direction")
         except ValueError:  # not a ray a page sends
             return
-        self.view.toggle_pin(ray_nearest_node(np.asarray(fr.node_pos), (edge, edge + 1), origin, direction))
+        self.view.toggle_pin(ray_nearest_node(np.asarray(fr.node_pos), nodes, origin, direction))
         self.request_render()
 
     def _apply_hand_events(self) -> bool:

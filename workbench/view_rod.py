@@ -138,7 +138,7 @@ class RodView:
                 batched_scales=np.full(k, 1e-4), batched_colors=np.tile(CONTROL_COLOR, (k, 1)), lod="off",
                 visible=False)
             self.control_nodes = cn
-            if self._on_bend is not None:
+            if self._on_bend is not None or self._on_pick is not None:
                 self._bind_bend()
         self.clear_trail()
 
@@ -180,11 +180,13 @@ class RodView:
             self.grip.on_drag("left")(callback)
 
     def on_pick(self, callback) -> None:
-        """``callback(edge, event)`` on a click on the rod: the rod's edge under the pointer (an index into the
-        frame's edges, ``frame.rod_edges``) and viser's ``SceneNodePointerEvent`` (its ray)."""
+        """``callback(nodes, event)`` on a click on the rod: the nodes under the pointer (the two ends of the clicked
+        edge, or a control point's node when its bead is clicked) and viser's ``SceneNodePointerEvent`` (its ray)."""
         self._on_pick = callback
         if self.grip is not None:
             self._bind_pick()
+        if self.controls is not None:
+            self._bind_bend()
 
     def on_bend(self, callback) -> None:
         """``callback(node, event)`` on every phase of a left-button drag that starts on a control point's bead:
@@ -198,10 +200,18 @@ class RodView:
 
         def dragged(ev) -> None:
             i = ev.instance_index
-            if isinstance(i, int) and 0 <= i < len(nodes):
+            if self._on_bend is not None and isinstance(i, int) and 0 <= i < len(nodes):
                 self._on_bend(int(nodes[i]), ev)
 
+        def clicked(ev) -> None:  # the bead covers the rod there: a click on it pins its node
+            i = ev.instance_index
+            if self._on_pick is not None and isinstance(i, int) and 0 <= i < len(nodes):
+                self._on_pick((int(nodes[i]),), ev)
+
+        self.controls.remove_drag_callback()
+        self.controls.remove_click_callback()
         self.controls.on_drag("left")(dragged)
+        self.controls.on_click(clicked)
 
     def _bind_pick(self) -> None:
         edges = self._edges
@@ -209,7 +219,7 @@ class RodView:
         def picked(ev) -> None:
             i = ev.instance_index
             if isinstance(i, int) and 0 <= i < len(edges):
-                self._on_pick(int(edges[i]), ev)
+                self._on_pick((int(edges[i]), int(edges[i]) + 1), ev)
 
         self.grip.on_click(picked)
 

@@ -145,7 +145,7 @@ def test_drags_on_the_rod_from_a_raw_client_are_checked(app):
     """A drag on the tube grabs the rod only at a finite point within reach; a hand moved to a non-finite or far point
     stays where it was; the end lets go. Every refusal is said in the status line."""
     wb = app.wb
-    tube = app.view.rod.tube.visible_node.name
+    tube = app.view.rod.grip.name  # the rod's grip takes the drags
     tip = wb.tip
     client = HostileClient(app)
     try:

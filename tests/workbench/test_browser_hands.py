@@ -25,7 +25,10 @@ def test_dragging_the_rod_pulls_it_and_release_lets_it_spring_back(wb_page, shot
              and np.allclose(client.camera.look_at, at, atol=1e-3), what="camera in front of the arm")
     box = page.locator("canvas").first.bounding_box()
     corner = np.array([box["x"], box["y"]])
-    grab = np.asarray(wb.live.state.node_pos[0, -3], dtype=np.float64)  # on the rod, a little below the tip
+    # on the rod below the tip, between two control points (a press on a control point's bead bends the rod there)
+    node = wb.live.n_nodes - 5
+    assert all(abs(node - c) >= 2 for c in wb.teleop.control_nodes())
+    grab = np.asarray(wb.live.state.node_pos[0, node], dtype=np.float64)
     uv = project(client.camera, np.stack([grab, grab + [PULL_M, 0.0, 0.0]]), box["width"], box["height"]) + corner
     held = {"down": False}
 
@@ -38,7 +41,7 @@ def test_dragging_the_rod_pulls_it_and_release_lets_it_spring_back(wb_page, shot
         page.mouse.move(*uv[1], steps=10)
 
     retry_until(press_and_drag, lambda: wb.pull is not None, what="the rod grabbed")
-    assert wb.pull.node >= wb.live.n_nodes - 5  # near where the rod was pressed
+    assert abs(wb.pull.node - node) <= 1  # where the rod was pressed
     nudge = {"px": 1.0}
 
     def move_on() -> None:  # the page sends pointer moves throttled: one more move sends the last place
@@ -84,6 +87,7 @@ def test_clicking_the_rod_pins_a_readout_that_follows_the_node(wb_page):
         uv = project(client.camera, x[None], box["width"], box["height"])[0] + np.array([box["x"], box["y"]])
         page.mouse.click(*uv)
 
+    assert node in wb.teleop.control_nodes()  # its bead covers the rod there: the click on the bead pins it
     retry_until(click, lambda: view.pins == [node], what=f"a readout pinned at node {node}")
     wait_for(lambda: view.pin_labels[0].visible and view.pin_texts and view.pin_texts[0].startswith(f"node {node} ·"),
              what="the readout drawn")
@@ -99,6 +103,18 @@ def test_clicking_the_rod_pins_a_readout_that_follows_the_node(wb_page):
     if np.allclose(st.node_pos[0], fr.node_pos, atol=1e-12):  # the arm at rest: the frame is the state's
         assert r["κ1"] == pytest.approx(material_curvature(np.asarray(st.node_pos[0]), m1, m2)[node, 0], abs=1e-12)
     assert abs(r["κ1"]) > 0.01
+    # between two beads the click lands on the rod's grip: a second pin at the node nearest the pointer
+    other = 12
+    assert all(abs(other - c) >= 2 for c in wb.teleop.control_nodes())
+
+    def click_other() -> None:
+        x = np.asarray(wb.live.state.node_pos[0, other], dtype=np.float64)
+        uv = project(client.camera, x[None], box["width"], box["height"])[0] + np.array([box["x"], box["y"]])
+        page.mouse.click(*uv)
+
+    retry_until(click_other, lambda: view.pins == [node, other], what=f"a second readout at node {other}")
+    wait_for(lambda: len(view.pin_texts) == 2 and view.pin_texts[1].startswith(f"node {other} ·"),
+             what="both readouts drawn")
     expand_folder(page, "Display", "Clear pins")
     page.get_by_role("button", name="Clear pins").click()
     wait_for(lambda: view.pins == [] and not view.pin_labels[0].visible, what="the pins cleared")
