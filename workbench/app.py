@@ -89,7 +89,6 @@ class WorkbenchApp:
             raise RuntimeError("viser changed: the workbench's callbacks could not be guarded")
         self.server.gui.configure_theme(control_width="large", show_share_button=False)
         self.view = SceneView(self.server, wb.live.n_nodes, env_map=env_map)
-        self._draw_lock = threading.Lock()
         self.render_hooks: list = []  # called with each drawn frame after the view (ghost of a compared episode)
         self.status_note = ""  # a line appended to the status (video progress)
         self.notice = ("", 0.0)  # (text, when): why the last page action failed, shown for NOTICE_S
@@ -306,12 +305,9 @@ class WorkbenchApp:
         return any_
 
     def _render(self, fr: Frame) -> None:
-        # one frame drawn at a time: the sim thread and a video being recorded both draw, and a frame's tube,
-        # markers, target and overlays must be of that one frame when the hooks read them
-        with self._draw_lock:
-            self.view.render(fr, boundary=self.wb.mode != "replay")  # a recording does not carry fixes and loads
-            for hook in list(self.render_hooks):
-                hook(fr)
+        self.view.render(fr, boundary=self.wb.mode != "replay")  # a recording does not carry fixes and loads
+        for hook in list(self.render_hooks):
+            hook(fr)
         now = time.perf_counter()
         if now - self._last_gui > 0.2:
             self._last_gui = now
