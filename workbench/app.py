@@ -38,7 +38,7 @@ from workbench.gui_replay import ReplayPanel
 from workbench.handshake import Guard, start_viser
 from workbench.housekeeping import Housekeeping
 from workbench.pins import ray_nearest_node
-from workbench.pull import HAND_EVENTS, point
+from workbench.pull import HAND_EVENTS, apply_gestures, point
 from workbench.runner import SimThread
 from workbench.simbridge import ActionRefused
 from workbench.view_boundary import boundary_of
@@ -288,21 +288,9 @@ class WorkbenchApp:
     def _apply_hand_events(self) -> bool:
         """Apply the queued hand gestures (in the sim thread); a refused one is said in the status line. Returns
         whether there were any."""
-        any_ = False
-        while self._hand_events:
-            phase, start, end = self._hand_events.popleft()
-            any_ = True
-            try:
-                if phase == "start":
-                    self.wb.grab(start)
-                    self.wb.move_hand(end)
-                elif phase == "update":
-                    self.wb.move_hand(end)
-                else:
-                    self.wb.release()
-            except (ValueError, ActionRefused) as exc:
-                self.notice = (f"⚠ {exc}", time.monotonic())
-        return any_
+        return apply_gestures(self._hand_events, self.wb.grab, self.wb.move_hand, self.wb.release,
+                              lambda exc: setattr(self, "notice", (f"⚠ {exc}", time.monotonic())),
+                              errors=(ValueError, ActionRefused))
 
     def _render(self, fr: Frame) -> None:
         self.view.render(fr, boundary=self.wb.mode != "replay")  # a recording does not carry fixes and loads

@@ -22,7 +22,7 @@ from sim.inverse import reach
 from workbench import obstacles as obst
 from workbench.frame import Frame
 from workbench.history import History, Snapshot
-from workbench.pull import Pull, grab, held_point, point, spring_forces
+from workbench.pull import Pull, control_force, grab, held_point, point
 from workbench.session_recorder import SessionRecorder
 from workbench.simbridge import ActionRefused, LiveSim, builtin_spec, load
 from workbench.teleop import KAPPA_LIMIT, Teleop
@@ -127,12 +127,8 @@ class Workbench:
         if pull is None:
             ctrl.force = None
             return
-        st, m = self.live.state, self.live.model
-        F = spring_forces(pull, st.node_pos[0], st.node_vel[0], np.asarray(m.node_mass), float(m.dt))
-        force = np.zeros((1, m.node_count, 3))
-        force[0, pull.nodes] = F
-        ctrl.force = force
-        pull.force = F.sum(axis=0)
+        m = self.live.model
+        ctrl.force = control_force(pull, self.live.state, 0, m.node_mass, float(m.dt))
 
     def advance(self) -> bool:
         """Step if playing; returns whether anything moved."""

@@ -14,7 +14,7 @@ import numpy as np
 
 from workbench.obstacles import ObstacleEdit, edits_from_spec
 from workbench.policy_session import act, load_for
-from workbench.pull import Pull, grab, held_point, point, spring_forces
+from workbench.pull import Pull, control_force, grab, held_point, point
 from workbench.replay import quat_z_to
 
 MAX_ENVS = 36
@@ -115,13 +115,7 @@ class GridSession:
         if pull is None:
             ctrl.force = None
             return
-        st, m, e = self.core.state, self.core.model, self.pull_env
-        F = spring_forces(pull, np.asarray(st.node_pos[e]), np.asarray(st.node_vel[e]), np.asarray(m.node_mass),
-                          self.control_dt)
-        force = np.zeros((self.n, m.node_count, 3))
-        force[e, pull.nodes] = F
-        ctrl.force = force
-        pull.force = F.sum(axis=0)
+        ctrl.force = control_force(pull, self.core.state, self.pull_env, self.core.model.node_mass, self.control_dt)
 
     def step(self) -> None:
         """One control step of every env; finished episodes restart (each env on its own)."""

@@ -17,7 +17,7 @@ from workbench.grid_view import GridView
 from workbench.gui_host import PanelHost
 from workbench.gui_policy import NO_POLICY
 from workbench.policy_session import PRETRAINED
-from workbench.pull import HAND_EVENTS
+from workbench.pull import HAND_EVENTS, apply_gestures
 from workbench.view_scene import GROUND_SIZE, place_camera
 
 STATUS_S = 0.2  # [s] the readouts follow the running grid this often
@@ -194,26 +194,17 @@ class GridPanel:
 
     def _grabbed(self, env: int, ev) -> None:
         """A drag on env ``env``'s rod (on the event loop): queued for the grid's thread."""
-        self._hand_events.append((env, ev.phase, ev.start_position, ev.end_position))
+        self._hand_events.append((ev.phase, (env, ev.start_position), ev.end_position))
 
     def _apply_hand_events(self) -> None:
         """The queued drags, in order, on the running grid (its thread, under its lock): the hand pulls that env's
         rod (``GridSession.grab`` / ``move_hand`` / ``release``); a refused one is said in the status line."""
         s = self.session
-        while self._hand_events:
-            env, phase, start, end = self._hand_events.popleft()
-            if s is None:
-                continue
-            try:
-                if phase == "start":
-                    s.grab(env, start)
-                    s.move_hand(end)
-                elif phase == "update":
-                    s.move_hand(end)
-                else:
-                    s.release()
-            except ValueError as exc:
-                self._say(f"⚠ {exc}")
+        if s is None:
+            self._hand_events.clear()
+            return
+        apply_gestures(self._hand_events, lambda env_at: s.grab(*env_at), s.move_hand, s.release,
+                       lambda exc: self._say(f"⚠ {exc}"))
 
     def _camera_poses(self) -> dict[int, tuple[tuple, tuple]]:
         out = {}

@@ -85,3 +85,35 @@ def spring_forces(pull: Pull, x: np.ndarray, v: np.ndarray, mass: np.ndarray, h:
     j = pull.nodes
     m = mass[j][:, None]
     return m * (STIFFNESS * (pull.pointer + pull.offsets - x[j]) / h ** 2 - DAMPING * v[j] / h)
+
+
+def control_force(pull: Pull, state, env: int, mass: np.ndarray, h: float) -> np.ndarray:
+    """(B, N, 3) [N] the ``Control.force`` of the next step of length ``h`` for a hand on env ``env`` of ``state``
+    (a sim ``State``; ``mass`` (N,) the node masses): the springs on that env's held nodes, zero elsewhere. Keeps
+    the total in ``pull.force``."""
+    F = spring_forces(pull, np.asarray(state.node_pos[env]), np.asarray(state.node_vel[env]), np.asarray(mass), h)
+    force = np.zeros((state.dof.shape[0], len(mass), 3))
+    force[env, pull.nodes] = F
+    pull.force = F.sum(axis=0)
+    return force
+
+
+def apply_gestures(queue, grab_at, move_to, release, say, errors=(ValueError,)) -> bool:
+    """Apply the queued drag phases ``(phase, start, end)`` in order: start grabs at ``start`` and moves the hand to
+    ``end``, update moves it, end lets go; a refused one (one of ``errors``) is passed to ``say``. Returns whether
+    there were any."""
+    any_ = False
+    while queue:
+        phase, start, end = queue.popleft()
+        any_ = True
+        try:
+            if phase == "start":
+                grab_at(start)
+                move_to(end)
+            elif phase == "update":
+                move_to(end)
+            else:
+                release()
+        except errors as exc:
+            say(exc)
+    return any_
