@@ -106,7 +106,6 @@ class RodView:
         cyl = trimesh.creation.cylinder(radius=1.0, height=1.0, sections=8)
         self._cylinder = cyl
         self.grip = None
-        self._grip_edges = -1
         self._edges = np.zeros(0, dtype=np.int64)  # the rod edge of each grip cylinder
         self._on_grab = None
         self._on_pick = None
@@ -230,7 +229,7 @@ class RodView:
         q = quat_z_to(e / np.maximum(length, 1e-12)[:, None])
         scales = np.stack([np.full(len(k), GRIP_SCALE * r), np.full(len(k), GRIP_SCALE * r), length], 1)
         mid = 0.5 * (x[k] + x[k + 1])
-        if self.grip is None or self._grip_edges != len(k) or not np.array_equal(self._edges, k):
+        if self.grip is None or not np.array_equal(self._edges, k):
             if self.grip is not None:
                 self.grip.remove()
             c = self._cylinder
@@ -238,7 +237,6 @@ class RodView:
                 f"{self._name}/grip", c.vertices, c.faces, batched_wxyzs=q, batched_positions=mid,
                 batched_scales=scales, opacity=0.0, cast_shadow=False, receive_shadow=False, lod="off",
                 visible=self.grip_enabled)
-            self._grip_edges = len(k)
             self._edges = k
             if self._on_grab is not None:
                 self.grip.on_drag("left")(self._on_grab)
