@@ -30,6 +30,7 @@ def _atomic_savez(path: str, **arrays) -> None:
 
 _FRAME_BYTES_LIMIT = 4 * 2 ** 30  # --out keeps the frames in memory until the end: refuse more than 4 GiB up front
 _MAX_ENVS = 100_000
+EXIT_UNSTABLE = 3  # rodlab sim --static: every env converged, some to an unstable equilibrium
 
 
 def sim_main(argv: list[str] | None = None) -> int:
@@ -41,7 +42,9 @@ def sim_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--static", action="store_true",
                     help="solve for static equilibrium instead (sim.static: backward-Euler pseudo-time steps growing "
                          "to 1e5 s with zeroed velocities, until a step moves no node by more than "
-                         "--static-tol x rod length); --out then holds one frame")
+                         "--static-tol x rod length); --out then holds one frame. Exit status 0: every env at a "
+                         "stable equilibrium, 1: some env did not converge, 3: converged, but some env is at an "
+                         "unstable one (see --to-stable)")
     ap.add_argument("--static-tol", type=float, default=1e-10, help="relative displacement tolerance of --static")
     ap.add_argument("--to-stable", action="store_true",
                     help="with --static: an env that ends at an unstable equilibrium (a saddle of the energy, e.g. a "
@@ -227,7 +230,9 @@ def _static_main(a: argparse.Namespace, spec, fail) -> int:
               + ("" if a.to_stable else "; --to-stable looks for a stable one nearby"))
     elif res.converged.all():
         print("stable equilibrium (no negative direction of the static Hessian)")
-    return 0 if res.converged.all() else 1
+    if not res.converged.all():
+        return 1
+    return EXIT_UNSTABLE if bad.size else 0
 
 
 def bench_sim_main(argv: list[str] | None = None) -> int:

@@ -1,12 +1,18 @@
-"""Compile (or load from the numba cache) the step kernels on a tiny model: ``python -m sim.warmup``."""
+"""Compile (or load from the numba cache) the kernels on a tiny model: ``python -m sim.warmup``. Besides the step
+kernels, the static solve's Hessian (sim.hessian, the stability check) and the rollout derivatives' linearisation
+(sim.gradients), so a first ``rodlab sim --static`` or ``rodlab fit`` does not wait for them."""
 from __future__ import annotations
 
 import sys
 import time
 from typing import Callable
 
+import numpy as np
+
+from .gradients import rollout
 from .model import build_model
 from .scene import RodSpec, SceneSpec, SimSpec
+from .static import solve_static
 from .step import Simulator
 
 __all__ = ["warmup"]
@@ -30,9 +36,18 @@ def warmup(*, verbose: bool = False, on_stage: Callable[[str], None] | None = No
         if verbose:
             print(f"sim.warmup: compiling the {mode} step kernel (first run only; cached afterwards)...",
                   file=sys.stderr, flush=True)
-        sim = Simulator(build_model(_tiny_spec(mode)), envs=2)
+        spec = _tiny_spec(mode)
+        sim = Simulator(build_model(spec), envs=2)
         state = sim.reset()
         sim.step(state, sim.make_control())
+        if on_stage is not None:
+            on_stage(f"the {mode.upper()} static Hessian and derivatives")
+        if verbose:
+            print(f"sim.warmup: compiling the {mode} static Hessian and rollout derivatives...", file=sys.stderr,
+                  flush=True)
+        solve_static(spec, state, sim.make_control(), max_steps=2)   # the stability check's Hessian
+        tape = rollout(sim, sim.reset(), [sim.make_control()])          # the step's linearisation
+        tape.jvp({"kappa_bar": np.zeros_like(tape.kappa_bar)})
     return time.perf_counter() - t0
 
 

@@ -13,7 +13,7 @@ from scipy.special import ellipk
 
 from sim import Simulator, build_model
 from sim.boundary import FixSpec, LoadSpec
-from sim.cli import sim_main
+from sim.cli import EXIT_UNSTABLE, sim_main
 from sim.scene import dump_scene
 from sim.static import solve_static
 from tests.unit._rodspec import make_spec
@@ -105,7 +105,7 @@ def test_slack_rope_left_straight_is_unstable_and_to_stable_lets_it_sag():
 def test_cli_reports_unstable_equilibrium_and_to_stable(tmp_path, capsys):
     path = tmp_path / "column.toml"
     dump_scene(_column(2.0), path)
-    assert sim_main([str(path), "--static"]) == 0
+    assert sim_main([str(path), "--static"]) == EXIT_UNSTABLE == 3  # a script can tell a saddle from a rest state
     out = capsys.readouterr().out
     assert "unstable equilibrium in 1 env(s)" in out and "--to-stable" in out, out
     outfile = tmp_path / "s.npz"
