@@ -19,6 +19,11 @@ Candidates: once per (sub)step, over the predicted motion, every allowed pair wh
 the step's start and end, grown by its radius and half the contact margin) overlap (:func:`find_candidates`);
 refreshed over the motion actually taken like the obstacle candidates (:func:`add_candidates`).
 
+One crossing, one contact (§4.8): each rod's centre line counts as its edges less its interior nodes, so a crossing on
+a node (the closest point of 2 pairs, or of 4 on a node of both rods) is one contact: pair (i, j) carries its
+edges' term and the −E / +E terms of the start nodes it owns (:func:`_terms`, :func:`pair_links`); a node is a
+segment of zero length in the same distance functions.
+
 Friction (IMC friction, §4.6, lagged normal and closest-point weights): the contact points' relative velocity
 ``v = Σ c_k v_k`` with weights ``c = (1−s, s, −(1−t), −t)`` on the nodes (x_i, x_{i+1}, x_j, x_{j+1}); residual
 ``μ λ γ(|v_t|) c_k t̂`` on node k, ``λ = −E'(g)``.
@@ -43,7 +48,7 @@ from sim.vec3 import vcross, vdot, vlerp, vsub
 
 from .imc import coulomb_factor, edge_radius, friction_tangent_entry, imc_energy, row3
 
-__all__ = ["allowed_pairs", "model_pairs", "edge_rods", "seg_seg_derivs", "find_candidates", "add_candidates",
+__all__ = ["allowed_pairs", "model_pairs", "pair_links", "edge_rods", "seg_seg_derivs", "find_candidates", "add_candidates",
            "add_forces", "smallest_gap", "pair_energy", "pair_rows", "update_fraction", "Coupling", "alloc_coupling",
            "reset_coupling", "EdgePairContact", "alloc", "present", "candidates", "friction_acts", "broadphase",
            "refresh", "penetration", "step_limit", "accumulate", "energy", "report"]
@@ -125,6 +130,21 @@ def model_pairs(model) -> np.ndarray:
                          rod_contact=rod_contact, delta=float(c.delta))
 
 
+def pair_links(pairs: np.ndarray) -> np.ndarray:
+    """(P, 3) int64: for each allowed pair (i, j) of ``pairs`` (P, 2), the index in ``pairs`` of the pairs
+    (i − 1, j), (i, j − 1) and (i − 1, j − 1), or −1 where that pair is not allowed (the edge before is on another
+    rod, a joint edge, or too close along the rod). They decide which node terms pair (i, j) carries
+    (:func:`_terms`)."""
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    index = {(int(i), int(j)): c for c, (i, j) in enumerate(pairs)}
+    out = np.full((pairs.shape[0], 3), -1, dtype=np.int64)
+    for c, (i, j) in enumerate(pairs):
+        for slot, (a, b) in enumerate(((i - 1, j), (i, j - 1), (i - 1, j - 1))):
+            if a != b:
+                out[c, slot] = index.get((min(int(a), int(b)), max(int(a), int(b))), -1)
+    return out
+
+
 @njit(**OPT_CONTACT)
 def seg_seg_derivs(a, b, p, q, grad, hess, nhat, ws):
     """Distance Δ [m] between segments (a, b) and (p, q) (3-tuples) with its gradient ``grad`` (12,) and Hessian
@@ -162,6 +182,9 @@ def seg_seg_derivs(a, b, p, q, grad, hess, nhat, ws):
                 ax = 2
             n = vcross(e1, (1.0 if ax == 0 else 0.0, 1.0 if ax == 1 else 0.0, 1.0 if ax == 2 else 0.0))
             nn = math.sqrt(vdot(n, n))
+            if nn <= 0.0:  # two nodes (zero-length segments: node terms) at one point: any direction
+                n = (0.0, 0.0, 1.0)
+                nn = 1.0
         for i in range(3):
             nhat[i] = n[i] / nn
             grad[i] = c0 * nhat[i]
@@ -352,6 +375,81 @@ def _gap_bound(x, radius, i, j):
         - slack
 
 
+@njit(inline="always", **OPT_CONTACT)
+def _is_candidate(ep, c):
+    """Whether allowed pair ``c`` is in the (sorted) candidate list of ``ep``."""
+    lo = 0
+    hi = ep.count[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if ep.cand[mid] < c:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo < ep.count[0] and ep.cand[lo] == c
+
+
+# The terms a pair carries (docs/physics.md §4.8, "One crossing, one contact"): each rod's centre line is counted as
+# its edges (+1) less its interior nodes (−1), so every point of it counts once; pair (i, j) carries its edges'
+# term and the terms of the start nodes it owns.
+TERM_EDGE_EDGE = 0   # edge i vs edge j, +E
+TERM_NODE_EDGE = 1   # node i (start of edge i, shared with edge i − 1) vs edge j, −E
+TERM_EDGE_NODE = 2   # edge i vs node j (shared with edge j − 1), −E
+TERM_NODE_NODE = 3   # node i vs node j, +E
+
+
+@njit(inline="always", **OPT_CONTACT)
+def _terms(ep, links, c):
+    """Bit mask of the terms pair ``c`` carries: always its edges' (bit 0); node i's (bit 1) when the pair with
+    edge i − 1 is a candidate too, node j's (bit 2) likewise with edge j − 1, both nodes' (bit 3) when the pairs
+    with edge i − 1, with edge j − 1 and with both are."""
+    m = 1
+    a = links[c, 0] >= 0 and _is_candidate(ep, links[c, 0])
+    b = links[c, 1] >= 0 and _is_candidate(ep, links[c, 1])
+    if a:
+        m |= 2
+    if b:
+        m |= 4
+    if a and b and links[c, 2] >= 0 and _is_candidate(ep, links[c, 2]):
+        m |= 8
+    return m
+
+
+@njit(inline="always", **OPT_CONTACT)
+def _term_geometry(x, radius, i, j, kind):
+    """The segments (a, b), (p, q) of a term of pair (i, j) — a node is a segment of zero length, so the
+    closest-point rule and :func:`seg_seg_derivs` give its weights with zero on the node not in it — their radii
+    sum [m] (at a node the thinner of its two edges', so the edges' capsules' union keeps the thicker one) and the
+    term's sign."""
+    a = row3(x, i)
+    p = row3(x, j)
+    b = a
+    q = p
+    ra = edge_radius(radius, i)
+    rb = edge_radius(radius, j)
+    sign = 1.0
+    if kind == TERM_EDGE_EDGE or kind == TERM_EDGE_NODE:
+        b = row3(x, i + 1)
+    else:
+        ra = min(ra, edge_radius(radius, i - 1))
+        sign = -sign
+    if kind == TERM_EDGE_EDGE or kind == TERM_NODE_EDGE:
+        q = row3(x, j + 1)
+    else:
+        rb = min(rb, edge_radius(radius, j - 1))
+        sign = -sign
+    return a, b, p, q, ra + rb, sign
+
+
+@njit(inline="always", **OPT_CONTACT)
+def _term_gap(x, radius, i, j, kind):
+    """(gap [m], s, t, sign) of a term of pair (i, j) at node positions x."""
+    a, b, p, q, rs, sign = _term_geometry(x, radius, i, j, kind)
+    s, t = closest_seg_seg(a, b, p, q)
+    u = vsub(vlerp(a, b, s), vlerp(p, q, t))
+    return math.sqrt(vdot(u, u)) - rs, s, t, sign
+
+
 @njit(**OPT_CONTACT)
 def reset_coupling(cp):
     """Empty the coupling list ``cp`` (before a Jacobian assembly)."""
@@ -398,70 +496,95 @@ def _pair_slip(x, x_prev, dt, nodes, cw, nhat, mu, nu, lam):
     return gam, dgam, vtn, (tv0, tv1, tv2)
 
 
+@njit(inline="always", **OPT_CONTACT)
+def _add_term(i, j, a, b, p, q, rs, sign, ep, law, x, x_prev, dt, dpn, fixed, system, sym, with_jac):
+    """Add one term of pair (i, j) — segments (a, b) and (p, q) on the nodes (i, i + 1, j, j + 1), radii sum
+    ``rs``, sign ±1 — to the residual and (``with_jac``) the Jacobian; returns its energy [J] (0 out of reach)."""
+    k, delta, mu, nu = law.contact_k, law.contact_delta, law.friction, law.friction_nu
+    g12, H12, nhat, ws = ep.g12, ep.H12, ep.nhat, ep.ws
+    f, ab, cp = system.f, system.ab, system.coupling
+    kl = ab.shape[1] // 2
+    dd, s, t = seg_seg_derivs(a, b, p, q, g12, H12, nhat, ws)
+    gap = dd - rs
+    if gap >= delta:
+        return 0.0
+    E, dE, d2E = imc_energy(gap, k, delta)
+    cw = (1.0 - s, s, -(1.0 - t), -t)
+    nodes = (i, i + 1, j, j + 1)
+    lam = -dE
+    gam, dgam, vtn, tv = _pair_slip(x, x_prev, dt, nodes, cw, nhat, mu, nu, lam)
+    cf = mu * lam * gam
+    for r in range(4):
+        for c in range(3):
+            d = _dof(dpn, nodes[r], c)
+            if d >= 0:
+                f[d] += sign * (dE * g12[3 * r + c] + cf * cw[r] * tv[c])
+    if not with_jac:
+        return sign * E
+    # contact Hessian E'' ∇Δ∇Δᵀ + E' ∇²Δ, then friction's consistent part
+    for r in range(12):
+        for c in range(12):
+            H12[r, c] = d2E * g12[r] * g12[c] + dE * H12[r, c]
+    if gam > 0.0:
+        a1 = mu * lam / dt
+        for r in range(3):
+            for c in range(3):
+                blk = friction_tangent_entry(a1, dgam, gam, vtn, tv, nhat, mu, d2E, r, c)
+                for u in range(4):
+                    for v in range(4):
+                        H12[3 * u + r, 3 * v + c] += blk * cw[u] * cw[v]
+    for u in range(4):
+        if cw[u] == 0.0:
+            continue  # the node a node term leaves out
+        for r in range(3):
+            row = _dof(dpn, nodes[u], r)
+            if row < 0 or fixed[row]:
+                continue
+            for v in range(4):
+                if cw[v] == 0.0:
+                    continue
+                same_edge = (u < 2) == (v < 2)
+                for c in range(3):
+                    col = _dof(dpn, nodes[v], c)
+                    if col < 0 or fixed[col]:
+                        continue
+                    val = sign * H12[3 * u + r, 3 * v + c]
+                    if same_edge:
+                        if sym and col < row:
+                            continue
+                        ab[row, kl + col - row] += val
+                    else:
+                        cp.M[_slot(cp, row), _slot(cp, col)] += val
+    return sign * E
+
+
 @njit(**OPT_CONTACT)
-def add_forces(ep, pairs, law, x, x_prev, dt, dpn, fixed, radius, system, sym, with_jac):
+def add_forces(ep, pairs, links, law, x, x_prev, dt, dpn, fixed, radius, system, sym, with_jac):
     """Add the IMC energy and friction of the candidate pairs at node positions ``x`` (N, 3) to the residual
     ``system.f`` (DOFs) and, with ``with_jac``, the Jacobian: blocks of an edge with itself into the padded band
     ``system.ab`` (upper half only with ``sym``), blocks between the two edges into the coupling list
     ``system.coupling`` (entries on constrained DOFs dropped: those rows and columns are identity). ``system``: a
-    Workspace (sim.kernels.workspace). Velocities (x − x_prev)/dt. Returns the energy [J]."""
-    k, delta, mu, nu = law.contact_k, law.contact_delta, law.friction, law.friction_nu
-    cand, ncand, g12, H12, nhat, ws = ep.cand, ep.count, ep.g12, ep.H12, ep.nhat, ep.ws
-    f, ab, cp = system.f, system.ab, system.coupling
-    kl = ab.shape[1] // 2
+    Workspace (sim.kernels.workspace). Each pair adds its terms (:func:`_terms`; ``links``: :func:`pair_links`).
+    Velocities (x − x_prev)/dt. Returns the energy [J]."""
+    delta = law.contact_delta
+    cand, ncand = ep.cand, ep.count
     energy = 0.0
     for m in range(ncand[0]):
-        i = pairs[cand[m], 0]
-        j = pairs[cand[m], 1]
-        if _gap_bound(x, radius, i, j) >= delta or _gap(x, radius, i, j) >= delta:  # most candidates: no touch
+        c = cand[m]
+        i = pairs[c, 0]
+        j = pairs[c, 1]
+        # every term's gap is at least the edges' (a node is part of its edge): most candidates end here
+        if _gap_bound(x, radius, i, j) >= delta or _gap(x, radius, i, j) >= delta:
             continue
-        rs = edge_radius(radius, i) + edge_radius(radius, j)
-        dd, s, t = seg_seg_derivs(row3(x, i), row3(x, i + 1), row3(x, j), row3(x, j + 1), g12, H12, nhat, ws)
-        gap = dd - rs
-        E, dE, d2E = imc_energy(gap, k, delta)
-        energy += E
-        cw = (1.0 - s, s, -(1.0 - t), -t)
-        nodes = (i, i + 1, j, j + 1)
-        lam = -dE
-        gam, dgam, vtn, tv = _pair_slip(x, x_prev, dt, nodes, cw, nhat, mu, nu, lam)
-        cf = mu * lam * gam
-        for q in range(4):
-            for a in range(3):
-                d = _dof(dpn, nodes[q], a)
-                if d >= 0:
-                    f[d] += dE * g12[3 * q + a] + cf * cw[q] * tv[a]
-        if not with_jac:
-            continue
-        # contact Hessian E'' ∇Δ∇Δᵀ + E' ∇²Δ, then friction's consistent part
-        for r in range(12):
-            for c in range(12):
-                H12[r, c] = d2E * g12[r] * g12[c] + dE * H12[r, c]
-        if gam > 0.0:
-            a1 = mu * lam / dt
-            for a in range(3):
-                for b in range(3):
-                    blk = friction_tangent_entry(a1, dgam, gam, vtn, tv, nhat, mu, d2E, a, b)
-                    for q in range(4):
-                        for p in range(4):
-                            H12[3 * q + a, 3 * p + b] += blk * cw[q] * cw[p]
-        for q in range(4):
-            for a in range(3):
-                r = _dof(dpn, nodes[q], a)
-                if r < 0 or fixed[r]:
-                    continue
-                for p in range(4):
-                    same_edge = (q < 2) == (p < 2)
-                    for b in range(3):
-                        c = _dof(dpn, nodes[p], b)
-                        if c < 0 or fixed[c]:
-                            continue
-                        v = H12[3 * q + a, 3 * p + b]
-                        if same_edge:
-                            if sym and c < r:
-                                continue
-                            ab[r, kl + c - r] += v
-                        else:
-                            cp.M[_slot(cp, r), _slot(cp, c)] += v
+        energy += _add_term(i, j, row3(x, i), row3(x, i + 1), row3(x, j), row3(x, j + 1),
+                            edge_radius(radius, i) + edge_radius(radius, j), 1.0, ep, law, x, x_prev, dt, dpn, fixed,
+                            system, sym, with_jac)
+        mask = _terms(ep, links, c)
+        for kind in range(1, 4):
+            if mask & (1 << kind):
+                a, b, p, q, rs, sign = _term_geometry(x, radius, i, j, kind)
+                energy += _add_term(i, j, a, b, p, q, rs, sign, ep, law, x, x_prev, dt, dpn, fixed, system, sym,
+                                    with_jac)
     return energy
 
 
@@ -482,33 +605,62 @@ def smallest_gap(ep, pairs, x, radius):
 
 
 @njit(**OPT_CONTACT)
-def pair_energy(ep, pairs, law, x, radius):
-    """IMC energy [J] of the candidate pairs at positions ``x`` (no friction, no derivatives)."""
+def pair_energy(ep, pairs, links, law, x, radius):
+    """IMC energy [J] of the candidate pairs' terms (:func:`_terms`) at positions ``x`` (no friction, no
+    derivatives)."""
     k, delta, cand = law.contact_k, law.contact_delta, ep.cand
     energy = 0.0
     for m in range(ep.count[0]):
-        i = pairs[cand[m], 0]
-        j = pairs[cand[m], 1]
+        c = cand[m]
+        i = pairs[c, 0]
+        j = pairs[c, 1]
         if _gap_bound(x, radius, i, j) >= delta:
             continue
         gap = _gap(x, radius, i, j)
-        if gap < delta:
-            energy += imc_energy(gap, k, delta)[0]
+        if gap >= delta:
+            continue
+        energy += imc_energy(gap, k, delta)[0]
+        mask = _terms(ep, links, c)
+        for kind in range(1, 4):
+            if mask & (1 << kind):
+                g, _, _, sign = _term_gap(x, radius, i, j, kind)
+                if g < delta:
+                    energy += sign * imc_energy(g, k, delta)[0]
     return energy
 
 
+@njit(inline="always", **OPT_CONTACT)
+def _term_normal(ep, a, b, p, q, s, t, dd):
+    """Unit normal of a term (segments (a, b), (p, q), closest-point parameters s, t, centre-line distance ``dd``),
+    from the (p, q) point to the (a, b) point, as the assembly uses it; also left in ``ep.nhat``."""
+    nhat = ep.nhat
+    u = vsub(vlerp(a, b, s), vlerp(p, q, t))
+    e1 = vsub(b, a)
+    e2 = vsub(q, p)
+    if dd > 1e-12 * max(math.sqrt(vdot(e1, e1)), math.sqrt(vdot(e2, e2)), 1e-300):  # as seg_seg_derivs
+        inv = 1.0 / dd
+        for c in range(3):
+            nhat[c] = u[c] * inv
+    else:  # touching centre lines: the normal the assembly uses there
+        seg_seg_derivs(a, b, p, q, ep.g12, ep.H12, nhat, ep.ws)
+    return nhat[0], nhat[1], nhat[2]
+
+
 @njit(**OPT_CONTACT)
-def pair_rows(e, ep, pairs, law, x, x_prev, dt, radius, rows):
-    """The candidate pairs at the state kept, in one pass: returns their IMC energy [J] (no friction) and smallest
-    gap [m] (+inf without candidates), and appends env ``e``'s pairs in touch (gap < δ) to its contact rows after
-    the ``rows.count[e]`` obstacle rows of ``rows`` (a :class:`sim.kernels.data.ContactReport`), up to its capacity C: two rows per pair, one for each edge, each the force
-    *on* that edge. Row of edge i against edge j: edge i, obstacle −1, partner j, rod point on i's centre line,
-    "obstacle point" the closest point on j's surface, unit normal from j to i, normal force λ = −E'(g) [N],
-    friction force on i [N], gap g [m]; edge j's row mirrors it (normal and friction reversed), so each pair's two
-    rows sum to zero. The obstacle rows' partner entries are set to −1; pairs in touch beyond the capacity add two
-    to ``rows.dropped[e]`` each. Velocities (x − x_prev)/dt."""
+def pair_rows(e, ep, pairs, links, law, x, x_prev, dt, radius, rows):
+    """The candidate pairs at the state kept, in one pass: returns their IMC energy [J] (no friction; each pair's
+    terms, :func:`_terms`) and smallest gap [m] (+inf without candidates), and appends env ``e``'s pairs in touch
+    (gap < δ) to its contact rows after the ``rows.count[e]`` obstacle rows of ``rows`` (a
+    :class:`sim.kernels.data.ContactReport`), up to its capacity C: two rows per pair, one for each edge, each the
+    force *on* that edge. Row of edge i against edge j: edge i, obstacle −1, partner j, rod point on i's centre
+    line, "obstacle point" the closest point on j's surface, the pair's net normal force on i (over its terms: the
+    unit normal, from j to i for a pair alone, and its size λ [N]; λ = −E'(g) for a pair alone), its net friction
+    force on i [N], the gap g [m] of the two edges; edge j's row mirrors it (normal and friction reversed), so each
+    pair's two rows sum to zero. A pair whose terms cancel (a crossing on a node, carried by its neighbour) is not
+    listed. The obstacle rows' partner entries are set to −1; pairs in touch beyond the capacity add two to
+    ``rows.dropped[e]`` each. Velocities (x − x_prev)/dt."""
     k, delta, mu, nu = law.contact_k, law.contact_delta, law.friction, law.friction_nu
-    cand, ncand, g12, H12, nhat, ws = ep.cand, ep.count, ep.g12, ep.H12, ep.nhat, ep.ws
+    cand, ncand = ep.cand, ep.count
     cap = rows.gap.shape[1]
     rc = rows.count[e]
     for r in range(rc):
@@ -516,8 +668,9 @@ def pair_rows(e, ep, pairs, law, x, x_prev, dt, radius, rows):
     energy = 0.0
     smallest = np.inf
     for m in range(ncand[0]):
-        i = pairs[cand[m], 0]
-        j = pairs[cand[m], 1]
+        c = cand[m]
+        i = pairs[c, 0]
+        j = pairs[c, 1]
         bound = _gap_bound(x, radius, i, j)
         if bound >= delta and bound >= smallest:  # neither in touch nor the deepest
             continue
@@ -536,34 +689,65 @@ def pair_rows(e, ep, pairs, law, x, x_prev, dt, radius, rows):
         smallest = min(smallest, gap)
         if gap >= delta:
             continue
-        E, dE, _ = imc_energy(gap, k, delta)
-        energy += E
+        # the pair's net force on edge i over its terms: normal part fn, friction part ff
+        fn0 = 0.0
+        fn1 = 0.0
+        fn2 = 0.0
+        ff0 = 0.0
+        ff1 = 0.0
+        ff2 = 0.0
+        lam_pair = 0.0
+        mask = _terms(ep, links, c)
+        for kind in range(4):
+            if not mask & (1 << kind):
+                continue
+            if kind == TERM_EDGE_EDGE:
+                ta, tb, tp, tq, sign = a, b, p, q, 1.0
+                ts, tt, tdd, tgap = s, t, dd, gap
+            else:
+                ta, tb, tp, tq, rs, sign = _term_geometry(x, radius, i, j, kind)
+                ts, tt = closest_seg_seg(ta, tb, tp, tq)
+                tu = vsub(vlerp(ta, tb, ts), vlerp(tp, tq, tt))
+                tdd = math.sqrt(vdot(tu, tu))
+                tgap = tdd - rs
+                if tgap >= delta:
+                    continue
+            E, dE, _ = imc_energy(tgap, k, delta)
+            energy += sign * E
+            n0, n1, n2 = _term_normal(ep, ta, tb, tp, tq, ts, tt, tdd)
+            lam = -dE
+            if kind == TERM_EDGE_EDGE:
+                lam_pair = lam
+            gam, _, _, tv = _pair_slip(x, x_prev, dt, (i, i + 1, j, j + 1), (1.0 - ts, ts, -(1.0 - tt), -tt),
+                                       ep.nhat, mu, nu, lam)
+            cf = sign * mu * lam * gam  # friction on edge i is −cf t̂ (t̂: i's slip relative to j)
+            fn0 += sign * lam * n0
+            fn1 += sign * lam * n1
+            fn2 += sign * lam * n2
+            ff0 -= cf * tv[0]
+            ff1 -= cf * tv[1]
+            ff2 -= cf * tv[2]
+        size = math.sqrt(fn0 * fn0 + fn1 * fn1 + fn2 * fn2)
+        if size <= 1e-9 * lam_pair:
+            continue  # the terms cancel: the crossing is its neighbour's
         if rc + 2 > cap:
             rows.dropped[e] += 2  # the two rows' forces cancel: the total force needs neither
             continue
-        e1 = vsub(b, a)
-        e2 = vsub(q, p)
-        if dd > 1e-12 * max(math.sqrt(vdot(e1, e1)), math.sqrt(vdot(e2, e2)), 1e-300):  # as seg_seg_derivs
-            inv = 1.0 / dd
-            for c in range(3):
-                nhat[c] = u[c] * inv
-        else:  # touching centre lines: the normal the assembly uses there
-            seg_seg_derivs(a, b, p, q, g12, H12, nhat, ws)
-        lam = -dE
-        gam, _, _, tv = _pair_slip(x, x_prev, dt, (i, i + 1, j, j + 1), (1.0 - s, s, -(1.0 - t), -t), nhat, mu, nu,
-                                   lam)
-        cf = mu * lam * gam  # friction on edge i is −cf t̂ (t̂: i's slip relative to j)
+        en = (fn0 / size, fn1 / size, fn2 / size)
+        ee_n = _term_normal(ep, a, b, p, q, s, t, dd)
         for side in range(2):
             sg = 1.0 if side == 0 else -1.0
             rows.edge[e, rc] = i if side == 0 else j
             rows.obstacle[e, rc] = -1
             rows.partner[e, rc] = j if side == 0 else i
-            for c in range(3):
-                rows.rod_point[e, rc, c] = pi[c] if side == 0 else pj[c]
-                rows.obstacle_point[e, rc, c] = pj[c] + rj * nhat[c] if side == 0 else pi[c] - ri * nhat[c]
-                rows.normal[e, rc, c] = sg * nhat[c]
-                rows.friction_force[e, rc, c] = -sg * cf * tv[c]
-            rows.normal_force[e, rc] = lam
+            for cc in range(3):
+                rows.rod_point[e, rc, cc] = pi[cc] if side == 0 else pj[cc]
+                rows.obstacle_point[e, rc, cc] = pj[cc] + rj * ee_n[cc] if side == 0 else pi[cc] - ri * ee_n[cc]
+                rows.normal[e, rc, cc] = sg * en[cc]
+            rows.friction_force[e, rc, 0] = sg * ff0
+            rows.friction_force[e, rc, 1] = sg * ff1
+            rows.friction_force[e, rc, 2] = sg * ff2
+            rows.normal_force[e, rc] = size
             rows.gap[e, rc] = gap
             rc += 1
     rows.count[e] = rc
@@ -699,14 +883,14 @@ def accumulate(e, prm, rod, ep, w, h, with_jac, sym):
     list ``w.coupling`` (emptied first) at the nodes w.pos, velocities from w.pos0 over h; returns the energy [J]."""
     if with_jac:
         reset_coupling(w.coupling)
-    return add_forces(ep, rod.pairs, prm, w.pos, w.pos0, h, 2 if prm.planar else 4, rod.fixed, rod.edge_radius, w,
+    return add_forces(ep, rod.pairs, rod.pair_links, prm, w.pos, w.pos0, h, 2 if prm.planar else 4, rod.fixed, rod.edge_radius, w,
                       sym, with_jac)
 
 
 @njit(inline="always", **OPT_CONTACT)
 def energy(e, prm, rod, ep, pos, pos0, h):
     """IMC energy [J] of the candidate pairs at ``pos``."""
-    return pair_energy(ep, rod.pairs, prm, pos, rod.edge_radius)
+    return pair_energy(ep, rod.pairs, rod.pair_links, prm, pos, rod.edge_radius)
 
 
 @njit(inline="always", **OPT_CONTACT)
@@ -715,6 +899,6 @@ def report(e, prm, rod, ep, pos, pos0, rows):
     their rows appended after the obstacles' in ``rows``, the max penetration raised to theirs; returns the
     energy [J]."""
     find_candidates(ep, rod.pairs, pos, pos, rod.edge_radius, prm.contact_margin)
-    ec, smallest = pair_rows(e, ep, rod.pairs, prm, pos, pos0, prm.dt, rod.edge_radius, rows)
+    ec, smallest = pair_rows(e, ep, rod.pairs, rod.pair_links, prm, pos, pos0, prm.dt, rod.edge_radius, rows)
     rows.max_penetration[e] = max(rows.max_penetration[e], max(0.0, -smallest))
     return ec

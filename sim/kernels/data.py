@@ -14,7 +14,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from sim.contact.edge_pairs import model_pairs
+from sim.contact.edge_pairs import model_pairs, pair_links
 from sim.contact_set import contact_radii
 from sim.model import planar_nodes
 
@@ -125,7 +125,8 @@ class RodData(NamedTuple):
     edge (sim.contact.imc). link (N-1,) uint8: 1 for a material edge, 0 for a joint edge between two rods of a
     scene (docs/physics.md §1.7): no stretching, no bending or twisting at its two nodes, no contact, its frame
     carried along unchanged. pairs (P, 2) int64: the edge pairs that may touch (sim.contact.edge_pairs.allowed_pairs;
-    (0, 2) without self- or rod–rod contact)."""
+    (0, 2) without self- or rod–rod contact); pair_links (P, 3) int64: the pairs sharing each pair's start nodes
+    (sim.contact.edge_pairs.pair_links: which node terms a pair carries)."""
 
     rest_len: np.ndarray
     vor_len: np.ndarray
@@ -139,6 +140,7 @@ class RodData(NamedTuple):
     edge_radius: np.ndarray
     link: np.ndarray
     pairs: np.ndarray
+    pair_links: np.ndarray
 
     @classmethod
     def from_model(cls, model: Any, *, pairs: np.ndarray | None = None) -> RodData:
@@ -149,11 +151,13 @@ class RodData(NamedTuple):
         else:  # the planar rod bends with EI1: there, the stiffness of its in-plane component (each rod's)
             comp, _ = planar_nodes(m)
             ei1 = np.where(comp == 0, m.node_EI1, m.node_EI2)
+        if pairs is None:
+            pairs = model_pairs(m)
         return cls(rest_len=np.array(m.rest_edge_length), vor_len=np.array(m.voronoi_length),
                    mass=np.array(m.dof_mass), fixed=np.array(m.dof_fixed), grav=np.array(m.dof_gravity)[None, :],
                    EA=np.array(m.edge_EA), EI1=np.array(ei1), EI2=np.array(m.node_EI2), GJ=np.array(m.node_GJ),
                    edge_radius=contact_radii(m.edge_radius), link=_edge_link(m),
-                   pairs=model_pairs(m) if pairs is None else pairs)
+                   pairs=pairs, pair_links=pair_links(pairs))
 
 
 def _edge_link(m: Any) -> np.ndarray:

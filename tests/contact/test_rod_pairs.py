@@ -14,6 +14,7 @@ from sim.contact.edge_pairs import (
     _gap_bound,
     add_forces,
     allowed_pairs,
+    pair_links,
     pair_rows,
     seg_seg_derivs,
 )
@@ -92,7 +93,7 @@ def _accumulate(x, x_prev, *, mu=0.0, k=1e5, delta=2e-3, radius=0.02, dt=0.01, f
     f[:] = 0.0
     ab[:] = 0.0
     fixed = np.zeros(n, bool) if fixed is None else fixed
-    E = add_forces(_pairs_record(cand, ncand, N), pairs, law(k=k, delta=delta, mu=mu), x, x_prev, dt, 4, fixed,
+    E = add_forces(_pairs_record(cand, ncand, N), pairs, pair_links(pairs), law(k=k, delta=delta, mu=mu), x, x_prev, dt, 4, fixed,
                    np.array([radius]), w, False, True)
     wdof, wn, M = cp.dof, cp.count, cp.M
     J = np.zeros((n, n))
@@ -151,7 +152,8 @@ def _report(x, x_prev, *, mu, rows_before=0, cap=8, k=1e5, delta=2e-3, radius=0.
     rows.edge[:] = 7
     rows.obstacle[:] = 3
     rows.partner[:] = 9
-    energy, smallest = pair_rows(0, _pairs_record(np.array([0]), np.array([1]), x.shape[0]), np.array([[0, 4]]),
+    pairs = np.array([[0, 4]])
+    energy, smallest = pair_rows(0, _pairs_record(np.array([0]), np.array([1]), x.shape[0]), pairs, pair_links(pairs),
                                  law(k=k, delta=delta, mu=mu), x, x_prev, dt, np.array([radius]), rows)
     return dict(count=rows.count, edge=rows.edge, obstacle=rows.obstacle, partner=rows.partner,
                 rod_point=rows.rod_point, other=rows.obstacle_point, normal=rows.normal, fn=rows.normal_force,
