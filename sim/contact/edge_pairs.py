@@ -581,7 +581,7 @@ def add_forces(ep, pairs, links, law, x, x_prev, dt, dpn, fixed, radius, system,
                             system, sym, with_jac)
         mask = _terms(ep, links, c)
         for kind in range(1, 4):
-            if mask & (1 << kind):
+            if mask & (1 << kind) and _term_gap(x, radius, i, j, kind)[0] < delta:  # derivatives only in reach
                 a, b, p, q, rs, sign = _term_geometry(x, radius, i, j, kind)
                 energy += _add_term(i, j, a, b, p, q, rs, sign, ep, law, x, x_prev, dt, dpn, fixed, system, sym,
                                     with_jac)
