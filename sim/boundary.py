@@ -5,9 +5,15 @@ Keys (SI units)::
 
     [[load]]  rod (the name of the rod it acts on; optional in a one-rod scene, whose [rod] table is "rod"),
               node (int, within that rod; negative counts from its end),
-              force [N] (3-vector, world frame, default 0), torque [N m] (about the local tangent, 3-D only,
-              default 0; it acts on the twist of edge min(node, N-2)), start [s] (default 0), stop [s]
-              (default: never)
+              force [N] (3-vector, default 0), moment [N m] (3-vector, default 0: a couple on edge
+              min(node, N-2), its part along the edge's tangent on the edge's twist (3-D), the rest as a pair of
+              opposite forces on the edge's two nodes; 2-D: about y only), frame ("world", default, or
+              "material": force and moment components along the material frame (m1, m2, t) of edge
+              min(node, N-2), so the load turns with the rod — a follower load; 3-D only), torque [N m] (about
+              the local tangent, 3-D only, default 0; it acts on the twist of edge min(node, N-2)), start [s]
+              (default 0), stop [s] (default: never)
+    [[line_load]] rod (as for loads), force_per_length [N/m] (3-vector, world frame: a uniform distributed load
+              along the whole rod, each node taking its Voronoi length's share), start [s], stop [s]
     [[fix]]   rod (as for loads), nodes (list of int within that rod, negative from its end), axes (subset of
               "xyz", default "xyz"), twist_edges (list of int within that rod, 3-D only), velocity [m/s] (3-vector: prescribed motion of the
               fixed axes, default 0), twist_rate [rad/s] (of the fixed twist edges, default 0), start [s],
@@ -15,6 +21,10 @@ Keys (SI units)::
 
 Node and edge indices count within their rod; :func:`global_node` / :func:`global_edge` map them onto the
 scene's chain of nodes (the rods' nodes concatenated in file order, docs/physics.md §1.7).
+
+Moments and material-frame loads depend on the rod's configuration: they are evaluated at the start of each step
+(the edge's vector and material frame the step starts from), so a static solve (which steps to rest) reaches their
+exact equilibrium and a dynamic step lags them by one step (docs/physics.md §3.1).
 
 A load acts on an env while its time is inside [start, stop): over a step [t, t + dt] the force is weighted by
 the fraction of the step inside the window; a prescribed motion moves its DOFs by rate × (the time of the step
@@ -31,7 +41,8 @@ import numpy as np
 
 from .tomlio import SceneError, check_unknown, format_value, take_float, take_int, take_str, take_vec3
 
-__all__ = ["LoadSpec", "FixSpec", "parse_loads", "parse_fixes", "dump_loads", "dump_fixes", "check_boundary",
+__all__ = ["LoadSpec", "LineLoadSpec", "FixSpec", "FrameLoads", "parse_loads", "parse_line_loads", "dump_line_loads",
+           "frame_load_arrays", "frame_load_forces", "parse_fixes", "dump_loads", "dump_fixes", "check_boundary",
            "ROD_NAME", "node_index", "load_arrays", "motion_arrays", "fixed_dofs", "window_fraction", "rod_layout",
            "rod_span", "global_node", "global_edge"]
 
@@ -40,7 +51,8 @@ ROD_NAME = "rod"  # the name of the single [rod] table (and the default rod name
 
 @dataclass(frozen=True)
 class LoadSpec:
-    """A point force [N] (world frame) and torque [N m] (about the local tangent) on one node."""
+    """A point force [N] and moment [N m] (world frame, or the material frame of edge min(node, N-2) with
+    ``frame = "material"``) and a torque [N m] (about the local tangent) on one node."""
 
     node: int
     force: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -48,6 +60,42 @@ class LoadSpec:
     start: float = 0.0
     stop: float | None = None
     rod: str | None = None
+    moment: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    frame: str = "world"
+
+    @property
+    def follows_rod(self) -> bool:
+        """Whether the load depends on the rod's configuration (a moment, or material-frame components)."""
+        return self.frame == "material" or any(m != 0.0 for m in self.moment)
+
+
+@dataclass(frozen=True)
+class LineLoadSpec:
+    """A uniform distributed load [N/m] (world frame) along a whole rod."""
+
+    force_per_length: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    start: float = 0.0
+    stop: float | None = None
+    rod: str | None = None
+
+
+@dataclass(frozen=True)
+class FrameLoads:
+    """The loads that depend on the configuration, as arrays (K loads): the node a force acts on ``node`` (K,), the
+    edge a moment acts on and whose frame a material-frame load uses ``edge`` (K,) (scene-wide indices), ``force``
+    (K, 3) [N] and ``moment`` (K, 3) [N m] (world components, or material-frame components where ``material``
+    (K,) bool), their windows ``window`` (K, 2) [s]. World-frame forces are not here (they are constant)."""
+
+    node: np.ndarray
+    edge: np.ndarray
+    force: np.ndarray
+    moment: np.ndarray
+    material: np.ndarray
+    window: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return int(self.node.shape[0])
 
 
 @dataclass(frozen=True)
@@ -65,7 +113,8 @@ class FixSpec:
     rod: str | None = None
 
 
-_LOAD_KEYS = {"rod", "node", "force", "torque", "start", "stop"}
+_LOAD_KEYS = {"rod", "node", "force", "moment", "frame", "torque", "start", "stop"}
+_LINE_LOAD_KEYS = {"rod", "force_per_length", "start", "stop"}
 _FIX_KEYS = {"rod", "nodes", "axes", "twist_edges", "velocity", "twist_rate", "start", "stop"}
 
 
@@ -98,7 +147,21 @@ def parse_loads(tables: Any, path: str | None) -> tuple[LoadSpec, ...]:
         check_unknown(t, _LOAD_KEYS, p, path)
         out.append(LoadSpec(node=take_int(t, "node", p, path), force=take_vec3(t, "force", p, path, (0.0, 0.0, 0.0)),
                             torque=take_float(t, "torque", p, path, 0.0), start=take_float(t, "start", p, path, 0.0),
-                            stop=_stop(t, p, path), rod=_rod_key(t, p, path)))
+                            stop=_stop(t, p, path), rod=_rod_key(t, p, path),
+                            moment=take_vec3(t, "moment", p, path, (0.0, 0.0, 0.0)),
+                            frame=take_str(t, "frame", p, path, "world", choices=("world", "material"))))
+    return tuple(out)
+
+
+def parse_line_loads(tables: Any, path: str | None) -> tuple[LineLoadSpec, ...]:
+    """The ``[[line_load]]`` tables (typed; checked by :func:`check_boundary`)."""
+    out = []
+    for i, t in enumerate(_tables(tables, "line_load", path)):
+        p = f"line_load[{i}]."
+        check_unknown(t, _LINE_LOAD_KEYS, p, path)
+        out.append(LineLoadSpec(force_per_length=take_vec3(t, "force_per_length", p, path, (0.0, 0.0, 0.0)),
+                                start=take_float(t, "start", p, path, 0.0), stop=_stop(t, p, path),
+                                rod=_rod_key(t, p, path)))
     return tuple(out)
 
 
@@ -130,7 +193,11 @@ def _dump(items: Sequence[Any], kind: str, keys: tuple[str, ...]) -> list[str]:
 
 
 def dump_loads(loads: Sequence[LoadSpec]) -> list[str]:
-    return _dump(loads, "load", ("rod", "node", "force", "torque", "start", "stop"))
+    return _dump(loads, "load", ("rod", "node", "force", "moment", "frame", "torque", "start", "stop"))
+
+
+def dump_line_loads(loads: Sequence[LineLoadSpec]) -> list[str]:
+    return _dump(loads, "line_load", ("rod", "force_per_length", "start", "stop"))
 
 
 def dump_fixes(fixes: Sequence[FixSpec]) -> list[str]:
@@ -221,8 +288,23 @@ def check_boundary(c: Any, spec: Any) -> None:
         tq = c.num(p + "torque", ld.torque, "load.torque")
         if planar and tq != 0.0:
             c.fail(p + "torque", "a torque about the tangent needs mode '3d' (the planar rod has no twist)")
+        mo = c.vec(p + "moment", ld.moment, "load.moment")
+        if ld.frame not in ("world", "material"):
+            c.fail(p + "frame", f"must be \"world\" or \"material\", got {ld.frame!r}")
+        if planar and ld.frame == "material":
+            c.fail(p + "frame", "material-frame (follower) loads need mode '3d'")
         if planar and ld.force[1] != 0.0:
             c.fail(p + "force", "mode '2d' needs a force in the x-z plane (y = 0)")
+        if planar and (mo[0] != 0.0 or mo[2] != 0.0):
+            c.fail(p + "moment", "mode '2d' bends in the x-z plane: a moment about y only ([0, My, 0])")
+        if ld.follows_rod and N < 2:
+            c.fail(p + "moment", "a moment or follower load needs an edge (a rod of 2 nodes or more)")
+    for k, ll in enumerate(getattr(spec, "line_loads", ()) or ()):
+        p = f"line_load[{k}]."
+        common(p, ll)
+        q = c.vec(p + "force_per_length", ll.force_per_length, "line_load.force_per_length")
+        if planar and q[1] != 0.0:
+            c.fail(p + "force_per_length", "mode '2d' needs a load in the x-z plane (y = 0)")
     for k, fx in enumerate(getattr(spec, "fixes", ()) or ()):
         p = f"fix[{k}]."
         N = common(p, fx)
@@ -267,20 +349,90 @@ def fixed_dofs(spec: Any, fixed: np.ndarray) -> None:
             fixed[global_edge(spec, fx.rod, j), 3] = True
 
 
-def load_arrays(spec: Any, N: int, dpn: int) -> tuple[np.ndarray, np.ndarray]:
-    """(forces (L, N * dpn) [N or N m] per load, windows (L, 2) [s] with stop = inf when open)."""
+def load_arrays(spec: Any, N: int, dpn: int, voronoi_length: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The constant loads: (forces (L, N * dpn) [N or N m] per load, windows (L, 2) [s] with stop = inf when open):
+    the point loads' world-frame forces and torques, then the line loads (``voronoi_length`` (N,) [m]: each node's
+    share). Moments and material-frame forces are :func:`frame_load_arrays`'."""
     loads = getattr(spec, "loads", ()) or ()
-    F = np.zeros((len(loads), N, dpn))
+    lines = getattr(spec, "line_loads", ()) or ()
+    L = len(loads) + len(lines)
+    F = np.zeros((L, N, dpn))
+    win = np.zeros((L, 2))
+    for k, ld in enumerate(loads):
+        off, n = rod_span(spec, ld.rod)
+        i = node_index(ld.node, n)
+        if ld.frame == "world":
+            for a, s in _axis_dofs("xyz", dpn == 2):
+                F[k, off + i, s] = ld.force[a]
+        if dpn == 4:  # the twist of the rod's edge min(i, n - 2)
+            F[k, off + min(i, n - 2), 3] += ld.torque
+        win[k] = (ld.start, math.inf if ld.stop is None else ld.stop)
+    for m, ll in enumerate(lines):
+        k = len(loads) + m
+        off, n = rod_span(spec, ll.rod)
+        if voronoi_length is None:
+            raise ValueError("line loads need the nodes' Voronoi lengths")
+        for a, s in _axis_dofs("xyz", dpn == 2):
+            F[k, off:off + n, s] = ll.force_per_length[a] * voronoi_length[off:off + n]
+        win[k] = (ll.start, math.inf if ll.stop is None else ll.stop)
+    return F.reshape(L, N * dpn), win
+
+
+def frame_load_arrays(spec: Any) -> FrameLoads:
+    """The point loads that depend on the configuration (:attr:`LoadSpec.follows_rod`) as :class:`FrameLoads`."""
+    loads = [ld for ld in (getattr(spec, "loads", ()) or ()) if ld.follows_rod]
+    node = np.zeros(len(loads), np.int64)
+    edge = np.zeros(len(loads), np.int64)
+    force = np.zeros((len(loads), 3))
+    moment = np.zeros((len(loads), 3))
+    material = np.zeros(len(loads), bool)
     win = np.zeros((len(loads), 2))
     for k, ld in enumerate(loads):
         off, n = rod_span(spec, ld.rod)
         i = node_index(ld.node, n)
-        for a, s in _axis_dofs("xyz", dpn == 2):
-            F[k, off + i, s] = ld.force[a]
-        if dpn == 4:  # the twist of the rod's edge min(i, n - 2)
-            F[k, off + min(i, n - 2), 3] += ld.torque
+        node[k], edge[k] = off + i, off + min(i, n - 2)
+        material[k] = ld.frame == "material"
+        if material[k]:
+            force[k] = ld.force
+        moment[k] = ld.moment
         win[k] = (ld.start, math.inf if ld.stop is None else ld.stop)
-    return F.reshape(len(loads), N * dpn), win
+    return FrameLoads(node=node, edge=edge, force=force, moment=moment, material=material, window=win)
+
+
+def frame_load_forces(fl: FrameLoads, weight: np.ndarray, pos: np.ndarray, frames: Any, dpn: int) -> np.ndarray:
+    """(B, N * dpn): the generalised forces of the configuration-dependent loads ``fl`` at node positions ``pos``
+    (B, N, 3), each scaled by its ``weight`` (B, K) (the fraction of the step in its window). ``frames``: a callable
+    giving the material frame (m1, m2, t) (B, N-1, 3) each, called only when a load is in the material frame.
+    A moment M on edge j (e = x_{j+1} − x_j, t = e/|e|): its tangential part (M·t) on the twist of edge j (3-D),
+    its normal part M⊥ as the forces ±(M⊥ × e)/|e|² on nodes j + 1 and j, whose couple e × F is M⊥
+    (docs/physics.md §3.1)."""
+    B, N = pos.shape[0], pos.shape[1]
+    out = np.zeros((B, N, dpn))
+    j, node = fl.edge, fl.node
+    e = pos[:, j + 1] - pos[:, j]                                  # (B, K, 3)
+    ee = np.einsum("bki,bki->bk", e, e)
+    t = e / np.sqrt(ee)[..., None]
+    force = np.broadcast_to(fl.force, e.shape).copy()
+    moment = np.broadcast_to(fl.moment, e.shape).copy()
+    if fl.material.any():
+        m1, m2, tt = (a[:, j] for a in frames())
+        sel = fl.material
+        for arr in (force, moment):
+            comp = arr[:, sel]
+            arr[:, sel] = (comp[..., 0:1] * m1[:, sel] + comp[..., 1:2] * m2[:, sel] + comp[..., 2:3] * tt[:, sel])
+    along = np.einsum("bki,bki->bk", moment, t)
+    normal = moment - along[..., None] * t
+    pair = np.cross(normal, e) / ee[..., None]                      # on node j + 1; its opposite on node j
+    w = weight[..., None]
+    slots = [(0, 0), (2, 1)] if dpn == 2 else [(0, 0), (1, 1), (2, 2)]
+    for a, s in slots:
+        np.add.at(out[..., s], (slice(None), node), w[..., 0] * force[..., a])
+        np.add.at(out[..., s], (slice(None), j + 1), w[..., 0] * pair[..., a])
+        np.add.at(out[..., s], (slice(None), j), -w[..., 0] * pair[..., a])
+    if dpn == 4:
+        np.add.at(out[..., 3], (slice(None), j), weight * along)
+    return out.reshape(B, N * dpn)
 
 
 def motion_arrays(spec: Any, N: int, dpn: int) -> tuple[np.ndarray, np.ndarray]:

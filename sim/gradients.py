@@ -377,6 +377,9 @@ def rollout(sim, state, controls) -> Tape:
                             "integrator = \"backward_euler\"")
     if sim._motion:
         raise GradientError("derivatives with prescribed motion ([[fix]] with a rate) are not available yet")
+    if sim._frame_loads is not None:
+        raise GradientError("derivatives with moments or material-frame loads ([[load]] moment / frame = "
+                            "\"material\", which depend on the configuration) are not available yet")
     controls = list(controls)
     if not controls:
         raise GradientError("rollout needs at least one control (one per step)")

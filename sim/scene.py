@@ -23,8 +23,10 @@ Keys (SI units)::
            (docs/physics.md §1.7); arrays over nodes concatenate the rods' nodes, ``Model.rod_node_offsets``
            gives where each rod starts
     [[obstacle]], [contact]   parsed by ``sim.obstacles`` (see there)
-    [[load]], [[fix]]         point loads, constrained nodes/edges and prescribed motion: ``sim.boundary`` (their
-                              ``rod`` key names the rod; node and edge indices count within that rod)
+    [[load]], [[line_load]], [[fix]]
+                              point loads and moments, distributed loads, constrained nodes/edges and prescribed
+                              motion: ``sim.boundary`` (their ``rod`` key names the rod; node and edge indices count
+                              within that rod)
 """
 from __future__ import annotations
 
@@ -128,9 +130,11 @@ class SceneSpec:
     path: str | None
     loads: tuple   # of sim.boundary.LoadSpec
     fixes: tuple   # of sim.boundary.FixSpec
+    line_loads: tuple  # of sim.boundary.LineLoadSpec
 
     def __init__(self, sim: SimSpec, rod: RodSpec | None = None, obstacles: tuple = (), contact: Any = None,
-                 path: str | None = None, loads: tuple = (), fixes: tuple = (), *, rods: Any = None) -> None:
+                 path: str | None = None, loads: tuple = (), fixes: tuple = (), *, rods: Any = None,
+                 line_loads: tuple = ()) -> None:
         if rod is not None:
             if rods is not None and len(tuple(rods)) > 1:
                 raise ValueError(f"SceneSpec: rod= sets the only rod of a one-rod scene; this one has "
@@ -146,6 +150,7 @@ class SceneSpec:
         set_(self, "path", path)
         set_(self, "loads", loads)
         set_(self, "fixes", fixes)
+        set_(self, "line_loads", tuple(line_loads))
 
     @property
     def rod(self) -> RodSpec:
@@ -315,8 +320,9 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
     """Validate a parsed TOML document into a SceneSpec (raises SceneError naming file/key/problem)."""
     where = path or "<scene>"
     for k in doc:
-        if k not in ("sim", "rod", "obstacle", "contact", "load", "fix"):
-            raise SceneError(f"{where}: {k}: unknown table (allowed: sim, rod, obstacle, contact, load, fix)")
+        if k not in ("sim", "rod", "obstacle", "contact", "load", "line_load", "fix"):
+            raise SceneError(f"{where}: {k}: unknown table (allowed: sim, rod, obstacle, contact, load, line_load, "
+                             "fix)")
     s = _table(doc, "sim", path)
     assert s is not None
     rod_tables = _rod_tables(doc, path)
@@ -349,7 +355,8 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
     obstacles = _obs.parse_obstacles(obs_tables, path)
     contact = _obs.parse_contact(_table(doc, "contact", path, required=False), path)
     spec = SceneSpec(sim=sim, rods=rods, obstacles=tuple(obstacles), contact=contact, path=path,
-                     loads=_bc.parse_loads(doc.get("load", []), path), fixes=_bc.parse_fixes(doc.get("fix", []), path))
+                     loads=_bc.parse_loads(doc.get("load", []), path), fixes=_bc.parse_fixes(doc.get("fix", []), path),
+                     line_loads=_bc.parse_line_loads(doc.get("line_load", []), path))
     check_scene(spec, where)  # every number finite and within the physical bounds (sim/validate.py)
     return spec
 
@@ -406,7 +413,7 @@ def scene_to_toml(spec: SceneSpec, *, base_dir: str | os.PathLike | None = None)
     if extra:
         lines += [""] + list(extra)
     lines += [""] + list(_obs.dump_contact(spec.contact))
-    for extra in (_bc.dump_fixes(spec.fixes), _bc.dump_loads(spec.loads)):
+    for extra in (_bc.dump_fixes(spec.fixes), _bc.dump_loads(spec.loads), _bc.dump_line_loads(spec.line_loads)):
         if extra:
             lines += [""] + extra
     return "\n".join(lines) + "\n"

@@ -10,7 +10,7 @@ import numba
 import numpy as np
 
 from . import validate as _validate
-from .boundary import window_fraction
+from .boundary import frame_load_forces, window_fraction
 from .contact.edge_pairs import model_pairs
 from .contact_set import PAIR_REPORT_CAPACITY, contact_data, contact_scratch
 from .kernels.batch import CHUNK, step_kernel
@@ -50,6 +50,7 @@ class Simulator:
         self._rod = RodData.from_model(m, pairs=pairs)
         # point loads (sim.boundary): per-env external forces only when a scene has loads; prescribed motion
         self._loads = m.load_force.shape[0] > 0
+        self._frame_loads = m.frame_loads  # moments and material-frame loads: evaluated at each step's start
         self._motion = m.motion_rate.shape[0] > 0
         self._moving_dofs = np.flatnonzero(np.any(m.motion_rate != 0.0, axis=0)) if self._motion else None
         # work space of the contact kernels (candidate lists); the poses themselves are in State.obstacles
@@ -148,8 +149,8 @@ class Simulator:
         self._check(state, ctrl)
         obstacles = self._no_obstacles if state.obstacles is None else state.obstacles
         rod = self._rod
-        if self._loads or ctrl.force is not None:
-            rod = rod._replace(grav=self._external_forces(state.time, ctrl.force))
+        if self._loads or self._frame_loads is not None or ctrl.force is not None:
+            rod = rod._replace(grav=self._external_forces(state.time, ctrl.force, state))
         moved = self._prescribe(state) if self._motion else None
         # the kernel's parallel loop runs over chunks of CHUNK envs: more threads than chunks would only wake threads
         # with nothing to do (one env would keep two cores busy), so the call uses at most one thread per chunk
@@ -181,13 +182,22 @@ class Simulator:
             need = C + int(cr.dropped.max())
             self._crep = ContactReport.zeros(self.envs, min(self._max_rows, max(2 * C, need)))
 
-    def _external_forces(self, time: np.ndarray, force: np.ndarray | None = None) -> np.ndarray:
-        """(B, n) gravity plus the point loads, each weighted by the fraction of the env's step in its window, plus
-        the control's node forces ``force`` (B, N, 3) [N] (in 2-D its x and z components)."""
+    def _external_forces(self, time: np.ndarray, force: np.ndarray | None = None,
+                         state: State | None = None) -> np.ndarray:
+        """(B, n) gravity plus the point and line loads, each weighted by the fraction of the env's step in its
+        window, plus the moments and material-frame loads at the configuration of ``state`` (the step's start;
+        sim.boundary.frame_load_forces), plus the control's node forces ``force`` (B, N, 3) [N] (in 2-D its x and z
+        components)."""
         m = self.model
         grav = self._rod.grav
         if self._loads:
             grav = grav + window_fraction(time, m.dt, m.load_window) @ m.load_force
+        fl = self._frame_loads
+        if fl is not None:
+            if state is None:
+                raise ValueError("moments and material-frame loads need the state they act on")
+            grav = grav + frame_load_forces(fl, window_fraction(time, m.dt, fl.window), state.node_pos,
+                                            lambda: self.material_frames(state), 4 if m.mode == "3d" else 2)
         if force is not None:
             node = np.zeros((self.envs, m.node_count, 4 if m.mode == "3d" else 2))
             if m.mode == "3d":

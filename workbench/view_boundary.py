@@ -91,9 +91,12 @@ def boundary_of(model) -> Boundary:
     spec = getattr(model, "spec", None)
     ln = np.array([global_node(spec, ld.rod, ld.node) if hasattr(spec, "rods") else node_index(ld.node, N)
                    for ld in loads], dtype=np.int64)
-    lf = np.array([ld.force for ld in loads], dtype=np.float64).reshape(len(loads), 3)
+    # world-frame forces are drawn; a material-frame (follower) force turns with the rod and is not
+    lf = np.array([ld.force if getattr(ld, "frame", "world") == "world" else (0.0, 0.0, 0.0) for ld in loads],
+                  dtype=np.float64).reshape(len(loads), 3)
     lt = np.array([ld.torque for ld in loads], dtype=np.float64)
-    lw = np.asarray(model.load_window, dtype=np.float64).reshape(len(loads), 2)  # [start, stop), stop = inf if open
+    # [start, stop), stop = inf if open: the point loads' rows (the line loads' follow them)
+    lw = np.asarray(model.load_window, dtype=np.float64).reshape(-1, 2)[:len(loads)]
     length = float(np.sum(np.asarray(model.rest_edge_length)[link]))
     size = max(GLYPH_RADII * float(model.radius_max), GLYPH_MIN * length)
     return Boundary(n_nodes=N, fixed_nodes=nodes, fixed_axes=axes, fixed_kind=kind,

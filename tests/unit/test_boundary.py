@@ -76,6 +76,11 @@ stop = 0.3
     ("[[fix]]\nnodes = [0]\ntwist_rate = 1.0\n", "fix[0].twist_rate"),
     ("[[fix]]\naxes = \"x\"\n", "fix[0].nodes"),
     ("[fix]\nnodes = [0]\n", "fix"),
+    ("[[load]]\nnode = 0\nmoment = [0.0, 1e12, 0.0]\n", "load[0].moment"),
+    ("[[load]]\nnode = 0\nframe = \"body\"\n", "load[0].frame"),
+    ("[[line_load]]\nforce_per_length = [0.0, 0.0, 1e12]\n", "line_load[0].force_per_length"),
+    ("[[line_load]]\nnode = 3\n", "line_load[0].node"),
+    ("[[line_load]]\nrod = \"arm\"\n", "line_load[0].rod"),
 ])
 def test_bad_boundary_input_names_the_key(extra, key):
     with pytest.raises(SceneError) as ei:
@@ -91,6 +96,14 @@ def test_planar_scene_rejects_twist_keys():
     with pytest.raises(SceneError, match="fix\\[0\\].twist_edges"):
         parse_scene(tomllib.loads(BASE.replace("dt = 0.01", "dt = 0.01\nmode = \"2d\"")
                                   + "[[fix]]\ntwist_edges = [0]\n"), "s.toml")
+    planar = BASE.replace("dt = 0.01", "dt = 0.01\nmode = \"2d\"")
+    assert parse_scene(tomllib.loads(planar + "[[load]]\nnode = 0\nmoment = [0.0, 2.0, 0.0]\n")).loads[0].moment[1] == 2
+    with pytest.raises(SceneError, match="load\\[0\\].moment: mode '2d' bends in the x-z plane"):
+        parse_scene(tomllib.loads(planar + "[[load]]\nnode = 0\nmoment = [1.0, 0.0, 0.0]\n"), "s.toml")
+    with pytest.raises(SceneError, match="load\\[0\\].frame: material-frame"):
+        parse_scene(tomllib.loads(planar + "[[load]]\nnode = 0\nframe = \"material\"\n"), "s.toml")
+    with pytest.raises(SceneError, match="line_load\\[0\\].force_per_length: mode '2d'"):
+        parse_scene(tomllib.loads(planar + "[[line_load]]\nforce_per_length = [0.0, 1.0, 0.0]\n"), "s.toml")
 
 
 def test_boundary_tables_round_trip(tmp_path):
@@ -107,11 +120,20 @@ twist_rate = 2.0
 [[load]]
 node = 5
 force = [0.0, 1.0, 0.0]
+[[load]]
+node = -1
+force = [0.0, 0.5, 0.0]
+moment = [0.0, 0.0, 0.1]
+frame = "material"
+[[line_load]]
+force_per_length = [0.0, 0.0, -2.0]
+stop = 3.0
 """)
     out = tmp_path / "b.toml"
     dump_scene(spec, out)
     back = load_scene(out)
-    assert back.fixes == spec.fixes and back.loads == spec.loads
+    assert back.fixes == spec.fixes and back.loads == spec.loads and back.line_loads == spec.line_loads
+    assert len(back.line_loads) == 1 and back.loads[1].frame == "material"
     assert scene_to_toml(back) == out.read_text()
 
 
