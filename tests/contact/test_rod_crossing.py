@@ -9,13 +9,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from contact_helpers import law
-from scipy.optimize import brentq
 
-from sim import Simulator, build_model
+from benchmarks import rod_crossing
 from sim.contact.edge_pairs import add_forces, alloc, allowed_pairs, find_candidates, pair_energy, pair_links
 from sim.contact.imc import imc_energy
 from sim.kernels.workspace import alloc_workspace
-from sim.scene import parse_scene
 
 R = 0.01
 K, DELTA = 1e5, 1e-3
@@ -91,47 +89,11 @@ def test_the_residual_is_the_gradient_of_the_energy_at_a_kinked_crossing(kink):
             assert f[node, a] == pytest.approx(fd, rel=1e-5, abs=1e-7 * np.abs(f).max())
 
 
-def _beams_doc(shift_x: float, top_nodes: int) -> dict:
-    """Two beams along x (fixed at both ends) at y = ±0.1 m and a 0.4 m rod across them, dropped from 0.2 mm above;
-    ``shift_x`` moves the crossing along the beams (0: on a node), ``top_nodes`` 9 puts the crossings on nodes of the
-    rod, 11 halfway along its edges."""
-    beam = {"nodes": 21, "length": 1.0, "radius": R, "density": 1000.0, "youngs_modulus": 1e9, "poisson_ratio": 0.5,
-            "clamp": "none", "direction": [1.0, 0.0, 0.0]}
-    top = {"name": "top", "nodes": top_nodes, "length": 0.4, "radius": R, "density": 1000.0,
-           "youngs_modulus": 1e9, "poisson_ratio": 0.5, "clamp": "none", "start": [shift_x, -0.2, 2 * R + 2e-4],
-           "direction": [0.0, 1.0, 0.0]}
-    return {"sim": {"dt": 0.01, "gravity": [0.0, 0.0, -9.81], "damping": 5.0, "newton_tol": 1e-8,
-                    "newton_max_iter": 30, "accept_unconverged": True},
-            "rod": [dict(beam, name="b1", start=[-0.5, -0.1, 0.0]), dict(beam, name="b2", start=[-0.5, 0.1, 0.0]),
-                    top],
-            "fix": [{"rod": "b1", "nodes": [0, 1, 19, 20]}, {"rod": "b2", "nodes": [0, 1, 19, 20]}],
-            "contact": {"stiffness": K, "delta": DELTA}}
-
-
-def _rest_gaps(shift_x: float, top_nodes: int) -> tuple[np.ndarray, float, float]:
-    """(the two crossings' gaps [m] at rest, the upward force the beams carry [N], the rod's weight [N])."""
-    model = build_model(parse_scene(_beams_doc(shift_x, top_nodes)))
-    sim = Simulator(model, envs=1)
-    st = sim.reset()
-    ctrl = sim.make_control()
-    for _ in range(300):
-        stats = sim.step(st, ctrl)
-        assert not stats.failed.any() and np.isfinite(st.node_pos).all()
-    assert np.abs(st.node_vel).max() < 5e-3              # at rest (it may only drift along the beams)
-    n = int(stats.contact_count[0])
-    top_edges = stats.contact_edge[0, :n] >= model.rod_node_offsets[2]
-    fn, normal = stats.contact_normal_force[0, :n][top_edges], stats.contact_normal[0, :n][top_edges]
-    y = stats.contact_rod_point[0, :n][top_edges][:, 1]
-    gaps = [np.average(stats.contact_gap[0, :n][top_edges][side], weights=fn[side]) for side in (y < 0, y > 0)]
-    weight = 0.4 * np.pi * R**2 * 1000.0 * 9.81
-    return np.array(gaps), float((fn * normal[:, 2]).sum()), weight
-
-
 def test_a_rod_across_two_beams_rests_at_the_same_gap_wherever_the_crossings_fall():
     # each crossing carries half the rod's weight: the IMC law's gap for that force
-    weight = 0.4 * np.pi * R**2 * 1000.0 * 9.81
-    expected = brentq(lambda g: -imc_energy(g, K, DELTA)[1] - weight / 2, -DELTA, DELTA)
-    for shift_x, top_nodes in [(0.0, 9), (0.0, 11), (0.5 * EDGE, 9), (0.5 * EDGE, 11), (0.25 * EDGE, 9)]:
-        gaps, up, w = _rest_gaps(shift_x, top_nodes)
-        assert up == pytest.approx(w, rel=1e-4)
-        np.testing.assert_allclose(gaps, expected, rtol=1e-3, err_msg=f"crossings at {shift_x}, {top_nodes} nodes")
+    expected = rod_crossing.law_gap()
+    for shift_x, top_nodes in rod_crossing.PLACEMENTS:
+        r = rod_crossing.rest(shift_x, top_nodes)
+        assert not r["failed"] and r["max_speed"] < 5e-3             # at rest (it may only drift along the beams)
+        assert r["up_force"] == pytest.approx(rod_crossing.rod_weight(), rel=1e-4)
+        np.testing.assert_allclose(r["gaps"], expected, rtol=1e-3, err_msg=f"crossings at {shift_x}, {top_nodes} nodes")
