@@ -12,6 +12,8 @@ import os
 import sys
 import time
 
+from sim.support.text import count
+
 from policies.tasks import gym_task_id
 from policies.train_speed import SpeedSettings, apply_speed_settings
 
@@ -214,7 +216,7 @@ def eval_main(argv: list[str]) -> int:
     if a.json:
         print(json.dumps(res))
         return 0
-    print(f"task {res['task']}  policy {res['policy']}  episodes {res['episodes']}  seed {res['seed']}")
+    print(f"task {res['task']}  policy {res['policy']}  {count(res['episodes'], 'episode')}  seed {res['seed']}")
     print(f"  average discounted return  {res['avg_discounted_return_mean']:.2f} ± {res['avg_discounted_return_std']:.2f}"
           f"   (undiscounted return {res['return_mean']:.2f} ± {res['return_std']:.2f})")
     for key in ("final_tip_error", "final_orientation_error_deg", "final_yaw_error_deg"):

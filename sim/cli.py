@@ -19,6 +19,7 @@ from .support.assets import asset_path
 from .support.atomicio import savez
 from .support.paths import check_output_path
 from .support.progress import add_progress_flag, progress_bar, progress_wanted
+from .support.text import count
 from .warmup import warmup
 
 __all__ = ["sim_main", "bench_sim_main"]
@@ -147,7 +148,7 @@ def sim_main(argv: list[str] | None = None) -> int:
         except OSError as exc:
             return fail(f"{a.out}: cannot write: {exc.strerror or exc}")
         print(f"rodlab sim: wrote {len(frames['time'])} frames to {a.out}")
-    print(f"scene {a.scene}: {n} steps of {model.dt:g} s, {a.envs} env(s), mode {model.mode}")
+    print(f"scene {a.scene}: {count(n, 'step')} of {model.dt:g} s, {count(a.envs, 'env')}, mode {model.mode}")
     _print_tips(model, state, 5)
     print(f"newton iterations per step: mean {it_sum / (n * a.envs):.2f}, max {it_max}; "
           f"failed envs: {int(state.failed.sum())}")
@@ -215,17 +216,17 @@ def _static_main(a: argparse.Namespace, spec, fail) -> int:
         except OSError as exc:
             return fail(f"{a.out}: cannot write: {exc.strerror or exc}")
         print(f"rodlab sim: wrote the static equilibrium to {a.out}")
-    print(f"scene {a.scene}: static equilibrium, {a.envs} env(s), mode {sim.model.mode}")
+    print(f"scene {a.scene}: static equilibrium, {count(a.envs, 'env')}, mode {sim.model.mode}")
     _print_tips(model, state, 6)
     print(f"converged envs: {int(res.converged.sum())}/{a.envs} after {int(res.steps.max())} pseudo-time steps "
           f"(last dt {res.dt:g} s, largest last move {float(res.last_move.max()):.3g} m); {wall:.2f} s")
     if res.perturbations.any():
-        print(f"pushed off an unstable equilibrium: {int((res.perturbations > 0).sum())} env(s), "
-              f"{int(res.perturbations.sum())} time(s) in all")
+        print(f"pushed off an unstable equilibrium: {count(int((res.perturbations > 0).sum()), 'env')}, "
+              f"{count(int(res.perturbations.sum()), 'time')} in all")
     bad = np.flatnonzero(res.converged & ~res.stable)
     if bad.size:
-        print(f"unstable equilibrium in {bad.size} env(s) (first: env {int(bad[0])}, "
-              f"{int(res.negative_directions[bad[0]])} negative direction(s), lowest eigenvalue "
+        print(f"unstable equilibrium in {count(bad.size, 'env')} (first: env {int(bad[0])}, "
+              f"{count(int(res.negative_directions[bad[0]]), 'negative direction')}, lowest eigenvalue "
               f"{float(res.lowest_eigenvalue[bad[0]]):.3g} 1/s^2)"
               + ("" if a.to_stable else "; --to-stable looks for a stable one nearby"))
     elif res.converged.all():

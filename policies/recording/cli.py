@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from sim.support.text import count
 
 import policies
 from policies.tasks import gym_task_id
@@ -164,7 +165,7 @@ def record_main(argv: list[str]) -> int:
         print(json.dumps(res))
         return 0
     print(f"wrote {res['file']} ({Path(res['file']).stat().st_size / 1024:.1f} KiB, "
-          f"{len(res['episodes'])} episodes)")
+          f"{count(len(res['episodes']), 'episode')})")
     for s in res["episodes"]:
         print(f"  episode {s['episode']} env {s['env']}: {s['steps']} frames, return {s['return']:.3f}, "
               f"max contact force {s['max_contact_force']:.3g} N{'' if s['complete'] else ' (cut)'}")
@@ -207,7 +208,7 @@ def inspect_main(argv: list[str]) -> int:
     if a.json:
         print(json.dumps(_json_safe(s)))
         return 0
-    print(f"{s['file']}: {s['episodes']} episodes, {s['steps']} frames, {s['bytes'] / 1024:.1f} KiB "
+    print(f"{s['file']}: {count(s['episodes'], 'episode')}, {count(s['steps'], 'frame')}, {s['bytes'] / 1024:.1f} KiB "
           f"(rodlab {s['rodlab_version']}, commit {s['git_commit'][:12]})")
     print(f"  mean return {_fmt(s['mean_return'])}, max contact force {_fmt(s['max_contact_force_N'], '.4g')} N")
     print(f"  {'ep':>3} {'env':>3} {'task':<28} {'policy':<14} {'steps':>5} {'t_end[s]':>8} {'return':>10} "

@@ -107,7 +107,7 @@ def test_cli_reports_unstable_equilibrium_and_to_stable(tmp_path, capsys):
     dump_scene(_column(2.0), path)
     assert sim_main([str(path), "--static"]) == EXIT_UNSTABLE == 3  # a script can tell a saddle from a rest state
     out = capsys.readouterr().out
-    assert "unstable equilibrium in 1 env(s)" in out and "--to-stable" in out, out
+    assert "unstable equilibrium in 1 env (first: env 0" in out and "--to-stable" in out, out
     outfile = tmp_path / "s.npz"
     assert sim_main([str(path), "--static", "--to-stable", "--out", str(outfile)]) == 0
     out = capsys.readouterr().out
