@@ -27,14 +27,27 @@ def test_value_problem_by_kind(current, value, ok):
     assert (value_problem(current, value) is None) == ok
 
 
-@pytest.fixture(scope="module")
-def app(tmp_path_factory):
+def _start_app(tmp_path_factory):
     from workbench.app import WorkbenchApp
     from workbench.core import Workbench
 
-    a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, wait_for_browser=False,
-                     scenes_dir=tmp_path_factory.mktemp("scenes"),
-                     recordings_dir=tmp_path_factory.mktemp("recordings")).start()
+    return WorkbenchApp(Workbench.builtin(), port=0, env_map=False, wait_for_browser=False,
+                        scenes_dir=tmp_path_factory.mktemp("scenes"),
+                        recordings_dir=tmp_path_factory.mktemp("recordings")).start()
+
+
+@pytest.fixture(scope="module")
+def app(tmp_path_factory):
+    a = _start_app(tmp_path_factory)
+    yield a
+    a.stop()
+
+
+@pytest.fixture
+def own_app(tmp_path_factory):
+    """A session of its own: the shared one has taken every hostile value of the tests before, and a button those
+    sent (a grid started, a scene loaded) may still act on it while a later test runs."""
+    a = _start_app(tmp_path_factory)
     yield a
     a.stop()
 
@@ -141,9 +154,10 @@ def _drag(name: str, phase: str, start, end):
                                    button="left", modifier=None, owner="")
 
 
-def test_drags_on_the_rod_from_a_raw_client_are_checked(app):
+def test_drags_on_the_rod_from_a_raw_client_are_checked(own_app):
     """A drag on the tube grabs the rod only at a finite point within reach; a hand moved to a non-finite or far point
     stays where it was; the end lets go. Every refusal is said in the status line."""
+    app = own_app
     wb = app.wb
     tube = app.view.rod.grip.name  # the rod's grip takes the drags
     tip = wb.tip
