@@ -89,6 +89,7 @@ class WorkbenchApp:
             raise RuntimeError("viser changed: the workbench's callbacks could not be guarded")
         self.server.gui.configure_theme(control_width="large", show_share_button=False)
         self.view = SceneView(self.server, wb.live.n_nodes, env_map=env_map)
+        self._draw_lock = threading.Lock()  # one frame drawn at a time (:meth:`_render`)
         self.render_hooks: list = []  # called with each drawn frame after the view (ghost of a compared episode)
         self.status_note = ""  # a line appended to the status (video progress)
         self.notice = ("", 0.0)  # (text, when): why the last page action failed, shown for NOTICE_S
@@ -192,8 +193,14 @@ class WorkbenchApp:
         self.request_render()
 
     def stop(self) -> None:
+        """Stop every thread the session started (its stepping thread, a running grid, a video being recorded),
+        close an open recording and the server."""
         self.housekeeping.stop()
         self.thread.stop()
+        for p in self.panels:  # a panel's own threads end with the session
+            close = getattr(p, "close", None)
+            if close is not None:
+                close()
         self.view.rod.tube.close()  # no delayed tube swap after the server has gone
         rec, self.wb.recorder = self.wb.recorder, None  # no lock: the sim thread may be mid-step
         if rec is not None:
@@ -293,6 +300,13 @@ class WorkbenchApp:
                               errors=(ValueError, ActionRefused))
 
     def _render(self, fr: Frame) -> None:
+        """Draw ``fr`` and call the render hooks with it. The stepping thread and a video being recorded both
+        draw: one frame is drawn whole (view and hooks) before another starts, so the page never shows parts of
+        two frames."""
+        with self._draw_lock:
+            self._draw(fr)
+
+    def _draw(self, fr: Frame) -> None:
         self.view.render(fr, boundary=self.wb.mode != "replay")  # a recording does not carry fixes and loads
         for hook in list(self.render_hooks):
             hook(fr)

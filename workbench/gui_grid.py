@@ -244,6 +244,10 @@ class GridPanel:
         self._show_live()
         self._say("grid stopped")
 
+    def close(self) -> None:
+        """The session ends: the grid's thread stops and its simulator is freed (nothing redrawn)."""
+        self._teardown()
+
     def _show_live(self) -> None:
         app = self.app
         app.view.set_ground()

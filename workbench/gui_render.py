@@ -52,6 +52,13 @@ class RenderPanel:
         def _(_e) -> None:
             self._cancel.set()
 
+    def close(self, timeout: float = 10.0) -> None:
+        """The session ends: a video being recorded is cancelled and waited for."""
+        self._cancel.set()
+        t = self.thread
+        if t is not None and t.is_alive() and t is not threading.current_thread():
+            t.join(timeout)
+
     def take_screenshot(self, client):
         try:
             out = screenshot(client, self.app.files.recordings)

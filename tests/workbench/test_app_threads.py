@@ -1,0 +1,71 @@
+"""The threads of a workbench session: stopping the session ends every thread it started (a running grid's
+stepping thread would otherwise keep stepping and holding memory in the process), and two threads drawing at
+once (the stepping thread and a video being recorded) never mix parts of two frames."""
+from __future__ import annotations
+
+import dataclasses
+import threading
+
+import numpy as np
+import pytest
+
+from tools.browser import wait_for
+
+
+def _alive(name: str) -> list[threading.Thread]:
+    return [t for t in threading.enumerate() if t.name == name and t.is_alive()]
+
+
+@pytest.fixture
+def app(tmp_path):
+    from workbench.app import WorkbenchApp
+    from workbench.core import Workbench
+
+    a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, wait_for_browser=False,
+                     scenes_dir=tmp_path / "scenes", recordings_dir=tmp_path / "recordings").start()
+    yield a
+    a.stop()
+
+
+def test_stop_ends_the_grid_thread(app):
+    before = _alive("rodlab-grid")
+    app.grid.start("follow_target", "zero", 2)
+    wait_for(lambda: app.grid.runner is not None and app.grid.runner.frames >= 2, what="the grid running")
+    runner = app.grid.runner
+    assert len(_alive("rodlab-grid")) == len(before) + 1
+    app.stop()
+    assert not runner.alive
+    assert app.grid.runner is None and app.grid.session is None
+    assert _alive("rodlab-grid") == before
+    # the stepping thread ends too (once the kernels it may still be compiling are compiled)
+    wait_for(lambda: not app.thread._thread.is_alive(), what="the stepping thread ended")
+
+
+def test_frames_drawn_from_two_threads_are_each_drawn_whole(app):
+    """Each thread draws its own frames (the rod shifted by its own offset) while the stepping thread draws the
+    live one; a render hook reads the tip frame the view has just drawn: it is always at the tip of the hook's
+    frame, never at another thread's."""
+    app.view.overlays.tip_frame = True
+    base = app.wb.frame()
+    assert base.m1 is not None and base.m2 is not None
+    wrong: list = []
+
+    def check(fr) -> None:
+        if not np.allclose(app.view.rod.tip_frame.position, fr.node_pos[-1], rtol=0.0, atol=1e-9):
+            wrong.append(fr.time)
+
+    app.render_hooks.append(check)
+    try:
+        def draw(k: int) -> None:
+            fr = dataclasses.replace(base, node_pos=base.node_pos + [0.1 * k, 0.0, 0.0], time=float(k))
+            for _ in range(60):
+                app._render(fr)
+
+        threads = [threading.Thread(target=draw, args=(k,)) for k in (1, 2)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    finally:
+        app.render_hooks.remove(check)
+    assert wrong == []
