@@ -4,6 +4,7 @@ the x-z plane for planar ones. Files are written atomically (:mod:`sim.support.a
 """
 from __future__ import annotations
 
+import gc
 import math
 from pathlib import Path
 from typing import Any
@@ -135,7 +136,12 @@ def export_gif(ep: EpisodeData, out: str | Path, *, max_frames: int = GIF_MAX_FR
     if not np.isfinite(pos).all():
         raise ExportError("episode positions contain NaN/inf: nothing sensible to draw")
     idx = frame_indices(ep.steps, max_frames)
-    imgs = [Image.fromarray(render_frame(ep, int(k), width=width, height=height)) for k in idx]
+    # each frame kept in the palette form the GIF writer turns it into anyway (a third of its RGB bytes); the
+    # frames' matplotlib figures hold reference cycles, collected here rather than left to a full collection,
+    # which a long session runs seldom
+    imgs = [Image.fromarray(render_frame(ep, int(k), width=width, height=height)).convert(
+        "P", palette=Image.Palette.ADAPTIVE) for k in idx]
+    gc.collect()
     t = np.asarray(ep.sim_time, np.float64)[idx]
     dt = np.diff(t, append=t[-1] + (t[-1] - t[-2] if len(t) > 1 else 0.1))
     ms = [int(max(20, min(5000, round(1000 * d / speed)))) if math.isfinite(d) else 100 for d in dt]
