@@ -442,12 +442,21 @@ def _term_geometry(x, radius, i, j, kind):
 
 
 @njit(inline="always", **OPT_CONTACT)
+def _segments_gap(a, b, p, q, rs):
+    """(gap [m], s, t, distance [m]) of segments (a, b) and (p, q) whose radii sum to ``rs``: s, t locate the
+    closest points on each (0 at a / p, 1 at b / q), the distance is between them."""
+    s, t = closest_seg_seg(a, b, p, q)
+    u = vsub(vlerp(a, b, s), vlerp(p, q, t))
+    dd = math.sqrt(vdot(u, u))
+    return dd - rs, s, t, dd
+
+
+@njit(inline="always", **OPT_CONTACT)
 def _term_gap(x, radius, i, j, kind):
     """(gap [m], s, t, sign) of a term of pair (i, j) at node positions x."""
     a, b, p, q, rs, sign = _term_geometry(x, radius, i, j, kind)
-    s, t = closest_seg_seg(a, b, p, q)
-    u = vsub(vlerp(a, b, s), vlerp(p, q, t))
-    return math.sqrt(vdot(u, u)) - rs, s, t, sign
+    g, s, t, _ = _segments_gap(a, b, p, q, rs)
+    return g, s, t, sign
 
 
 @njit(**OPT_CONTACT)
@@ -581,8 +590,10 @@ def add_forces(ep, pairs, links, law, x, x_prev, dt, dpn, fixed, radius, system,
                             system, sym, with_jac)
         mask = _terms(ep, links, c)
         for kind in range(1, 4):
-            if mask & (1 << kind) and _term_gap(x, radius, i, j, kind)[0] < delta:  # derivatives only in reach
-                a, b, p, q, rs, sign = _term_geometry(x, radius, i, j, kind)
+            if not mask & (1 << kind):
+                continue
+            a, b, p, q, rs, sign = _term_geometry(x, radius, i, j, kind)
+            if _segments_gap(a, b, p, q, rs)[0] < delta:  # derivatives only in reach
                 energy += _add_term(i, j, a, b, p, q, rs, sign, ep, law, x, x_prev, dt, dpn, fixed, system, sym,
                                     with_jac)
     return energy
@@ -680,15 +691,12 @@ def pair_rows(e, ep, pairs, links, law, x, x_prev, dt, radius, rows):
         b = row3(x, i + 1)
         p = row3(x, j)
         q = row3(x, j + 1)
-        s, t = closest_seg_seg(a, b, p, q)
-        pi = vlerp(a, b, s)
-        pj = vlerp(p, q, t)
-        u = vsub(pi, pj)
-        dd = math.sqrt(vdot(u, u))
-        gap = dd - ri - rj  # as _gap
+        gap, s, t, dd = _segments_gap(a, b, p, q, ri + rj)  # as _gap
         smallest = min(smallest, gap)
         if gap >= delta:
             continue
+        pi = vlerp(a, b, s)
+        pj = vlerp(p, q, t)
         # the pair's net force on edge i over its terms: normal part fn, friction part ff
         fn0 = 0.0
         fn1 = 0.0
@@ -706,10 +714,7 @@ def pair_rows(e, ep, pairs, links, law, x, x_prev, dt, radius, rows):
                 ts, tt, tdd, tgap = s, t, dd, gap
             else:
                 ta, tb, tp, tq, rs, sign = _term_geometry(x, radius, i, j, kind)
-                ts, tt = closest_seg_seg(ta, tb, tp, tq)
-                tu = vsub(vlerp(ta, tb, ts), vlerp(tp, tq, tt))
-                tdd = math.sqrt(vdot(tu, tu))
-                tgap = tdd - rs
+                tgap, ts, tt, tdd = _segments_gap(ta, tb, tp, tq, rs)
                 if tgap >= delta:
                     continue
             E, dE, _ = imc_energy(tgap, k, delta)
