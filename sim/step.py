@@ -205,7 +205,11 @@ class Simulator:
             else:
                 node[:, :, 0], node[:, :, 1] = force[:, :, 0], force[:, :, 2]
             grav = grav + node.reshape(self.envs, -1)
-        return np.ascontiguousarray(np.broadcast_to(grav, (self.envs, grav.shape[-1])))
+        # a new writeable array, typed as the model's own gravity row (a broadcast view is read-only: numba would
+        # compile the step kernel once more for it)
+        out = np.empty((self.envs, grav.shape[-1]))
+        out[...] = grav
+        return out
 
     def _prescribe(self, state: State) -> np.ndarray:
         """Move the prescribed DOFs of every non-failed env to their values at the step end (the kernel keeps
