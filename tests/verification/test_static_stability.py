@@ -14,6 +14,7 @@ from scipy.special import ellipk
 from sim import Simulator, build_model
 from sim.boundary import FixSpec, LoadSpec
 from sim.cli import EXIT_UNSTABLE, sim_main
+from sim.obstacles import PlaneSpec
 from sim.scene import dump_scene
 from sim.static import solve_static
 from tests.unit._rodspec import make_spec
@@ -115,3 +116,24 @@ def test_cli_reports_unstable_equilibrium_and_to_stable(tmp_path, capsys):
     with np.load(outfile) as z:
         assert z["stable"].all() and np.all(z["negative_directions"] == 0)
         assert abs(z["node_pos"][0, 0, -1, 2]) > 0.7
+
+
+def test_to_stable_with_contact_buckles_the_column_onto_a_wall():
+    """The column under twice its buckling load inside a square duct (four planes 0.1 m from its axis): the
+    straight column is still a saddle (the walls are out of reach), and ``to_stable`` brings it to an equilibrium
+    leaning on a wall (the elastica's free buckle, 0.8 L, would pass through it) whose static Hessian, contact
+    included, has no negative direction; nothing passes through a wall."""
+    wall = 0.1
+    spec = _column(2.0)
+    walls = tuple(PlaneSpec(point=tuple(wall * np.asarray(d)), normal=tuple(-np.asarray(d)))
+                  for d in ((0.0, 1.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, 1.0), (0.0, 0.0, -1.0)))
+    spec = dataclasses.replace(spec, obstacles=walls)
+    sim, state, ctrl = _imperfect(spec)
+    res = solve_static(spec, state, ctrl)
+    assert res.converged.all() and not res.stable[0] and res.negative_directions[0] > 0
+    res = solve_static(spec, state, ctrl, to_stable=True)
+    assert res.converged.all() and res.stable[0] and res.negative_directions[0] == 0 and res.perturbations[0] >= 1
+    off = np.abs(state.node_pos[0, :, 1:]).max(axis=1) + R  # each node's surface: its farthest reach off the axis
+    assert off.max() <= wall + 1e-9, off.max()  # no node inside a wall
+    assert off.max() > wall - spec.contact.delta  # leaning on one (within the contact law's reach)
+    assert np.hypot(*_tip(state)[1:]) > 0.05  # buckled, not straight
