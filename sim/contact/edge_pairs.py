@@ -349,15 +349,20 @@ def _slot(cp, d):
 
 
 @njit(inline="always", **OPT_CONTACT)
-def _gap(x, radius, i, j):
-    """Gap [m] of edges i and j at node positions x."""
-    a = row3(x, i)
-    b = row3(x, i + 1)
-    p = row3(x, j)
-    q = row3(x, j + 1)
+def _segments_gap(a, b, p, q, rs):
+    """(gap [m], s, t, distance [m]) of segments (a, b) and (p, q) whose radii sum to ``rs``: s, t locate the
+    closest points on each (0 at a / p, 1 at b / q), the distance is between them."""
     s, t = closest_seg_seg(a, b, p, q)
     u = vsub(vlerp(a, b, s), vlerp(p, q, t))
-    return math.sqrt(vdot(u, u)) - edge_radius(radius, i) - edge_radius(radius, j)
+    dd = math.sqrt(vdot(u, u))
+    return dd - rs, s, t, dd
+
+
+@njit(inline="always", **OPT_CONTACT)
+def _gap(x, radius, i, j):
+    """Gap [m] of edges i and j at node positions x."""
+    return _segments_gap(row3(x, i), row3(x, i + 1), row3(x, j), row3(x, j + 1),
+                         edge_radius(radius, i) + edge_radius(radius, j))[0]
 
 
 @njit(inline="always", **OPT_CONTACT)
@@ -439,16 +444,6 @@ def _term_geometry(x, radius, i, j, kind):
         rb = min(rb, edge_radius(radius, j - 1))
         sign = -sign
     return a, b, p, q, ra + rb, sign
-
-
-@njit(inline="always", **OPT_CONTACT)
-def _segments_gap(a, b, p, q, rs):
-    """(gap [m], s, t, distance [m]) of segments (a, b) and (p, q) whose radii sum to ``rs``: s, t locate the
-    closest points on each (0 at a / p, 1 at b / q), the distance is between them."""
-    s, t = closest_seg_seg(a, b, p, q)
-    u = vsub(vlerp(a, b, s), vlerp(p, q, t))
-    dd = math.sqrt(vdot(u, u))
-    return dd - rs, s, t, dd
 
 
 @njit(inline="always", **OPT_CONTACT)
@@ -766,9 +761,7 @@ def _pair_distance(x, dxp, tt, i, j):
     b = (x[i + 1, 0] + tt * dxp[i + 1, 0], x[i + 1, 1] + tt * dxp[i + 1, 1], x[i + 1, 2] + tt * dxp[i + 1, 2])
     p = (x[j, 0] + tt * dxp[j, 0], x[j, 1] + tt * dxp[j, 1], x[j, 2] + tt * dxp[j, 2])
     q = (x[j + 1, 0] + tt * dxp[j + 1, 0], x[j + 1, 1] + tt * dxp[j + 1, 1], x[j + 1, 2] + tt * dxp[j + 1, 2])
-    s, t = closest_seg_seg(a, b, p, q)
-    u = vsub(vlerp(a, b, s), vlerp(p, q, t))
-    return math.sqrt(vdot(u, u))
+    return _segments_gap(a, b, p, q, 0.0)[3]
 
 
 @njit(inline="always", **OPT_CONTACT)
