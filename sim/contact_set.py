@@ -37,12 +37,12 @@ PAIR_REPORT_CAPACITY = 64  # more StepStats contact rows when edge pairs may tou
 
 ContactData = namedtuple("ContactData", [
     "kind", "p0", "p1", "rot", "obstacle_radius", "half", "mesh_root", "tri", "node_lo", "node_hi", "node_child",
-    "node_range", "cand", "cand_count", "broadphase_radius", "active", "box", "iter_flag", "scratch_f", "scratch_m",
-    "scratch_i", "friction", "cand_merge"])
+    "node_range", "cand", "cand_count", "broadphase_radius", "active", "box", "scratch_f", "scratch_m", "scratch_i",
+    "friction", "cand_merge"])
 ContactData.__doc__ = "Arrays read by :mod:`sim.contact.obstacles` (fields documented there); a numba namedtuple."
-# the kernels' per-env work space: candidate pairs, their count, the rod's largest radius, first-iteration flag,
-# scratch, and the buffer merge_candidates merges candidate lists in
-ContactScratch = namedtuple("ContactScratch", ["cand", "cand_count", "broadphase_radius", "iter_flag", "scratch_f",
+# the kernels' per-env work space: candidate pairs, their count, the rod's largest radius, scratch, and the buffer
+# merge_candidates merges candidate lists in
+ContactScratch = namedtuple("ContactScratch", ["cand", "cand_count", "broadphase_radius", "scratch_f",
                                                "scratch_m", "scratch_i", "cand_merge"])
 _PER_ENV = ("position", "orientation", "local_a", "local_b", "radius", "active", "p0", "p1", "rot", "box")
 
@@ -55,7 +55,7 @@ def contact_scratch(envs: int, n_nodes: int, count: int, rod_radius) -> ContactS
         cand=np.zeros((B, max(int(n_nodes) * int(count), 1), 2), dtype=np.int64),
         cand_merge=np.zeros((B, 2 * max(int(n_nodes) * int(count), 1), 2), dtype=np.int64),
         cand_count=np.zeros(B, dtype=np.int64), broadphase_radius=np.array([float(np.max(rod_radius))]),
-        iter_flag=np.ones(B, dtype=np.int64), scratch_f=np.zeros((B, 128)), scratch_m=np.zeros((B, 2, 6, 6)),
+        scratch_f=np.zeros((B, 128)), scratch_m=np.zeros((B, 2, 6, 6)),
         scratch_i=np.zeros((B, 128), dtype=np.int64))
 
 
@@ -76,7 +76,7 @@ def contact_data(obs: "ObstacleSet", scratch: ContactScratch) -> ContactData:
     """The kernels' view of the poses in ``obs`` (a state's obstacles) with the work space ``scratch``."""
     return ContactData(obs.kind, obs.p0, obs.p1, obs.rot, obs.radius, obs.half, obs.mesh_root, obs.tri, obs.node_lo,
                        obs.node_hi, obs.node_child, obs.node_range, scratch.cand, scratch.cand_count, scratch.broadphase_radius,
-                       obs.active, obs.box, scratch.iter_flag, scratch.scratch_f, scratch.scratch_m, scratch.scratch_i,
+                       obs.active, obs.box, scratch.scratch_f, scratch.scratch_m, scratch.scratch_i,
                        obs.friction, scratch.cand_merge)
 
 

@@ -17,15 +17,14 @@ Ownership (docs/physics.md §4.7 artefact 1): a pair whose closest rod point is 
 to the next edge; a pair at the start node is skipped when the previous edge of the same obstacle is
 strictly closer. So each local minimum of the distance along the rod is counted once.
 
-Friction (§4.6 "rod vs rigid obstacle", [REC]): smooth Coulomb with lagged ``n`` and ``s`` (no
-derivatives through them), skipped when ``friction_on`` is False (Newton iteration 0).
+Friction (§4.6): smooth Coulomb with lagged ``n`` and ``s`` (no derivatives through them), at every Newton
+iterate, the first one included, as for edge pairs; skipped when ``friction_on`` is False.
 
 ``cd`` is the :class:`sim.contact_set.ContactData` namedtuple (:func:`sim.contact_set.contact_data`):
 ``(kind (M,), p0 (B,M,3), p1 (B,M,3), rot (B,M,3,3), obstacle_radius (B,M), half (M,3), mesh_root (M,),
 tri (T,3,3), node_lo (K,3), node_hi (K,3), node_child (K,2), node_range (K,2), cand (B,C,2) int64,
 cand_count (B,), broadphase_radius (1,) [m] (the rod's largest radius: the broad phase's inflation), active (B,M)
-bool, box (B,M,2,3) world AABBs, iter_flag (B,) int64 (0 right after the broad phase: friction is skipped on that
-first Newton iteration), scratch_f (B,128), scratch_m (B,2,6,6), scratch_i (B,128) int64 per-env work space (no
+bool, box (B,M,2,3) world AABBs, scratch_f (B,128), scratch_m (B,2,6,6), scratch_i (B,128) int64 per-env work space (no
 allocation in the kernels), friction (M,) per-obstacle μ (-1: the contact law's μ, the [contact] friction),
 cand_merge (B,2C,2) int64 (the candidate lists merged by :func:`merge_candidates`))``.
 Kinds: 0 plane (p0 point, p1 unit normal), 1 sphere (p0 centre), 2 capsule (p0, p1 axis ends),
@@ -582,7 +581,6 @@ def find_candidates(e, cd, x_start, x_guess, margin, link=None):
                 cand[e, cnt, 1] = o
                 cnt += 1
     ccount[e] = cnt
-    cd.iter_flag[e] = 0  # next accumulate = Newton iteration 0 of this (sub)step: no friction
     return cnt
 
 
@@ -707,12 +705,10 @@ def node_forces(e, law, cd, x, x_prev, dt, radius, friction_on, grad, hess, link
     (N-1, 6, 6) [N/m] for env ``e``'s candidates at positions ``x``; return the contact energy [J]. ``law``: the
     contact law (a Params record).
 
-    Friction (if ``friction_on``) is skipped on the first call after :func:`find_candidates` (Newton
-    iteration 0 of the (sub)step, docs/physics.md §4.6). ``link`` (optional, RodData.link): tells a rod's end
-    nodes next to a joint edge (several rods) for the flat-face weights."""
-    fr_on = friction_on and cd.iter_flag[e] > 0
-    cd.iter_flag[e] = 1
-    return _contact_pass(e, law, cd, x, x_prev, dt, radius, link, fr_on, grad, hess, None)
+    Friction (if ``friction_on``) at every iterate, the first one included (docs/physics.md §4.6). ``link``
+    (optional, RodData.link): tells a rod's end nodes next to a joint edge (several rods) for the flat-face
+    weights."""
+    return _contact_pass(e, law, cd, x, x_prev, dt, radius, link, friction_on, grad, hess, None)
 
 
 @njit(**OPT_CONTACT)

@@ -38,7 +38,6 @@ def accumulate(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, friction_on=Fals
     xp = x.copy() if x_prev is None else np.ascontiguousarray(x_prev, dtype=np.float64)
     if broadphase:
         find_candidates(e, cd, x, x, margin)
-        cd.iter_flag[e] = 1  # evaluate as a Newton iteration >= 1 (friction is skipped on iteration 0)
     g = np.zeros_like(x)
     h = np.zeros((x.shape[0] - 1, 6, 6))
     E = node_forces(e, law(k=k, delta=delta, mu=mu, nu=nu), cd, x, xp, dt, radii(rod_radius), friction_on, g, h)

@@ -147,3 +147,13 @@ def test_fences_reach_the_simulator_and_start_contact_free():
         assert np.all(stats.contact_count == 0) and not stats.failed.any()
         obs, *_ = venv.step(np.zeros((3, 10), np.float32))
     assert not np.array_equal(obs[:, 10:58], fences.reshape(3, -1))
+
+
+@pytest.mark.parametrize("tid", ALL)
+def test_tasks_have_no_friction(tid):
+    """The paper's tasks are frictionless (docs/tasks.md: contact k 1e6, δ 5e-3 m, μ 0): the friction law and its
+    Newton schedule (docs/physics.md §4.6) do not enter their dynamics, so changing them leaves learning curves
+    alone."""
+    venv = make_vec_env(tid, 1, seed=0)
+    prm = venv.core.sim._prm[0]
+    assert not bool(prm["friction_on"]) and float(prm["friction"]) == 0.0
