@@ -13,8 +13,8 @@ from pathlib import Path
 
 _HERE = Path(__file__).resolve().parent
 _SOURCES = ["numba_options.py", "frames.py", "kernels/banded.py", "kernels/data.py", "kernels/workspace.py",
-            "kernels/assemble_3d.py", "kernels/assemble_2d.py", "kernels/newton.py", "kernels/ladder.py",
-            "kernels/batch.py", "contact/imc.py", "contact/obstacles.py", "contact/edge_pairs.py", "contact/stages.py",
+            "kernels/assemble_3d.py", "kernels/assemble_2d.py", "kernels/drag.py", "kernels/newton.py",
+            "kernels/ladder.py", "kernels/batch.py", "contact/imc.py", "contact/obstacles.py", "contact/edge_pairs.py", "contact/stages.py",
             "geometry_distance.py", "vec3.py", "kinds.py",
             "energies/stretch.py", "energies/bend_twist.py", "energies/planar.py", "hessian.py", "kernels/probe.py", "kernels/linearise.py"]
 # modules whose numba functions call no numba function of another module (their own cache check suffices)

@@ -14,6 +14,9 @@ Keys (SI units)::
               (default 0), stop [s] (default: never)
     [[line_load]] rod (as for loads), force_per_length [N/m] (3-vector, world frame: a uniform distributed load
               along the whole rod, each node taking its Voronoi length's share), start [s], stop [s]
+    [drag]    normal, tangential [N s/m²] (viscous drag per unit length against the motion across and along the
+              rod, resistive-force theory; default 0), flow [m/s] (3-vector: the fluid's uniform velocity,
+              default 0); acts on every rod (docs/physics.md §3.1)
     [[fix]]   rod (as for loads), nodes (list of int within that rod, negative from its end), axes (subset of
               "xyz", default "xyz"), twist_edges (list of int within that rod, 3-D only), velocity [m/s] (3-vector: prescribed motion of the
               fixed axes, default 0), twist_rate [rad/s] (of the fixed twist edges, default 0), start [s],
@@ -41,7 +44,8 @@ import numpy as np
 
 from .tomlio import SceneError, check_unknown, format_value, take_float, take_int, take_str, take_vec3
 
-__all__ = ["LoadSpec", "LineLoadSpec", "FixSpec", "FrameLoads", "parse_loads", "parse_line_loads", "dump_line_loads",
+__all__ = ["LoadSpec", "LineLoadSpec", "DragSpec", "parse_drag", "dump_drag", "FixSpec", "FrameLoads", "parse_loads",
+           "parse_line_loads", "dump_line_loads",
            "frame_load_arrays", "frame_load_forces", "parse_fixes", "dump_loads", "dump_fixes", "check_boundary",
            "ROD_NAME", "node_index", "load_arrays", "motion_arrays", "fixed_dofs", "window_fraction", "rod_layout",
            "rod_span", "global_node", "global_edge"]
@@ -80,6 +84,21 @@ class LineLoadSpec:
 
 
 @dataclass(frozen=True)
+class DragSpec:
+    """Viscous drag per unit length (resistive-force theory): ``normal`` and ``tangential`` coefficients [N s/m²]
+    against the velocity relative to the uniform ``flow`` [m/s] across and along the rod."""
+
+    normal: float = 0.0
+    tangential: float = 0.0
+    flow: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def acts(self) -> bool:
+        """Whether the drag exerts any force (a coefficient above 0)."""
+        return self.normal > 0.0 or self.tangential > 0.0
+
+
+@dataclass(frozen=True)
 class FrameLoads:
     """The loads that depend on the configuration, as arrays (K loads): the node a force acts on ``node`` (K,), the
     edge a moment acts on and whose frame a material-frame load uses ``edge`` (K,) (scene-wide indices), ``force``
@@ -115,6 +134,7 @@ class FixSpec:
 
 _LOAD_KEYS = {"rod", "node", "force", "moment", "frame", "torque", "start", "stop"}
 _LINE_LOAD_KEYS = {"rod", "force_per_length", "start", "stop"}
+_DRAG_KEYS = {"normal", "tangential", "flow"}
 _FIX_KEYS = {"rod", "nodes", "axes", "twist_edges", "velocity", "twist_rate", "start", "stop"}
 
 
@@ -163,6 +183,25 @@ def parse_line_loads(tables: Any, path: str | None) -> tuple[LineLoadSpec, ...]:
                                 start=take_float(t, "start", p, path, 0.0), stop=_stop(t, p, path),
                                 rod=_rod_key(t, p, path)))
     return tuple(out)
+
+
+def parse_drag(table: Any, path: str | None) -> DragSpec | None:
+    """The ``[drag]`` table (None without one; ranges are checked by :func:`check_boundary`)."""
+    if table is None:
+        return None
+    if not isinstance(table, dict):
+        raise SceneError(f"{path or '<scene>'}: drag: expected a table [drag]")
+    check_unknown(table, _DRAG_KEYS, "drag.", path)
+    return DragSpec(normal=take_float(table, "normal", "drag.", path, 0.0),
+                    tangential=take_float(table, "tangential", "drag.", path, 0.0),
+                    flow=take_vec3(table, "flow", "drag.", path, (0.0, 0.0, 0.0)))
+
+
+def dump_drag(drag: DragSpec | None) -> list[str]:
+    """The ``[drag]`` table's lines (none without drag)."""
+    if drag is None:
+        return []
+    return ["[drag]"] + [f"{k} = {format_value(getattr(drag, k))}" for k in ("normal", "tangential", "flow")]
 
 
 def parse_fixes(tables: Any, path: str | None) -> tuple[FixSpec, ...]:
@@ -305,6 +344,13 @@ def check_boundary(c: Any, spec: Any) -> None:
         q = c.vec(p + "force_per_length", ll.force_per_length, "line_load.force_per_length")
         if planar and q[1] != 0.0:
             c.fail(p + "force_per_length", "mode '2d' needs a load in the x-z plane (y = 0)")
+    drag = getattr(spec, "drag", None)
+    if drag is not None:
+        c.num("drag.normal", drag.normal, "drag.normal")
+        c.num("drag.tangential", drag.tangential, "drag.tangential")
+        u = c.vec("drag.flow", drag.flow, "drag.flow")
+        if planar and u[1] != 0.0:
+            c.fail("drag.flow", "mode '2d' needs a flow in the x-z plane (y = 0)")
     for k, fx in enumerate(getattr(spec, "fixes", ()) or ()):
         p = f"fix[{k}]."
         N = common(p, fx)

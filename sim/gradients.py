@@ -17,8 +17,8 @@ transposed, the adjoint (reverse) mode :meth:`Tape.vjp`.
 
 The derivatives are of the backward-Euler map the Newton iterate satisfies; a step that ended unconverged
 (``accept_unconverged``) is differentiated as if it had converged (:attr:`Tape.unconverged` counts them). Not
-covered yet (a clear :class:`GradientError`): contact, implicit midpoint, prescribed motion, steps that took the
-retry ladder (sub-steps).
+covered yet (a clear :class:`GradientError`): contact, implicit midpoint, prescribed motion, viscous drag, steps
+that took the retry ladder (sub-steps).
 
 Parameters (keys of the tangent / gradient dicts):
 
@@ -377,6 +377,9 @@ def rollout(sim, state, controls) -> Tape:
                             "integrator = \"backward_euler\"")
     if sim._motion:
         raise GradientError("derivatives with prescribed motion ([[fix]] with a rate) are not available yet")
+    if bool(sim._prm[0]["drag_on"]):
+        raise GradientError("derivatives with viscous drag ([drag], whose directions follow the rod's tangent) are "
+                            "not available yet")
     if sim._frame_loads is not None:
         raise GradientError("derivatives with moments or material-frame loads ([[load]] moment / frame = "
                             "\"material\", which depend on the configuration) are not available yet")

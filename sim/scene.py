@@ -27,6 +27,7 @@ Keys (SI units)::
                               point loads and moments, distributed loads, constrained nodes/edges and prescribed
                               motion: ``sim.boundary`` (their ``rod`` key names the rod; node and edge indices count
                               within that rod)
+    [drag]                    viscous drag per unit length in a fluid at rest or in a uniform flow: ``sim.boundary``
 """
 from __future__ import annotations
 
@@ -131,10 +132,11 @@ class SceneSpec:
     loads: tuple   # of sim.boundary.LoadSpec
     fixes: tuple   # of sim.boundary.FixSpec
     line_loads: tuple  # of sim.boundary.LineLoadSpec
+    drag: Any  # sim.boundary.DragSpec, or None: no drag
 
     def __init__(self, sim: SimSpec, rod: RodSpec | None = None, obstacles: tuple = (), contact: Any = None,
                  path: str | None = None, loads: tuple = (), fixes: tuple = (), *, rods: Any = None,
-                 line_loads: tuple = ()) -> None:
+                 line_loads: tuple = (), drag: Any = None) -> None:
         if rod is not None:
             if rods is not None and len(tuple(rods)) > 1:
                 raise ValueError(f"SceneSpec: rod= sets the only rod of a one-rod scene; this one has "
@@ -151,6 +153,7 @@ class SceneSpec:
         set_(self, "loads", loads)
         set_(self, "fixes", fixes)
         set_(self, "line_loads", tuple(line_loads))
+        set_(self, "drag", drag)
 
     @property
     def rod(self) -> RodSpec:
@@ -320,9 +323,9 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
     """Validate a parsed TOML document into a SceneSpec (raises SceneError naming file/key/problem)."""
     where = path or "<scene>"
     for k in doc:
-        if k not in ("sim", "rod", "obstacle", "contact", "load", "line_load", "fix"):
+        if k not in ("sim", "rod", "obstacle", "contact", "load", "line_load", "fix", "drag"):
             raise SceneError(f"{where}: {k}: unknown table (allowed: sim, rod, obstacle, contact, load, line_load, "
-                             "fix)")
+                             "fix, drag)")
     s = _table(doc, "sim", path)
     assert s is not None
     rod_tables = _rod_tables(doc, path)
@@ -356,7 +359,8 @@ def parse_scene(doc: dict[str, Any], path: str | None = None) -> SceneSpec:
     contact = _obs.parse_contact(_table(doc, "contact", path, required=False), path)
     spec = SceneSpec(sim=sim, rods=rods, obstacles=tuple(obstacles), contact=contact, path=path,
                      loads=_bc.parse_loads(doc.get("load", []), path), fixes=_bc.parse_fixes(doc.get("fix", []), path),
-                     line_loads=_bc.parse_line_loads(doc.get("line_load", []), path))
+                     line_loads=_bc.parse_line_loads(doc.get("line_load", []), path),
+                     drag=_bc.parse_drag(doc.get("drag"), path))
     check_scene(spec, where)  # every number finite and within the physical bounds (sim/validate.py)
     return spec
 
@@ -413,7 +417,8 @@ def scene_to_toml(spec: SceneSpec, *, base_dir: str | os.PathLike | None = None)
     if extra:
         lines += [""] + list(extra)
     lines += [""] + list(_obs.dump_contact(spec.contact))
-    for extra in (_bc.dump_fixes(spec.fixes), _bc.dump_loads(spec.loads), _bc.dump_line_loads(spec.line_loads)):
+    for extra in (_bc.dump_fixes(spec.fixes), _bc.dump_loads(spec.loads), _bc.dump_line_loads(spec.line_loads),
+                  _bc.dump_drag(spec.drag)):
         if extra:
             lines += [""] + extra
     return "\n".join(lines) + "\n"

@@ -17,6 +17,7 @@ from sim.frames import update_frames
 from sim.numba_options import OPT
 
 from .data import KL_2D
+from .drag import add_drag
 from .workspace import copy_into
 
 __all__ = ["assemble_2d", "energies_2d", "frames_from_2d"]
@@ -50,6 +51,8 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cs, w, with_jac, sym):
         f[k] = m * ih2 * (dxk - h * u[k]) - grav[k] + damp * m * dxk * ih
         if with_jac:
             ab[k, kl] = m * ih2 + damp * m * ih
+    if prm.drag_on:  # viscous drag per unit length (docs/physics.md §3.1)
+        add_drag(True, x, x0, h, rest_len, rod.link, prm, f, ab, kl, with_jac, sym)
     link = rod.link
     es = 0.0
     for j in range(N - 1):  # stretching (not across a joint edge between two rods)

@@ -17,6 +17,7 @@ from sim.frames import update_frames
 from sim.numba_options import OPT
 
 from .data import KL_3D
+from .drag import add_drag
 
 __all__ = ["assemble_3d", "energies_3d"]
 
@@ -61,6 +62,8 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cs, w, with_jac, sym):
         f[k] = fk
         if with_jac:
             ab[k, kl] = jk
+    if prm.drag_on:  # viscous drag per unit length (docs/physics.md §3.1)
+        add_drag(False, x, x0, h, rest_len, rod.link, prm, f, ab, kl, with_jac, sym)
     link = rod.link
     es = 0.0
     for j in range(N - 1):  # stretching (not across a joint edge between two rods)

@@ -48,10 +48,11 @@ class Params:
     """The solver's scalar parameters by name, read in the kernels as ``prm`` (one record of
     :data:`PARAMS_DTYPE`, :meth:`record`). Units: dt [s], damping [1/s], newton_dtol [m/s],
     contact_delta/contact_margin/max_penetration/plane_y [m], contact_k [N/m], friction_nu [m/s]; the rest
-    dimensionless. ``planar``: the 2-D model; ``midpoint``: implicit midpoint, else backward Euler; ``friction_on``:
-    some obstacle has friction; ``rod_pairs``: edges of rods may touch each other (self- or rod–rod contact on and
-    allowed pairs exist, sim/contact/edge_pairs.py; they use contact_k, contact_delta, contact_margin and the [contact]
-    friction μ = friction); ``n_obstacles``: 0 when contact is disabled."""
+    dimensionless; drag_normal/drag_tangential [N s/m²] and the flow velocity flow_x/y/z [m/s] of the viscous drag
+    (``drag_on``: a coefficient above 0; docs/physics.md §3.1). ``planar``: the 2-D model; ``midpoint``: implicit
+    midpoint, else backward Euler; ``friction_on``: some obstacle has friction; ``rod_pairs``: edges of rods may
+    touch each other (self- or rod–rod contact on and allowed pairs exist, sim/contact/edge_pairs.py; they use
+    contact_k, contact_delta, contact_margin and the [contact] friction μ = friction); ``n_obstacles``: 0 when contact is disabled."""
 
     dt: float
     damping: float
@@ -68,6 +69,11 @@ class Params:
     max_penetration: float
     divergence_guard: float
     midpoint_energy_tol: float
+    drag_normal: float
+    drag_tangential: float
+    flow_x: float
+    flow_y: float
+    flow_z: float
     newton_max_iter: int
     n_obstacles: int
     retry_levels: int
@@ -78,6 +84,7 @@ class Params:
     step_limit: bool
     planar: bool
     rod_pairs: bool
+    drag_on: bool
 
     @classmethod
     def from_model(cls, model: Any, *, pairs: np.ndarray | None = None) -> Params:
@@ -88,12 +95,18 @@ class Params:
         mp = getattr(c, "max_penetration", None)  # penetration guard [m]; None = 4 * delta
         if pairs is None:
             pairs = model_pairs(m)
+        drag = getattr(m.spec, "drag", None)
+        flow = drag.flow if drag is not None else (0.0, 0.0, 0.0)
         return cls(
             dt=m.dt, damping=m.damping, newton_tol=m.newton_tol, newton_dtol=m.newton_dtol,
             contact_k=c.stiffness, contact_delta=c.delta, friction=c.friction, friction_nu=c.friction_velocity_tol,
             contact_margin=c.margin, planar_sign=m.planar_sign, plane_y=m.plane_y, max_strain=MAX_STRAIN,
             max_penetration=4.0 * c.delta if mp is None else float(mp), divergence_guard=m.divergence_guard,
             midpoint_energy_tol=MIDPOINT_ENERGY_TOL, newton_max_iter=int(m.newton_max_iter),
+            drag_normal=drag.normal if drag is not None else 0.0,
+            drag_tangential=drag.tangential if drag is not None else 0.0,
+            flow_x=float(flow[0]), flow_y=float(flow[1]), flow_z=float(flow[2]),
+            drag_on=drag is not None and drag.acts,
             n_obstacles=int(m.obstacles.count if getattr(c, "enabled", True) else 0), retry_levels=RETRY_LEVELS,
             line_search=LineSearch[m.line_search.upper()], accept_unconverged=bool(m.accept_unconverged),
             midpoint=m.integrator != "backward_euler",
