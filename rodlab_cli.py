@@ -35,6 +35,7 @@ BENCH: dict[str, tuple[str, str]] = {
     "order": ("benchmarks.time_order:main", "observed time order of the integrators (fitted first mode)"),
     "gradients": ("benchmarks.gradients:main", "derivative cost, fit vs finite-difference probing, inverse statics"),
     "fuzz": ("benchmarks.fuzz:main", "random bad input: tried / clear error / crash / silent-wrong counts"),
+    "stability": ("benchmarks.stability:main", "static stability check: banded against dense eigensolver"),
 }
 
 

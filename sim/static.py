@@ -184,28 +184,92 @@ class _Relax:
         return StaticResult(converged=conv, steps=steps, last_move=move, residual=np.asarray(res), dt=h)
 
 
-def static_hessian(sim: Simulator, state: Any, ctrl: Any, e: int) -> np.ndarray:
-    """The dense (n, n) static Hessian of env ``e`` at its state (constrained DOFs: identity rows and columns), the
-    step's own elements at the state's frames, where they are exact (docs/physics.md §2.4); friction, not a
-    potential force, is left out by taking the symmetric part."""
+def _static_band(sim: Simulator, state: Any, ctrl: Any, e: int):
+    """Env ``e``'s static Jacobian as the kernel gives it: the band (n + kl, 2 kl + 1) (row r, column c at
+    [r, kl + c − r]), and the out-of-band coupling of touching edge pairs (its DOFs (K,) and dense block (K, K))."""
     B = state.dof.shape[0]
     obs = sim._no_obstacles if state.obstacles is None else state.obstacles
-    ab, dofs, cm = static_jacobian(e, np.ascontiguousarray(state.dof.reshape(B, -1)[e]),
-                                   np.ascontiguousarray(state.edge_ref_d1[e]), np.ascontiguousarray(state.edge_tangent[e]),
-                                   np.ascontiguousarray(state.node_ref_twist[e]),
-                                   np.ascontiguousarray(ctrl.kappa_bar[e], dtype=np.float64),
-                                   np.ascontiguousarray(ctrl.tau_bar[e], dtype=np.float64), sim._rod, sim._prm,
-                                   contact_data(obs, sim._scratch))
-    n = state.dof.reshape(B, -1).shape[1]
+    return static_jacobian(e, np.ascontiguousarray(state.dof.reshape(B, -1)[e]),
+                           np.ascontiguousarray(state.edge_ref_d1[e]), np.ascontiguousarray(state.edge_tangent[e]),
+                           np.ascontiguousarray(state.node_ref_twist[e]),
+                           np.ascontiguousarray(ctrl.kappa_bar[e], dtype=np.float64),
+                           np.ascontiguousarray(ctrl.tau_bar[e], dtype=np.float64), sim._rod, sim._prm,
+                           contact_data(obs, sim._scratch))
+
+
+def _band_entries(ab: np.ndarray, n: int):
+    """(rows, columns, values) of the entries of a band (n + kl, 2 kl + 1) inside the (n, n) matrix."""
     kl = (ab.shape[1] - 1) // 2
     r = np.arange(n)[:, None]
     c = r + np.arange(-kl, kl + 1)[None, :]
     ok = (c >= 0) & (c < n)
+    return np.broadcast_to(r, c.shape)[ok], c[ok], ab[:n][ok]
+
+
+def static_hessian(sim: Simulator, state: Any, ctrl: Any, e: int) -> np.ndarray:
+    """The dense (n, n) static Hessian of env ``e`` at its state (constrained DOFs: identity rows and columns), the
+    step's own elements at the state's frames, where they are exact (docs/physics.md §2.4); friction, not a
+    potential force, is left out by taking the symmetric part."""
+    ab, dofs, cm = _static_band(sim, state, ctrl, e)
+    n = state.dof.reshape(state.dof.shape[0], -1).shape[1]
     H = np.zeros((n, n))
-    H[np.broadcast_to(r, c.shape)[ok], c[ok]] = ab[:n][ok]
+    r, c, v = _band_entries(ab, n)
+    H[r, c] = v
     if dofs.size:
         H[np.ix_(dofs, dofs)] += cm
     return 0.5 * (H + H.T)
+
+
+ROUNDING_TOL = 1e-14  # eigenvalues within this fraction of max |diag S| of 0 are rounding (negative_threshold)
+NEUTRAL_TOL = 1e-3    # ... and within this fraction of the rod's bending scale EI/(ρA L⁴) of 0 are neutral
+
+
+def negative_threshold(model: Any, max_diag: float) -> float:
+    """The size [1/s²] below −which an eigenvalue of the mass-weighted static Hessian ``S`` counts as a negative
+    direction: the larger of ``ROUNDING_TOL`` times ``S``'s largest diagonal entry ``max_diag`` (the rounding of the
+    eigensolver; that entry grows with the stiffest mode, EI/(ρA l⁴) ∝ N⁴) and ``NEUTRAL_TOL`` times the rod's
+    bending scale min EI / (max ρA · L⁴) (the softest bending mode's order of magnitude), under which an eigenvalue
+    is a neutral direction solved to the static tolerance (the turn of a round column's buckling plane about its
+    axis comes out at ≈ −5e-5 of that scale), not an instability."""
+    ei = np.minimum(np.asarray(model.node_EI1), np.asarray(model.node_EI2))
+    rho_a = np.asarray(model.node_mass) / np.maximum(np.asarray(model.voronoi_length), 1e-300)
+    length = max(float(r.length) for r in model.spec.rods)
+    pos = ei[ei > 0]
+    bend = float(pos.min()) / (float(rho_a.max()) * length ** 4) if pos.size and rho_a.max() > 0 else 0.0
+    return max(ROUNDING_TOL * float(max_diag), NEUTRAL_TOL * bend)
+
+
+_DENSE_BELOW = 64  # free DOFs below which the dense eigensolver is used (as cheap as the banded one there)
+
+
+def _banded_lowest(band: np.ndarray, S, w0: float, c: int, gap: float, scale: float) -> np.ndarray:
+    """(n, c) orthonormal basis of the eigenspace of the ``c`` lowest eigenvalues (the lowest ``w0``) of the symmetric
+    banded ``S`` (``band``: its upper band form, ``S`` the same matrix as a sparse one) by block inverse iteration: a
+    shift ``σ`` below ``w0`` by a thousandth of the ``gap`` to the next eigenvalue makes ``S − σI`` positive definite
+    (a banded Cholesky factor, O(n kl²)), and each solve shrinks the other eigenvectors' parts by about 1e-3; a
+    Rayleigh–Ritz step orders the block."""
+    from scipy.linalg import cho_solve_banded, cholesky_banded, eigh
+
+    kl = band.shape[0] - 1
+    shifted = band.copy()
+    delta = max(1e-3 * gap, 1e-12 * scale)  # above the eigenvalues' rounding (~1e-16 of the scale)
+    for _ in range(4):  # a shift the rounding of w0 put above it: further down
+        shifted[:] = band
+        shifted[kl] -= w0 - delta
+        try:
+            cb = cholesky_banded(shifted, lower=False)
+            break
+        except np.linalg.LinAlgError:
+            delta *= 10.0
+    else:
+        raise np.linalg.LinAlgError("banded Cholesky of the shifted static Hessian failed")
+    x = np.random.default_rng(0).standard_normal((band.shape[1], c))
+    for _ in range(12):
+        x = cho_solve_banded((cb, False), x)
+        x, _r = np.linalg.qr(x)
+    h = x.T @ (S @ x)
+    _, q = eigh(0.5 * (h + h.T))
+    return x @ q
 
 
 def static_stability(sim: Simulator, state: Any, ctrl: Any, e: int) -> tuple[int, float, np.ndarray]:
@@ -216,25 +280,52 @@ def static_stability(sim: Simulator, state: Any, ctrl: Any, e: int) -> tuple[int
     lowest eigenvector (mapped back by ``M^-1/2``) is the direction a pseudo-time step grows fastest along. A
     symmetric eigensolver is used rather than the signs of the step's LDLᵀ pivots: those are not exposed by the
     kernel, belong to an iterate before the last one, and an LDLᵀ without pivoting can break down on an
-    indefinite matrix. Eigenvalues below ``-1e-9`` times the largest diagonal entry of ``S`` count as negative
-    (rounding leaves zero modes, e.g. a free spin of the twist angles, at ~1e-16 of it). Where the lowest
-    eigenvalue is multiple, the eigenvector returned is the combination of its eigenvectors nearest to moving
-    every free node down (−z)."""
+    indefinite matrix. ``S`` keeps the Hessian's band (removing constrained DOFs narrows it): its eigenvalues come
+    from the banded symmetric eigensolver (O(n² kl), no eigenvectors) and the lowest eigenvectors from block inverse
+    iteration with a banded Cholesky factor (:func:`_banded_lowest`, O(n kl²)), instead of the O(n³) of a dense
+    solve; with edge pairs in touch (couplings outside the band), or few DOFs, the dense solver is used. Eigenvalues
+    below ``-negative_threshold`` count as negative: not rounding nor a neutral direction (a tolerance of 1e-9 of the
+    largest diagonal entry, which grows with N⁴, hid the buckling modes of fine rods: the column at twice its Euler
+    load read stable from about 300 nodes on). Where the lowest eigenvalue is multiple, the eigenvector
+    returned is the combination of its eigenvectors nearest to moving every free node down (−z)."""
+    import scipy.sparse as sp
+    from scipy.linalg import eig_banded
+
     m = sim.model
-    H = static_hessian(sim, state, ctrl, e)
+    ab, dofs, cm = _static_band(sim, state, ctrl, e)
+    n = state.dof.reshape(state.dof.shape[0], -1).shape[1]
     free = np.flatnonzero(~np.asarray(m.dof_fixed))
     d = 1.0 / np.sqrt(np.asarray(m.dof_mass)[free])
-    S = H[np.ix_(free, free)] * d[:, None] * d[None, :]
-    w, v = np.linalg.eigh(S)
-    thr = 1e-9 * float(np.abs(np.diag(S)).max(initial=0.0))
+    nf = free.size
+    if dofs.size or nf < _DENSE_BELOW:
+        H = static_hessian(sim, state, ctrl, e)
+        S = H[np.ix_(free, free)] * d[:, None] * d[None, :]
+        thr = negative_threshold(m, float(np.abs(np.diag(S)).max(initial=0.0)))
+        w, v = np.linalg.eigh(S)
+        deg = v[:, np.abs(w - w[0]) <= 1e-6 * abs(w[0])] if w.size else v[:, :1]
+    else:
+        kl = (ab.shape[1] - 1) // 2
+        r, c, val = _band_entries(ab, n)
+        Hs = sp.coo_matrix((val, (r, c)), shape=(n, n)).tocsr()
+        Hs = 0.5 * (Hs + Hs.T)
+        D = sp.diags(d)
+        S = (D @ Hs[free][:, free] @ D).tocsr()
+        band = np.zeros((kl + 1, nf))   # upper form: band[kl + i − j, j] = S[i, j], i ≤ j
+        for k in range(kl + 1):
+            band[kl - k, k:] = S.diagonal(k)
+        thr = negative_threshold(m, float(np.abs(band[kl]).max(initial=0.0)))
+        w = eig_banded(band, eigvals_only=True)
+        cl = int(np.count_nonzero(np.abs(w - w[0]) <= 1e-6 * abs(w[0])))  # the lowest eigenvalue's multiplicity
+        gap = float(w[cl] - w[0]) if cl < nf else float(np.abs(w).max())
+        deg = _banded_lowest(band, S, float(w[0]), cl, gap, float(np.abs(w).max()))
+        v = deg
     # a multiple lowest eigenvalue (a round column buckles in any plane): of its eigenvectors, the combination
     # nearest to moving every free node down (-z), so that the push keeps a plane of symmetry where there is one
-    deg = v[:, np.abs(w - w[0]) <= 1e-6 * abs(w[0])] if w.size else v[:, :1]
     dpn = m.dofs_per_node
     down = -((free % dpn) == (2 if dpn == 4 else 1)).astype(float)
     y = deg @ (deg.T @ down)
     y = y if np.linalg.norm(y) > 1e-8 * np.linalg.norm(down) else v[:, 0]
-    vec = np.zeros(H.shape[0])
+    vec = np.zeros(n)
     vec[free] = d * y / np.linalg.norm(y)
     return int(np.count_nonzero(w < -thr)), float(w[0]), vec
 
