@@ -186,6 +186,12 @@ def live_series(items, dt: float) -> tuple[np.ndarray, np.ndarray, dict[str, np.
 CURVATURE_KEY = "curvature_along_rod"
 
 
+# per node, the turning angle there (docs/physics.md §1.4); a teleop slider's value is the integrated curvature of a
+# region of nodes, shared among them, so a node's value is a fraction of its slider's
+CURVATURE_TITLE = ("curvature at each node [rad] (turning angle; dashed: commanded; a slider's value is shared by its "
+                   "nodes)")
+
+
 def curvature_plot(curves: dict) -> Plot | None:
     """The curvature-along-the-rod plot: per component (``workbench.rod_curves.curves``) the commanded (natural)
     value dashed and the actual value solid, in the component's colour, against the node index."""
@@ -205,5 +211,5 @@ def curvature_plot(curves: dict) -> Plot | None:
         return None
     x = np.arange(n, dtype=np.float64)
     lo, hi = y_range(cols)
-    return Plot(key=CURVATURE_KEY, title="curvature along the rod [rad] (dashed: commanded)", labels=tuple(labels),
+    return Plot(key=CURVATURE_KEY, title=CURVATURE_TITLE, labels=tuple(labels),
                 colors=tuple(colors), dashed=tuple(dashed), data=(x, *cols), y=(lo, hi), x_room=False)

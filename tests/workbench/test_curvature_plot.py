@@ -8,9 +8,8 @@ import pytest
 
 from tools.browser import expand_folder, slider_thumb, wait_for
 from workbench.plots import CURVATURE_KEY, curvature_plot
+from workbench.plots import CURVATURE_TITLE as TITLE
 from workbench.rod_curves import PLANAR, curves, live_curves, replay_curves
-
-TITLE = "curvature along the rod [rad] (dashed: commanded)"
 
 
 def _arc_frames(n: int = 11, bend: float = 0.0):
