@@ -43,7 +43,7 @@ from sim.support.atomicio import write_text
 from sim.support.paths import check_output_path
 from sim.support.progress import add_progress_flag, progress_bar, progress_wanted
 
-__all__ = ["FIT_PARAMETERS", "FitError", "Measurements", "Commands", "FitResult", "load_measurements",
+__all__ = ["FIT_PARAMETERS", "FitError", "Measurements", "Commands", "FitResult", "FitTrack", "load_measurements",
            "load_controls", "fit", "main"]
 
 FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "damping", "gravity", "actuation_gain",
@@ -471,6 +471,20 @@ class Problem:
 
 
 # ---------------------------------------------------------------------------------------------------- the fit
+@dataclasses.dataclass(frozen=True)
+class FitTrack:
+    """The fitted motion and the measurements side by side: the step times ``t`` (T + 1,) [s] and node positions
+    ``node_pos`` (T + 1, N, 3) [m] of the fitted rollout (every rod of the scene), and per measured point (M rows)
+    its time ``measured_t`` [s], its position ``measured`` (M, 3) [m] and the fitted rod's position there
+    ``predicted`` (M, 3) [m] (2-D: y of the motion plane)."""
+
+    t: np.ndarray
+    node_pos: np.ndarray
+    measured_t: np.ndarray
+    measured: np.ndarray
+    predicted: np.ndarray
+
+
 @dataclasses.dataclass
 class FitResult:
     """Fitted values and their standard errors (scene units), correlation, RMS residual [m] (per measured
@@ -488,6 +502,7 @@ class FitResult:
     residual_rows: list
     unconverged_steps: int
     confounded: list = dataclasses.field(default_factory=list)  # groups of unknowns the data cannot separate
+    track: "FitTrack | None" = None  # the fitted motion beside the measured points (for drawing them together)
 
     def summary(self) -> dict:
         return {"params": self.params, "stderr": {k: (None if math.isinf(v) else v) for k, v in self.stderr.items()},
@@ -496,9 +511,15 @@ class FitResult:
                 "iterations": self.iterations, "seconds": round(self.seconds, 3)}
 
 
+class _Stopped(Exception):
+    """``on_eval`` asked the fit to stop (it then ends as an interrupted one: the best parameters so far)."""
+
+
 def fit(spec, meas: Measurements, params: list[str], *, cmds: Commands | None = None, holdout: float = 0.0,
-        max_iterations: int = 50, progress: bool = False, log=None) -> FitResult:
-    """Fit ``params`` of ``spec`` to ``meas`` (see the module docstring)."""
+        max_iterations: int = 50, progress: bool = False, log=None, on_eval=None) -> FitResult:
+    """Fit ``params`` of ``spec`` to ``meas`` (see the module docstring). ``on_eval(evaluation, rms_m, values)``, if
+    given, is called after each residual evaluation (its count from 1, the RMS residual [m], the unknowns' values by
+    label); returning True stops the fit, which then ends like one interrupted by Ctrl-C (the best so far)."""
     import scipy.optimize
 
     if not 0.0 <= holdout < 1.0:
@@ -518,6 +539,7 @@ def fit(spec, meas: Measurements, params: list[str], *, cmds: Commands | None = 
     t0 = time.perf_counter()
     best = {"cost": np.inf, "z": prob.z0()}
     cache: dict = {}
+    evals = [0]
     bar = progress_bar(max_iterations, desc="rodlab fit", unit="eval", enabled=progress)
 
     def tape_at(z):
@@ -537,8 +559,12 @@ def fit(spec, meas: Measurements, params: list[str], *, cmds: Commands | None = 
             best.update(cost=cost, z=z.copy())
         bar.update(1)
         bar.set_postfix_str(f"rms {math.sqrt(cost / max(r.size, 1)) * 1e3:.3g} mm")
+        rms = math.sqrt(cost / max(r.size, 1))
         if log is not None:
-            log(f"rodlab fit: {prob.describe(z)}: rms {math.sqrt(cost / max(r.size, 1)):.4g} m")
+            log(f"rodlab fit: {prob.describe(z)}: rms {rms:.4g} m")
+        evals[0] += 1
+        if on_eval is not None and on_eval(evals[0], rms, prob.values(z)):
+            raise _Stopped
         return r
 
     def jac(z):
@@ -551,8 +577,9 @@ def fit(spec, meas: Measurements, params: list[str], *, cmds: Commands | None = 
         res = scipy.optimize.least_squares(fun, prob.z0(), jac=jac, bounds=(lo, hi), method="trf", x_scale="jac",
                                            max_nfev=max_iterations, xtol=1e-10, ftol=1e-12, gtol=1e-12)
         nit = int(res.nfev)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, _Stopped):
         interrupted = True
+        nit = evals[0]
     finally:
         bar.close()
     z = best["z"]
@@ -570,6 +597,9 @@ def fit(spec, meas: Measurements, params: list[str], *, cmds: Commands | None = 
     for u, zi, si in zip(prob.unknowns, z, sd):
         stderr[u.label] = vals[u.label] * si if u.name in _LOG else float(si)  # d(e^z) = e^z dz
     rows = _residual_rows(prob, tape, r)
+    pos = prob._node_pos(tape.dof[:, 0], prob.model0.plane_y if prob.planar else None)
+    track = FitTrack(t=np.arange(pos.shape[0]) * prob.dt, node_pos=pos, measured_t=prob.meas.t.copy(),
+                     measured=prob.meas.pos.copy(), predicted=prob.predict(pos))
     hold = math.nan
     if holdout > 0.0:
         full = Problem(spec, meas, cmds, params)
@@ -579,7 +609,7 @@ def fit(spec, meas: Measurements, params: list[str], *, cmds: Commands | None = 
     return FitResult(params=vals, stderr=stderr, correlation=corr, rms_m=float(np.sqrt(np.mean(r ** 2))),
                      holdout_rms_m=hold, iterations=nit, seconds=time.perf_counter() - t0, interrupted=interrupted,
                      spec=prob.spec_at(z), residual_rows=rows, unconverged_steps=tape.unconverged,
-                     confounded=confounded)
+                     confounded=confounded, track=track)
 
 
 CONFOUNDED_RCOND = 1e-7  # a direction of the unknowns whose scaled singular value is below this fraction of the

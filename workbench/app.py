@@ -22,6 +22,7 @@ from workbench.frame import Frame
 from workbench.gui_compare import ComparePanel
 from workbench.gui_controls import ControlsPanel
 from workbench.gui_events import EventsPanel
+from workbench.gui_fit import FitPanel
 from workbench.gui_grid import GridPanel
 from workbench.gui_guard import (
     GuiGuard,
@@ -55,18 +56,19 @@ class WorkbenchApp:
             (``workbench.handshake``: loopback Host, same Origin, a token on a non-loopback bind).
         env_map: viser's HDRI lighting (off in tests: SwiftShader stalls on it).
         speed: initial real-time factor (``float('inf')`` = as fast as possible).
-        recordings_dir / scenes_dir / max_upload_mb: the folders the page may use (``workbench.files``).
+        recordings_dir / scenes_dir / data_dir / max_upload_mb: the folders the page may use (``workbench.files``).
         wait_for_browser: stay paused at frame 0 until the first page connects (:meth:`start`).
     """
 
     def __init__(self, wb: Workbench, *, host: str = "127.0.0.1", port: int = 8080,
                  env_map: bool = True, speed: float = 1.0, recordings_dir: str | Path | None = None,
-                 scenes_dir: str | Path | None = None, max_upload_mb: float = 50.0, wait_for_browser: bool = True):
+                 scenes_dir: str | Path | None = None, max_upload_mb: float = 50.0, wait_for_browser: bool = True,
+                 data_dir: str | Path | None = None):
         self.wb = wb
         self.wait_for_browser = wait_for_browser
         self.waiting_for_browser = False
         self.files = Folders.create(scenes_dir=scenes_dir, recordings_dir=recordings_dir,
-                                    max_upload_mb=max_upload_mb)
+                                    max_upload_mb=max_upload_mb, data_dir=data_dir)
         self.recordings_dir = self.files.recordings
         self.guard = Guard.for_host(host)
         self.checks = GuiGuard()
@@ -118,8 +120,9 @@ class WorkbenchApp:
         self.grid = GridPanel(self)
         self.compare = ComparePanel(self)
         self.events = EventsPanel(self)
+        self.fit = FitPanel(self)
         self.panels += [self.obstacles, self.policy, self.replay, self.plots, self.pictures, self.grid, self.compare,
-                        self.events]
+                        self.events, self.fit]
 
     def _value_refused(self, label: str, why: str) -> None:
         n = self.refused_values.get((label, why), 0)

@@ -1,5 +1,5 @@
 """``rodlab workbench [SCENE.toml | --task T] [--host 127.0.0.1] [--port 8080] [--scenes-dir scenes]
-[--recordings-dir recordings] [--max-upload-mb 50]``.
+[--recordings-dir recordings] [--data-dir data] [--max-upload-mb 50]``.
 
 The first line with ``http://`` printed at start-up is the page's full address (with ``?token=...`` when
 bound to a non-loopback address; a warning follows on stderr)."""
@@ -48,6 +48,9 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--recordings-dir", default=None,
                     help="folder of the recordings the page replays and writes (default: recordings/ in the working "
                          "directory)")
+    ap.add_argument("--data-dir", default=None,
+                    help="folder of the measured motion and controls files the Fit tab reads (default: data/ in the "
+                         "working directory)")
     ap.add_argument("--max-upload-mb", type=float, default=50.0, help="largest mesh upload accepted [MB] (default 50)")
     ap.add_argument("--no-env-map", action="store_true", help="no HDRI lighting (faster in software GL)")
     ap.add_argument("--seconds", type=float, default=None, help="quit after this many seconds (tests)")
@@ -75,7 +78,7 @@ def workbench_main(argv: list[str] | None = None) -> int:
     try:
         app = WorkbenchApp(wb, host=args.host, port=args.port, env_map=not args.no_env_map, speed=args.speed,
                            scenes_dir=args.scenes_dir, recordings_dir=args.recordings_dir,
-                           max_upload_mb=args.max_upload_mb)
+                           max_upload_mb=args.max_upload_mb, data_dir=args.data_dir)
     except (BindError, FileAccessError) as exc:
         print(f"rodlab workbench: {exc}", file=sys.stderr)
         return 2

@@ -4,6 +4,8 @@
   the first save); the shipped ``assets/scenes`` are readable but never written. A save never replaces a
   file other than the scene that is open from the scenes folder, so nothing a user saved is lost.
 * recordings: opened only inside ``recordings_dir`` (default ``recordings/`` in the working directory).
+* data: measured motion and commanded curvature for the Fit tab (CSV, .npz), read only inside ``data_dir`` (default
+  ``data/`` in the working directory); nothing is written there.
 * uploads: written only into a per-launch temporary folder (removed by :meth:`Folders.cleanup`), at most
   ``max_upload_bytes`` each.
 
@@ -79,10 +81,11 @@ class Folders:
     uploads: Path
     max_upload_bytes: int
     shipped_scenes: Path = SHIPPED_SCENES
+    data: Path = dataclasses.field(default_factory=lambda: (Path.cwd() / "data").absolute())
 
     @classmethod
     def create(cls, *, scenes_dir: str | Path | None = None, recordings_dir: str | Path | None = None,
-               max_upload_mb: float = 50.0) -> "Folders":
+               max_upload_mb: float = 50.0, data_dir: str | Path | None = None) -> "Folders":
         scenes = Path(scenes_dir) if scenes_dir else Path.cwd() / "scenes"
         if scenes.resolve() == SHIPPED_SCENES.resolve():
             raise FileAccessError(f"the scenes folder cannot be the shipped {SHIPPED_SCENES} (it is never written)")
@@ -91,7 +94,8 @@ class Folders:
         folders = cls(scenes=scenes.absolute(),
                       recordings=Path(recordings_dir or Path.cwd() / "recordings").absolute(),
                       uploads=Path(tempfile.mkdtemp(prefix="rodlab-uploads-")),
-                      max_upload_bytes=int(max_upload_mb * 1024 * 1024))
+                      max_upload_bytes=int(max_upload_mb * 1024 * 1024),
+                      data=Path(data_dir or Path.cwd() / "data").absolute())
         atexit.register(folders.cleanup)  # also when the process ends without WorkbenchApp.stop()
         return folders
 
@@ -114,6 +118,14 @@ class Folders:
             if not (self.scenes / name).exists():
                 return name
         return f"{stem}_edited_{secrets.token_hex(4)}.toml"
+
+    def new_scene_name(self, stem: str) -> str:
+        """``stem``.toml, or ``stem``_2.toml, _3 … : the first name not used in the scenes folder."""
+        for i in range(1, 1000):
+            name = f"{stem}.toml" if i == 1 else f"{stem}_{i}.toml"
+            if not (self.scenes / name).exists():
+                return name
+        return f"{stem}_{secrets.token_hex(4)}.toml"
 
     def scene_for_save(self, name: object, current: Path | None) -> Path:
         """Where "Save scene" writes ``name``: inside the scenes folder, never over another existing file."""
@@ -143,6 +155,27 @@ class Folders:
         p = self.recordings / rel
         if p.suffix != ".rrd" or not inside(p, self.recordings) or not p.is_file():
             raise FileAccessError("choose a recording from the list")
+        return p
+
+    # ------------------------------------------------------------------ data (the Fit tab)
+    DATA_SUFFIXES = (".csv", ".npz")
+
+    def data_files(self) -> list[str]:
+        """The measurement and controls files in the data folder (and its subfolders), named relative to it."""
+        root = self.data
+        if not root.is_dir():
+            return []
+        out = [str(p.relative_to(root)) for p in sorted(root.rglob("*"))
+               if p.suffix.lower() in self.DATA_SUFFIXES and p.is_file() and inside(p, root)]
+        return out[:1000]
+
+    def data_file(self, rel: object) -> Path:
+        """A data file named relative to the data folder, refused when it leads outside it."""
+        if not isinstance(rel, str) or not rel or ".." in rel.split("/") or rel.startswith("/") or "\\" in rel:
+            raise FileAccessError("choose a data file from the list")
+        p = self.data / rel
+        if p.suffix.lower() not in self.DATA_SUFFIXES or not inside(p, self.data) or not p.is_file():
+            raise FileAccessError("choose a data file from the list")
         return p
 
     # ------------------------------------------------------------------ uploads

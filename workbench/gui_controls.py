@@ -18,7 +18,7 @@ KEYS_HELP = ("Keys: **space** play / pause · **→** one step (pauses) · **r**
              "(not while typing in a field) · **drag the rod** to pull it (a spring from your hand, its force shown "
              "in N; release lets go) · **drag a yellow bead** to bend the rod there · **click the rod** to pin a readout "
              "at a node · drag empty space to turn the view")
-TABS = ("Run", "Teleop", "Obstacles", "Policy", "Recordings", "Plots", "Display")
+TABS = ("Run", "Teleop", "Obstacles", "Policy", "Recordings", "Plots", "Fit", "Display")
 
 
 REACH_GIZMO_SCALE = 0.2  # [m] size of the Reach target's gizmo
