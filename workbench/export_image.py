@@ -110,7 +110,7 @@ def _figure(ep: EpisodeData, frame: int, width: int, height: int) -> Any:
         ax.plot(tx, ty, marker="+", ms=14, mew=2, color="#d62728", zorder=5)
         ax.plot(tx, ty, marker="o", ms=12, mfc="none", mew=2, color="#d62728", zorder=5)
     m = ep.meta
-    ax.text(0.01, 0.99, f"{m.get('task', '')}  ep {m.get('episode', '?')}\nframe {frame + 1}/{ep.steps}  "
+    ax.text(0.01, 0.99, f"{m.get('task', '')}  ep {m.get('episode', '?')}\nframe {frame} / {ep.steps - 1}  "
             f"t = {float(ep.sim_time[frame]):.3f} s", transform=ax.transAxes, va="top", fontsize=10)
     return fig
 

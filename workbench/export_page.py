@@ -164,7 +164,7 @@ function draw() {
     }
   }
   const t = T[frame];
-  let txt = D.title + "\nframe " + (frame + 1) + " / " + S + "   t = " + t.toFixed(3) + " s";
+  let txt = D.title + "\nframe " + frame + " / " + (S - 1) + "   t = " + t.toFixed(3) + " s";
   for (const [name, arr] of Object.entries(D.series)) {
     const v = arr[frame];
     txt += "\n" + name + " = " + (v === null ? "-" : Number(v).toPrecision(4));
