@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from sim.support.text import count, number
 
 from policies.checkpoint import save_checkpoint
 from policies.evaluate import evaluate
@@ -214,9 +215,9 @@ def monitor_callback(args, run_dir: Path, wall_offset: float, stop_flag: dict, e
                             extra={"best_eval": row, "selected_on": "eval.csv (fixed evaluation seeds)"})
             self.last_eval, self.last_eval_steps = time.perf_counter(), self.num_timesteps
             self.last_eval_result = row
-            msg = (f"eval at {self.num_timesteps} steps: avg-disc-ret {row['eval_avg_disc_return_mean']:.2f} ± "
-                   f"{row['eval_avg_disc_return_std']:.2f} (deterministic, {res['episodes']} episodes, {dt:.1f} s); "
-                   f"training {tr:.2f}")
+            msg = (f"eval at {self.num_timesteps} steps: avg-disc-ret {number(row['eval_avg_disc_return_mean'])} ± "
+                   f"{number(row['eval_avg_disc_return_std'])} (deterministic, {count(res['episodes'], 'episode')}, "
+                   f"{dt:.1f} s); training {number(tr)}")
             (self.bar.write if self.bar is not None else lambda m: print(m, file=sys.stderr, flush=True))(msg)
             return row
 
@@ -254,8 +255,9 @@ def monitor_callback(args, run_dir: Path, wall_offset: float, stop_flag: dict, e
                                    int(self.model._n_updates)])
                 self.csv_f.flush()
             self.win_rew_sum, self.win_rew_n = 0.0, 0
-            msg = (f"ret {self.last['ret']:.2f} | avg-disc-ret {self.last['dret']:.2f} | r/step {step_rew:.3f} | "
-                   f"{sps:.0f} steps/s | env {env_ms:.0f} ms + update {upd_ms:.0f} ms / iter")
+            msg = (f"ret {number(self.last['ret'])} | avg-disc-ret {number(self.last['dret'])} | r/step "
+                   f"{number(step_rew, '.3f')} | {sps:.0f} steps/s | env {number(env_ms, '.0f')} ms + update "
+                   f"{upd_ms:.0f} ms / iter")
             if self.bar is not None:
                 self.bar.set_postfix_str(msg, refresh=False)
             else:
