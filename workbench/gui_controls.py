@@ -25,15 +25,16 @@ REACH_GIZMO_SCALE = 0.2  # [m] size of the Reach target's gizmo
 REACH_LIMIT_M = 10.0  # [m] targets farther from the origin are not taken
 
 
-def slider_label(k: int, comp: int) -> str:
-    """Label of the teleop slider for control point k (0..4) and component comp (0..2)."""
-    return f"{COMP_LABELS[comp]} at node {CONTROL_NODES[k]} [rad]"
+def slider_label(k: int, comp: int, nodes: tuple[int, ...] = CONTROL_NODES) -> str:
+    """Label of the teleop slider for control point k (0..4) and component comp (0..2); ``nodes``: the steered rod's
+    control points (node indices within that rod)."""
+    return f"{COMP_LABELS[comp]} at node {nodes[k]} [rad]"
 
 
-def slider_hint(k: int, comp: int) -> str:
+def slider_hint(k: int, comp: int, nodes: tuple[int, ...] = CONTROL_NODES) -> str:
     what = ("bend about the first material axis (in-plane bend in 2-D tasks)", "bend about the second material axis",
             "twist about the centreline")[comp]
-    return (f"{what} given to the nodes around node {CONTROL_NODES[k]}. Absolute mode: the integrated natural "
+    return (f"{what} given to the nodes around node {nodes[k]}. Absolute mode: the integrated natural "
             f"{'twist' if comp == 2 else 'curvature'} of that region [rad] (docs/tasks.md §2.3-2.4). Delta mode: "
             "the action in [-1, 1] added once per control step")
 
@@ -296,7 +297,9 @@ class ControlsPanel:
         self.reach_gizmo = g
 
     def set_rods(self, names: list[str], current: int) -> None:
-        """The rods of the live scene in the Rod dropdown (shown only with several rods)."""
+        """The rods of the live scene in the Rod dropdown (shown only with several rods), and the sliders' labels
+        naming the steered rod's control points."""
+        self.label_sliders()
         self._syncing = True
         try:
             if tuple(self.rod.options) != tuple(names):
@@ -307,6 +310,18 @@ class ControlsPanel:
             self._syncing = False
         self.rod.visible = len(names) > 1
         self.app.checks.accept(self.rod)
+
+    def label_sliders(self) -> None:
+        """Each slider names the node of the steered rod it bends about (the control points scale with the rod)."""
+        wb = self.app.wb
+        with wb.lock:
+            nodes = tuple(int(c) for c in wb.teleop.converter.cfg.control_points)
+        for k, row in enumerate(self.sliders):
+            for c, h in enumerate(row):
+                label = slider_label(k, c, nodes)
+                if h.label != label:
+                    h.label = label
+                    h.hint = slider_hint(k, c, nodes)
 
     def sync_gravity(self) -> None:
         """The Gravity box of the live scene: ticked when gravity acts, greyed out where there is none to switch (a

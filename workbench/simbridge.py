@@ -242,5 +242,14 @@ def builtin_spec():
 
 
 def load(path: str | Path):
-    """``sim.load_scene`` (clear ``SceneError`` on bad files)."""
-    return load_scene(path)
+    """``sim.load_scene`` (clear ``SceneError`` on bad files), refusing a rod the sliders cannot steer (fewer than
+    ``workbench.teleop.MIN_NODES`` nodes) before anything of the open scene changes."""
+    from workbench.teleop import control_points
+
+    spec = load_scene(path)
+    for rod in spec.rods:
+        try:
+            control_points(rod.nodes)
+        except ValueError as exc:
+            raise ValueError(f"{Path(path).name}: rod {rod.name!r}: {exc}") from None
+    return spec

@@ -17,16 +17,30 @@ import numpy as np
 
 TeleopMode = Literal["absolute", "delta"]
 COMPONENTS = ("k1", "k2", "twist")
-CONTROL_NODES = (2, 6, 10, 14, 18)
+CONTROL_NODES = (2, 6, 10, 14, 18)  # the paper's arm (21 nodes)
+MIN_NODES = 7  # the five control points need five distinct interior nodes
 KAPPA_LIMIT = 2.0
 TWIST_LIMIT = float(np.pi / 2)
 
 
+def control_points(n_nodes: int) -> tuple[int, ...]:
+    """The five teleop control points of a rod of ``n_nodes`` nodes, spread evenly from node 2 to node N − 3 (the
+    paper's 2, 6, 10, 14, 18 at 21 nodes; from node 1 to N − 2 on a rod of 7 or 8 nodes). ValueError below 7."""
+    n = int(n_nodes)
+    if n < MIN_NODES:
+        raise ValueError(f"the workbench steers a rod through five control points: it needs at least {MIN_NODES} "
+                         f"nodes, this rod has {n}")
+    lo, hi = (2, n - 3) if n >= 9 else (1, n - 2)
+    return tuple(int(round(lo + i * (hi - lo) / 4)) for i in range(5))
+
+
 def make_converter(*, n_nodes: int = 21, substeps: int = 2):
-    """The tasks' converter for the 15-dim bend + twist action (s_κ = s_τ = 0.05), B = 1."""
+    """The tasks' converter for the 15-dim bend + twist action (s_κ = s_τ = 0.05) at the rod's control points
+    (:func:`control_points`), B = 1."""
     from policies.control import ActionConverter, control_config
 
-    return ActionConverter(control_config("bend_twist", substeps=substeps, n_nodes=n_nodes), envs=1)
+    return ActionConverter(control_config("bend_twist", substeps=substeps, n_nodes=n_nodes,
+                                          control_points=control_points(n_nodes)), envs=1)
 
 
 class Teleop:
