@@ -72,6 +72,17 @@ def page_error(exc: BaseException, path: Path | None = None) -> str:
     return ": ".join(p for p in parts if p)[:300]
 
 
+def _listed(folder: Path, rel: object, suffixes: tuple[str, ...], refusal: str) -> Path:
+    """The existing file ``rel`` (a path relative to ``folder``, as the page's lists name them) with one of
+    ``suffixes``; FileAccessError(``refusal``) for anything else, a name leading outside ``folder`` included."""
+    if not isinstance(rel, str) or not rel or ".." in rel.split("/") or rel.startswith("/") or "\\" in rel:
+        raise FileAccessError(refusal)
+    p = folder / rel
+    if p.suffix not in suffixes or not inside(p, folder) or not p.is_file():
+        raise FileAccessError(refusal)
+    return p
+
+
 @dataclasses.dataclass
 class Folders:
     """The folders of one workbench launch (see module docstring)."""
@@ -112,12 +123,7 @@ class Folders:
         (a shipped scene's first save goes to the scenes folder under a new name)."""
         if current is not None and self.is_user_scene(current):
             return Path(current).name
-        stem = Path(current).stem if current is not None else "scene"
-        for i in range(1, 1000):
-            name = f"{stem}_edited.toml" if i == 1 else f"{stem}_edited_{i}.toml"
-            if not (self.scenes / name).exists():
-                return name
-        return f"{stem}_edited_{secrets.token_hex(4)}.toml"
+        return self.new_scene_name((Path(current).stem if current is not None else "scene") + "_edited")
 
     def new_scene_name(self, stem: str) -> str:
         """``stem``.toml, or ``stem``_2.toml, _3 … : the first name not used in the scenes folder."""
@@ -150,12 +156,7 @@ class Folders:
     # ------------------------------------------------------------------ recordings
     def recording(self, rel: object) -> Path:
         """A recording named relative to the recordings folder, refused when it leads outside it."""
-        if not isinstance(rel, str) or not rel or ".." in rel.split("/") or rel.startswith("/") or "\\" in rel:
-            raise FileAccessError("choose a recording from the list")
-        p = self.recordings / rel
-        if p.suffix != ".rrd" or not inside(p, self.recordings) or not p.is_file():
-            raise FileAccessError("choose a recording from the list")
-        return p
+        return _listed(self.recordings, rel, (".rrd",), "choose a recording from the list")
 
     # ------------------------------------------------------------------ data (the Fit tab)
     DATA_SUFFIXES = (".csv", ".npz")
@@ -166,17 +167,12 @@ class Folders:
         if not root.is_dir():
             return []
         out = [str(p.relative_to(root)) for p in sorted(root.rglob("*"))
-               if p.suffix.lower() in self.DATA_SUFFIXES and p.is_file() and inside(p, root)]
+               if p.suffix in self.DATA_SUFFIXES and p.is_file() and inside(p, root)]
         return out[:1000]
 
     def data_file(self, rel: object) -> Path:
         """A data file named relative to the data folder, refused when it leads outside it."""
-        if not isinstance(rel, str) or not rel or ".." in rel.split("/") or rel.startswith("/") or "\\" in rel:
-            raise FileAccessError("choose a data file from the list")
-        p = self.data / rel
-        if p.suffix.lower() not in self.DATA_SUFFIXES or not inside(p, self.data) or not p.is_file():
-            raise FileAccessError("choose a data file from the list")
-        return p
+        return _listed(self.data, rel, self.DATA_SUFFIXES, "choose a data file from the list")
 
     # ------------------------------------------------------------------ uploads
     def upload_path(self, name: object, size: int, suffixes: tuple[str, ...]) -> Path:

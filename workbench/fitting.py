@@ -32,8 +32,7 @@ class FitJob:
     and at its end.
 
     ``state``: "ready", "running", "done", "stopped" (by :meth:`stop`: the best parameters so far) or "failed"
-    (``error`` says why). ``history``: (evaluation, RMS residual [m]) of each evaluation; ``values``: the unknowns at
-    the last one; ``result``: the :class:`sim.fit.FitResult` once finished."""
+    (``error`` says why). ``history``: (evaluation, RMS residual [m]) of each evaluation; ``result``: the :class:`sim.fit.FitResult` once finished."""
 
     def __init__(self, spec: Any, data: Path, params: list[str], *, controls: Path | None = None,
                  max_evaluations: int = 30, notify=None):
@@ -58,7 +57,6 @@ class FitJob:
         self.state = "ready"
         self.error = ""
         self.history: list[tuple[int, float]] = []
-        self.values: dict[str, float] = {}
         self.result: F.FitResult | None = None
         self._stop = threading.Event()
         self._t0 = 0.0
@@ -73,7 +71,6 @@ class FitJob:
 
     def _on_eval(self, k: int, rms: float, values: dict) -> bool:
         self.history.append((k, rms))
-        self.values = dict(values)
         self._tell()
         return self._stop.is_set()
 
