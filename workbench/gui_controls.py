@@ -229,6 +229,7 @@ class ControlsPanel:
             if self._syncing or not ok.option(self.rod, self._say):
                 return
             wb.set_teleop_rod(list(self.rod.options).index(self.rod.value))
+            self.label_sliders()  # the chosen rod's control points (rods of different lengths differ)
             self.sync_sliders()
             app.refresh_rod_scene()
 

@@ -60,3 +60,28 @@ def test_a_rod_too_short_is_refused_before_the_open_scene_changes(tmp_path):
     with pytest.raises(ValueError, match="at least 7 nodes"):
         wb.load_scene(_scene(tmp_path, 5))
     assert wb.live.n_nodes == 21 and wb.teleop.control_nodes() == CONTROL_NODES
+
+
+def test_choosing_another_rod_names_its_control_points(tmp_path):
+    """Two rods of 21 and 9 nodes: the Rod dropdown's choice relabels the sliders with that rod's control points."""
+    from sim.scene import parse_scene
+    from tools.browser import wait_for
+    from workbench.app import WorkbenchApp
+    from workbench.core import Workbench
+
+    rod = dict(length=1.0, radius=0.02, density=1000.0, youngs_modulus=1e6, poisson_ratio=0.5, direction=[1, 0, 0])
+    doc = {"sim": dict(dt=0.02, gravity=[0, 0, -9.8], newton_tol=1e-6, newton_max_iter=30, accept_unconverged=True),
+           "rod": [dict(rod, name="a", nodes=21, start=[0, 0, 0]), dict(rod, name="b", nodes=9, start=[0, 0.5, 0])]}
+    path = tmp_path / "two.toml"
+    dump_scene(parse_scene(doc), path)
+    app = WorkbenchApp(Workbench.from_path(path), port=0, env_map=False, wait_for_browser=False,
+                       scenes_dir=tmp_path / "scenes", recordings_dir=tmp_path / "rec").start()
+    try:
+        first = [f"κ1 at node {c} [rad]" for c in control_points(21)]
+        assert [app.controls.sliders[k][0].label for k in range(5)] == first
+        app.controls.rod.value = "b"
+        want = [f"κ1 at node {c} [rad]" for c in control_points(9)]
+        wait_for(lambda: [app.controls.sliders[k][0].label for k in range(5)] == want, what="the sliders relabelled")
+        assert app.wb.teleop.control_nodes() == tuple(21 + c for c in control_points(9))
+    finally:
+        app.stop()
