@@ -55,12 +55,15 @@ def poll(pred: Callable[[], bool], seconds: float, interval: float = 0.05) -> bo
         time.sleep(interval)
 
 
-def wait_for(pred: Callable[[], bool], timeout: float | None = None, interval: float = 0.05, what: str = "") -> None:
+def wait_for(pred: Callable[[], bool], timeout: float | None = None, interval: float = 0.05,
+             what: str | Callable[[], str] = "") -> None:
     """Wait until ``pred()`` holds. ``timeout`` is an outer bound against a hang and never shorter than
-    :data:`WAIT_BOUND_S`, so a busy machine only makes the wait longer."""
+    :data:`WAIT_BOUND_S`, so a busy machine only makes the wait longer. ``what`` names the condition in the
+    error; a callable is asked at the timeout (to report the state the wait ended in)."""
     bound = max(timeout or 0.0, WAIT_BOUND_S)
     if not poll(pred, bound, interval):
-        raise TimeoutError(f"timed out after {bound:.0f} s waiting for {what or pred}")
+        told = what() if callable(what) else what
+        raise TimeoutError(f"timed out after {bound:.0f} s waiting for {told or pred}")
 
 
 def retry_until(action: Callable[[], None], pred: Callable[[], bool], *, attempt_s: float = 10.0,

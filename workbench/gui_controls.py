@@ -141,7 +141,10 @@ class ControlsPanel:
 
         @self.playing.on_update
         def _(_e) -> None:
-            wb.set_playing(self.playing.value)
+            # the box only shows the session's state when the server sets it (sync_sliders, set_quiet): a late
+            # sync that read the state before another thread changed it must not pause or start the session
+            if not self._syncing:
+                wb.set_playing(self.playing.value)
 
         @self.step_btn.on_click
         def _(_e) -> None:

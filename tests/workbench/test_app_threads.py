@@ -69,3 +69,16 @@ def test_frames_drawn_from_two_threads_are_each_drawn_whole(app):
     finally:
         app.render_hooks.remove(check)
     assert wrong == []
+
+
+def test_a_late_sync_of_the_playing_box_does_not_pause_the_session(app):
+    """The Playing box only shows the session's state when the server sets it: a page action that read "paused"
+    (a Rewind) and shows it after another thread started the session again must not pause it (the page's own
+    clicks still do)."""
+    wb, box = app.wb, app.controls.playing
+    wb.set_playing(True)
+    app.controls.set_quiet(box, False)  # the late sync of a state read before the session was started again
+    assert wb.playing and not box.value
+    box.value = True  # what a click on the page does: the callback runs
+    box.value = False
+    assert not wb.playing

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from playwright.sync_api import expect
 
 from tools.browser import expand_folder, wait_for
 from workbench import events as ev
@@ -94,3 +95,4 @@ def test_previous_event_moves_the_rewind_slider_live(wb_page):
     assert back[-1] == grabbed and wb.frame_index == newest  # moving the slider does not rewind: Rewind does
     page.get_by_role("button", name="Rewind", exact=True).click()
     wait_for(lambda: wb.frame_index == grabbed, what="rewound to the pull")
+    expect(page.get_by_label("Playing")).not_to_be_checked()  # the page's action is over (the box shows the pause)

@@ -43,7 +43,9 @@ def test_add_obstacle_and_drag_gizmo_into_rod(wb_page, shots_dir):
     assert float(gizmo.position[0]) < x0 - 0.2
     # contact follows the move at once: the rod is pushed away from the sphere (towards -x)
     wait_for(lambda: wb.live.state.node_pos[0, 12, 0] < mid0[0] - 0.005, timeout=20,
-             what=f"rod pushed by contact (sphere dragged to {np.round(wb.obstacles[0].position, 3)})")
+             what=lambda: (f"rod pushed by contact (sphere at {np.round(wb.obstacles[0].position, 3)}, node 12 at "
+                           f"{np.round(wb.live.state.node_pos[0, 12], 4)}, playing {wb.playing}, mode {wb.mode}, "
+                           f"{app.thread.steps} steps, sim thread error {app.thread.error!r})"))
     wait_for(lambda: app.view.contact_arrows.visible, what="contact arrows drawn")
     (shots_dir / "workbench_obstacles.png").write_bytes(page.screenshot(timeout=WAIT_MS))
 
