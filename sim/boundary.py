@@ -19,8 +19,10 @@ Keys (SI units)::
               default 0); acts on every rod (docs/physics.md §3.1)
     [[fix]]   rod (as for loads), nodes (list of int within that rod, negative from its end), axes (subset of
               "xyz", default "xyz"), twist_edges (list of int within that rod, 3-D only), velocity [m/s] (3-vector: prescribed motion of the
-              fixed axes, default 0), twist_rate [rad/s] (of the fixed twist edges, default 0), start [s],
-              stop [s] (the window of the prescribed motion)
+              fixed axes, default 0), twist_rate [rad/s] (of the fixed twist edges, default 0),
+              angular_velocity [rad/s] (3-vector: the fixed nodes and edges turn rigidly at ω about ``center``,
+              a rotating clamp; needs axes "xyz" and no velocity; in 2-D ω along y), center [m] (3-vector, default:
+              the first fixed node's initial position), start [s], stop [s] (the window of the prescribed motion)
 
 Node and edge indices count within their rod; :func:`global_node` / :func:`global_edge` map them onto the
 scene's chain of nodes (the rods' nodes concatenated in file order, docs/physics.md §1.7).
@@ -42,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from .rotations import matrix_from_rotvec
 from .tomlio import SceneError, check_unknown, format_value, take_float, take_int, take_str, take_vec3
 
 __all__ = ["LoadSpec", "LineLoadSpec", "DragSpec", "parse_drag", "dump_drag", "FixSpec", "FrameLoads", "parse_loads",
@@ -130,12 +133,27 @@ class FixSpec:
     start: float = 0.0
     stop: float | None = None
     rod: str | None = None
+    angular_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    center: tuple[float, float, float] | None = None
+
+
+@dataclass(frozen=True)
+class RotatingFix:
+    """A fix turning rigidly (the Model's form of a ``[[fix]]`` with ``angular_velocity``): its nodes and the twist
+    edges of the scene's chain, the centre [m], ω [rad/s] and the window [start, stop) [s]."""
+
+    nodes: np.ndarray
+    edges: np.ndarray
+    center: np.ndarray
+    omega: np.ndarray
+    window: np.ndarray
 
 
 _LOAD_KEYS = {"rod", "node", "force", "moment", "frame", "torque", "start", "stop"}
 _LINE_LOAD_KEYS = {"rod", "force_per_length", "start", "stop"}
 _DRAG_KEYS = {"normal", "tangential", "flow"}
-_FIX_KEYS = {"rod", "nodes", "axes", "twist_edges", "velocity", "twist_rate", "start", "stop"}
+_FIX_KEYS = {"rod", "nodes", "axes", "twist_edges", "velocity", "twist_rate", "start", "stop", "angular_velocity",
+             "center"}
 
 
 def _int_list(t: Mapping[str, Any], name: str, prefix: str, path: str | None) -> tuple[int, ...]:
@@ -215,7 +233,9 @@ def parse_fixes(tables: Any, path: str | None) -> tuple[FixSpec, ...]:
                            velocity=take_vec3(t, "velocity", p, path, (0.0, 0.0, 0.0)),
                            twist_rate=take_float(t, "twist_rate", p, path, 0.0),
                            start=take_float(t, "start", p, path, 0.0), stop=_stop(t, p, path),
-                           rod=_rod_key(t, p, path)))
+                           rod=_rod_key(t, p, path),
+                           angular_velocity=take_vec3(t, "angular_velocity", p, path, (0.0, 0.0, 0.0)),
+                           center=take_vec3(t, "center", p, path, (0.0, 0.0, 0.0)) if "center" in t else None))
     return tuple(out)
 
 
@@ -240,7 +260,8 @@ def dump_line_loads(loads: Sequence[LineLoadSpec]) -> list[str]:
 
 
 def dump_fixes(fixes: Sequence[FixSpec]) -> list[str]:
-    return _dump(fixes, "fix", ("rod", "nodes", "axes", "twist_edges", "velocity", "twist_rate", "start", "stop"))
+    return _dump(fixes, "fix", ("rod", "nodes", "axes", "twist_edges", "velocity", "twist_rate", "angular_velocity",
+                                "center", "start", "stop"))
 
 
 def node_index(i: int, count: int) -> int:
@@ -375,6 +396,22 @@ def check_boundary(c: Any, spec: Any) -> None:
         w = c.num(p + "twist_rate", fx.twist_rate, "fix.twist_rate")
         if w != 0.0 and not fx.twist_edges:
             c.fail(p + "twist_rate", "a twist rate needs twist_edges")
+        om = c.vec(p + "angular_velocity", fx.angular_velocity, "fix.angular_velocity")
+        if fx.center is not None:
+            c.vec(p + "center", fx.center, "fix.center")
+        if any(om):
+            if not fx.nodes or set(fx.axes) != set("xyz"):
+                c.fail(p + "angular_velocity", f"a rotating fix turns whole nodes: it needs nodes and axes = \"xyz\" "
+                                               f"(axes = {fx.axes!r}, nodes = {list(fx.nodes)})")
+            if any(v) or w != 0.0:
+                c.fail(p + "angular_velocity", "give a rotating fix no velocity or twist_rate (it turns rigidly)")
+            if planar and (om[0] != 0.0 or om[2] != 0.0):
+                c.fail(p + "angular_velocity", "mode '2d' turns in the x-z plane: ω along y only")
+            ends = {i % N for i in fx.nodes}
+            for j in fx.twist_edges:
+                if j % (N - 1) not in ends or j % (N - 1) + 1 not in ends:
+                    c.fail(p + "twist_edges", f"edge {j} turns with the fix: both its nodes ({j % (N - 1)}, "
+                                              f"{j % (N - 1) + 1}) must be among the fix's nodes")
 
 
 def _axis_dofs(axes: str, planar: bool) -> list[tuple[int, int]]:
@@ -479,6 +516,49 @@ def frame_load_forces(fl: FrameLoads, weight: np.ndarray, pos: np.ndarray, frame
     if dpn == 4:
         np.add.at(out[..., 3], (slice(None), j), weight * along)
     return out.reshape(B, N * dpn)
+
+
+def rotating_fixes(spec: Any, rest: np.ndarray) -> tuple[RotatingFix, ...]:
+    """The fixes with an angular velocity, on the scene's chain of nodes (``rest`` (N, 3): the initial node
+    positions, for the default centre)."""
+    out = []
+    for fx in getattr(spec, "fixes", ()) or ():
+        if not any(fx.angular_velocity):
+            continue
+        nodes = np.array([global_node(spec, fx.rod, i) for i in fx.nodes], np.int64)
+        edges = np.array([global_edge(spec, fx.rod, j) for j in fx.twist_edges], np.int64)
+        center = rest[nodes[0]] if fx.center is None else np.asarray(fx.center, np.float64)
+        out.append(RotatingFix(nodes=nodes, edges=edges, center=np.array(center, np.float64),
+                               omega=np.asarray(fx.angular_velocity, np.float64),
+                               window=np.array([fx.start, math.inf if fx.stop is None else fx.stop])))
+    return tuple(out)
+
+
+def turn_fix(rf: RotatingFix, dof: np.ndarray, tangent: np.ndarray, ref_d1: np.ndarray, seconds: float,
+             transport) -> None:
+    """Turn one env's fixed nodes and twist edges of ``rf`` rigidly by ω × ``seconds`` about its centre, in place in
+    ``dof`` (N, dpn). A twist edge's angle θ is set so that its material frame is the turned one once the step has
+    transported the reference director ``ref_d1`` from ``tangent`` (the step start's) onto the new tangent, as the
+    step does (docs/physics.md §1.3, §3.6)."""
+    R = matrix_from_rotvec(rf.omega * seconds)
+    c = rf.center
+    if dof.shape[1] == 2:  # 2-D: (x, z) per node, a turn about y
+        xz = dof[rf.nodes]
+        p = np.column_stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]]) - c
+        q = p @ R.T + c
+        dof[rf.nodes, 0], dof[rf.nodes, 1] = q[:, 0], q[:, 2]
+        return
+    dof[rf.nodes, :3] = (dof[rf.nodes, :3] - c) @ R.T + c
+    for j in rf.edges:
+        t0, d1 = tangent[j], ref_d1[j]
+        th = dof[j, 3]
+        m1 = math.cos(th) * d1 + math.sin(th) * np.cross(t0, d1)
+        e = dof[j + 1, :3] - dof[j, :3]
+        t1 = e / np.linalg.norm(e)
+        d1n = np.asarray(transport(d1, t0, t1), np.float64)
+        target = R @ m1
+        new = math.atan2(float(np.cross(d1n, target) @ t1), float(d1n @ target))
+        dof[j, 3] = th + (new - th + math.pi) % (2.0 * math.pi) - math.pi  # continuous in time
 
 
 def motion_arrays(spec: Any, N: int, dpn: int) -> tuple[np.ndarray, np.ndarray]:

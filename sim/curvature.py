@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["curvature_binormal", "material_curvature"]
+__all__ = ["curvature_binormal", "material_curvature", "integrated_twist"]
 
 
 def curvature_binormal(pos: np.ndarray) -> np.ndarray:
@@ -27,4 +27,22 @@ def material_curvature(pos: np.ndarray, m1: np.ndarray, m2: np.ndarray) -> np.nd
     out = np.zeros(np.shape(pos)[:-1] + (2,))
     out[..., 1:-1, 0] = 0.5 * np.sum(kb * (m2[..., :-1, :] + m2[..., 1:, :]), axis=-1)
     out[..., 1:-1, 1] = -0.5 * np.sum(kb * (m1[..., :-1, :] + m1[..., 1:, :]), axis=-1)
+    return out
+
+
+def integrated_twist(pos: np.ndarray, m1: np.ndarray) -> np.ndarray:
+    """Integrated twist τ (..., N) [rad] at the nodes of ``pos`` (..., N, 3) with first material directors ``m1``
+    (..., N−1, 3): the signed angle about t_i from m1_{i−1}, parallel-transported onto edge i, to m1_i; it equals
+    θ^i − θ^{i−1} + β_i of docs/physics.md §1.4 (modulo 2π). Rows 0 and N−1 are 0."""
+    pos = np.asarray(pos, np.float64)
+    m1 = np.asarray(m1, np.float64)
+    e = np.diff(pos, axis=-2)
+    t = e / np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-300)
+    ta, tb, ma, mb = t[..., :-1, :], t[..., 1:, :], m1[..., :-1, :], m1[..., 1:, :]
+    c = np.cross(ta, tb)
+    cos = np.sum(ta * tb, axis=-1, keepdims=True)
+    # Rodrigues' rotation taking ta onto tb, applied to ma
+    mt = ma * cos + np.cross(c, ma) + c * np.sum(c * ma, axis=-1, keepdims=True) / np.maximum(1.0 + cos, 1e-12)
+    out = np.zeros(pos.shape[:-1])
+    out[..., 1:-1] = np.arctan2(np.sum(np.cross(mt, mb) * tb, axis=-1), np.sum(mt * mb, axis=-1))
     return out

@@ -12,7 +12,15 @@ from typing import Literal
 
 import numpy as np
 
-from .boundary import FrameLoads, fixed_dofs, frame_load_arrays, load_arrays, motion_arrays
+from .boundary import (
+    FrameLoads,
+    RotatingFix,
+    fixed_dofs,
+    frame_load_arrays,
+    load_arrays,
+    motion_arrays,
+    rotating_fixes,
+)
 from .contact_set import ObstacleSet
 from .curvature import material_curvature
 from .frames import initial_reference_frames
@@ -81,6 +89,8 @@ class Model:
     load_window: np.ndarray = field(default_factory=lambda: _ro(np.zeros((0, 2))))
     motion_rate: np.ndarray = field(default_factory=lambda: _ro(np.zeros((0, 0))))
     motion_window: np.ndarray = field(default_factory=lambda: _ro(np.zeros((0, 2))))
+    # fixes turning rigidly at an angular velocity (rotating clamps), applied by the Simulator before each step
+    rotating_fixes: tuple[RotatingFix, ...] = ()
     # the point loads that depend on the configuration (moments, material-frame loads), evaluated each step
     frame_loads: FrameLoads | None = None
     # several rods (docs/physics.md §1.7): the rods' names in file order, where each rod's nodes start in the
@@ -297,7 +307,8 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         dof_fixed=_ro(fixed.ravel()), dof_gravity=_ro(grav.ravel()), planar_component=pc, planar_sign=ps,
         plane_y=float(x[0, 1]), locked_edges=tuple(sorted(locked)),
         obstacles=ObstacleSet.from_specs(spec.obstacles), load_force=_ro(lf), load_window=_ro(lw),
-        motion_rate=_ro(mr), motion_window=_ro(mw), frame_loads=fl if fl.count else None,
+        motion_rate=_ro(mr), motion_window=_ro(mw), rotating_fixes=rotating_fixes(spec, x),
+        frame_loads=fl if fl.count else None,
         rod_names=tuple(spec.rod_names),
         rod_node_offsets=_ro(offsets), edge_link=_ro(link), rod_planar=tuple(p["planar"] for p in parts),
     )

@@ -89,3 +89,14 @@ def from_xyzw(q: np.ndarray) -> np.ndarray:
     """Scalar-last xyzw (..., 4) -> wxyz (a new array)."""
     q = np.asarray(q)
     return np.concatenate([q[..., 3:], q[..., :3]], axis=-1)
+
+
+def matrix_from_rotvec(rotvec) -> np.ndarray:
+    """The rotation (3, 3) by the rotation vector ``rotvec`` [rad] (axis × angle; Rodrigues' formula)."""
+    v = np.asarray(rotvec, np.float64)
+    a = float(np.linalg.norm(v))
+    if a == 0.0:
+        return np.eye(3)
+    k = v / a
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(a) * K + (1.0 - np.cos(a)) * (K @ K)

@@ -58,8 +58,8 @@ def static_spec(spec: SceneSpec, time: float, dt: float, dx_stop: float) -> Scen
     no free position by more than ``dx_stop`` [m] (or by the force test)."""
     loads = tuple(dataclasses.replace(ld, start=0.0, stop=None) for ld in spec.loads
                   if ld.start <= time < (math.inf if ld.stop is None else ld.stop))
-    fixes = tuple(dataclasses.replace(fx, velocity=(0.0, 0.0, 0.0), twist_rate=0.0, start=0.0, stop=None)
-                  for fx in spec.fixes)
+    fixes = tuple(dataclasses.replace(fx, velocity=(0.0, 0.0, 0.0), twist_rate=0.0, angular_velocity=(0.0, 0.0, 0.0),
+                                      start=0.0, stop=None) for fx in spec.fixes)
     sim = dataclasses.replace(spec.sim, dt=dt, damping=0.0, integrator="backward_euler", line_search="backtrack",
                               newton_dtol=max(dx_stop / dt, 1e-300), newton_tol=min(spec.sim.newton_tol, 1e-10),
                               newton_max_iter=max(spec.sim.newton_max_iter, 50), accept_unconverged=True)

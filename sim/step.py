@@ -10,9 +10,11 @@ import numba
 import numpy as np
 
 from . import validate as _validate
-from .boundary import frame_load_forces, window_fraction
+from .boundary import frame_load_forces, turn_fix, window_fraction
 from .contact.edge_pairs import model_pairs
 from .contact_set import PAIR_REPORT_CAPACITY, contact_data, contact_scratch
+from .frames import transport
+from .internal import InternalLoads, internal_loads
 from .kernels.batch import CHUNK, step_kernel
 from .kernels.data import (
     MIDPOINT_ENERGY_TOL,
@@ -51,8 +53,14 @@ class Simulator:
         # point loads (sim.boundary): per-env external forces only when a scene has loads; prescribed motion
         self._loads = m.load_force.shape[0] > 0
         self._frame_loads = m.frame_loads  # moments and material-frame loads: evaluated at each step's start
-        self._motion = m.motion_rate.shape[0] > 0
-        self._moving_dofs = np.flatnonzero(np.any(m.motion_rate != 0.0, axis=0)) if self._motion else None
+        self._motion = m.motion_rate.shape[0] > 0 or bool(m.rotating_fixes)
+        moving = np.any(m.motion_rate != 0.0, axis=0) if m.motion_rate.shape[0] else np.zeros(m.dof_fixed.size, bool)
+        dpn = m.dofs_per_node
+        for rf in m.rotating_fixes:
+            moving.reshape(-1, dpn)[rf.nodes, :3 if dpn == 4 else 2] = True
+            if dpn == 4:
+                moving.reshape(-1, dpn)[rf.edges, 3] = True
+        self._moving_dofs = np.flatnonzero(moving) if self._motion else None
         # work space of the contact kernels (candidate lists); the poses themselves are in State.obstacles
         self._scratch = contact_scratch(B, m.node_count, m.obstacles.count, m.edge_radius)
         self._no_obstacles = m.obstacles.for_envs(B) if m.obstacles.count == 0 else None
@@ -215,9 +223,22 @@ class Simulator:
         """Move the prescribed DOFs of every non-failed env to their values at the step end (the kernel keeps
         constrained DOFs where the State holds them); returns the (B, n) displacement."""
         m = self.model
-        disp = (window_fraction(state.time, m.dt, m.motion_window) * m.dt) @ m.motion_rate
-        disp[state.failed] = 0.0
-        state.dof.reshape(self.envs, -1)[...] += disp
+        dof = state.dof.reshape(self.envs, -1)
+        if m.motion_rate.shape[0]:
+            disp = (window_fraction(state.time, m.dt, m.motion_window) * m.dt) @ m.motion_rate
+            disp[state.failed] = 0.0
+            dof += disp
+        else:
+            disp = np.zeros_like(dof)
+        if m.rotating_fixes:  # rotating clamps: a rigid turn of their nodes and edges (sim.boundary.turn_fix)
+            before = dof.copy()
+            seconds = window_fraction(state.time, m.dt, np.stack([rf.window for rf in m.rotating_fixes])) * m.dt
+            for b in np.flatnonzero(~state.failed):
+                for k, rf in enumerate(m.rotating_fixes):
+                    if seconds[b, k] > 0.0:
+                        turn_fix(rf, state.dof[b], state.edge_tangent[b], state.edge_ref_d1[b], float(seconds[b, k]),
+                                 _transport)
+            disp += dof - before
         return disp
 
     def _checked_stats(self, state: State) -> StepStats:
@@ -242,6 +263,12 @@ class Simulator:
             contact_gap=cr.gap.copy(), contact_dropped=cr.dropped.copy(), contact_force=cr.force.copy())
 
     # ------------------------------------------------------------------ frames
+    def internal_loads(self, state: State, ctrl: Control) -> InternalLoads:
+        """Axial force, bending and twisting moments of every env (``sim.internal.InternalLoads``, docs/physics.md
+        §2.5) at the end of the last step, under the natural curvature and twist of ``ctrl``."""
+        m1, m2, _t = self.material_frames(state)
+        return internal_loads(self.model, state.node_pos, m1, m2, ctrl.kappa_bar, ctrl.tau_bar)
+
     def material_frames(self, state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(m1, m2, t), each (B, N-1, 3): material directors and unit tangents at the end of the last step."""
         t = state.edge_tangent
@@ -250,6 +277,11 @@ class Simulator:
         th = state.edge_theta[..., None]
         c, s = np.cos(th), np.sin(th)
         return c * d1 + s * d2, -s * d1 + c * d2, t.copy()
+
+
+def _transport(u, ta, tb):
+    """``sim.frames.transport`` (the step's own) on three 3-vectors given as arrays."""
+    return transport(tuple(map(float, u)), tuple(map(float, ta)), tuple(map(float, tb)))
 
 
 def _ix(i: IndexLike):

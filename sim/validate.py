@@ -55,6 +55,8 @@ BOUNDS: dict[str, tuple[float, float, str]] = {
     "load.start": (0.0, 1e9, "s"),
     "fix.velocity": (-1e3, 1e3, "m/s"),
     "fix.twist_rate": (-1e4, 1e4, "rad/s"),
+    "fix.angular_velocity": (-1e4, 1e4, "rad/s"),
+    "fix.center": (-1e4, 1e4, "m"),
     "fix.start": (0.0, 1e9, "s"),
     "obstacle.coordinates": (-1e6, 1e6, "m"),
     "obstacle.radius": (1e-6, 1e4, "m"),

@@ -12,7 +12,7 @@ import dataclasses
 
 import numpy as np
 
-from sim.curvature import curvature_binormal, material_curvature
+from sim.curvature import curvature_binormal, integrated_twist, material_curvature
 from workbench.frame import Frame, colormap
 
 #: "curvature" is |κ|, "strain" the axial stretch ε
@@ -20,21 +20,6 @@ QUANTITIES = ("curvature", "κ1", "κ2", "twist", "strain", "commanded − actua
 LABELS = {"curvature": "|κ| curvature", "strain": "axial strain ε"}
 SIGNED = {"κ1", "κ2", "twist", "strain"}
 UNITS = {"curvature": "rad", "κ1": "rad", "κ2": "rad", "twist": "rad", "strain": "-", "commanded − actual": "rad"}
-
-
-def _edge_twist(x: np.ndarray, m1: np.ndarray) -> np.ndarray:
-    """Integrated twist at interior nodes: signed angle of m1_i about t_i after transporting m1_{i-1} from t_{i-1}."""
-    e = np.diff(x, axis=0)
-    t = e / np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-300)
-    ta, tb, ma, mb = t[:-1], t[1:], m1[:-1], m1[1:]
-    c = np.cross(ta, tb)
-    cos = np.sum(ta * tb, axis=1, keepdims=True)
-    # Rodrigues rotation taking ta to tb, applied to ma
-    mt = ma * cos + np.cross(c, ma) + c * np.sum(c * ma, axis=1, keepdims=True) / np.maximum(1.0 + cos, 1e-12)
-    ang = np.arctan2(np.sum(np.cross(mt, mb) * tb, axis=1), np.sum(mt * mb, axis=1))
-    out = np.zeros(len(x))
-    out[1:-1] = ang
-    return out
 
 
 def node_values(fr: Frame, quantity: str) -> np.ndarray | None:
@@ -69,7 +54,7 @@ def _rod_values(fr: Frame, quantity: str) -> np.ndarray | None:
             return None
         m1, m2 = np.asarray(fr.m1, np.float64), np.asarray(fr.m2, np.float64)
         if quantity == "twist":
-            v = _edge_twist(x, m1)
+            v = integrated_twist(x, m1)
         else:
             k = material_curvature(x, m1, m2)
             if quantity == "commanded − actual":

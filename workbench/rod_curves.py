@@ -13,8 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.curvature import material_curvature
-from workbench.coloring import _edge_twist
+from sim.curvature import integrated_twist, material_curvature
 
 #: component name -> (index into κ (N, 2), or "twist")
 COMPONENTS_3D = ("κ1", "κ2", "twist")
@@ -57,7 +56,7 @@ def curves(x, m1, m2, *, kappa_bar=None, tau_bar=None, planar: int | None = None
     if actual_tau is not None:
         tw = np.asarray(actual_tau, np.float64).reshape(n)
     elif m1 is not None:
-        tw = _edge_twist(x, np.asarray(m1, np.float64))
+        tw = integrated_twist(x, np.asarray(m1, np.float64))
         tw[0] = tw[-1] = 0.0
     out["twist"] = (None if tau_bar is None else np.asarray(tau_bar, np.float64).reshape(n), tw)
     return out
