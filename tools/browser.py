@@ -67,7 +67,7 @@ def wait_for(pred: Callable[[], bool], timeout: float | None = None, interval: f
 
 
 def retry_until(action: Callable[[], None], pred: Callable[[], bool], *, attempt_s: float = 10.0,
-                what: str = "") -> None:
+                what: str | Callable[[], str] = "") -> None:
     """Repeat ``action()`` until ``pred()`` holds, each try given ``attempt_s`` to take effect (a click that a
     software-GL page had not drawn yet misses); fails after :data:`WAIT_BOUND_S`."""
     t_end = time.monotonic() + WAIT_BOUND_S
@@ -76,7 +76,8 @@ def retry_until(action: Callable[[], None], pred: Callable[[], bool], *, attempt
         if poll(pred, attempt_s):
             return
         if time.monotonic() >= t_end:
-            raise TimeoutError(f"timed out after {WAIT_BOUND_S:.0f} s repeating the gesture for {what or pred}")
+            told = what() if callable(what) else what
+            raise TimeoutError(f"timed out after {WAIT_BOUND_S:.0f} s repeating the gesture for {told or pred}")
 
 
 def open_page(browser, app, *, width: int = 1280, height: int = 800):

@@ -6,8 +6,10 @@ drops below the requested speed. ``speed=float('inf')`` steps as fast as possibl
 """
 from __future__ import annotations
 
+import sys
 import threading
 import time
+import traceback
 from typing import Callable
 
 from workbench.core import Workbench
@@ -40,6 +42,7 @@ class SimThread:
         self.steps = 0  # sim steps since start
         self.step_ms = 0.0  # last sim step wall time [ms]
         self.error: BaseException | None = None
+        self._reported: set[tuple[str, str]] = set()  # (exception type, where) already printed
         self._dirty = threading.Event()
 
     def start(self) -> "SimThread":
@@ -105,9 +108,21 @@ class SimThread:
                 elif delay < -0.25:  # far behind: do not try to catch up in a burst
                     next_t = time.perf_counter()
             except Exception as exc:  # noqa: BLE001 - keep the page alive, show the error
-                self.error = exc
+                self._failed(exc)
                 wb.set_playing(False)
                 self._stop.wait(0.1)
+
+    def _failed(self, exc: BaseException) -> None:
+        """A step or a redraw failed: the page shows it (``error``) and the session pauses; the first failure of each
+        kind and place is also printed with its traceback, so it reaches the terminal and the logs."""
+        self.error = exc
+        tb = traceback.extract_tb(exc.__traceback__)
+        key = (type(exc).__name__, f"{tb[-1].filename}:{tb[-1].lineno}" if tb else "?")
+        if key not in self._reported:
+            self._reported.add(key)
+            print(f"rodlab workbench: the stepping thread failed ({key[0]} at {key[1]}); the session is paused:",
+                  file=sys.stderr, flush=True)
+            traceback.print_exception(type(exc), exc, exc.__traceback__)
 
     def _frame_dt(self) -> float:
         wb = self.wb

@@ -73,9 +73,12 @@ def wb_page(shared):
     app.sync_obstacle_view()
     app.controls.sync_sliders()
     app.request_render()
+    app.thread.error = None
     yield app, page
     # the real page only ever sends the message types the server accepts (workbench.gui_guard.PAGE_MESSAGES)
     assert app.messages.refused == [], f"the page sent refused message types: {app.messages.refused}"
+    # and nothing failed in the stepping thread (it shows the error in the page and pauses: never in a test)
+    assert app.thread.error is None, f"the stepping thread failed: {app.thread.error!r}"
 
 
 @pytest.fixture(scope="session")

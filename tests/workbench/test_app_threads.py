@@ -51,7 +51,8 @@ def test_frames_drawn_from_two_threads_are_each_drawn_whole(app):
     wrong: list = []
 
     def check(fr) -> None:
-        if not np.allclose(app.view.rod.tip_frame.position, fr.node_pos[-1], rtol=0.0, atol=1e-9):
+        # (viser skips a pose within np.allclose's default tolerances of the one it holds: compare as it does)
+        if not np.allclose(app.view.rod.tip_frame.position, fr.node_pos[-1]):
             wrong.append(fr.time)
 
     app.render_hooks.append(check)
