@@ -106,7 +106,7 @@ class WorkbenchApp:
         self._build_optional_panels()
         self._last_gui = 0.0
         self._gui_late = False
-        self._planar = False
+        self._camera_key: tuple | None = None  # the scene the camera was last fitted to (fit_camera_to_scene)
         wb.on_scene_changed.append(self._scene_changed)
         self._scene_changed()
         self._bind_hand()
@@ -166,9 +166,21 @@ class WorkbenchApp:
             self.controls.set_quiet(self.controls.playing, False)
             self.server.on_client_connect(self._first_client)
         self._render(self.wb.frame())
+        self.fit_camera_to_scene()
         self.thread.start()
         self.housekeeping.start()
         return self
+
+    def fit_camera_to_scene(self) -> None:
+        """A new scene (another rod, a task opened or closed) opens framed by the camera: facing its plane when it is
+        planar (a 2-D task or scene), the oblique view otherwise. Obstacle edits and moves keep the camera."""
+        m = self.wb.live.model
+        planar = bool(getattr(self.wb.policy, "planar", False)) or m.mode == "2d"
+        rest = np.asarray(m.rest_node_pos, np.float64)
+        key = (planar, m.node_count, *np.round(rest.min(axis=0), 3), *np.round(rest.max(axis=0), 3))
+        if key != self._camera_key:
+            self._camera_key = key
+            self.view.set_camera("front" if planar else "iso", frame=self.wb.frame())
 
     def _compile_kernels(self) -> None:
         """Compile (or load from numba's cache) the step kernels before the first step, in the sim thread, saying in
@@ -225,10 +237,8 @@ class WorkbenchApp:
         planar = bool(getattr(self.wb.policy, "planar", False))
         self.controls.set_planar(planar)
         self.controls.sync_gravity()
-        if planar != self._planar:  # a 2-D task opens facing its plane; back to the oblique view after it
-            self._planar = planar
-            self.view.set_camera("front" if planar else "iso")
         self.sync_obstacle_view()
+        self.fit_camera_to_scene()
         self.sync_boundary_view()
         self.controls.set_rods(self.wb.teleop_rods(), self.wb.teleop_rod)
         self.refresh_rod_scene()

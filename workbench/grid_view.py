@@ -15,7 +15,7 @@ from sim.rotations import quat_to_matrix
 from workbench.frame import quat_z_to
 from workbench.obstacles import mesh_for_edit
 from workbench.view_boundary import Boundary, BoundaryView, boundary_of
-from workbench.view_scene import CAMERAS, HAND_COLOR, ROD_COLOR, Overlays, arrow_vectors, place_camera
+from workbench.view_scene import HAND_COLOR, ROD_COLOR, Overlays, arrow_vectors, place_camera
 
 FOCUS_COLOR = np.array([40, 110, 230], dtype=np.uint8)
 ROOT = "/grid"
@@ -38,6 +38,10 @@ def obstacle_mesh(session) -> tuple[np.ndarray, np.ndarray] | None:
         return None
     return np.concatenate(verts), np.concatenate(faces)
 
+
+#: (position, look-at) [m] of the oblique view of a 1 m upright arm at the origin; a cell's camera scales it by the
+#: cell's rod length
+CELL_VIEW = ((1.45, -1.45, 1.05), (0.1, 0.0, 0.45))
 
 class GridView:
     """Scene nodes of a grid session. ``overlays``: the main view's display toggles (the boundary glyphs follow its
@@ -113,7 +117,7 @@ class GridView:
 
     def cell_camera(self, env: int | None) -> tuple[np.ndarray, np.ndarray]:
         """(position, look-at) of the camera on one env's cell, or on the whole grid (None)."""
-        pos, look = (np.asarray(v, np.float64) for v in CAMERAS["iso"])
+        pos, look = (np.asarray(v, np.float64) for v in CELL_VIEW)
         scale = self.s.rod_length
         if env is None:  # the grid left of the page's centre: the control panel covers the right part
             centre = 0.5 * (self.s.offsets.min(axis=0) + self.s.offsets.max(axis=0)) + look * scale

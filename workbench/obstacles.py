@@ -73,7 +73,7 @@ def mesh_catalogue() -> list[str]:
 
 
 #: [m] where a new obstacle goes (moved clear of the rod and the others, :func:`free_position`): beside the arm's
-#: middle, in the middle of the start view (``view_scene.CAMERAS["iso"]``)
+#: middle, in the start view of the arm (``view_scene.fit_camera``)
 NEW_OBSTACLE_AT = (0.4, 0.0, 0.6)
 
 

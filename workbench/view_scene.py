@@ -63,10 +63,27 @@ def material_frame_poses(x: np.ndarray, m1: np.ndarray, m2: np.ndarray, rod_offs
 
 GROUND_SIZE = 4.0  # [m] side of the floor grid
 LIVE_ROOTS = ("/rod", "/boundary", "/contacts", "/obstacles")  # parents of the live scene's nodes (and "/target")
-LOOK_AT = (0.1, 0.0, 0.45)
-#: camera presets (position, look-at) [m]; "front" faces the x-z plane of the 2-D tasks
-CAMERAS = {"front": ((0.1, -2.2, 0.45), LOOK_AT), "side": ((2.2, 0.0, 0.45), LOOK_AT),
-           "top": ((0.1, -0.01, 2.6), (0.1, 0.0, 0.45)), "iso": ((1.45, -1.45, 1.05), LOOK_AT)}
+#: camera presets: where each looks from (a direction towards the scene); "front" faces the x-z plane of the 2-D tasks
+CAMERAS = {"front": (0.0, -1.0, 0.0), "side": (1.0, 0.0, 0.0), "top": (0.0, -0.004, 1.0), "iso": (1.0, -1.0, 0.72)}
+FOV_Y = np.deg2rad(75.0)  # the page camera's vertical field of view (viser's default)
+FIT_MARGIN = 1.5  # the framed sphere's radius over the scene's half-diagonal
+
+
+def fit_camera(preset: str, points, fov: float = FOV_Y) -> tuple[tuple, tuple]:
+    """(position, look-at) [m] of camera preset ``preset`` framing ``points`` (K, 3) [m]: it looks at the centre of
+    their bounding box from the preset's direction, from where a sphere of ``FIT_MARGIN`` × the box's half-diagonal
+    (at least 5 cm) fills the vertical field of view ``fov`` (the page is wider than tall, so the width fits too)."""
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    p = p[np.isfinite(p).all(axis=1)]
+    if len(p) == 0:
+        p = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    radius = FIT_MARGIN * max(0.5 * float(np.linalg.norm(hi - lo)), 0.05)
+    d = np.asarray(CAMERAS[preset], np.float64)
+    d = d / np.linalg.norm(d)
+    pos = centre + d * radius / np.sin(0.5 * fov)
+    return tuple(float(v) for v in pos), tuple(float(v) for v in centre)
 
 
 @dataclasses.dataclass
@@ -117,7 +134,8 @@ class SceneView:
         sc.set_up_direction("+z")
         if not env_map:
             sc.configure_environment_map(hdri=None)
-        server.initial_camera.position, server.initial_camera.look_at = CAMERAS["iso"]
+        server.initial_camera.position, server.initial_camera.look_at = fit_camera("iso", [[0, 0, 0], [0, 0, 1.0]])
+        self.camera: tuple[str, tuple, tuple] = ("iso", *fit_camera("iso", [[0, 0, 0], [0, 0, 1.0]]))  # the last preset
         self.ground = sc.add_grid("/ground", width=GROUND_SIZE, height=GROUND_SIZE, cell_size=0.1, section_size=0.5,
                                   plane="xy")
         # the live scene's nodes hang below these frames, so one switch hides them all (:meth:`show_live`)
@@ -327,9 +345,31 @@ class SceneView:
         if self.ground.width != size:
             self.ground.width = self.ground.height = size
 
-    def set_camera(self, preset: str) -> None:
-        """Move every page's camera (and the start view of pages opened later) to a preset of ``CAMERAS``."""
-        pos, look = CAMERAS[preset]
+    def fit_points(self, fr: Frame | None = None) -> np.ndarray:
+        """What a camera preset frames: the rod of frame ``fr`` (default: the last frame drawn), its targets and the
+        obstacles (their centres padded by their size; planes left out)."""
+        fr = fr if fr is not None else self.last_frame
+        pts = [np.asarray(fr.node_pos, np.float64), np.asarray(fr.targets, np.float64).reshape(-1, 3)] if fr else []
+        for ed in self._edits:
+            if ed.kind == "plane":
+                continue
+            if ed.kind == "sphere":
+                size = ed.radius
+            elif ed.kind == "box":
+                size = float(np.linalg.norm(ed.half_extents))
+            elif ed.kind in ("capsule", "cylinder"):
+                size = ed.radius + 0.5 * ed.length
+            else:  # a mesh: its centre, padded by a scaled 10 cm
+                size = 0.1 * ed.scale
+            pts.append(np.asarray(ed.position, np.float64) + size * np.vstack([np.eye(3), -np.eye(3)]))
+        return np.vstack(pts) if pts else np.zeros((0, 3))
+
+    def set_camera(self, preset: str, frame: Frame | None = None) -> None:
+        """Move every page's camera (and the start view of pages opened later) to preset ``preset`` of ``CAMERAS``,
+        fitted to the scene (:func:`fit_camera`, :meth:`fit_points`: of ``frame``, default the frame drawn now);
+        ``camera`` holds what was set."""
+        pos, look = fit_camera(preset, self.fit_points(frame))
+        self.camera = (preset, pos, look)
         self.server.initial_camera.position, self.server.initial_camera.look_at = pos, look
         for client in self.server.get_clients().values():
             place_camera(client, pos, look)

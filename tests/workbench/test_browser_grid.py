@@ -150,14 +150,13 @@ def test_stop_grid_goes_back_to_the_live_scene(wb_page):
     """While the grid runs the live scene (rod, obstacles, glyphs) is hidden and the cells sit on the floor grid;
     Stop grid shows the live scene again and puts the camera back where it was before the grid."""
     from workbench.obstacles import default_edit
-    from workbench.view_scene import CAMERAS
 
     app, page = wb_page
     app.wb.add_obstacle(default_edit("sphere", position=(0.5, -0.4, 0.6)))
     wait_for(lambda: len(app.view.obstacle_nodes) == 1, what="the live obstacle drawn")
     cam = newest_client(app).camera
     app.view.set_camera("front")
-    before = np.asarray(CAMERAS["front"][0]), np.asarray(CAMERAS["front"][1])
+    before = np.asarray(app.view.camera[1]), np.asarray(app.view.camera[2])
     wait_for(lambda: np.allclose(cam.position, before[0], atol=1e-3) and np.allclose(cam.look_at, before[1], atol=1e-3),
              what="camera on the live scene")
     wait_for(lambda: page.evaluate(LIVE_JS)["/rod"] is True, what="the live rod shown")

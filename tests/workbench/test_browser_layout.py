@@ -6,11 +6,18 @@ import numpy as np
 import pytest
 from playwright.sync_api import expect
 
-from tools.browser import WAIT_MS, expand_folder, newest_client, slider_root, wait_for
+from tools.browser import WAIT_MS, expand_folder, newest_client, project, slider_root, wait_for
 from workbench.gui_controls import TABS, slider_label
-from workbench.view_scene import CAMERAS
 
 pytestmark = pytest.mark.browser
+
+
+def _assert_in_view(client, pts) -> None:
+    """Every point inside the page's camera image (the camera as the page reported it)."""
+    cam = client.camera
+    w, h = cam.image_width, cam.image_height
+    uv = project(cam, np.asarray(pts, np.float64), w, h)
+    assert (uv >= 0).all() and (uv[:, 0] <= w).all() and (uv[:, 1] <= h).all(), f"{uv} outside {w} x {h}"
 
 
 def test_tabs_with_status_always_visible(wb_page):
@@ -43,7 +50,10 @@ def test_planar_task_and_camera_presets(wb_page):
     app.policy.start_task("follow_target_2d", "zero")
     wait_for(lambda: wb.mode == "policy" and wb.policy.planar, timeout=60, what="2-D task")
     # the camera faces the x-z plane of the task
-    wait_for(lambda: np.allclose(client.camera.position, CAMERAS["front"][0], atol=1e-3), what="front camera")
+    wait_for(lambda: app.view.camera[0] == "front" and np.allclose(client.camera.position, app.view.camera[1], atol=1e-3),
+             what="front camera")
+    # fitted to the task's arm: every node inside the page's view
+    _assert_in_view(client, wb.frame().node_pos)
     expand_folder(page, "Teleop", "Zero sliders")
     expect(page.get_by_text(slider_label(2, 0), exact=True)).to_be_visible()
     expect(page.get_by_text(slider_label(2, 1), exact=True)).to_have_count(0)  # no out-of-plane bend
@@ -51,11 +61,15 @@ def test_planar_task_and_camera_presets(wb_page):
     # the presets (Display tab) move the camera of the page
     expand_folder(page, "Display", "top")
     page.get_by_role("button", name="top", exact=True).click()
-    wait_for(lambda: np.allclose(client.camera.position, CAMERAS["top"][0], atol=1e-3), what="top camera")
+    wait_for(lambda: app.view.camera[0] == "top" and np.allclose(client.camera.position, app.view.camera[1], atol=1e-3),
+             what="top camera")
     page.get_by_role("button", name="side", exact=True).click()
-    wait_for(lambda: np.allclose(client.camera.position, CAMERAS["side"][0], atol=1e-3), what="side camera")
+    wait_for(lambda: app.view.camera[0] == "side" and np.allclose(client.camera.position, app.view.camera[1], atol=1e-3),
+             what="side camera")
     # back to a 3-D scene: every slider again, oblique view
     wb.stop_policy()
-    wait_for(lambda: np.allclose(client.camera.position, CAMERAS["iso"][0], atol=1e-3), what="iso camera")
+    wait_for(lambda: app.view.camera[0] == "iso" and np.allclose(client.camera.position, app.view.camera[1], atol=1e-3),
+             what="iso camera")
+    _assert_in_view(client, wb.frame().node_pos)
     expand_folder(page, "Teleop", "Zero sliders")
     expect(page.get_by_text(slider_label(2, 2), exact=True)).to_be_visible()
