@@ -36,6 +36,12 @@ class Frame:
             (``sim.Model.rod_node_offsets``; drawn as separate tubes), else None.
         hand: (2, 3) [m] the grabbed node and the hand while the rod is pulled (``workbench.pull``), else None;
             hand_force: the pull's total force [N].
+        edge_axial_force: (N-1,) axial force of each edge [N], tension positive, and node_moment: (N, 3) the bending
+            moments M1, M2 and the twisting moment T at the nodes [N m] (``sim.internal``, docs/physics.md §2.5), live
+            sessions only, else None.
+        contact_edge: (K,) the rod edge of each contact row, contact_gap: (K,) its gap [m] (negative: overlap),
+            contact_obstacle: (K,) the obstacle it touches (−1: another edge, contact_partner_edge (K,) that edge,
+            −1 on an obstacle row), or None when unknown (``sim.StepStats``' contact rows).
     """
 
     node_pos: np.ndarray
@@ -58,6 +64,12 @@ class Frame:
     hand: np.ndarray | None = None
     node_vel: np.ndarray | None = None
     hand_force: np.ndarray | None = None
+    edge_axial_force: np.ndarray | None = None
+    node_moment: np.ndarray | None = None
+    contact_edge: np.ndarray | None = None
+    contact_gap: np.ndarray | None = None
+    contact_obstacle: np.ndarray | None = None
+    contact_partner_edge: np.ndarray | None = None
 
     @property
     def tip(self) -> np.ndarray:

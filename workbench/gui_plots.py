@@ -1,7 +1,8 @@
 """GUI: time-series plots (uPlot) of the live session or of the open recording (``workbench.plots`` lays them out).
 
 Live: every scalar of the last ``LIVE_WINDOW`` frames (reward and its terms, tip/orientation error, contact force,
-Newton iterations, ...), the episode before the last reset dashed, never joined to the current one. Replay: every
+Newton iterations, ...) and the values at the pinned nodes (curvature, moments, axial force: ``workbench.pins``), the
+episode before the last reset dashed, never joined to the current one. Replay: every
 scalar recorded in the episode, with a vertical cursor at the timeline position. First plot: the curvature along the
 rod, commanded against actual per component (``workbench.rod_curves``), of the live rod or of the replayed frame.
 """
@@ -11,7 +12,8 @@ import numpy as np
 from viser import uplot
 
 from workbench.gui_host import PanelHost
-from workbench.plots import Plot, curvature_plot, layout, live_series
+from workbench.pins import PinSeries
+from workbench.plots import Plot, curvature_plot, layout, live_series, y_ticks
 from workbench.rod_curves import live_curves, replay_curves
 
 LIVE_WINDOW = 400  # frames shown in the live plots
@@ -35,6 +37,7 @@ class PlotsPanel:
         self._xrange: dict[str, tuple[float, float]] = {}
         self._replay_key: tuple | None = None
         self.shown: list[Plot] = []  # what the page shows now (tests read it)
+        self.pin_series = PinSeries()  # the pinned nodes' values over the live history
 
     # ------------------------------------------------------------------ drawing
     def show(self, plots: list[Plot]) -> None:
@@ -56,6 +59,7 @@ class PlotsPanel:
                     or xr[0] > x0 + 0.1 * (x1 - x0) or xr[0] < x0 or float(p.data[0][-1]) > x1):
                 self._range[p.key], self._xrange[p.key] = p.y, xr
                 h.scales = self._scales(p.y, xr)
+                h.axes = self._axes(p.y)
             h.data = p.data
         self.shown = plots
 
@@ -72,6 +76,14 @@ class PlotsPanel:
         return {"x": {"time": False, "auto": False, "range": [float(x[0]), float(x[1])]},
                 "y": {"auto": False, "range": [float(y[0]), float(y[1])]}}
 
+    @staticmethod
+    def _axes(y: tuple[float, float]) -> tuple[dict, dict]:
+        """The x axis as uPlot draws it; the y axis with the ticks and labels of ``workbench.plots.y_ticks`` (every
+        digit a value needs), wide enough for its longest label."""
+        splits, labels = y_ticks(*y)
+        width = 16 + 7 * max((len(t) for t in labels), default=4)
+        return {}, {"splits": list(splits), "values": list(labels), "size": width}
+
     def _create(self, p: Plot, order: int) -> None:
         series = [uplot.Series(label=p.labels[0])]
         for label, color, dashed in zip(p.labels[1:], p.colors[1:], p.dashed[1:]):
@@ -81,7 +93,8 @@ class PlotsPanel:
             series.append(s)
         with self.folder:
             self.handles[p.key] = self.app.server.gui.add_uplot(
-                data=p.data, series=tuple(series), scales=self._scales(p.y, _x_range(p)), title=p.title,
+                data=p.data, series=tuple(series), scales=self._scales(p.y, _x_range(p)), axes=self._axes(p.y),
+                title=p.title,
                 aspect=2.2, order=1000.0 + order)
         self._sig[p.key] = (p.signature, order)
         self._range[p.key], self._xrange[p.key] = p.y, _x_range(p)
@@ -104,12 +117,14 @@ class PlotsPanel:
         with wb.lock:
             items = wb.history._items[-LIVE_WINDOW:]
             dt = float(wb.live.dt)
+            sim = wb.live.sim
         curv = curvature_plot(live_curves(wb))
         head = [curv] if curv is not None else []
         if len(items) < 2:
             self.show(head)
             return
         x, episode, vals = live_series(items, dt)
+        vals.update(self.pin_series.series(sim, items, self.app.view.pins))
         self.show(head + layout(x, vals, episode=episode, x_label="session time [s]"))
 
     def update_status(self) -> None:

@@ -19,6 +19,8 @@ import dataclasses
 
 import numpy as np
 
+from workbench.pins import PIN_PLOTS
+
 #: live scalar key (``Frame.scalars``) -> recorded scalar name (docs/architecture.md: recording schema)
 LIVE_NAMES = {"reward": "reward", "tip_error": "tip_error", "ori_error": "ori_error",
               "newton_iters": "solver/newton_iters", "contact_force": "contact/max_normal_force",
@@ -42,6 +44,9 @@ def group_of(name: str) -> tuple[str, str]:
         return "reward", "reward and its terms"
     if name.startswith("energy/"):
         return "energy", "energies [J]"
+    prefix = name.split("/", 1)[0]
+    if prefix in PIN_PLOTS:
+        return prefix, PIN_PLOTS[prefix][0]
     if name in ("solver/newton_iters", "solver/newton_iters_control", "solver/substeps", "solver/converged",
                 "solver/midpoint_fallbacks"):
         return "solver/newton_iters", "Newton iterations / substeps"
@@ -68,6 +73,30 @@ def y_range(arrays) -> tuple[float, float]:
         pad = 0.5 * max(abs(lo), 1e-3)
         return lo - pad, hi + pad
     return lo - 0.05 * span, hi + 0.05 * span
+
+
+def y_ticks(lo: float, hi: float, count: int = 5) -> tuple[tuple[float, ...], tuple[str, ...]]:
+    """Tick values in [``lo``, ``hi``] at a round step (1, 2, 2.5 or 5 × 10^k, about ``count`` of them) and their
+    labels, each with the digits the step needs: uPlot's own labels drop them ("0" for 2e-5) and viser cannot pass it
+    a formatting function, so the labels are made here. Values under 1e-3 or from 1e5 on (in magnitude) are written
+    with an exponent."""
+    lo, hi = float(lo), float(hi)
+    if not (np.isfinite(lo) and np.isfinite(hi)) or hi <= lo:
+        return (), ()
+    raw = (hi - lo) / max(count - 1, 1)
+    mag = 10.0 ** np.floor(np.log10(raw))
+    step = next(m * mag for m in (1.0, 2.0, 2.5, 5.0, 10.0) if m * mag >= raw * (1.0 - 1e-9))
+    first = np.ceil(lo / step - 1e-9) * step
+    vals = [first + k * step for k in range(int(np.floor((hi - first) / step + 1e-9)) + 1)]
+    vals = [0.0 if abs(v) < 1e-9 * step else v for v in vals]
+    big = max(abs(lo), abs(hi))
+    if big >= 1e5 or big < 1e-3:
+        digits = max(0, int(np.ceil(np.log10(big / step) - 1e-9)))  # significant digits beyond the first
+        labels = tuple(f"{v:.{digits}e}" for v in vals)
+    else:
+        decimals = max(0, -int(np.floor(np.log10(step) + 1e-9)) + (1 if step / mag == 2.5 else 0))
+        labels = tuple(f"{v:.{decimals}f}" for v in vals)
+    return tuple(float(v) for v in vals), labels
 
 
 def episode_starts(episode: np.ndarray) -> np.ndarray:

@@ -14,6 +14,7 @@ import numpy as np
 
 from sim import Simulator, build_model, load_scene
 from sim.contact_set import node_radii
+from sim.internal import internal_loads
 from sim.support.assets import asset_path
 from workbench.frame import Frame, curvature_magnitude, edge_strain
 
@@ -196,6 +197,8 @@ class LiveSim:
         mf = self.sim.material_frames(self.state)  # an error here is a simulator defect: it is not hidden
         m1, m2 = np.asarray(mf[0][0]), np.asarray(mf[1][0])
         cp, cf, cn, cfn = contacts_from_stats(self.last_stats)
+        rows = contact_rows(self.last_stats)
+        loads = internal_loads(self.sim.model, x, m1, m2, self.ctrl.kappa_bar[0], self.ctrl.tau_bar[0])
         sc = {**self.step_scalars(), **(scalars or {})}
         kb = getattr(self.ctrl, "kappa_bar", None)
         off = self.rod_offsets
@@ -206,7 +209,10 @@ class LiveSim:
                      contact_points=cp, contact_forces=cf, contact_normals=cn, contact_normal_force=cfn,
                      targets=np.zeros((0, 3)) if targets is None else np.asarray(targets).reshape(-1, 3),
                      time=float(np.asarray(self.state.time)[0]), scalars=sc, rod_offsets=off,
-                     node_vel=np.asarray(self.state.node_vel[0], dtype=np.float64).copy())
+                     node_vel=np.asarray(self.state.node_vel[0], dtype=np.float64).copy(),
+                     edge_axial_force=loads.axial, node_moment=np.column_stack([loads.bending, loads.twisting]),
+                     contact_edge=rows["edge"], contact_gap=rows["gap"], contact_obstacle=rows["obstacle"],
+                     contact_partner_edge=rows["partner_edge"])
 
 
 def contacts_from_stats(st, env: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -225,6 +231,20 @@ def contacts_from_stats(st, env: int = 0) -> tuple[np.ndarray, np.ndarray, np.nd
     if hasattr(st, "contact_friction_force"):
         f = f + np.asarray(st.contact_friction_force, dtype=np.float64)[env, :k]
     return p.copy(), f, n.copy(), fn.copy()
+
+
+def contact_rows(st, env: int = 0) -> dict[str, np.ndarray]:
+    """What each active contact row of ``env`` (rows as :func:`contacts_from_stats`) touches: ``edge`` (K,) the rod
+    edge, ``gap`` (K,) [m], ``obstacle`` (K,) (−1 on an edge-pair row) and ``partner_edge`` (K,) (−1 on an obstacle
+    row)."""
+    k = int(np.asarray(st.contact_count)[env]) if st is not None and hasattr(st, "contact_count") else 0
+    if k == 0:
+        z = np.zeros(0, np.int64)
+        return {"edge": z, "gap": np.zeros(0), "obstacle": z.copy(), "partner_edge": z.copy()}
+    return {"edge": np.asarray(st.contact_edge, np.int64)[env, :k].copy(),
+            "gap": np.asarray(st.contact_gap, np.float64)[env, :k].copy(),
+            "obstacle": np.asarray(st.contact_obstacle, np.int64)[env, :k].copy(),
+            "partner_edge": np.asarray(st.contact_partner_edge, np.int64)[env, :k].copy()}
 
 
 def _replace_gravity(spec, g):

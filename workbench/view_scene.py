@@ -15,6 +15,7 @@ import trimesh
 import viser
 
 from workbench import coloring
+from workbench.contact_patches import labelled, patches, reach_of
 from workbench.frame import Frame, quat_from_matrix, rod_edges
 from workbench.obstacles import ObstacleEdit, mesh_for_edit
 from workbench.pins import MAX_PINS, node_readout, readout_text
@@ -27,7 +28,7 @@ OBSTACLE_OPACITY = 0.55  # see-through: contact points and arrows inside an obst
 ARROW_MAX = 0.25  # [m] longest contact arrow ("log" / "auto")
 ARROW_F0 = 1.0  # [N] force scale of the "log" arrows: length ∝ log(1 + |f| / ARROW_F0)
 ARROW_MODES = ("log", "auto", "linear")
-N_FORCE_LABELS = 6  # force labels drawn (the largest contacts)
+N_FORCE_LABELS = 6  # force labels drawn (the largest contact patches, workbench.contact_patches)
 HAND_COLOR = (30, 140, 255)  # the pull's spring and hand
 
 
@@ -257,12 +258,14 @@ class SceneView:
                 self.contact_points.points = p
                 self.contact_arrows.visible = True
                 self.contact_points.visible = True
-                mag = np.linalg.norm(fr.contact_forces, axis=1)
-                top = np.argsort(-mag)[:N_FORCE_LABELS]
+                # one label per contact patch (its total force), at the tip of its strongest arrow
+                found = patches(p, fr.contact_forces, reach_of(x), getattr(fr, "contact_obstacle", None),
+                                getattr(fr, "contact_edge", None), getattr(fr, "contact_partner_edge", None))
+                shown = labelled(found, N_FORCE_LABELS)
                 for j, lab in enumerate(self.force_labels):
-                    if j < len(top):
-                        i = top[j]
-                        lab.text = f"{mag[i]:.3g} N"
+                    if j < len(shown):
+                        i = shown[j].main_row
+                        lab.text = f"{shown[j].magnitude:.3g} N"
                         lab.position = tuple(p[i] + vec[i])
                         if not lab.visible:
                             lab.visible = True

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from playwright.sync_api import expect
 
 from tools.browser import WAIT_MS, expand_folder, newest_client, project, retry_until, wait_for
 from workbench.view_scene import place_camera
@@ -116,6 +117,13 @@ def test_clicking_the_rod_pins_a_readout_that_follows_the_node(wb_page):
     retry_until(click_other, lambda: view.pins == [node, other], what=f"a second readout at node {other}")
     wait_for(lambda: len(view.pin_texts) == 2 and view.pin_texts[1].startswith(f"node {other} ·"),
              what="both readouts drawn")
+    # the page's label says what the material carries there, on its own line; the Plots tab plots it against time
+    label_js = "() => window.__viserSceneTree?.getState()?.['/rod/pins/0']?.message?.props?.text ?? ''"
+    wait_for(lambda: any(ln.startswith("N ") and " M1 " in ln for ln in page.evaluate(label_js).split("\n")),
+             what=lambda: f"the internal loads in the page's label (it reads {page.evaluate(label_js)!r})")
+    expand_folder(page, "Plots", ".uplot")
+    expect(page.get_by_text("pinned nodes: bending moments", exact=False).first).to_be_visible()
+    assert {"pin_moment", "pin_curvature", "pin_axial"} <= {p.key for p in app.plots.shown}
     expand_folder(page, "Display", "Clear pins")
     page.get_by_role("button", name="Clear pins").click()
     wait_for(lambda: view.pins == [] and not view.pin_labels[0].visible, what="the pins cleared")

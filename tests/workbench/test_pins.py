@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from sim.curvature import material_curvature
 from workbench.core import Workbench
@@ -39,12 +40,72 @@ def test_a_readout_holds_the_simulators_curvature_velocity_and_command():
     assert abs(node_readout(fr, 10)["κ1"]) > 0.01
     text = readout_text(10, node_readout(fr, 10))
     assert text.startswith("node 10 · (") and f"κ1 {node_readout(fr, 10)['κ1']:+.3f}" in text
+    # what the material carries there: the simulator's internal loads (sim.internal, tests/verification)
+    loads = wb.live.sim.internal_loads(st, wb.live.ctrl)
+    r = node_readout(fr, 10)
+    assert (r["M1"], r["M2"], r["T"]) == (loads.bending[0, 10, 0], loads.bending[0, 10, 1], loads.twisting[0, 10])
+    assert r["axial force"] == pytest.approx(0.5 * (loads.axial[0, 9] + loads.axial[0, 10]), rel=1e-15)
+    assert abs(r["M1"]) > 0.1 and r["contact force"].tolist() == [0.0, 0.0, 0.0] and "gap" not in r
+    lines = text.split("\n")
+    assert len(lines) == 4 and lines[2].startswith("N ") and f"M1 {r['M1']:+.3g}" in lines[2]
+    assert lines[3] == "no contact"
+
+
+def test_a_readout_holds_the_contact_on_the_nodes_edges():
+    """A sphere pressed into the arm: the pinned node's contact is the sum of the contact rows of its two edges and
+    the smallest of their gaps; a node away from the sphere has none."""
+    from workbench.obstacles import ObstacleEdit
+
+    wb = Workbench.builtin()
+    i = wb.add_obstacle(ObstacleEdit(kind="sphere", position=np.array([0.4, 0.0, 0.6])))
+    for x in np.linspace(0.4, 0.105, 10):
+        wb.set_obstacle_pose(i, [x, 0.0, 0.6], [1.0, 0.0, 0.0, 0.0])
+        wb.step()
+    for _ in range(10):
+        wb.step()
+    fr = wb.frame()
+    st = wb.live.last_stats
+    k = int(st.contact_count[0])
+    edges = st.contact_edge[0, :k]
+    node = int(edges[np.argmax(st.contact_normal_force[0, :k])])
+    rows = np.isin(edges, [node - 1, node])
+    r = node_readout(fr, node)
+    np.testing.assert_allclose(r["contact force"], fr.contact_forces[rows].sum(axis=0), rtol=1e-15)
+    assert np.linalg.norm(r["contact force"]) > 1.0 and r["gap"] == st.contact_gap[0, :k][rows].min()
+    assert "contact " in readout_text(node, r) and "gap" in readout_text(node, r)
+    assert "gap" not in node_readout(fr, 2) and not node_readout(fr, 2)["contact force"].any()
+
+
+def test_pinned_values_are_plotted_against_time_from_the_history():
+    """The Plots tab's pinned series: each frame's curvature, moments and axial force at the pinned nodes, equal to
+    the simulator's at that frame, also for the frames before the pin was set."""
+    from workbench.pins import PinSeries
+    from workbench.plots import layout, live_series
+
+    wb = Workbench.builtin()
+    want = []
+    for k in range(12):
+        wb.set_teleop_value(2, 0, 0.1 * k)
+        wb.step()
+        want.append(wb.live.sim.internal_loads(wb.live.state, wb.live.ctrl))
+    items = wb.history._items
+    series = PinSeries().series(wb.live.sim, items, [6, 12])
+    assert {"pin_moment/node 6 M1", "pin_moment/node 12 T", "pin_axial/node 12", "pin_curvature/node 6 κ1"} <= set(series)
+    got = series["pin_moment/node 6 M1"][-12:]
+    np.testing.assert_array_equal(got, [w.bending[0, 6, 0] for w in want])
+    np.testing.assert_array_equal(series["pin_moment/node 12 T"][-12:], [w.twisting[0, 12] for w in want])
+    x, episode, vals = live_series(items, wb.live.dt)
+    vals.update(series)
+    titles = {p.key: p.title for p in layout(x, vals, episode=episode)}
+    assert titles["pin_moment"].startswith("pinned nodes: bending moments") and "pin_axial" in titles
+    assert PinSeries().series(wb.live.sim, items, []) == {}
 
 
 def test_a_replayed_frame_without_velocities_or_frames_reads_what_it_has():
     wb = Workbench.builtin()
     fr = wb.frame()
     fr.node_vel, fr.m1, fr.m2, fr.kappa_bar = None, None, None, None
+    fr.edge_axial_force, fr.node_moment, fr.contact_edge, fr.contact_gap = None, None, None, None
     r = node_readout(fr, 3)
     assert set(r) == {"position", "strain"}
     assert "node 3" in readout_text(3, r)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from workbench.plots import episode_numbers, layout, live_name
 
@@ -59,3 +60,50 @@ def test_solver_counts_share_one_plot():
     key = group_of("solver/newton_iters")
     for name in ("solver/substeps", "solver/converged", "solver/midpoint_fallbacks"):
         assert group_of(name) == key
+
+
+@pytest.mark.parametrize("lo, hi", [(0.0, 1.0), (0.0, 2e-5), (-3e-5, 1e-4), (100.0, 187.0), (0.0, 3.7e6),
+                                    (-1.2, 0.7), (0.95, 1.05), (1e-3, 1.2e-3), (1234.5, 1234.9), (-5e-4, -1e-4)])
+def test_y_ticks_are_round_inside_the_range_and_every_label_tells_its_value(lo, hi):
+    """The y labels carry the digits their values need: no "0" for 2e-5, no two ticks with one label."""
+    from workbench.plots import y_ticks
+
+    vals, labels = y_ticks(lo, hi)
+    assert 2 <= len(vals) <= 7 and len(labels) == len(vals)
+    assert all(lo - 1e-12 <= v <= hi + 1e-12 for v in vals)
+    assert len(set(labels)) == len(labels)
+    step = vals[1] - vals[0]
+    for v, t in zip(vals, labels):
+        assert float(t) == pytest.approx(v, abs=1e-6 * step)
+    m = step / 10.0 ** np.floor(np.log10(step))
+    assert min(abs(m - r) for r in (1.0, 2.0, 2.5, 5.0, 10.0)) < 1e-9  # a round step
+
+
+def test_y_ticks_of_no_range_are_none():
+    from workbench.plots import y_ticks
+
+    assert y_ticks(1.0, 1.0) == ((), ()) and y_ticks(0.0, float("nan")) == ((), ())
+
+
+def test_the_page_plots_carry_those_ticks(tmp_path):
+    """Each uPlot the Plots tab creates gets the y ticks and labels of its fixed range (and keeps them in step when
+    the range changes)."""
+    from tests.workbench.conftest import make_app
+    from workbench.plots import y_ticks
+
+    app = make_app(wait_for_browser=False, recordings_dir=tmp_path / "r", scenes_dir=tmp_path / "s")
+    try:
+        wb = app.wb
+        wb.set_playing(False)
+        for k in range(30):
+            wb.set_teleop_value(2, 0, 0.05 * k)
+            wb.step()
+        app.plots.update_live()
+        assert app.plots.handles
+        for p in app.plots.shown:
+            h = app.plots.handles[p.key]
+            lo, hi = app.plots._range[p.key]
+            vals, labels = y_ticks(lo, hi)
+            assert list(h.axes[1]["values"]) == list(labels) and list(h.axes[1]["splits"]) == list(vals)
+    finally:
+        app.stop()
