@@ -122,7 +122,8 @@ class PinSeries:
     is computed once and kept while the snapshot is in the window, so pinning a node shows its past at once."""
 
     def __init__(self):
-        self._tables: dict[tuple[int, int], np.ndarray] = {}
+        # id(snapshot) -> (snapshot, table): the snapshot is kept with its table, so its id is not reused meanwhile
+        self._tables: dict[int, tuple[object, np.ndarray]] = {}
 
     def series(self, sim, items, pins) -> dict[str, np.ndarray]:
         """Recorded name (``pin_moment/node 12 M1`` ...) -> values over ``items`` (history snapshots)."""
@@ -130,14 +131,15 @@ class PinSeries:
         if not pins or not items:
             self._tables.clear()
             return {}
-        keys = [(it.index, id(it)) for it in items]
         tables = []
-        for key, it in zip(keys, items):
-            tab = self._tables.get(key)
-            if tab is None:
-                tab = self._tables[key] = node_table(sim, it.sim)
-            tables.append(tab)
-        keep = set(keys)
+        for it in items:
+            held = self._tables.get(id(it))
+            if held is None or held[0] is not it:
+                n = np.shape(it.sim[0].node_pos)[1]  # a snapshot of another rod (the scene changed): no values
+                tab = node_table(sim, it.sim) if n == sim.model.node_count else np.full((n, 7), np.nan)
+                held = self._tables[id(it)] = (it, tab)
+            tables.append(held[1])
+        keep = {id(it) for it in items}
         for k in [k for k in self._tables if k not in keep]:
             del self._tables[k]
         out: dict[str, np.ndarray] = {}

@@ -1,6 +1,8 @@
 """Pinned readouts (workbench.pins): the node a click picks, and values that are the simulator's own."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -126,3 +128,19 @@ def test_pins_toggle_and_keep_the_newest(tmp_path):
         assert len(v.pin_texts) == MAX_PINS - 1 and v.pin_texts[0].startswith("node 2 ·")
     finally:
         app.stop()
+
+
+def test_pinned_series_skip_snapshots_of_another_rod():
+    """After the scene changed to a rod of another length, history snapshots of the old rod give no values (NaN),
+    never an error in the Plots tab's refresh."""
+    from workbench.pins import PinSeries
+
+    old = Workbench.builtin()
+    for _ in range(3):
+        old.step()
+    short = Workbench.from_path(Path(__file__).resolve().parents[2] / "assets" / "scenes" / "rope_pinned.toml")
+    short.step()
+    items = old.history._items + short.history._items
+    series = PinSeries().series(short.live.sim, items, [3])
+    v = series["pin_curvature/node 3 κ1"]
+    assert np.isnan(v[:len(old.history._items)]).all() and np.isfinite(v[len(old.history._items):]).all()
