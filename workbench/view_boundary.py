@@ -18,6 +18,7 @@ time per env); the load labels are those of one env (the focused one).
 from __future__ import annotations
 
 import dataclasses
+import threading
 from typing import Callable
 
 import numpy as np
@@ -146,6 +147,7 @@ class BoundaryView:
     """Scene nodes of the boundary glyphs (under ``name``); none while the scene has no fixes or loads."""
 
     def __init__(self, server, *, name: str = "/boundary"):
+        self._nodes_lock = threading.RLock()  # set_boundary (page callbacks) and render (the drawing thread)
         self.server = server
         self.name = name
         self.b: Boundary | None = None
@@ -164,6 +166,10 @@ class BoundaryView:
     def set_boundary(self, b: Boundary | None, *, envs: int = 1) -> None:
         """Replace the glyphs (None or an empty ``Boundary``: none); ``envs``: how many envs of the scene are drawn
         (the grid of envs; each env's glyphs at its own nodes, in the same batched nodes)."""
+        with self._nodes_lock:  # one thread at a time rebuilds or draws these nodes
+            self._set_boundary_unlocked(b, envs)
+
+    def _set_boundary_unlocked(self, b: Boundary | None, envs: int) -> None:
         for h in self.nodes:
             h.remove()
         self.fixed = self.rings = self.arrows = None
@@ -211,6 +217,11 @@ class BoundaryView:
         """Follow node positions x (N, 3) [m] at ``time`` [s]; ``on``: the overlay's toggle; ``arrow_vectors``:
         forces (L, 3) [N] -> arrow vectors [m]. Several envs (``set_boundary(..., envs=B)``): x (B, N, 3) and
         ``time`` one per env (B,); the load labels are env ``label_env``'s."""
+        with self._nodes_lock:  # one thread at a time rebuilds or draws these nodes
+            self._render_unlocked(x, time, on, arrow_vectors, label_env)
+
+    def _render_unlocked(self, x: np.ndarray, time, on: bool, arrow_vectors: Callable[[np.ndarray], np.ndarray],
+                         label_env: int) -> None:
         b = self.b
         if b is None:
             return

@@ -84,6 +84,7 @@ class RodView:
     """Scene nodes of one rod (under ``name``)."""
 
     def __init__(self, server, n_nodes: int, *, name: str = "/rod", sides: int = SIDES):
+        self._nodes_lock = threading.RLock()  # set_scene (page callbacks) and render (the drawing thread)
         self.server = server
         self.sides = sides
         sc = server.scene
@@ -116,6 +117,10 @@ class RodView:
     def set_scene(self, rest_nodes: np.ndarray | None, control_nodes, radius: float, rod_offsets=None) -> None:
         """The rest shape (N, 3) [m] (drawn as a faint tube, one per rod with ``rod_offsets``, see
         :func:`workbench.tube.rods_mesh`) and the control nodes (marked on the rod)."""
+        with self._nodes_lock:  # one thread at a time rebuilds or draws these nodes
+            return self._set_scene_unlocked(rest_nodes, control_nodes, radius, rod_offsets)
+
+    def _set_scene_unlocked(self, rest_nodes: np.ndarray | None, control_nodes, radius: float, rod_offsets=None) -> None:
         sc = self.server.scene
         if self.rest is not None:
             self.rest.remove()
@@ -148,6 +153,10 @@ class RodView:
     def render(self, fr: Frame, colors: np.ndarray, ov) -> None:
         """Update every rod node for frame ``fr`` (call inside ``server.atomic()``); ``ov``: the view's
         ``Overlays`` (rest_shape, control_points, trail, tip_frame)."""
+        with self._nodes_lock:  # one thread at a time rebuilds or draws these nodes
+            return self._render_unlocked(fr, colors, ov)
+
+    def _render_unlocked(self, fr: Frame, colors: np.ndarray, ov) -> None:
         x = np.asarray(fr.node_pos, np.float64)
         r = float(fr.rod_radius)
         m1 = fr.m1 if fr.m1 is not None and len(fr.m1) == len(x) - 1 else None

@@ -83,3 +83,32 @@ def test_a_late_sync_of_the_playing_box_does_not_pause_the_session(app):
     box.value = True  # what a click on the page does: the callback runs
     box.value = False
     assert not wb.playing
+
+
+def test_rebuilding_the_scene_nodes_while_drawing_never_writes_to_a_removed_node(app):
+    """A scene change rebuilds the rod's rest shape and control beads and the boundary glyphs (in a page callback's
+    thread) while frames are drawn (the stepping thread, here also a second drawing thread): a draw never writes to a
+    node the rebuild has just removed (each view's nodes are rebuilt or drawn by one thread at a time)."""
+    from pathlib import Path
+
+    app.wb.load_scene(Path(__file__).resolve().parents[2] / "assets" / "scenes" / "strip_tip_load.toml")
+    errors: list = []
+    stop = threading.Event()
+
+    def draw() -> None:
+        try:
+            while not stop.is_set():
+                app._render(app.wb.frame())
+        except Exception as exc:  # noqa: BLE001 - collected for the assertion
+            errors.append(exc)
+
+    t = threading.Thread(target=draw)
+    t.start()
+    try:
+        for _ in range(150):
+            app.refresh_rod_scene()
+            app.sync_boundary_view()
+    finally:
+        stop.set()
+        t.join()
+    assert errors == [] and app.thread.error is None, (errors, app.thread.error)

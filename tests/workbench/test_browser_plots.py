@@ -64,6 +64,7 @@ def test_replay_plots_every_series_with_timeline_cursor(wb_page):
     want = {"reward and its terms": ["reward", "distance"], "tip error [m]": ["tip_error"],
             "energies [J]": ["bend", "kinetic"], "max contact force [N]": ["max_normal_force"],
             "Newton iterations / substeps": ["newton_iters"]}
+    wait_for(lambda: any(p.key == "ori_error" for p in app.plots.shown), what="the replay's plots on the server")
     want = {**want, next(p.title for p in app.plots.shown if p.key == "ori_error"): ["ori_error"]}
     wait_for(lambda: set(want) <= set(_charts(page)), timeout=30, what="every plot in the page")
     charts = _charts(page)
