@@ -13,7 +13,7 @@ import dataclasses
 import numpy as np
 
 from sim.curvature import curvature_binormal, integrated_twist, material_curvature
-from workbench.frame import Frame, colormap
+from workbench.frame import Frame, colormap, edge_mean_at_nodes
 
 #: "curvature" is |κ|, "strain" the axial stretch ε
 QUANTITIES = ("curvature", "κ1", "κ2", "twist", "strain", "commanded − actual", "none")
@@ -67,9 +67,7 @@ def _rod_values(fr: Frame, quantity: str) -> np.ndarray | None:
     elif quantity == "strain":
         if fr.edge_strain is None:
             return None
-        s = np.asarray(fr.edge_strain, np.float64)
-        v = np.concatenate([[s[0]], 0.5 * (s[:-1] + s[1:]), [s[-1]]])
-        return v
+        return edge_mean_at_nodes(fr.edge_strain)
     else:
         return None
     v = np.asarray(v, np.float64).copy()

@@ -132,6 +132,12 @@ def rod_edges(n_nodes: int, rod_offsets=None) -> np.ndarray:
     return np.flatnonzero(keep)
 
 
+def edge_mean_at_nodes(values) -> np.ndarray:
+    """(N,) per-edge values (N-1,) brought to the nodes: the mean of each node's edges (one edge at either end)."""
+    v = np.asarray(values, np.float64)
+    return np.concatenate([v[:1], 0.5 * (v[:-1] + v[1:]), v[-1:]])
+
+
 def edge_strain(node_pos: np.ndarray, rest_length: np.ndarray) -> np.ndarray:
     """Axial strain per edge: (..., N, 3), (N-1,) -> (..., N-1)."""
     return np.linalg.norm(np.diff(node_pos, axis=-2), axis=-1) / rest_length - 1.0

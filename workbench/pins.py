@@ -15,7 +15,7 @@ import numpy as np
 from sim.curvature import integrated_twist, material_curvature
 from sim.internal import internal_loads
 from workbench import coloring
-from workbench.frame import Frame
+from workbench.frame import Frame, edge_mean_at_nodes
 
 MAX_PINS = 4  # readouts pinned at once (a fifth click replaces the oldest)
 
@@ -55,7 +55,7 @@ def node_readout(fr: Frame, node: int) -> dict[str, float | np.ndarray]:
     edges = [j for j in (node - 1, node) if 0 <= j < len(fr.node_pos) - 1]
     fa = getattr(fr, "edge_axial_force", None)
     if fa is not None:
-        out["axial force"] = float(np.mean(np.asarray(fa, np.float64)[edges]))
+        out["axial force"] = float(edge_mean_at_nodes(fa)[node])
     mom = getattr(fr, "node_moment", None)
     if mom is not None:
         out["M1"], out["M2"], out["T"] = (float(v) for v in np.asarray(mom, np.float64)[node])
@@ -111,8 +111,7 @@ def node_table(sim, snap) -> np.ndarray:
     m1, m2, _t = sim.material_frames(state)
     x, m1, m2 = np.asarray(state.node_pos[0]), m1[0], m2[0]
     loads = internal_loads(sim.model, x, m1, m2, ctrl.kappa_bar[0], ctrl.tau_bar[0])
-    ax = loads.axial
-    node_axial = np.concatenate([ax[:1], 0.5 * (ax[:-1] + ax[1:]), ax[-1:]])
+    node_axial = edge_mean_at_nodes(loads.axial)
     tw = integrated_twist(x, m1) if sim.model.mode == "3d" else np.zeros(len(x))
     return np.column_stack([material_curvature(x, m1, m2), tw, loads.bending, loads.twisting, node_axial])
 
