@@ -134,10 +134,16 @@ def test_display_toggles(wb_page):
     tr = rod.trail_positions()
     assert np.linalg.norm(tr[-1] - tr[0]) > 1e-3
     assert rod.trail_points[-1][0] - rod.trail_points[0][0] <= 2.0 + 1e-9
+    # paused first, so the reset's frame 0 holds until it is seen (playing, it lasts a second of wall clock, which
+    # the test's own round trip through the browser can outlast on a busy machine)
+    app.wb.set_playing(False)
     expand_folder(page, "Run", "Step")
     page.get_by_role("button", name="Reset", exact=True).click()
-    wait_for(lambda: app.wb.frame_index < 20, what="reset")
-    wait_for(lambda: rod.trail_points and rod.trail_points[0][0] < 0.5, what="trail cleared on reset")
+    wait_for(lambda: app.wb.frame_index == 0, what=lambda: f"reset (frame {app.wb.frame_index})")
+    wait_for(lambda: len(rod.trail_points) == 1 and rod.trail_points[0][0] == 0.0,
+             what=lambda: f"trail cleared on reset ({len(rod.trail_points)} points)")
+    app.wb.set_playing(True)  # and it grows again from the reset's frame
+    wait_for(lambda: len(rod.trail_points) > 3, what="a new trail")
 
 
 def test_tip_frame_beside_the_ik_target_frame(wb_page):
