@@ -135,7 +135,7 @@ class MeshSpec(ObstacleSpec):
 class ContactSpec:
     """IMC contact parameters: stiffness k [N/m], delta [m], friction mu [-], friction_velocity_tol [m/s],
     margin [m] (broad-phase distance), enabled, max_penetration [m] (penetration guard: a (sub)step ending
-    deeper is retried with more sub-steps; None = 4 * delta, see :attr:`penetration_limit`), step_limit
+    deeper is retried with more sub-steps; None = 4 * delta), step_limit
     (continuous check of every Newton update against the contact candidates: no update may carry a rod edge
     through an obstacle or push a penetrating pair more than delta deeper; on by default)."""
 
@@ -149,11 +149,6 @@ class ContactSpec:
     step_limit: bool = True
     self_contact: bool = False          # edges of one rod touch each other (sim/contact/edge_pairs.py)
     rod_contact: bool | None = None     # edges of different rods touch; None: on when there are several rods
-
-    @property
-    def penetration_limit(self) -> float:
-        """Effective penetration-guard threshold [m]: ``max_penetration`` or 4 * delta."""
-        return 4.0 * self.delta if self.max_penetration is None else float(self.max_penetration)
 
 
 _KEYS = {
