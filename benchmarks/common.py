@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from sim.support.atomicio import write_via_path
+
 # developer output: the benchmarks run from a checkout (they are not installed), relative to the working directory
 DEFAULT_OUT = Path("docs") / "bench"
 
@@ -93,7 +95,6 @@ def _jsonable(x: Any) -> Any:
 
 
 def _atomic_write(path: Path, write: Callable[[str], None]) -> None:
-    from sim.support.atomicio import write_via_path
 
     write_via_path(path, write)
 

@@ -36,6 +36,10 @@ import numpy as np
 
 import rodlab_cli
 from sim.state import STATE_FLOAT_ARRAYS
+from sim.support.assets import asset_path
+from sim.support.atomicio import write_text
+from sim.support.paths import check_output_path
+from sim.support.progress import add_progress_flag, progress_bar, progress_wanted
 
 PARTS = ("scene", "control", "env", "cli")
 OUTCOMES = ("ok", "clear_error", "crash", "silent_wrong")
@@ -207,7 +211,6 @@ _SIMS: dict[str, Any] = {}
 def _arm_sim(mode: str = "3d"):
     if mode not in _SIMS:
         from sim import Simulator, build_model, load_scene
-        from sim.support.assets import asset_path
 
         _SIMS[mode] = Simulator(build_model(load_scene(asset_path("scenes/arm.toml" if mode == "3d"
                                                                   else "scenes/arm_2d.toml"))), envs=3)
@@ -419,7 +422,6 @@ def fuzz(n: int, *, seed: int = 0, parts: tuple[str, ...] = PARTS, time_limit_s:
     with tempfile.TemporaryDirectory() as td:
         tmp = tmp or td
         Path(tmp, "f.txt").write_text("not a folder")
-        from sim.support.progress import progress_bar
 
         with progress_bar(n, desc="rodlab bench fuzz", unit="case", enabled=progress) as bar:
             for i in range(n):
@@ -460,7 +462,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--time-limit", type=float, default=None, metavar="S", help="stop after S seconds")
     p.add_argument("--out", default=None, help="write the counts as JSON to this file")
     p.add_argument("--json", action="store_true", help="print the JSON to stdout")
-    from sim.support.progress import add_progress_flag, progress_wanted
 
     add_progress_flag(p)
     a = p.parse_args(argv)
@@ -468,7 +469,6 @@ def main(argv: list[str] | None = None) -> int:
     if a.n < 1 or not parts or any(s not in PARTS for s in parts):
         p.error(f"--n must be >= 1 and --parts a subset of {','.join(PARTS)}")
     if a.out:
-        from sim.support.paths import check_output_path
 
         try:
             check_output_path(a.out)
@@ -480,7 +480,6 @@ def main(argv: list[str] | None = None) -> int:
     res["command"] = "rodlab bench fuzz " + " ".join(sys.argv[2:] if argv is None else argv)
     text = json.dumps(res, indent=1)
     if a.out:
-        from sim.support.atomicio import write_text
 
         write_text(a.out, text + "\n")
     if a.json:

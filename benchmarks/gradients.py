@@ -19,11 +19,11 @@ import time
 import numpy as np
 
 from benchmarks.common import base_parser, machine_info, write_json
+from sim.support.assets import asset_path
 
 
 def _arm_spec(converged: bool = True):
     from sim import load_scene
-    from sim.support.assets import asset_path
 
     spec = load_scene(asset_path("scenes/arm.toml"))
     if converged:  # derivatives are of the converged step: let Newton converge

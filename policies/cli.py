@@ -12,6 +12,8 @@ import os
 import sys
 import time
 
+from sim.support.paths import check_output_path
+from sim.support.progress import add_progress_flag, progress_bar, progress_wanted
 from sim.support.text import count
 
 from policies.tasks import gym_task_id
@@ -110,7 +112,6 @@ def train_main(argv: list[str]) -> int:
         p.error("TASK is required")
     if a.steps < 1 or (a.envs is not None and a.envs < 1):
         p.error("--steps and --envs must be positive")
-    from sim.support.paths import check_output_path
 
     try:  # before any work: a run directory that cannot be written loses nothing
         check_device(a.device)
@@ -173,8 +174,6 @@ def eval_main(argv: list[str]) -> int:
     p.add_argument("--record", default=None, metavar="FILE.rrd",
                    help="also record the evaluated episodes to this rerun file (written atomically; its folder is "
                         "checked for writing before the evaluation starts)")
-    from sim.support.paths import check_output_path
-    from sim.support.progress import add_progress_flag, progress_bar, progress_wanted
 
     add_progress_flag(p)
     p.add_argument("--trust-pickle", action="store_true",

@@ -31,6 +31,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from sim.support.atomicio import write_bytes, write_via_path
 
 from policies.training_report import PAPER_TABLE_II
 
@@ -281,7 +282,6 @@ def plot(rows: list[dict], out_png: Path) -> Path:
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
-    from sim.support.atomicio import write_via_path
 
     write_via_path(out_png, lambda tmp: fig.savefig(tmp, format="png", dpi=90))
     plt.close(fig)
@@ -291,7 +291,6 @@ def plot(rows: list[dict], out_png: Path) -> Path:
 def report(sweep_dir: str | Path | list, out_dir: str | Path | None = None,
            iteration_ms: dict[str, float] | None = None) -> dict:
     """Report of one sweep directory, or of several (one figure and table over all their runs; ``out_dir`` needed)."""
-    from sim.support.atomicio import write_bytes
 
     dirs = [Path(d) for d in sweep_dir] if isinstance(sweep_dir, (list, tuple)) else [Path(sweep_dir)]
     if not dirs:

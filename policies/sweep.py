@@ -40,6 +40,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from sim.support.atomicio import write_bytes
+
 FIXED_KEYS = {"task", "seed", "run_dir", "num_envs", "total_steps", "time_limit_minutes", "init_from"}
 
 
@@ -210,7 +212,6 @@ def is_done(trial: Trial) -> bool:
 
 
 def _write_json(path: Path, data: dict) -> None:
-    from sim.support.atomicio import write_bytes
 
     write_bytes(path, json.dumps(data, indent=1).encode())
 

@@ -42,9 +42,21 @@ from pathlib import Path
 import numpy as np
 from sim.support.atomicio import write_bytes
 
-from policies.checkpoint import find_checkpoint, read_state, resume_seed
+from policies.checkpoint import CheckpointError, find_checkpoint, read_state, resume_seed
+from policies.checkpoint import load_checkpoint as _load
 from policies.checkpoint import save_checkpoint as _save_checkpoint
-from policies.sac import BF16_LAYOUTS, PolicyLoadError, save_policy
+from policies.sac import (
+    BF16_LAYOUTS,
+    POLICY_FORMAT,
+    InplaceReLU,
+    LayerNormSACPolicy,
+    PolicyLoadError,
+    RodSAC,
+    load_policy,
+    read_policy_meta,
+    save_policy,
+    sb3_policy_weights,
+)
 from policies.sb3_env import TrainError, make_sb3_env, task_short_name
 from policies.train_monitor import monitor_callback
 
@@ -157,8 +169,6 @@ def check_compiler() -> str:
 def build_sac(args: Args, env):
     """A fresh ``RodSAC`` for ``env`` configured from ``args``."""
 
-    from policies.sac import InplaceReLU, LayerNormSACPolicy, RodSAC
-
     return RodSAC(
         LayerNormSACPolicy, env, learning_rate=args.learning_rate,
         buffer_size=_buffer_size(args),
@@ -194,8 +204,6 @@ def warm_start(model, path: str | os.PathLike, task: str) -> dict:
     Returns a JSON-able description of the source (for config.json).
     """
     import torch as th
-
-    from policies.sac import POLICY_FORMAT, load_policy, read_policy_meta, sb3_policy_weights
 
     p = Path(path)
     if not p.is_file():
@@ -260,15 +268,12 @@ def _log_ent_coef(model) -> float | None:
 # ------------------------------------------------------------------------------------ checkpoints
 def save_checkpoint(model, run_dir: Path, *, wall_s: float, save_buffer: bool) -> None:
     """Write one checkpoint of ``model`` into RUN_DIR/checkpoint/ (see policies/checkpoint.py)."""
-    from policies.checkpoint import save_checkpoint as _save
 
-    _save(model, run_dir, wall_s=wall_s, save_buffer=save_buffer)
+    _save_checkpoint(model, run_dir, wall_s=wall_s, save_buffer=save_buffer)
 
 
 def load_checkpoint(args: Args, run_dir: Path, env):
     """-> (model, state dict). Replay buffer restored when present; raises TrainError when unusable."""
-    from policies.checkpoint import CheckpointError
-    from policies.checkpoint import load_checkpoint as _load
 
     try:
         return _load(run_dir, env, device=args.device, buffer_size=_buffer_size(args))

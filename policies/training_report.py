@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 
 from sim.support.assets import package_data_dir
+from sim.support.atomicio import write_bytes, write_via_path
 
 PAPER_TABLE_II = {  # DisMech -> DisMech average discounted return, mean ± std over seeds
     "follow_target": (96.26, 9.37), "ik4d": (186.24, 63.18), "tight_obstacles_2d": (40.91, 2.98),
@@ -81,7 +82,6 @@ def plot_training_curves(run_dirs: list[str | Path], out_png: str | Path, *, tit
     axes[0, 1].legend(fontsize=8, loc="lower right")
     fig.suptitle(title or "SAC training")
     fig.tight_layout()
-    from sim.support.atomicio import write_via_path
 
     out = write_via_path(out_png, lambda tmp: fig.savefig(tmp, format="png", dpi=100))
     plt.close(fig)
@@ -103,7 +103,6 @@ def ship(run_dir: str | Path, name: str, *, episodes: int = 50, seed: int = 100,
     evaluated on the same ``episodes`` (seed ``seed``); a candidate with a lower average discounted return raises
     ``ShipError`` and nothing is written.
     """
-    from sim.support.atomicio import write_bytes
 
     from policies.evaluate import evaluate
     from policies.train_monitor import best_logged_eval

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
+from sim.validate import env_mask  # a boolean mask, or integer env indices (never guessed)
 
 from .tasks.base import BatchedTask, RewardTermsObserver, check_field_value
 from .tasks.env import action_space, observation_space
@@ -61,7 +62,6 @@ class BatchedVecEnv(VectorEnv):
             self._np_random_seed = seed if isinstance(seed, int) else None
         mask = None
         if options and "reset_mask" in options:
-            from sim.validate import env_mask  # a boolean mask, or integer env indices (never guessed)
 
             mask = env_mask(options["reset_mask"], self.num_envs, "reset_mask")
         obs = self.core.reset(mask)

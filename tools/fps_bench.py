@@ -20,7 +20,8 @@ import sys
 import time
 from pathlib import Path
 
-from tools.browser import close_toasts, newest_client, wait_for
+from sim.support import atomicio
+from tools.browser import close_toasts, launch, newest_client, wait_for
 from workbench.cli import default_scene
 
 RAF_JS = ("() => { window.__raf = 0; const f = () => { window.__raf++; requestAnimationFrame(f); }; "
@@ -141,7 +142,6 @@ def main(argv: list[str] | None = None) -> int:
         if not args.no_browser:
             from playwright.sync_api import sync_playwright
 
-            from tools.browser import launch
 
             pw = sync_playwright().start()
             browser = launch(pw)
@@ -157,7 +157,6 @@ def main(argv: list[str] | None = None) -> int:
         if pw is not None:
             pw.stop()
     if args.json:
-        from sim.support import atomicio
 
         doc = {"command": "python -m tools.fps_bench " + " ".join(argv if argv is not None else sys.argv[1:]),
                "seconds": args.seconds, "size": args.size, "results": results}

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sim import warmup as kernels
 from workbench.core import Workbench
 from workbench.files import Folders
 from workbench.frame import Frame
@@ -187,7 +188,6 @@ class WorkbenchApp:
         the status line what is being compiled: the first start compiles for minutes, and the page would otherwise
         show the last status of a session that does not move. ``sim.warmup.warmup`` is looked up at call time (a
         test replaces it with a slow stand-in)."""
-        from sim import warmup as kernels
 
         def stage(what: str) -> None:
             self.compiling = what

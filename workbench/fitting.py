@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from sim import fit as F
+from sim.model import build_model
 
 __all__ = ["FitJob", "overlay_at", "FIT_CHOICES"]
 
@@ -36,7 +37,6 @@ class FitJob:
 
     def __init__(self, spec: Any, data: Path, params: list[str], *, controls: Path | None = None,
                  max_evaluations: int = 30, notify=None):
-        from sim.model import build_model
 
         if not params:
             raise F.FitError("tick at least one parameter to fit")

@@ -7,7 +7,7 @@ from pathlib import Path
 from workbench.files import page_error
 from workbench.gui_guard import resend_value
 from workbench.gui_host import PanelHost
-from workbench.policy_session import PRETRAINED, PolicySession, shipped_policies
+from workbench.policy_session import PRETRAINED, PolicySession, shipped_policies, task_names
 
 NO_POLICY = ("zero", "random")
 RESEND_AFTER_S = 0.5  # [s] after the page last moved the Rewind slider, its chosen frame is sent to the pages again
@@ -20,7 +20,6 @@ class PolicyPanel:
         self.app = app
         gui = app.server.gui
         try:
-            from workbench.policy_session import task_names
 
             tasks = task_names()
         except Exception as exc:  # noqa: BLE001 - policies not importable: the panel says why
@@ -57,7 +56,6 @@ class PolicyPanel:
 
     def _policies(self) -> list[str]:
         try:
-            from workbench.policy_session import shipped_policies
 
             task = self.task.value if hasattr(self, "task") else None
             files = [p.name for p in shipped_policies(task if task and not task.startswith("(") else None)]

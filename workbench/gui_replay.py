@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from workbench.export import ExportError, export_to_folder
 from workbench.files import FileAccessError, page_error
 from workbench.gui_host import PanelHost
 from workbench.replay import ReplaySession, list_recordings
@@ -164,7 +165,6 @@ class ReplayPanel:
     def export(self, *, png: bool) -> Path | None:
         """Write the open episode as a standalone HTML player (or the current frame as a PNG) into the
         recordings folder, named after the recording and episode; the message line says where."""
-        from workbench.export import ExportError, export_to_folder
 
         rs = self.app.wb.replay
         if rs is None:

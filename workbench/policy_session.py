@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from policies.training_report import PRETRAINED
+from sim.obstacles import CapsuleSpec
+from workbench.obstacles import edits_from_spec
 
 _SKIP = {"sim", "model", "state", "ctrl"}  # owned by LiveSim snapshots
 
@@ -220,8 +222,6 @@ class PolicySession:
         fences = getattr(self.core, "fences", None)
         if fences is None:
             return None
-        from sim.obstacles import CapsuleSpec
-        from workbench.obstacles import edits_from_spec
 
         r = float(self.core.config.fence.radius)
         caps = tuple(CapsuleSpec(start=tuple(map(float, a)), end=tuple(map(float, b)), radius=r, name=f"fence {i}")

@@ -19,6 +19,7 @@ from typing import Callable
 import numpy as np
 
 from sim.support import atomicio
+from workbench.export import frame_indices
 
 MAX_WIDTH = 960  # [px] grabbed frames are at most this wide (the page's aspect ratio is kept)
 MAX_VIDEO_FRAMES = 300
@@ -92,7 +93,6 @@ def record_replay(client, draw: Callable[[int], float], length: int, folder: Pat
     each from the page and write ``folder/<stem>.mp4`` (or ``.gif``). ``progress`` gets 'frame k / n · ETA …'."""
     from PIL import Image
 
-    from workbench.export import frame_indices
 
     if not (isinstance(speed, (int, float)) and math.isfinite(speed) and speed > 0):
         raise RenderError(f"speed must be a positive number (got {speed!r})")

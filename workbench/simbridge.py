@@ -17,6 +17,7 @@ from sim.contact_set import node_radii
 from sim.internal import internal_loads
 from sim.support.assets import asset_path
 from workbench.frame import Frame, curvature_magnitude, edge_strain
+from workbench.teleop import control_points
 
 
 class ActionRefused(RuntimeError):
@@ -264,7 +265,6 @@ def builtin_spec():
 def load(path: str | Path):
     """``sim.load_scene`` (clear ``SceneError`` on bad files), refusing a rod the sliders cannot steer (fewer than
     ``workbench.teleop.MIN_NODES`` nodes) before anything of the open scene changes."""
-    from workbench.teleop import control_points
 
     spec = load_scene(path)
     for rod in spec.rods:

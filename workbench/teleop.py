@@ -15,6 +15,8 @@ from typing import Literal
 
 import numpy as np
 
+from policies.control import ActionConverter, control_config
+
 TeleopMode = Literal["absolute", "delta"]
 COMPONENTS = ("k1", "k2", "twist")
 CONTROL_NODES = (2, 6, 10, 14, 18)  # the paper's arm (21 nodes)
@@ -37,7 +39,6 @@ def control_points(n_nodes: int) -> tuple[int, ...]:
 def make_converter(*, n_nodes: int = 21, substeps: int = 2):
     """The tasks' converter for the 15-dim bend + twist action (s_κ = s_τ = 0.05) at the rod's control points
     (:func:`control_points`), B = 1."""
-    from policies.control import ActionConverter, control_config
 
     return ActionConverter(control_config("bend_twist", substeps=substeps, n_nodes=n_nodes,
                                           control_points=control_points(n_nodes)), envs=1)

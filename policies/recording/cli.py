@@ -22,6 +22,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from sim.support.paths import check_output_path
+from sim.support.progress import add_progress_flag, progress_bar, progress_wanted
 from sim.support.text import count
 
 import policies
@@ -70,8 +72,6 @@ def record(task: str, out: str | Path, *, policy: str | None = None, mode: str =
     """Run ``episodes`` episodes of ``task`` and record them to ``out``. mode: "policy" | "random" |
     "scripted" (``policy`` = path for mode "policy"). ``out`` is checked for writing first. Returns
     {"file", "episodes": [summaries]}. ``show_progress``: a progress bar with ETA on stderr."""
-    from sim.support.paths import check_output_path
-    from sim.support.progress import progress_bar
 
     from .probe import TaskProbe
     from .recorder import Recorder
@@ -138,7 +138,6 @@ def record_main(argv: list[str]) -> int:
                    help="contact force arrow length per newton [m/N] (default 2e-4)")
     p.add_argument("--out", required=True, help="output file, e.g. recordings/NAME.rrd")
     p.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    from sim.support.progress import add_progress_flag, progress_wanted
 
     add_progress_flag(p)
     a = p.parse_args(argv)

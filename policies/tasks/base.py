@@ -29,7 +29,14 @@ from typing import Any, ClassVar, Literal, Protocol
 
 import numpy as np
 
-from policies.control import STATE_NODES, ActionConverter, ControlConfig, ControlIncrement, Smoothing
+from policies.control import (
+    STATE_NODES,
+    ActionConverter,
+    ControlConfig,
+    ControlIncrement,
+    Smoothing,
+    control_config,
+)
 
 from .rewards import FAILURE_REWARD
 
@@ -209,7 +216,6 @@ class BatchedTask:
 
     # ---------------------------------------------------------------- config
     def _control_config(self) -> ControlConfig:
-        from policies.control import control_config
 
         return control_config(self.control_kind, substeps=self.config.substeps,  # type: ignore[arg-type]
                               smoothing=self.config.smoothing)

@@ -15,6 +15,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from sim import Simulator, build_model, load_scene
+from sim.obstacles import CapsuleSpec, ContactSpec
 from sim.support.assets import asset_path
 
 __all__ = ["ARM_SCENE", "scene_for", "scene_path", "make_simulator", "set_env_capsules"]
@@ -25,7 +27,6 @@ ARM_SCENE = "assets/scenes/arm.toml"  # the paper's arm (docs/tasks.md §1.1)
 def scene_for(config: Any, task: Any = None):
     """SceneSpec for a task config (``config.scene``, or the shipped arm when None), with the task's solver
     settings. A missing or invalid file raises SceneError naming it."""
-    from sim import load_scene
 
     spec = load_scene(scene_path(config.scene or ARM_SCENE))
     if task is not None and hasattr(task, "scene_capsules"):
@@ -51,7 +52,6 @@ def scene_path(scene: str | Path) -> Path:
 def _with_capsules(spec, ends: np.ndarray, radius: float):
     """Add capsule obstacles (M, 2, 3) [m] of ``radius`` [m] and the paper's contact settings
     (docs/tasks.md §1.3: k = 1e6, delta = 5e-3 m, broad-phase margin 5e-2 m, no friction)."""
-    from sim.obstacles import CapsuleSpec, ContactSpec
 
     caps = tuple(CapsuleSpec(start=tuple(float(v) for v in e[0]), end=tuple(float(v) for v in e[1]),
                              radius=float(radius), name=f"obstacle_{i}") for i, e in enumerate(np.asarray(ends)))
@@ -72,7 +72,6 @@ def _check_same_capsules(spec, ends: np.ndarray, radius: float) -> None:
 
 def make_simulator(config: Any, *, envs: int, task: Any = None):
     """(Simulator(model, envs=B), model) for a task config."""
-    from sim import Simulator, build_model
 
     model = build_model(scene_for(config, task))
     return Simulator(model, envs=envs), model
