@@ -411,9 +411,10 @@ class ControlsPanel:
                      f"tip ({tip[0]:+.3f}, {tip[1]:+.3f}, {tip[2]:+.3f}) m"]
         if fr is not None and getattr(fr, "hand", None) is not None and fr.hand_force is not None:
             lines.append(f"pulling by hand · **{float(np.linalg.norm(fr.hand_force)):.3g} N** · release to let go")
-        if fr is not None and len(fr.contact_points):
-            total = float(np.linalg.norm(fr.contact_forces, axis=1).sum())
-            lines.append(f"contacts {len(fr.contact_points)} · total contact force **{total:.3g} N**")
+        if fr is not None:
+            line = contact_status(fr)
+            if line:
+                lines.append(line)
         if fr is not None and fr.scalars:
             keys = [k for k in ("reward", "tip_error", "newton_iters", "contact_force") if k in fr.scalars]
             lines.append(" · ".join(f"{k} {fr.scalars[k]:.3g}" for k in keys))
@@ -428,3 +429,21 @@ class ControlsPanel:
         if note and time.monotonic() - at < NOTICE_S:
             lines.append(note)
         self.status.content = "  \n".join(lines)
+
+
+def contact_status(fr) -> str:
+    """The status line's contact summary of frame ``fr``: how many contacts and the net contact force on the rods
+    (the vector sum: what holds the rods up or pushes them; two rods pressing each other add nothing to it), every
+    contact counted where the step reported its total (live sessions), else the sum of the rows drawn (replays);
+    contacts the step's report did not list are said. Empty without contacts."""
+    listed = len(fr.contact_points)
+    dropped = int(fr.scalars.get("contact_dropped", 0.0))
+    if listed + dropped == 0:
+        return ""
+    net = fr.scalars.get("contact_net_force")
+    if net is None:
+        net = float(np.linalg.norm(np.asarray(fr.contact_forces, np.float64).sum(axis=0)))
+    line = f"contacts {listed + dropped} · net contact force **{net:.3g} N**"
+    if dropped:
+        line += f" · {dropped} not drawn this step (the report grows for the next)"
+    return line

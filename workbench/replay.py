@@ -14,7 +14,8 @@ from workbench.obstacles import ObstacleEdit
 
 # scalar name in the recording -> name shown in the workbench plots / status
 PLOT_KEYS = {"reward": "reward", "tip_error": "tip_error", "contact/max_normal_force": "contact_force",
-             "solver/newton_iters": "newton_iters"}
+             "solver/newton_iters": "newton_iters", "contact/dropped": "contact_dropped",
+             "contact/net_force": "contact_net_force"}
 
 
 def list_recordings(root: str | Path | None = None) -> list[Path]:

@@ -20,7 +20,8 @@ from workbench.obstacles import ObstacleEdit, mesh_for_edit
 SCALAR_NAMES = {"reward": "reward", "tip_error": "tip_error", "ori_error": "ori_error", "newton_iters": "solver/newton_iters",
                 "contact_force": "contact/max_normal_force", "max_penetration": "contact/max_penetration",
                 "converged": "solver/converged", "failed": "solver/failed", "contact_count": "contact/count",
-                "pull_force": "hand/pull_force", "hand": "hand/take_over"}
+                "pull_force": "hand/pull_force", "hand": "hand/take_over", "contact_dropped": "contact/dropped",
+                "contact_net_force": "contact/net_force"}
 
 
 def static_scene(edits: list[ObstacleEdit], rod_radius: float, *, planar: bool = False, rod_offsets=None,

@@ -162,7 +162,9 @@ class LiveSim:
 
     def step_scalars(self) -> dict[str, float]:
         """Solver/contact values of the last step: newton_iters, converged and failed (1 or 0), contact_count,
-        contact_force (largest normal contact force [N]), max_penetration [m] (empty before the first step)."""
+        contact_force (largest normal contact force [N]), max_penetration [m], contact_dropped (contacts not listed in
+        the report) and contact_net_force (|total contact force on the rods| [N], every contact counted; a crossing of
+        two rods adds nothing: they push each other equally and oppositely) (empty before the first step)."""
         st = self.last_stats
         if st is None:
             return {}
@@ -173,6 +175,12 @@ class LiveSim:
         k = int(np.asarray(st.contact_count)[0]) if hasattr(st, "contact_count") else 0
         out["contact_count"] = float(k)
         out["contact_force"] = float(np.abs(np.asarray(st.contact_normal_force)[0, :k]).max()) if k else 0.0
+        dropped = np.asarray(getattr(st, "contact_dropped", ()))
+        if dropped.size:  # contacts the report did not list (the Simulator grows it for the next steps)
+            out["contact_dropped"] = float(dropped[0])
+        net = np.asarray(getattr(st, "contact_force", ()))
+        if net.size:  # |the total contact force on the rods|, every contact counted, listed or not
+            out["contact_net_force"] = float(np.linalg.norm(net[0]))
         return out
 
     @property

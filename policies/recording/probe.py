@@ -171,6 +171,9 @@ def _stats_scalars(stats: Any, e: int) -> dict[str, float]:
         dropped = getattr(stats, "contact_dropped", None)
         if dropped is not None and np.asarray(dropped).shape[:1] == np.asarray(cnt).shape[:1]:
             out["contact/dropped"] = float(dropped[e])  # rows not listed: the listed ones are not all
+        net = getattr(stats, "contact_force", None)
+        if net is not None and np.asarray(net).shape[:1] == np.asarray(cnt).shape[:1]:
+            out["contact/net_force"] = float(np.linalg.norm(np.asarray(net)[e]))  # every contact counted
     return out
 
 

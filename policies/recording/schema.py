@@ -84,7 +84,7 @@ STANDARD_SCALARS = (
     "energy/stretch", "energy/bend", "energy/twist", "energy/contact", "energy/kinetic", "energy/gravity",
     "solver/newton_iters", "solver/residual", "solver/converged", "solver/failed", "solver/substeps",
     "solver/midpoint_fallbacks", "solver/wall_time",
-    "contact/count", "contact/max_normal_force", "contact/max_penetration", "contact/dropped",
+    "contact/count", "contact/max_normal_force", "contact/max_penetration", "contact/dropped", "contact/net_force",
     "hand/pull_force", "hand/take_over",
 )
 _SCALAR_NAME = re.compile(r"^[A-Za-z0-9_.\-]+(/[A-Za-z0-9_.\-]+)*$")

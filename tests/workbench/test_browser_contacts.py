@@ -1,5 +1,5 @@
 """Contacts: arrow lengths readable for small and large forces (log / auto / linear), the force in N written at the
-largest contacts, the total contact force in the status line (real browser)."""
+largest contacts, the net contact force in the status line (real browser)."""
 from __future__ import annotations
 
 import re
@@ -40,8 +40,8 @@ def test_contact_force_labels_and_total(wb_page):
     fr = app.view.last_frame
     text = app.view.force_labels[0].text
     assert re.fullmatch(r"[0-9.e+-]+ N", text)
-    wait_for(lambda: "total contact force" in app.controls.status.content, what="total force in the status")
-    expect(page.get_by_text("total contact force", exact=False).first).to_be_visible()
+    wait_for(lambda: "net contact force" in app.controls.status.content, what="net force in the status")
+    expect(page.get_by_text("net contact force", exact=False).first).to_be_visible()
     expect(page.get_by_text(re.compile(r"^[0-9.e+-]+ N$")).first).to_be_attached(timeout=WAIT_MS)
     arrows = np.asarray(app.view.contact_arrows.points)
     assert np.linalg.norm(arrows[:, 1] - arrows[:, 0], axis=1).max() <= ARROW_MAX + 1e-9

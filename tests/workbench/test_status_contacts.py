@@ -1,0 +1,53 @@
+"""The status line's contact summary: every contact counted and the net contact force from the step's own total
+(StepStats.contact_force), also when the report did not list every contact; two rods pressing each other add
+nothing to the net force (equal and opposite)."""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from sim import parse_scene
+from sim.support.assets import asset_path
+from workbench.gui_controls import contact_status
+from workbench.simbridge import LiveSim
+
+NODES = 101  # a rod lying on the floor: one plane contact per node, more than the report's first capacity
+DOC = {"sim": dict(dt=0.01, gravity=[0.0, 0.0, -9.8], damping=2.0, newton_tol=1e-8, newton_max_iter=30,
+                   accept_unconverged=False, mode="3d"),
+       "rod": dict(nodes=NODES, length=2.0, radius=0.01, density=1000.0, youngs_modulus=1e6, poisson_ratio=0.5,
+                   start=[0.0, 0.0, 0.0098], direction=[1.0, 0.0, 0.0], clamp="none"),
+       "contact": dict(stiffness=1e5, delta=1e-3, friction=0.5),
+       "obstacle": [dict(type="plane", point=[0.0, 0.0, 0.0], normal=[0.0, 0.0, 1.0])]}
+
+
+def _net(line: str) -> float:
+    return float(re.search(r"net contact force \*\*([-+0-9.e]+) N\*\*", line).group(1))
+
+
+def test_every_contact_counted_and_the_net_force_is_the_steps_total():
+    live = LiveSim(parse_scene(DOC, str(asset_path("scenes") / "_floor.toml")))
+    assert contact_status(live.frame()) == ""  # before a step: no contacts
+    st = live.step()
+    fr = live.frame()
+    dropped = int(st.contact_dropped[0])
+    assert dropped > 0 and len(fr.contact_points) + dropped == NODES
+    line = contact_status(fr)
+    assert line.startswith(f"contacts {NODES} · ") and f"{dropped} not drawn" in line
+    total = float(np.linalg.norm(st.contact_force[0]))
+    listed = float(np.linalg.norm(fr.contact_forces.sum(axis=0)))
+    assert listed < 0.9 * total  # the rows drawn are part of the contacts ...
+    assert _net(line) == float(f"{total:.3g}")  # ... the net force counts them all
+    st = live.step()  # the report grew: every contact listed
+    line = contact_status(live.frame())
+    assert line.startswith(f"contacts {NODES} · ") and "not drawn" not in line
+    np.testing.assert_allclose(_net(line), np.linalg.norm(st.contact_force[0]), rtol=2e-3)
+
+
+def test_a_replayed_frame_sums_the_rows_it_has():
+    live = LiveSim(parse_scene(DOC, str(asset_path("scenes") / "_floor.toml")))
+    live.step()
+    live.step()
+    fr = live.frame()
+    fr.scalars = {}  # a recording's frame: its rows, no step total
+    np.testing.assert_allclose(_net(contact_status(fr)), np.linalg.norm(fr.contact_forces.sum(axis=0)), rtol=2e-3)
