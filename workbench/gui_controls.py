@@ -100,6 +100,8 @@ class ControlsPanel:
                                                   "a pinned node again to unpin it")
             self.camera = gui.add_button_group("Camera", ("front", "side", "top", "iso"),
                                                hint="view presets: front looks along +y at the x-z plane")
+            self.fit_view = gui.add_button("Fit view", hint="frame the rod, its targets and obstacles from the "
+                                                             "direction you look from now")
             self.follow = gui.add_checkbox("Follow tip", initial_value=False,
                                            hint="the camera looks at the tip every frame, keeping its distance "
                                                 "and direction (orbit and zoom still work)")
@@ -255,6 +257,11 @@ class ControlsPanel:
         def _(_e) -> None:
             if self.camera.value in CAMERAS:
                 app.view.set_camera(self.camera.value)
+
+        @self.fit_view.on_click
+        def _(e) -> None:
+            if e.client is not None:  # the page that asked: the others keep their views
+                app.view.fit_view(e.client)
 
         @self.reach.on_update
         def _(_e) -> None:

@@ -30,6 +30,7 @@ class PanelHost(Protocol):
     tabs: dict[str, Any]  # tab name -> viser tab handle (set by the controls panel)
     render_hooks: list[Callable[["Frame"], None]]
     status_note: str
+    notice: tuple[str, float]  # a passing message for the status line and when it was said (time.monotonic())
     waiting_for_browser: bool
     compiling: str  # the kernel being compiled before the first step ("" when none)
     controls: Any  # gui_controls.ControlsPanel

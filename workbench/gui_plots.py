@@ -8,6 +8,8 @@ rod, commanded against actual per component (``workbench.rod_curves``), of the l
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from viser import uplot
 
@@ -17,6 +19,8 @@ from workbench.plots import Plot, curvature_plot, layout, live_series, y_ticks
 from workbench.rod_curves import live_curves, replay_curves
 
 LIVE_WINDOW = 400  # frames shown in the live plots
+#: the Plots tab's "Plot height" choices: each plot's width over its height
+PLOT_ASPECTS = {"compact": 2.2, "tall": 1.3, "taller": 0.8}
 
 
 def _x_range(p: Plot) -> tuple[float, float]:
@@ -38,6 +42,23 @@ class PlotsPanel:
         self._replay_key: tuple | None = None
         self.shown: list[Plot] = []  # what the page shows now (tests read it)
         self.pin_series = PinSeries()  # the pinned nodes' values over the live history
+        self.aspect = PLOT_ASPECTS["compact"]
+        with self.folder:
+            self.height = app.server.gui.add_dropdown(
+                "Plot height", tuple(PLOT_ASPECTS), initial_value="compact",
+                hint="how tall each plot is drawn (taller plots: more room for the y axis; the panel scrolls)")
+        app.checks.track(self.height)
+
+        @self.height.on_update
+        def _(_e) -> None:
+            if app.checks.option(self.height, lambda msg: setattr(app, "notice", (f"⚠ {msg}", time.monotonic()))):
+                self.set_aspect(PLOT_ASPECTS[self.height.value])
+
+    def set_aspect(self, aspect: float) -> None:
+        """Draw every plot ``aspect`` times as wide as tall (the plots shown now and those made later)."""
+        self.aspect = float(aspect)
+        for h in list(self.handles.values()):
+            h.aspect = self.aspect
 
     # ------------------------------------------------------------------ drawing
     def show(self, plots: list[Plot]) -> None:
@@ -95,7 +116,7 @@ class PlotsPanel:
             self.handles[p.key] = self.app.server.gui.add_uplot(
                 data=p.data, series=tuple(series), scales=self._scales(p.y, _x_range(p)), axes=self._axes(p.y),
                 title=p.title,
-                aspect=2.2, order=1000.0 + order)
+                aspect=self.aspect, order=1000.0 + order)
         self._sig[p.key] = (p.signature, order)
         self._range[p.key], self._xrange[p.key] = p.y, _x_range(p)
 

@@ -74,6 +74,14 @@ def fit_camera(preset: str, points, fov: float = FOV_Y) -> tuple[tuple, tuple]:
     """(position, look-at) [m] of camera preset ``preset`` framing ``points`` (K, 3) [m]: it looks at the centre of
     their bounding box from the preset's direction, from where a sphere of ``FIT_MARGIN`` × the box's half-diagonal
     (at least 5 cm) fills the vertical field of view ``fov`` (the page is wider than tall, so the width fits too)."""
+    return fit_camera_along(CAMERAS[preset], points, fov)
+
+
+def fit_camera_along(direction, points, fov: float = FOV_Y) -> tuple[tuple, tuple]:
+    """:func:`fit_camera` looking from ``direction`` (3,) (from the scene towards the camera; any length)."""
+    d = np.asarray(direction, np.float64).reshape(3)
+    if not (np.isfinite(d).all() and np.linalg.norm(d) > 1e-9):
+        raise ValueError(f"camera direction must be 3 finite numbers, not all zero, got {d.tolist()}")
     p = np.asarray(points, np.float64).reshape(-1, 3)
     p = p[np.isfinite(p).all(axis=1)]
     if len(p) == 0:
@@ -81,7 +89,6 @@ def fit_camera(preset: str, points, fov: float = FOV_Y) -> tuple[tuple, tuple]:
     lo, hi = p.min(axis=0), p.max(axis=0)
     centre = 0.5 * (lo + hi)
     radius = FIT_MARGIN * max(0.5 * float(np.linalg.norm(hi - lo)), 0.05)
-    d = np.asarray(CAMERAS[preset], np.float64)
     d = d / np.linalg.norm(d)
     pos = centre + d * radius / np.sin(0.5 * fov)
     return tuple(float(v) for v in pos), tuple(float(v) for v in centre)
@@ -376,6 +383,15 @@ class SceneView:
         self.server.initial_camera.position, self.server.initial_camera.look_at = pos, look
         for client in self.server.get_clients().values():
             place_camera(client, pos, look)
+
+    def fit_view(self, client, frame: Frame | None = None) -> None:
+        """Frame the scene (:meth:`fit_points`) in ``client``'s page from the direction it looks from now (the
+        page's orbit kept, its distance and look-at fitted); the other pages keep their cameras."""
+        cam = client.camera
+        d = np.asarray(cam.position, np.float64) - np.asarray(cam.look_at, np.float64)
+        if not (np.isfinite(d).all() and np.linalg.norm(d) > 1e-9):  # no direction to keep: the oblique preset's
+            d = np.asarray(CAMERAS["iso"], np.float64)
+        place_camera(client, *fit_camera_along(d, self.fit_points(frame)))
 
     # ------------------------------------------------------------------ obstacles
     @_one_at_a_time
