@@ -74,11 +74,12 @@ class Workbench:
 
     # ------------------------------------------------------------------ stepping
     def step(self) -> None:
-        """Advance the live session by one sim step (whatever the play state)."""
+        """Advance the live session by one sim step, or an open recording by one frame (whatever the play
+        state)."""
         with self.lock:
             if self.mode == "replay":
                 if self.replay is not None:
-                    self.replay.advance()
+                    self.replay.step_frame()
                 return
             scalars: dict = {}
             self._apply_hand()

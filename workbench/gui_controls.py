@@ -14,7 +14,7 @@ COMP_LABELS = ("κ1", "κ2", "τ")
 NOTICE_S = 10.0  # [s] a failed page action is named in the status line this long
 
 
-KEYS_HELP = ("Keys: **space** play / pause · **→** one step (pauses) · **r** reset · **[ ]** previous / next event "
+KEYS_HELP = ("Keys: **space** play / pause · **→** one step or frame (pauses; a replay too) · **r** reset · **[ ]** previous / next event "
              "(not while typing in a field) · **drag the rod** to pull it (a spring from your hand, its force shown "
              "in N; release lets go) · **drag a yellow bead** to bend the rod there · **click the rod** to pin a readout "
              "at a node · drag empty space to turn the view")

@@ -35,6 +35,7 @@ class ReplayPanel:
                                                                     "recordings folder")
             self.msg = gui.add_markdown("")
         self._scrubbing = False
+        self._shown_index = 0  # the replay frame the Timeline slider was last set to (by the page or the server)
         for h in (self.file, self.episode, self.timeline, self.speed):
             app.checks.track(h)
         self._wire()
@@ -99,6 +100,7 @@ class ReplayPanel:
             self.timeline.value = 0
         finally:
             self._scrubbing = False
+        self._shown_index = 0
         self.app.checks.accept(self.timeline)
         meta = s.ep.meta
         self.msg.content = (f"`{s.path.name if s.path else ''}` · episode {s.episode_index} · {s.length} frames  \n"
@@ -131,6 +133,7 @@ class ReplayPanel:
                 if wb.replay is None:  # closed by another action since the check
                     return
                 wb.replay.seek(int(self.timeline.value))
+                self._shown_index = wb.replay.index
             self._plot()
             app.request_render()
 
@@ -188,12 +191,16 @@ class ReplayPanel:
         wb = self.app.wb
         if wb.mode == "replay" and wb.replay is not None:
             s = wb.replay
-            if s.playing and int(self.timeline.value) != s.index:
+            # the server moved the replay (played, stepped with → / Step, an event sought): the slider follows. A
+            # frame the page chose is the replay's once its callback has run (then _shown_index is that frame), so a
+            # value the page is sending is never put back here.
+            if s.index != self._shown_index:
                 self._scrubbing = True
                 try:
                     self.timeline.value = s.index
                 finally:
                     self._scrubbing = False
+                self._shown_index = s.index
                 self.app.checks.accept(self.timeline)
-            if not s.playing and self.play.value:
-                self.play.value = False
+            if s.playing != bool(self.play.value):  # played or paused from the Run tab (space)
+                self.play.value = s.playing

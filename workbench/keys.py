@@ -1,5 +1,5 @@
 """Keyboard shortcuts of the workbench page: space = play / pause, → = one step, r = reset, [ / ] = previous / next
-event.
+event. With a recording open, space plays and pauses the replay and → steps it one frame.
 
 viser has no key events for the server. The workbench adds a small static script to the page it serves
 (``workbench.handshake`` inserts it into viser's ``index.html``); on a key press outside text fields the script

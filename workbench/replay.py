@@ -97,6 +97,14 @@ class ReplaySession:
     def seek(self, index: int) -> None:
         self.index = int(np.clip(index, 0, self.length - 1))
 
+    def step_frame(self) -> bool:
+        """One frame on, whatever the play state (the Step button, →); stays at the last. Returns whether the frame
+        changed."""
+        if self.index >= self.length - 1:
+            return False
+        self.index += 1
+        return True
+
     def advance(self) -> bool:
         """Next frame when playing; stops at the end. Returns whether the frame changed."""
         if not self.playing:

@@ -96,3 +96,41 @@ def test_previous_event_moves_the_rewind_slider_live(wb_page):
     page.get_by_role("button", name="Rewind", exact=True).click()
     wait_for(lambda: wb.frame_index == grabbed, what="rewound to the pull")
     expect(page.get_by_label("Playing")).not_to_be_checked()  # the page's action is over (the box shows the pause)
+
+
+def test_keys_play_pause_and_step_a_replay(wb_page):
+    """In a replay, space plays and pauses the recording and → steps it one frame (paused), the Recordings tab's
+    Timeline and "Play recording" box following."""
+    app, page = wb_page
+    wb = app.wb
+    path = _record(wb, app.recordings_dir / "keys.rrd")
+    app.replay.refresh_list()
+    rs = app.replay.open(path)
+    try:
+        expand_folder(page, "Recordings", "Open recording")
+        _blur(page)
+        assert not rs.playing and rs.index == 0
+        for n in (1, 2, 3):
+            page.keyboard.press("ArrowRight")
+            wait_for(lambda n=n: rs.index == n and int(app.replay.timeline.value) == n,
+                     what=lambda n=n: f"→ steps the replay to frame {n} (at {rs.index}, slider "
+                                      f"{app.replay.timeline.value})")
+        assert not rs.playing
+        expect(page.get_by_label("Play recording")).not_to_be_checked()
+        rs.speed = 0.25  # seconds of wall clock for the rest of the episode, so it is still playing when paused
+        page.keyboard.press("Space")
+        wait_for(lambda: rs.index > 3, what="space plays the recording")
+        # the box shows it (unless the episode has already ended, which stops the replay and unticks it)
+        wait_for(lambda: bool(app.replay.play.value) or not rs.playing, what="the Play recording box ticked")
+        page.keyboard.press("Space")
+        wait_for(lambda: not rs.playing, what="space pauses it")
+        expect(page.get_by_label("Play recording")).not_to_be_checked()
+        at = rs.index
+        wait_for(lambda: int(app.replay.timeline.value) == at, what="the timeline at the paused frame")
+        if at < rs.length - 1:
+            page.keyboard.press("ArrowRight")
+            wait_for(lambda: rs.index == at + 1, what="→ steps on from the paused frame")
+    finally:
+        wb.close_replay()
+        path.unlink()
+        app.replay.refresh_list()
