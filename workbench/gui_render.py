@@ -1,11 +1,16 @@
 """GUI: a screenshot of the 3-D view and a video of the open replay, grabbed from the page that asked
-(``workbench.render_export``), written into the recordings folder. Progress and ETA show in the status line."""
+(``workbench.render_export``), written into the recordings folder. Progress and ETA show in the status line. The
+video looks from the page's direction at the whole episode (framed to every frame's rod, targets and obstacles), and
+the page's view comes back afterwards."""
 from __future__ import annotations
 
 import threading
 
+import numpy as np
+
 from workbench.gui_host import PanelHost
 from workbench.render_export import MAX_VIDEO_FRAMES, RenderError, has_mp4_writer, record_replay, screenshot
+from workbench.view_scene import CAMERAS, fit_camera_along, place_camera
 
 
 class RenderPanel:
@@ -84,6 +89,18 @@ class RenderPanel:
         self.thread.start()
         return self.thread
 
+    def _frame_episode(self, client, rs) -> None:
+        """Point ``client``'s camera, from the direction it looks from, at the whole episode: every frame's rod, its
+        targets and the obstacles fill the view (the rod is as large in the video as its motion allows)."""
+        with self.app.wb.lock:
+            fr = rs.frame()
+            pos = np.asarray(rs.ep.positions, np.float64).reshape(-1, 3)
+        pts = np.vstack([self.app.view.fit_points(fr), pos])
+        d = np.asarray(client.camera.position, np.float64) - np.asarray(client.camera.look_at, np.float64)
+        if not (np.isfinite(d).all() and np.linalg.norm(d) > 1e-9):
+            d = np.asarray(CAMERAS["iso"], np.float64)
+        place_camera(client, *fit_camera_along(d, pts))
+
     def _record(self, client, rs) -> None:
         app, wb = self.app, self.app.wb
         start, rs.playing = rs.index, False
@@ -101,7 +118,10 @@ class RenderPanel:
             self._say(app.status_note)
 
         self.cancel_btn.visible = True
+        cam = client.camera
+        view0 = (tuple(cam.position), tuple(cam.look_at))
         try:
+            self._frame_episode(client, rs)
             out = record_replay(client, draw, rs.length, app.files.recordings, stem, speed=rs.speed,
                                 progress=progress, cancelled=self._cancel.is_set)
         except (RenderError, OSError, TimeoutError, ValueError) as exc:
@@ -111,6 +131,7 @@ class RenderPanel:
             self.last_path = out
             self._say(f"saved {out.name} to the recordings folder")
         finally:
+            place_camera(client, *view0)  # the page's own view again
             app.status_note = ""
             self.cancel_btn.visible = False
             with wb.lock:

@@ -93,7 +93,6 @@ def record_replay(client, draw: Callable[[int], float], length: int, folder: Pat
     each from the page and write ``folder/<stem>.mp4`` (or ``.gif``). ``progress`` gets 'frame k / n · ETA …'."""
     from PIL import Image
 
-
     if not (isinstance(speed, (int, float)) and math.isfinite(speed) and speed > 0):
         raise RenderError(f"speed must be a positive number (got {speed!r})")
     if length < 1:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tools.browser import expand_folder, wait_for
+from tools.browser import expand_folder, newest_client, wait_for
 from workbench.render_export import eta_text, unique_name
 
 
@@ -51,6 +51,8 @@ def test_browser_screenshot_and_video(wb_page):
     app.replay.open("swing.rrd")
     wait_for(lambda: app.wb.mode == "replay", what="replay open")
     notes = []
+    cam = newest_client(app).camera
+    view0 = np.concatenate([cam.position, cam.look_at])
     app.render_hooks.append(lambda _fr: notes.append(app.status_note))
     try:
         page.get_by_role("button", name="Record video").click()
@@ -60,17 +62,18 @@ def test_browser_screenshot_and_video(wb_page):
         app.render_hooks.pop()
     assert app.pictures.last_error is None
     out = app.pictures.last_path
-    assert out.parent == folder and out.suffix in (".gif", ".mp4")
+    assert out.parent == folder and out.suffix == ".mp4"  # imageio-ffmpeg is a dependency: an MP4, not a GIF
     assert any("ETA" in n for n in notes) and app.status_note == ""
-    if out.suffix == ".gif":
-        gif = Image.open(out)
-        assert gif.n_frames == 8
-        frames = []
-        for i in (0, 7):
-            gif.seek(i)
-            frames.append(np.asarray(gif.convert("L"), dtype=float))
-        assert np.mean(np.abs(frames[0] - frames[1]) > 30) > 0.002  # the rod moved between first and last frame
+    import imageio.v3 as iio
+
+    video = iio.imread(out, plugin="FFMPEG")  # read back: every frame, in colour, the even size encoders want
+    assert video.shape[0] == 8 and video.shape[-1] == 3 and video.shape[1] % 2 == 0 and video.shape[2] % 2 == 0
+    first, last = (video[i].astype(float).mean(axis=-1) for i in (0, 7))
+    assert np.mean(np.abs(first - last) > 30) > 0.002  # the rod moved between the first and the last frame
     assert app.wb.replay.index == 0  # back where it was
+    # the video looked at the whole episode; the page's own view is back
+    wait_for(lambda: np.allclose(np.concatenate([cam.position, cam.look_at]), view0, atol=1e-6),
+             what="the page's camera back where it was")
 
 
 def _umask() -> int:
