@@ -64,6 +64,16 @@ def best_logged_eval(path: Path) -> dict | None:
     return best
 
 
+def bar_phase(num_timesteps: int, learning_starts: int, updates: int, compiled: bool) -> str:
+    """What the training bar says the run is doing: collecting the random transitions SB3 gathers before its first
+    update (fast env steps only), the first updates (slow while ``compiled`` updates compile), then training."""
+    if num_timesteps <= learning_starts:
+        return "warm-up: random actions"
+    if updates == 0:
+        return "first updates: compiling" if compiled else "first updates"
+    return "training"
+
+
 def _append_csv(path: Path, columns: list[str]):
     new = not path.exists() or path.stat().st_size == 0
     f = open(path, "a", newline="")
@@ -104,12 +114,23 @@ def monitor_callback(args, run_dir: Path, wall_offset: float, stop_flag: dict, e
             logged = best_logged_eval(run_dir / "eval.csv")  # a resumed run keeps its policy_best.zip
             self.best_eval = -math.inf if logged is None else logged["eval_avg_disc_return_mean"]
             self.bar = None
+            self.updates = 0  # updates seen (the bar's phase)
+            self.phase = ""
             if sys.stderr.isatty():
                 from tqdm import tqdm
                 self.bar = tqdm(total=args.total_steps, initial=self.num_timesteps, unit="step", unit_scale=True,
                                 dynamic_ncols=True, mininterval=1.0)
+                self._show_phase()
             self.csv_f, self.csv = _append_csv(run_dir / "metrics.csv", METRICS_COLUMNS)
             self.eval_f, self.eval_csv = _append_csv(run_dir / "eval.csv", EVAL_COLUMNS)
+
+        def _show_phase(self) -> None:
+            """The bar's label follows the run's phase (env steps race ahead during SB3's warm-up, then slow down)."""
+            phase = bar_phase(self.num_timesteps, int(getattr(self.model, "learning_starts", 0)), self.updates,
+                              bool(getattr(args, "compile_updates", False)))
+            if phase != self.phase:
+                self.phase = phase
+                self.bar.set_description_str(phase, refresh=True)
 
         def wall(self) -> float:
             return wall_offset + time.perf_counter() - self.t_start
@@ -122,6 +143,8 @@ def monitor_callback(args, run_dir: Path, wall_offset: float, stop_flag: dict, e
             env = self.training_env
             self.env_t.append(getattr(env, "last_step_time", math.nan))
             self.upd_t.append(self.model.last_update_time)
+            if self.model.last_update_time > 0.0:
+                self.updates += 1
             self.model.last_update_time = 0.0
             rew = np.asarray(self.locals["rewards"], dtype=np.float64)
             dones = np.asarray(self.locals["dones"], dtype=bool)
@@ -149,6 +172,7 @@ def monitor_callback(args, run_dir: Path, wall_offset: float, stop_flag: dict, e
                 self.length[i] = 0
             if self.bar is not None:
                 self.bar.update(len(rew))
+                self._show_phase()
             if now - self.last_log >= args.log_interval_s:
                 self._log()
             if args.time_limit_minutes > 0 and now - self.t_start >= 60.0 * args.time_limit_minutes:
