@@ -15,7 +15,9 @@ from .scene import RodSpec, SceneSpec, SimSpec
 from .static import solve_static
 from .step import Simulator
 
-__all__ = ["warmup"]
+__all__ = ["warmup", "STAGES"]
+
+STAGES = 4  # kernel groups compiled by warmup: the step, then the static Hessian and derivatives, in 3-D and in 2-D
 
 
 def _tiny_spec(mode: str):
@@ -28,11 +30,19 @@ def _tiny_spec(mode: str):
 
 def warmup(*, verbose: bool = False, on_stage: Callable[[str], None] | None = None) -> float:
     """Compile/load the 3-D and 2-D kernels; returns the seconds it took. ``on_stage(what)`` is called before each
-    kernel with what is compiled next (the workbench shows it while the page waits)."""
+    of the :data:`STAGES` kernel groups with what is compiled next and how far along that is ("… (stage k of 4)";
+    the workbench shows it while the page waits)."""
     t0 = time.perf_counter()
-    for mode in ("3d", "2d"):
+    k = 0
+
+    def stage(what: str) -> None:
+        nonlocal k
+        k += 1
         if on_stage is not None:
-            on_stage(f"the {mode.upper()} step kernel")
+            on_stage(f"{what} (stage {k} of {STAGES})")
+
+    for mode in ("3d", "2d"):
+        stage(f"the {mode.upper()} step kernel")
         if verbose:
             print(f"sim.warmup: compiling the {mode} step kernel (first run only; cached afterwards)...",
                   file=sys.stderr, flush=True)
@@ -40,8 +50,7 @@ def warmup(*, verbose: bool = False, on_stage: Callable[[str], None] | None = No
         sim = Simulator(build_model(spec), envs=2)
         state = sim.reset()
         sim.step(state, sim.make_control())
-        if on_stage is not None:
-            on_stage(f"the {mode.upper()} static Hessian and derivatives")
+        stage(f"the {mode.upper()} static Hessian and derivatives")
         if verbose:
             print(f"sim.warmup: compiling the {mode} static Hessian and rollout derivatives...", file=sys.stderr,
                   flush=True)
