@@ -96,6 +96,7 @@ class RodView:
         self._name = name
         self.control_nodes: tuple[int, ...] = ()
         self.controls = None
+        self.control_labels: list = []  # "node k" beside each control point's bead (the sliders name the same nodes)
         self.rest = None
         self.rest_nodes: np.ndarray | None = None
         self.trail = sc.add_line_segments(f"{name}/trail", np.zeros((1, 2, 3)), TRAIL_COLOR, thickness=2.5,
@@ -141,6 +142,11 @@ class RodView:
                 batched_wxyzs=np.tile([1.0, 0.0, 0.0, 0.0], (k, 1)), batched_positions=np.zeros((k, 3)),
                 batched_scales=np.full(k, 1e-4), batched_colors=np.tile(CONTROL_COLOR, (k, 1)), lod="off",
                 visible=False)
+            for lab in self.control_labels:
+                lab.remove()
+            self.control_labels = [sc.add_label(f"{self._name}/control_label_{c}", f"node {c}", visible=False,
+                                                depth_test=False, anchor="bottom-left", font_screen_scale=0.8)
+                                   for c in cn]
             self.control_nodes = cn
             if self._on_bend is not None or self._on_pick is not None:
                 self._bind_bend()
@@ -175,6 +181,11 @@ class RodView:
             self.controls.batched_scales = np.full(len(cn), 1.3 * r)
         if self.controls is not None and self.controls.visible != show_c:
             self.controls.visible = show_c
+        for lab, c in zip(self.control_labels, self.control_nodes):  # just above and beside each bead
+            if show_c:
+                lab.position = tuple(x[c] + 1.5 * r)
+            if lab.visible != show_c:
+                lab.visible = show_c
         self._trail(fr, bool(ov.trail))
         self._tip_frame(fr, x, m1, bool(ov.tip_frame))
         self._grip(x, r, getattr(fr, "rod_offsets", None))

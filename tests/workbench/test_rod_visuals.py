@@ -270,3 +270,34 @@ def test_target_and_its_frame_hide_when_a_frame_has_no_target():
         view.rod.tube.close()
     finally:
         server.stop()
+
+
+def test_each_control_point_is_labelled_with_its_node():
+    """The beads say which node they are (the teleop sliders name the same nodes) and follow the rod; hidden with
+    the control points."""
+    import viser
+
+    from workbench.view_rod import RodView
+
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)  # real handles: labels keep their text
+    rod = RodView(server, N)
+    try:
+        _labels_follow_the_control_points(rod)
+    finally:
+        rod.tube.close()  # no swap after the server stopped
+        server.stop()
+
+
+def _labels_follow_the_control_points(rod) -> None:
+    nodes = (2, 6, 10, 14, 18)
+    rod.set_scene(straight(), nodes, R)
+    x = sharp()
+    rod.render(Frame(node_pos=x, rod_radius=R), np.zeros((N, 3), np.uint8), _overlays())
+    assert [lab.text for lab in rod.control_labels] == [f"node {c}" for c in nodes]
+    assert all(lab.visible for lab in rod.control_labels)
+    for lab, c in zip(rod.control_labels, nodes):
+        np.testing.assert_allclose(lab.position, x[c] + 1.5 * R)
+    rod.render(Frame(node_pos=x, rod_radius=R), np.zeros((N, 3), np.uint8), _overlays(control_points=False))
+    assert not any(lab.visible for lab in rod.control_labels)
+    rod.set_scene(straight(), (3, 9), R)  # other control nodes: other labels
+    assert [lab.text for lab in rod.control_labels] == ["node 3", "node 9"]
