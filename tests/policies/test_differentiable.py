@@ -9,7 +9,7 @@ import torch
 from policies.differentiable import DifferentiableRollout
 from sim.model import build_model
 from sim.step import Simulator
-from tests.unit._rodspec import make_spec
+from tests.helpers.rodspec import make_spec
 
 T, B = 8, 2
 

@@ -1,7 +1,7 @@
 """Task envs: gymnasium/SB3 checkers, observation layout, termination and failure rules.
 
-Structure tests run on a kinematic stand-in of the simulator (``fake_sim``); behaviour tests on the
-real simulator live in test_tasks_sim.py.
+On the real simulator (a few envs, a few steps); the tasks' behaviour over whole episodes is in
+test_tasks_sim.py.
 """
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ def test_registry():
 
 
 @pytest.mark.parametrize("tid", sorted(DIMS))
-def test_check_env_and_layout(fake_sim, tid):
+def test_check_env_and_layout(tid):
     env = gym.make(tid)
     check_env(env.unwrapped, skip_render_check=True)
     obs_dim, act_dim = DIMS[tid]
@@ -53,14 +53,14 @@ def test_check_env_and_layout(fake_sim, tid):
     env.close()
 
 
-def test_sb3_check_env(fake_sim):
+def test_sb3_check_env():
     from stable_baselines3.common.env_checker import check_env as sb3_check
 
     for tid in ("rodlab/FollowTarget-v0", "rodlab/IK4D-v0"):
         sb3_check(gym.make(tid).unwrapped, warn=True)
 
 
-def test_initial_observation_values(fake_sim):
+def test_initial_observation_values():
     env = gym.make("rodlab/TightObstacles2D-v0").unwrapped
     obs, _ = env.reset(seed=0)
     np.testing.assert_allclose(obs[-2:], [0.8, 0.15], atol=1e-7)           # target_pos last
@@ -72,7 +72,7 @@ def test_initial_observation_values(fake_sim):
     assert np.all(fence[..., 0] >= 0.3 - 1e-6) and np.all(fence[..., 0] <= 0.6 + 1e-6)
 
 
-def test_truncation_counts_timeout_plus_one(fake_sim):
+def test_truncation_counts_timeout_plus_one():
     env = policies.make_vec_env("ik4d", 2, seed=0, timeout_steps=3)
     env.reset()
     a = np.zeros((2, 15), np.float32)
@@ -84,25 +84,46 @@ def test_truncation_counts_timeout_plus_one(fake_sim):
     assert np.all(env.core.step_count == 0)          # SAME_STEP: already reset
 
 
-def test_sim_failure_and_explosion(fake_sim):
+class _SpoilAfterSimStep:
+    """A StepObserver that writes NaN into env ``env``'s state after the last sim step of the next control step.
+
+    The simulator has finished that step, so the reward sees the NaN (a reward explosion); a NaN state given to the
+    simulator is refused by it instead (``sim_failed``, the other path)."""
+
+    def __init__(self, env: int):
+        self.env, self.armed = env, True
+
+    def on_reset(self, core, mask):
+        pass
+
+    def on_sim_step(self, core, substep, stats):
+        if self.armed and substep == core.config.substeps - 1:
+            core.state.dof[self.env] = np.nan
+            core.state.dof_vel[self.env] = np.nan
+            self.armed = False
+
+    def on_step(self, core, reward, terminated, truncated, info):
+        pass
+
+
+def test_sim_failure_and_explosion():
     venv = policies.make_vec_env("follow_target", 3, seed=0)
     venv.reset()
     core = venv.core
-    core.ctrl.kappa_bar[1, 5, 0] = 100.0            # the stand-in simulator fails env 1
+    core.state.dof_vel[1] = np.nan                  # a non-finite state: the simulator fails env 1
     obs, r, term, trunc, info = venv.step(np.zeros((3, 10), np.float32))
     assert term.tolist() == [False, True, False] and r[1] == -10.0
     assert info["failure_reason"][1] == "sim_failed" and info["final_info"]["failure_reason"][1] == "sim_failed"
     assert info["reward/failure"][1] == -10.0 and info["reward/distance"][1] == 0.0
     assert np.isfinite(obs).all()
-    # NaN state -> reward NaN -> terminated with -10 and a sanitised observation
-    core.state.dof[2] = np.nan
-    core.state.dof_vel[2] = np.nan
+    # NaN state after the simulator's step -> reward NaN -> terminated with -10 and a sanitised observation
+    core.add_observer(_SpoilAfterSimStep(env=2))
     obs, r, term, trunc, info = venv.step(np.zeros((3, 10), np.float32))
     assert term[2] and r[2] == -10.0 and info["failure_reason"][2] == "reward_explosion"
     assert np.isfinite(info["final_obs"][2]).all() and np.isfinite(obs).all()
 
 
-def test_bad_actions(fake_sim):
+def test_bad_actions():
     env = gym.make("rodlab/FollowTarget-v0").unwrapped
     env.reset(seed=0)
     with pytest.raises(ValueError, match="shape"):
@@ -115,7 +136,7 @@ def test_bad_actions(fake_sim):
         venv.step(np.zeros((3, 10)))
 
 
-def test_config_override_and_validation(fake_sim):
+def test_config_override_and_validation():
     from policies.tasks.follow_target import default_config
 
     cfg = dataclasses.replace(default_config(), smoothing="reference", target_speed=0.2)
@@ -168,21 +189,24 @@ class _Counter:
 
 
 @pytest.mark.parametrize("task", sorted(TASKS))
-def test_step_equals_its_parts_bitwise(fake_sim, task):
+def test_step_equals_its_parts_bitwise(task):
     """``step`` and begin_step / sim_step x substeps / end_step give the same observations, rewards, terminations,
     truncations and infos, bit for bit, through truncation, a simulator failure and a reward explosion."""
     cores = [policies.make_vec_env(task, 3, seed=5, timeout_steps=2).core for _ in range(2)]
     counters = [_Counter(), _Counter()]
-    for core, counter in zip(cores, counters):
+    spoilers = [_SpoilAfterSimStep(env=2), _SpoilAfterSimStep(env=2)]
+    for core, counter, spoil in zip(cores, counters, spoilers):
         core.add_observer(counter)
+        core.add_observer(spoil)
+        spoil.armed = False
         core.reset()
     acts = np.random.default_rng(1).uniform(-1, 1, (7, 3, cores[0].action_dim)).astype(np.float32)
     for t, a in enumerate(acts):
-        for core in cores:
+        for core, spoil in zip(cores, spoilers):
             if t == 2:
-                core.ctrl.kappa_bar[1, 5, 0] = 100.0      # the stand-in simulator fails env 1
+                core.state.dof_vel[1] = np.nan            # a non-finite state: the simulator fails env 1
             if t == 4:
-                core.state.dof[2] = np.nan                # env 2: NaN reward -> reward explosion
+                spoil.armed = True                        # env 2: NaN after the sim step -> reward explosion
         whole, parts = cores[0].step(a), _step_in_parts(cores[1], a)
         _assert_bitwise(whole, parts, f"{task} step {t}")
         assert not cores[1].step_in_progress
@@ -200,7 +224,7 @@ def test_step_equals_its_parts_bitwise(fake_sim, task):
     assert counters[0].resets == counters[1].resets
 
 
-def test_step_parts_refuse_the_wrong_order(fake_sim):
+def test_step_parts_refuse_the_wrong_order():
     core = policies.make_vec_env("follow_target", 2, seed=0).core
     core.reset()
     a = np.zeros((2, core.action_dim), np.float32)
@@ -232,7 +256,7 @@ def test_step_parts_refuse_the_wrong_order(fake_sim):
         core.step(None)
 
 
-def test_a_failed_step_leaves_no_step_in_progress(fake_sim):
+def test_a_failed_step_leaves_no_step_in_progress():
     class Boom:
         def on_reset(self, core, mask):
             pass
@@ -255,7 +279,7 @@ def test_a_failed_step_leaves_no_step_in_progress(fake_sim):
     assert core.step(a)[4]["episode_step"].tolist() == [1]   # the failed step did not count
 
 
-def test_step_without_action_leaves_the_controls_to_the_caller(fake_sim):
+def test_step_without_action_leaves_the_controls_to_the_caller():
     """begin_step(None) and sim_step(increment=False) (the workbench's hand control): no increment reaches the
     controls, the converter keeps its values, and the control step still ends with a reward and a counted step."""
     core = policies.make_vec_env("follow_target", 2, seed=0).core

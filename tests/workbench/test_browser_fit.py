@@ -9,7 +9,7 @@ import re
 import pytest
 
 from sim.scene import load_scene
-from tests.unit.test_fit import synthetic, write_csv
+from tests.helpers.fit import synthetic, write_csv
 from tests.workbench.test_fit_panel import scene
 from tools.browser import expand_folder, wait_for
 from workbench.simbridge import builtin_spec

@@ -14,8 +14,8 @@ import pytest
 
 from sim import fit as F
 from sim.scene import dump_scene, load_scene
-from tests.unit._rodspec import make_spec
-from tests.unit.test_fit import synthetic, write_csv
+from tests.helpers.fit import synthetic, write_csv
+from tests.helpers.rodspec import make_spec
 from tools.browser import wait_for
 from workbench.files import FileAccessError, Folders
 from workbench.fitting import FitJob, overlay_at
@@ -26,7 +26,7 @@ TRUTH = {"youngs_modulus": 1.3e6, "damping": 0.5}
 
 def scene(tmp_path):
     """A 21-node clamped rod leaning over under gravity, damped, Newton converged tightly (the rod of
-    tests/unit/test_fit.py with the workbench's 21 nodes), as a scene file."""
+    tests/sim/test_fit.py with the workbench's 21 nodes), as a scene file."""
     p = tmp_path / "rod_3d.toml"
     direction = tuple(np.array([1.0, 0.0, 0.3]) / np.hypot(1.0, 0.3))
     dump_scene(make_spec(nodes=21, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.2, max_iter=30,

@@ -42,7 +42,7 @@ def test_a_readout_holds_the_simulators_curvature_velocity_and_command():
     assert abs(node_readout(fr, 10)["κ1"]) > 0.01
     text = readout_text(10, node_readout(fr, 10))
     assert text.startswith("node 10 · (") and f"κ1 {node_readout(fr, 10)['κ1']:+.3f}" in text
-    # what the material carries there: the simulator's internal loads (sim.internal, tests/verification)
+    # what the material carries there: the simulator's internal loads (sim.internal, tests/sim/test_internal_loads.py)
     loads = wb.live.sim.internal_loads(st, wb.live.ctrl)
     r = node_readout(fr, 10)
     assert (r["M1"], r["M2"], r["T"]) == (loads.bending[0, 10, 0], loads.bending[0, 10, 1], loads.twisting[0, 10])

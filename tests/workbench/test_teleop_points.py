@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sim.scene import dump_scene
-from tests.unit._rodspec import make_spec
+from tests.helpers.rodspec import make_spec
 from workbench.teleop import CONTROL_NODES, control_points
 
 
