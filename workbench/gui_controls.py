@@ -45,6 +45,7 @@ class ControlsPanel:
         gui = app.server.gui
         wb = app.wb
         self.status = gui.add_markdown("starting…")
+        self.colorbar = gui.add_html("")  # above the tabs: the rod's colours read the same whichever tab is open
         self.msg = gui.add_markdown("")
         group = gui.add_tab_group()
         app.tabs = {name: group.add_tab(name) for name in TABS}
@@ -66,7 +67,6 @@ class ControlsPanel:
                                                 hint="auto: the largest value in the frame; fixed: the value below")
             self.color_max = gui.add_number("Fixed range max", initial_value=0.5, min=1e-6, max=100.0, step=0.01,
                                             hint="largest |value| of the colour map when the range is fixed")
-            self.colorbar = gui.add_html("")
             self.frames = gui.add_checkbox("Material frames", initial_value=False,
                                            hint="the material frame (m1, m2, tangent) of every edge")
             self.contacts = gui.add_checkbox("Contacts", initial_value=True, hint="contact points and forces")

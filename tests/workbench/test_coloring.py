@@ -81,5 +81,7 @@ def test_colour_bar_follows_quantity_and_range(wb_page):
     field.press("Enter")
     wait_for(lambda: bar_range() == (-0.8, 0.8), timeout=15, what="fixed range in the colour bar")
     assert re.search(r"twist", app.controls.colorbar.content)
+    expand_folder(page, "Run", "Step")  # the colour bar stays in view whichever tab is open
+    expect(bar).to_be_visible()
     app.controls.color_range.value = "auto"
     app.controls.color_by.value = "curvature"
