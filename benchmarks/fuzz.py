@@ -14,7 +14,7 @@ Parts: ``scene`` (scene documents: the paper arm with one obstacle of each analy
 huge, tiny, negative, non-finite, wrong-type, missing or unknown keys), ``control`` (``Simulator.step`` with
 random control arrays and state corruption), ``env`` (``make_vec_env`` overrides and actions), ``cli``
 (``rodlab sim`` / ``record`` arguments). The same case functions drive the property test
-tests/hardening/test_fuzz_properties.py (hypothesis).
+tests/test_fuzz_properties.py (hypothesis).
 
     rodlab bench fuzz --n 2000 --out docs/bench/fuzz.json [--seed 0] [--parts scene,control,env,cli]
 """

@@ -6,7 +6,7 @@ token. ``websockets`` does offer a ``process_request`` hook on ``serve``; :func:
 :func:`check_request` there by wrapping ``serve`` for the duration of ``viser.ViserServer(...)`` only (the
 server binds before the constructor returns). If viser ever stops calling ``serve`` that way, the wrapper
 is never used and :func:`start_viser` refuses to run the server unguarded (``HandshakeGuardMissing``);
-tests/security/test_handshake.py fails in that case too.
+tests/workbench/serve/test_handshake.py fails in that case too.
 
 Rules (a request failing one gets ``403 Forbidden``):
 

@@ -53,7 +53,7 @@ class FenceSpec:
             raise ValueError(f"FenceSpec: invalid parameters {self}")
 
 
-_DEFAULT_P_BOX = 0.0117339  # quadrature for FenceSpec() (tests/policies/test_obstacles3d.py checks it)
+_DEFAULT_P_BOX = 0.0117339  # quadrature for FenceSpec() (tests/policies/test_task_parts.py checks it)
 
 
 def _box_volume_fraction(u: np.ndarray, w: np.ndarray, L: float) -> np.ndarray:
