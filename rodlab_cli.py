@@ -15,7 +15,7 @@ OWN_PACKAGES = ("sim", "policies", "workbench", "benchmarks")
 # command -> "module:function"; "bench" has its own table below.
 COMMANDS: dict[str, tuple[str, str]] = {
     "sim": ("sim.cli:sim_main", "simulate a scene headless and write an .npz"),
-    "fit": ("sim.fit:main", "calibrate a scene's parameters to measured motion (real-to-sim)"),
+    "fit": ("policies.recording.fitdata:fit_main", "calibrate a scene's parameters to measured motion (real-to-sim)"),
     "train": ("policies.cli:train_main", "train a SAC policy on a task (headless)"),
     "eval": ("policies.cli:eval_main", "evaluate a policy file on a task"),
     "sweep": ("policies.sweep:main", "seeds x tasks x settings sweep of training runs on Ray"),

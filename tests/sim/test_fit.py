@@ -1,6 +1,7 @@
 """`rodlab fit` (sim.fit): parameters recovered from synthetic measurements made by rodlab at known values plus
 1 mm noise, standard errors consistent with the errors over noise draws, the actuation map, parameters the data
-cannot separate said, held-out error, Ctrl-C keeping the best so far, and bad input refused by name."""
+cannot separate said, held-out error, Ctrl-C keeping the best so far, bounds from the validation table, the report
+folder (plots, held-out residuals), and bad input refused by name."""
 from __future__ import annotations
 
 import json
@@ -14,6 +15,7 @@ import pytest
 
 from sim import fit as F
 from sim.scene import dump_scene, load_scene
+from sim.validate import BOUNDS
 from tests.helpers.fit import NOISE_M, synthetic, write_csv
 from tests.helpers.rodspec import make_spec
 
@@ -107,13 +109,89 @@ def test_cli_writes_a_new_scene_a_report_and_json(tmp_path):
     assert load_scene(out).rods[0].youngs_modulus == pytest.approx(doc["params"]["youngs_modulus"])
     report = json.loads((tmp_path / "report" / "fit.json").read_text())
     assert report["fitted_scene"] == str(out) and report["correlation"]["labels"] == ["youngs_modulus"]
+    assert report["plots"] == list(F.PLOTS) and all((tmp_path / "report" / n).is_file() for n in F.PLOTS)
     lines = (tmp_path / "report" / "residuals.csv").read_text().splitlines()
-    assert lines[0] == "t,s,rod,dx,dy,dz,distance" and len(lines) > 10
+    assert lines[0] == "t,s,rod,dx,dy,dz,distance,split" and len(lines) == meas.t.size + 1
+    assert {ln.rsplit(",", 1)[1] for ln in lines[1:]} == {"fit", "holdout"}
     # never over an existing file (the input scene included)
     for target in (out, path):
         p = subprocess.run(cmd[:6] + ["--params", "damping", "--out", str(target)], capture_output=True, text=True,
                            timeout=600)
         assert p.returncode == 2 and "always written to a new file" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_report_has_plots_and_the_held_out_residuals(tmp_path):
+    """--report: fit.json lists the four plots, written atomically (no temporary file left); residuals.csv has every
+    measured point with its split, the held-out rows' RMS being the held-out RMS; the track covers the whole motion."""
+    import matplotlib.image
+
+    spec = load_scene(scene(tmp_path))
+    meas, _ = synthetic(spec, ["youngs_modulus", "damping"], [math.log(1.3), 0.5], seconds=1.0)
+    res = F.fit(spec, meas, ["youngs_modulus", "damping"], holdout=0.25)
+    cut = float(np.quantile(meas.t, 0.75))
+    tr = res.track
+    assert tr.measured_t.size == meas.t.size and np.array_equal(tr.held_out, meas.t >= cut)
+    assert tr.t[-1] >= meas.t.max() - 1e-12 and tr.node_s.shape == (9,) and tr.axes == (0, 1, 2)
+    folder = tmp_path / "report"
+    written = F.write_report(folder, res, scene="rod.toml")
+    assert [p.name for p in written] == [*F.PLOTS, "residuals.csv", "fit.json"]
+    assert sorted(p.name for p in folder.iterdir()) == sorted(p.name for p in written)  # no temporary file left
+    doc = json.loads((folder / "fit.json").read_text())
+    assert doc["plots"] == list(F.PLOTS) and doc["scene"] == "rod.toml"
+    assert doc["holdout_rms_m"] == pytest.approx(res.holdout_rms_m)
+    assert doc["correlation"]["labels"] == ["youngs_modulus", "damping"]
+    for name in F.PLOTS:
+        assert (folder / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        img = matplotlib.image.imread(folder / name)
+        assert img.shape[0] >= 250 and img.shape[1] >= 250 and float(img[..., :3].std()) > 0.05, name
+    lines = (folder / "residuals.csv").read_text().splitlines()
+    assert lines[0] == ",".join(F.RESIDUAL_COLUMNS)
+    rows = [ln.split(",") for ln in lines[1:]]
+    assert len(rows) == meas.t.size
+    t = np.array([float(r[0]) for r in rows])
+    d = np.array([[float(v) for v in r[3:6]] for r in rows])
+    split = np.array([r[7] for r in rows])
+    assert set(split) == {"fit", "holdout"} and np.array_equal(split == "holdout", t >= cut)
+    assert float(np.sqrt(np.mean(d[split == "holdout"] ** 2))) == pytest.approx(res.holdout_rms_m, rel=1e-6)
+    assert float(np.sqrt(np.mean(d[split == "fit"] ** 2))) == pytest.approx(res.rms_m, rel=1e-6)
+    # the plots are drawn on demand: importing sim.fit loads no matplotlib
+    code = "import sys, sim.fit; print('matplotlib' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0 and out.stdout.strip() == "False", out.stderr
+
+
+def test_report_of_a_2d_fit_draws_the_plane(tmp_path):
+    spec = load_scene(scene(tmp_path, "2d"))
+    meas, _ = synthetic(spec, ["damping"], [0.5], seconds=0.5)
+    res = F.fit(spec, meas, ["damping"])
+    assert res.track.axes == (0, 2) and not res.track.held_out.any()
+    written = F.write_report(tmp_path / "r2", res)
+    assert [p.name for p in written][:4] == list(F.PLOTS)
+    assert {ln.rsplit(",", 1)[1] for ln in (tmp_path / "r2" / "residuals.csv").read_text().splitlines()[1:]} == \
+        {"fit"}
+
+
+def test_bounds_come_from_the_validation_table(tmp_path):
+    """A fit whose optimum lies outside the valid scene values stops on the bound, says so, and its scene loads.
+    Motion sets only E/ρ: data of a rod 4× as dense asks for E / 4 = 0.5 Pa, below the lowest valid 1 Pa."""
+    direction = tuple(np.array([1.0, 0.0, 0.3]) / np.hypot(1.0, 0.3))
+    spec = make_spec(nodes=9, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.2, max_iter=30, direction=direction,
+                     E=2.0, density=0.002)
+    meas, _ = synthetic(spec, ["density"], [math.log(4.0)], seconds=1.0)
+    prob = F.Problem(spec, meas, None, ["youngs_modulus", "density", "shear_modulus", "damping", "gravity"])
+    lo, hi = prob.bounds()
+    E_lo, E_hi, _ = BOUNDS["rod.youngs_modulus"]
+    R_lo, R_hi, _ = BOUNDS["rod.density"]
+    np.testing.assert_allclose(lo, [math.log(E_lo / 2.0), math.log(R_lo / 0.002), 0.0, 0.0, -1e4, -1e4, -1e4])
+    np.testing.assert_allclose(hi[[0, 1, 3, 4]], [math.log(E_hi / 2.0), math.log(R_hi / 0.002), 1e9, 1e4])
+    assert hi[2] == pytest.approx(math.log(1.5 / 1e-9))  # ν = 0.5 may only go down (toward -1)
+    res = F.fit(spec, meas, ["youngs_modulus"])
+    assert res.params["youngs_modulus"] == pytest.approx(E_lo, rel=1e-9) and res.params["youngs_modulus"] >= E_lo
+    assert res.at_bound == ["youngs_modulus"] and res.summary()["at_bound"] == ["youngs_modulus"]
+    dump_scene(res.spec, tmp_path / "fitted.toml")
+    assert load_scene(tmp_path / "fitted.toml").rods[0].youngs_modulus == res.params["youngs_modulus"]
+    free = F.fit(spec, meas, ["damping"], max_iterations=3)  # inside its bounds: not said
+    assert free.at_bound == []
 
 
 @pytest.mark.parametrize("rows, message", [
