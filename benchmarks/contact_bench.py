@@ -71,7 +71,7 @@ def run_case(spec, B, *, control_steps=6, warm=2, substeps=10, seed=0, setup=Non
     st = sim.reset()
     ctrl = sim.make_control()
     if setup is not None:
-        setup(st)
+        setup(sim, st)
     pol = RandomPolicy(B, 1 if model.mode == "2d" else 2, seed)
     times, cpu, pen, cnt, conv, failed, deep, nstep = [], [], 0.0, [], [], 0, 0, 0
     for c in range(warm + control_steps):
@@ -148,17 +148,18 @@ def main(argv=None) -> int:
     caps = [CapsuleSpec((0.45, -0.5, 0.3), (0.45, 0.5, 0.3), 0.03) for _ in range(8)]
     rng = np.random.default_rng(0)
 
-    def place(state):
+    def place(sim, state):
         a, b, R = random_capsules(rng, state.env_count)
-        state.obstacles.set_capsules(np.arange(state.env_count), a, b, R)
+        sim.set_capsules(state, np.arange(state.env_count), a, b, R)
 
-    place_probe = Simulator(build_model(_with(arm3d, obstacles=caps)), envs=B).reset()
+    probe_sim = Simulator(build_model(_with(arm3d, obstacles=caps)), envs=B)
+    place_probe = probe_sim.reset()
     t0 = time.perf_counter()
-    place(place_probe)  # sampling (with rejection) + set_capsules for all envs
+    place(probe_sim, place_probe)  # sampling (with rejection) + set_capsules for all envs
     t_place = 1e3 * (time.perf_counter() - t0)
     a_, b_, R_ = random_capsules(rng, B)
     t0 = time.perf_counter()
-    place_probe.obstacles.set_capsules(np.arange(B), a_, b_, R_)
+    probe_sim.set_capsules(place_probe, np.arange(B), a_, b_, R_)
     t_set = 1e3 * (time.perf_counter() - t0)
     r = run_case(_with(arm3d, obstacles=caps), B, control_steps=cs, setup=place)
     r0 = run_case(_with(arm3d, obstacles=()), B, control_steps=cs)

@@ -193,7 +193,7 @@ def run_scene_case(doc: dict, *, steps: int = 3) -> tuple[str, str]:
                 and math.isfinite(model.EA_max + model.EI1_max + model.GJ_max)):
             return "silent_wrong", "zero or non-finite mass / stiffness"
         sim = Simulator(model, envs=2)
-        q = sim.reset().obstacles.orientation
+        q = sim.reset().obstacle_orientation
         if not (np.isfinite(q).all() and np.allclose(np.linalg.norm(q, axis=-1), 1.0)):
             return "silent_wrong", "obstacle orientation not a unit quaternion"
         bad = _finite_run(sim, steps)
@@ -251,6 +251,8 @@ def run_control_case(case: dict, *, steps: int = 3) -> tuple[str, str]:
         setattr(ctrl, f, np.zeros(a.shape, dtype=np.int64))
     elif k in ("state_nan", "state_huge"):
         s = getattr(state, case["state_field"])
+        if s.size == 0:  # an obstacle pose of a scene without obstacles: corrupt the rod instead
+            s = state.dof
         s.flat[int(rng.integers(s.size))] = math.nan if k == "state_nan" else 1e300
     try:
         for _ in range(steps):

@@ -38,7 +38,7 @@ import dataclasses
 
 import numpy as np
 
-from sim.contact_set import contact_data, contact_scratch
+from sim.contact_set import spec_contact_data
 from sim.kernels.data import KL_2D, KL_3D
 from sim.kernels.linearise import linearise_step
 
@@ -124,7 +124,7 @@ class Tape:
     def _cd(self):
         if "cd" not in self._lin:
             m = self.sim.model
-            self._lin["cd"] = contact_data(m.obstacles.for_envs(1), contact_scratch(1, m.node_count, 0, m.edge_radius))
+            self._lin["cd"] = spec_contact_data(m.obstacles, 1, m.node_count, m.edge_radius, candidates=0)
         return self._lin["cd"]
 
     def _linear(self, k: int, names: tuple[str, ...]) -> _Lin:

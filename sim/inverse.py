@@ -17,7 +17,7 @@ import dataclasses
 import numpy as np
 import scipy.linalg
 
-from .contact_set import contact_data, contact_scratch
+from .contact_set import spec_contact_data
 from .kernels.data import KL_2D, KL_3D
 from .kernels.probe import assemble_at
 from .model import build_model
@@ -112,7 +112,7 @@ def reach(spec, targets, *, nodes=None, basis=None, tip: int = -1, bound: float 
     rows = _tip_rows(model, tip)
     kl = KL_2D if planar else KL_3D
     n = state.dof.reshape(B, -1).shape[1]
-    cd = contact_data(model.obstacles.for_envs(1), contact_scratch(1, N, 0, model.edge_radius))
+    cd = spec_contact_data(model.obstacles, 1, N, model.edge_radius, candidates=0)
     fixed = sim._rod.fixed.astype(bool)
     conv = np.zeros(B, bool)
     it = 0

@@ -21,7 +21,7 @@ from .boundary import (
     motion_arrays,
     rotating_fixes,
 )
-from .contact_set import ObstacleSet
+from .contact_set import ObstacleGeometry
 from .curvature import material_curvature
 from .frames import initial_reference_frames
 from .scene import SceneSpec
@@ -82,7 +82,7 @@ class Model:
     planar_sign: float               # 2-D: κ_2D = planar_sign * κ_component
     plane_y: float                   # 2-D: the y of the motion plane [m]
     locked_edges: tuple[int, ...]
-    obstacles: ObstacleSet
+    obstacles: ObstacleGeometry  # kinds, sizes, meshes, spec poses (the poses per env are in the State)
     # point loads and prescribed motion (sim.boundary, docs/physics.md §3.1, §3.6): per load / moving fix, its
     # per-DOF force [N, N m] or rate [m/s, rad/s] (K, ndof) and its time window [start, stop) (K, 2) [s]
     load_force: np.ndarray = field(default_factory=lambda: _ro(np.zeros((0, 0))))
@@ -306,7 +306,7 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         rest_kappa_bar=_ro(kbar), rest_tau_bar=_ro(np.zeros(N)), dof_mass=_ro(dmass.ravel()),
         dof_fixed=_ro(fixed.ravel()), dof_gravity=_ro(grav.ravel()), planar_component=pc, planar_sign=ps,
         plane_y=float(x[0, 1]), locked_edges=tuple(sorted(locked)),
-        obstacles=ObstacleSet.from_specs(spec.obstacles), load_force=_ro(lf), load_window=_ro(lw),
+        obstacles=ObstacleGeometry.from_specs(spec.obstacles), load_force=_ro(lf), load_window=_ro(lw),
         motion_rate=_ro(mr), motion_window=_ro(mw), rotating_fixes=rotating_fixes(spec, x),
         frame_loads=fl if fl.count else None,
         rod_names=tuple(spec.rod_names),

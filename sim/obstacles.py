@@ -19,9 +19,9 @@ Scene keys (SI units; every obstacle may carry ``name = "..."``)::
 
 Poses: every obstacle has a per-env pose (position, quaternion wxyz). For capsule/sphere/plane the spec's
 coordinates are the obstacle's local frame (initial pose = identity); box and mesh start at their spec
-pose with geometry centred in the local frame. :meth:`sim.contact_set.ObstacleSet.set_pose` and
-:meth:`ObstacleSet.set_capsules` change poses/capsules per env in place (no rebuild; mesh BVHs stay in
-the mesh frame).
+pose with geometry centred in the local frame. The poses are arrays of the State (``state.obstacle_position`` …,
+:mod:`sim.contact_set`), changed per env in place (``Simulator.set_obstacle_pose`` / ``set_capsules``; no rebuild,
+mesh BVHs stay in the mesh frame).
 """
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .contact.obstacles import find_candidates, smallest_gap
-from .contact_set import contact_radii
+from .contact_set import contact_radii, spec_contact_data
 
 __all__ = ["Overlap", "rod_obstacle_overlaps", "overlap_warning"]
 
@@ -33,11 +33,8 @@ def rod_obstacle_overlaps(model, *, tolerance: float = 0.0) -> list[Overlap]:
     M = model.obstacles.count
     if M == 0:
         return []
-    obs = model.obstacles.for_envs(M, n_nodes=model.node_count, rod_radius=model.edge_radius)
-    for o in range(M):  # env o sees obstacle o only
-        for k in range(M):
-            obs.set_active(k, k == o, envs=[o])
-    cd = obs.kernel_data()
+    cd = spec_contact_data(model.obstacles, M, model.node_count, model.edge_radius,
+                           active=np.eye(M, dtype=np.bool_))  # env o sees obstacle o only
     x = np.ascontiguousarray(model.rest_node_pos, dtype=np.float64)
     link = np.ones(model.node_count - 1, np.uint8)  # joint edges between rods are never candidates
     if len(getattr(model, "edge_link", ())) == model.node_count - 1:

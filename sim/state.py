@@ -2,14 +2,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .validate import state_arrays
-
-if TYPE_CHECKING:
-    from .contact_set import ObstacleSet
 
 __all__ = ["State", "Control", "StepStats", "STATE_ARRAYS", "STATE_FLOAT_ARRAYS"]
 
@@ -26,12 +22,17 @@ class State:
     node_ref_twist (B, N) reference twist β [rad] (0 at both end nodes)
     time           (B,) [s]
     failed         (B,) bool, env failed irrecoverably and is frozen until reset
+    obstacle_position    (B, M, 3) [m] each obstacle's position (boxes, meshes, cylinders: their frame's origin)
+    obstacle_orientation (B, M, 4) its orientation, a unit quaternion wxyz
+    obstacle_a, obstacle_b (B, M, 3) [m] local geometry: capsule ends, sphere centre (a), plane point / normal
+    obstacle_radius      (B, M) [m] capsule, sphere and cylinder radius
+    obstacle_active      (B, M) bool, False: the obstacle is ignored in that env
     plane_y        2-D only: y of the motion plane [m] (used by node_pos)
-    obstacles      the obstacles' per-env poses and geometry (:class:`sim.contact_set.ObstacleSet`, envs B),
-                   edited in place (``state.obstacles.set_pose`` / ``set_capsules`` / ``set_active``); None
-                   only for a state built by hand for a scene without obstacles
 
-    ``copy()`` is a full snapshot (obstacles included); ``node_pos``/``node_vel``/``edge_theta`` are new arrays.
+    The obstacles' geometry (kinds, meshes, sizes) is the Model's (``model.obstacles``); their poses are these
+    arrays, written directly or with ``Simulator.set_obstacle_pose`` / ``set_capsules`` / ``set_obstacle_active``
+    (docs/physics.md §4). ``copy()`` is a full snapshot and ``assign(other)`` copies one into this state's arrays;
+    ``node_pos``/``node_vel``/``edge_theta`` are new arrays.
     """
 
     dof: np.ndarray
@@ -41,8 +42,13 @@ class State:
     node_ref_twist: np.ndarray
     time: np.ndarray
     failed: np.ndarray
+    obstacle_position: np.ndarray
+    obstacle_orientation: np.ndarray
+    obstacle_a: np.ndarray
+    obstacle_b: np.ndarray
+    obstacle_radius: np.ndarray
+    obstacle_active: np.ndarray
     plane_y: float = 0.0
-    obstacles: "ObstacleSet | None" = None
 
     @property
     def env_count(self) -> int:
@@ -79,16 +85,24 @@ class State:
         return self.dof[:, :-1, 3].copy()
 
     def copy(self) -> "State":
-        return State(**{name: getattr(self, name).copy() for name in STATE_ARRAYS}, plane_y=self.plane_y,
-                     obstacles=None if self.obstacles is None else self.obstacles.copy())
+        return State(**{name: getattr(self, name).copy() for name in STATE_ARRAYS}, plane_y=self.plane_y)
+
+    def assign(self, other: "State") -> None:
+        """Copy ``other`` (a state of the same scene and env count) into this state's arrays, in place."""
+        for name in STATE_ARRAYS:
+            dst, src = getattr(self, name), getattr(other, name)
+            if dst.shape != src.shape:
+                raise ValueError(f"State.assign: {name} has shape {src.shape}, this state's is {dst.shape}")
+            dst[...] = src
+        self.plane_y = other.plane_y
 
 
-# The per-env arrays of a State (leading axis B), in field order: the fields typed np.ndarray (plane_y and obstacles
-# are not per-env arrays), read from the dataclass by sim.validate.state_arrays; copies, input checks, quarantine,
-# static restores and the fuzz benchmark go through it.
+# The per-env arrays of a State (leading axis B), in field order: the fields typed np.ndarray (plane_y is not a
+# per-env array), read from the dataclass by sim.validate.state_arrays; copies, input checks, quarantine, static
+# restores and the fuzz benchmark go through it.
 STATE_ARRAYS: tuple[str, ...] = state_arrays(State)
-# the float ones (all but the bool ``failed``)
-STATE_FLOAT_ARRAYS: tuple[str, ...] = tuple(name for name in STATE_ARRAYS if name != "failed")
+# the float ones (all but the bool ``failed`` and ``obstacle_active``)
+STATE_FLOAT_ARRAYS: tuple[str, ...] = tuple(name for name in STATE_ARRAYS if name not in ("failed", "obstacle_active"))
 
 
 @dataclass(eq=False)

@@ -21,7 +21,6 @@ from typing import Any
 
 import numpy as np
 
-from .contact_set import contact_data
 from .hessian import static_jacobian
 from .model import build_model
 from .scene import SceneSpec
@@ -188,13 +187,12 @@ def _static_band(sim: Simulator, state: Any, ctrl: Any, e: int):
     """Env ``e``'s static Jacobian as the kernel gives it: the band (n + kl, 2 kl + 1) (row r, column c at
     [r, kl + c − r]), and the out-of-band coupling of touching edge pairs (its DOFs (K,) and dense block (K, K))."""
     B = state.dof.shape[0]
-    obs = sim._no_obstacles if state.obstacles is None else state.obstacles
     return static_jacobian(e, np.ascontiguousarray(state.dof.reshape(B, -1)[e]),
                            np.ascontiguousarray(state.edge_ref_d1[e]), np.ascontiguousarray(state.edge_tangent[e]),
                            np.ascontiguousarray(state.node_ref_twist[e]),
                            np.ascontiguousarray(ctrl.kappa_bar[e], dtype=np.float64),
                            np.ascontiguousarray(ctrl.tau_bar[e], dtype=np.float64), sim._rod, sim._prm,
-                           contact_data(obs, sim._scratch))
+                           sim.contact_data(state))
 
 
 def _band_entries(ab: np.ndarray, n: int):

@@ -12,7 +12,15 @@ import numpy as np
 from . import validate as _validate
 from .boundary import frame_load_forces, turn_fix, window_fraction
 from .contact.edge_pairs import model_pairs
-from .contact_set import PAIR_REPORT_CAPACITY, contact_data, contact_scratch
+from .contact_set import (
+    PAIR_REPORT_CAPACITY,
+    ObstacleWorld,
+    contact_data,
+    contact_scratch,
+    set_active,
+    set_capsules,
+    set_pose,
+)
 from .frames import transport
 from .internal import InternalLoads, internal_loads
 from .kernels.batch import CHUNK, step_kernel
@@ -38,7 +46,8 @@ class Simulator:
 
     ``step(state, ctrl)`` advances ``state`` in place by ``model.dt`` and returns :class:`StepStats`. The
     Simulator holds only constants and work space; everything per env (obstacle poses included) is in the
-    :class:`State`.
+    :class:`State`, as plain arrays (``state.obstacle_position`` …; :meth:`set_obstacle_pose`,
+    :meth:`set_capsules`, :meth:`set_obstacle_active`).
     """
 
     def __init__(self, model: Model, envs: int = 1) -> None:
@@ -61,9 +70,10 @@ class Simulator:
             if dpn == 4:
                 moving.reshape(-1, dpn)[rf.edges, 3] = True
         self._moving_dofs = np.flatnonzero(moving) if self._motion else None
-        # work space of the contact kernels (candidate lists); the poses themselves are in State.obstacles
+        # work space of the contact kernels (candidate lists) and the obstacles' world arrays, derived from the
+        # poses in the State before each step
         self._scratch = contact_scratch(B, m.node_count, m.obstacles.count, m.edge_radius)
-        self._no_obstacles = m.obstacles.for_envs(B) if m.obstacles.count == 0 else None
+        self._world = ObstacleWorld(m.obstacles, B)
         C = int(m.obstacles.report_capacity) + (PAIR_REPORT_CAPACITY if pairs.shape[0] > 0 else 0)
         self._crep = ContactReport.zeros(B, C)
         # the most rows a step can list: every obstacle candidate, two per edge pair (StepStats rows grow up to it)
@@ -90,7 +100,7 @@ class Simulator:
                      edge_ref_d1=np.broadcast_to(m.rest_ref_d1, (B, m.node_count - 1, 3)).copy(),
                      edge_tangent=np.broadcast_to(m.rest_tangent, (B, m.node_count - 1, 3)).copy(),
                      node_ref_twist=np.zeros((B, m.node_count)), time=np.zeros(B), failed=np.zeros(B, bool),
-                     plane_y=m.plane_y if m.mode == "2d" else 0.0, obstacles=m.obstacles.for_envs(B))
+                     **m.obstacles.initial_arrays(B), plane_y=m.plane_y if m.mode == "2d" else 0.0)
 
     def _rest_control_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         m = self.model
@@ -115,14 +125,33 @@ class Simulator:
         a (B,) boolean mask, or integer env indices (list/tuple/int array/int); see :func:`sim.validate.env_mask`."""
         mask = _validate.env_mask(mask, self.envs)
         fresh = self.reset()
-        for name in STATE_ARRAYS:
+        for name in STATE_ARRAYS:  # the obstacles' poses among them
             getattr(state, name)[mask] = getattr(fresh, name)[mask]
-        if state.obstacles is not None and state.obstacles.count:
-            state.obstacles.reset_envs(mask)
         if ctrl is not None:
             kb, tb = self._rest_control_arrays()
             ctrl.kappa_bar[mask] = kb
             ctrl.tau_bar[mask] = tb
+
+    # ------------------------------------------------------------------ obstacle poses (in the State)
+    def set_obstacle_pose(self, state: State, i: int, position, orientation_wxyz=(1.0, 0.0, 0.0, 0.0), *,
+                          envs: IndexLike = None) -> None:
+        """Obstacle ``i``'s pose in ``state``: ``position`` (3,) or (k, 3) [m], ``orientation_wxyz`` (4,) or (k, 4)
+        (normalised), for ``envs`` (default all; indices or a (B,) mask); the next step sees it."""
+        set_pose(self.model.obstacles, state, i, position, orientation_wxyz, envs=envs)
+
+    def set_capsules(self, state: State, env_ids, starts, ends, radius, *, obstacle_ids=None) -> None:
+        """Re-place capsule obstacles of envs ``env_ids`` in ``state``: ``starts``/``ends`` (k, m, 3) [m] world end
+        points of the m capsules ``obstacle_ids`` (default: all capsules, in scene order), ``radius`` [m]."""
+        set_capsules(self.model.obstacles, state, env_ids, starts, ends, radius, obstacle_ids=obstacle_ids)
+
+    def set_obstacle_active(self, state: State, i: int, active: bool, *, envs: IndexLike = None) -> None:
+        """Enable or disable obstacle ``i`` in ``state`` for ``envs`` (a disabled obstacle costs nothing)."""
+        set_active(self.model.obstacles, state, i, active, envs=envs)
+
+    def contact_data(self, state: State):
+        """The contact kernels' view of ``state``'s obstacles (world arrays derived from its poses) with this
+        Simulator's work space (:func:`sim.contact_set.contact_data`)."""
+        return contact_data(self.model.obstacles, self._world.update(state), state, self._scratch)
 
     # ------------------------------------------------------------------ control helpers
     def set_natural_curvature(self, ctrl: Control, value, *, nodes: IndexLike = None, envs: IndexLike = None) -> None:
@@ -155,7 +184,7 @@ class Simulator:
     def step(self, state: State, ctrl: Control) -> StepStats:
         """Advance every non-failed env of ``state`` by ``model.dt`` (in place) under ``ctrl``."""
         self._check(state, ctrl)
-        obstacles = self._no_obstacles if state.obstacles is None else state.obstacles
+        cd = self.contact_data(state)
         rod = self._rod
         if self._loads or self._frame_loads is not None or ctrl.force is not None:
             rod = rod._replace(grav=self._external_forces(state.time, ctrl.force, state))
@@ -167,8 +196,7 @@ class Simulator:
         if use < threads:
             numba.set_num_threads(use)
         try:
-            step_kernel(StateArrays.of(state), ControlArrays.of(ctrl), rod, self._prm,
-                        contact_data(obstacles, self._scratch), self._crep, self._out)
+            step_kernel(StateArrays.of(state), ControlArrays.of(ctrl), rod, self._prm, cd, self._crep, self._out)
         finally:
             if use < threads:
                 numba.set_num_threads(threads)

@@ -322,8 +322,8 @@ def _check_contact(c: _Checker, ct: Any) -> None:
 # ---------------------------------------------------------------------------------------------- API inputs
 def state_arrays(state: Any) -> tuple[str, ...]:
     """The per-env arrays of a State, read from its dataclass fields (those typed np.ndarray): the list
-    ``sim.state.STATE_ARRAYS`` is made of (this module cannot import sim.state: sim.state -> sim.contact_set ->
-    sim.obstacles -> sim.validate). ``()`` for an object that is not a dataclass."""
+    ``sim.state.STATE_ARRAYS`` is made of (sim.state imports this module). ``()`` for an object that is not a
+    dataclass."""
     if not dataclasses.is_dataclass(state):
         return ()
     return tuple(f.name for f in dataclasses.fields(state) if f.type in ("np.ndarray", np.ndarray))
@@ -360,18 +360,19 @@ def check_step_inputs(sim: Any, state: Any, ctrl: Any) -> None:
                          f"{type(ctrl).__name__}")
     B, N = sim.envs, sim.model.node_count
     nd = 4 if sim.model.mode == "3d" else 2
-    want = {"dof": (B, N, nd), "dof_vel": (B, N, nd), "edge_ref_d1": (B, N - 1, 3), "edge_tangent": (B, N - 1, 3),
-            "node_ref_twist": (B, N), "time": (B,), "failed": (B,)}
+    want = {"dof": ((B, N, nd), np.float64), "dof_vel": ((B, N, nd), np.float64),
+            "edge_ref_d1": ((B, N - 1, 3), np.float64), "edge_tangent": ((B, N - 1, 3), np.float64),
+            "node_ref_twist": ((B, N), np.float64), "time": ((B,), np.float64), "failed": ((B,), np.bool_),
+            **sim.model.obstacles.shapes(B)}  # the obstacles' poses: (B, M, ...) for the scene's M obstacles
     for name in state_arrays(state) or want:
-        _array(state, "state", name, want[name], np.bool_ if name == "failed" else np.float64, writable=True)
-    obs, M = getattr(state, "obstacles", None), sim.model.obstacles.count
-    if obs is None:
-        if M:
-            raise ValueError(f"step: state.obstacles: missing (the scene has {M} obstacles); build the state with "
-                             "Simulator.reset()")
-    elif getattr(obs, "count", None) != M or getattr(obs, "envs", None) != B:
-        raise ValueError(f"step: state.obstacles: expected the scene's {M} obstacles for {B} envs, got "
-                         f"{getattr(obs, 'count', '?')} obstacles for {getattr(obs, 'envs', '?')} envs")
+        if name not in want:
+            raise ValueError(f"step: state.{name}: not a field of sim.State")
+        _array(state, "state", name, *want[name], writable=True)
+    q = state.obstacle_orientation
+    if q.size:
+        n = np.linalg.norm(q, axis=-1)
+        if (np.isfinite(n) & (n < 1e-12)).any():  # (NaN is the quarantine's: the env fails, its poses reset)
+            raise ValueError("state.obstacle_orientation: a quaternion is zero; write unit quaternions wxyz")
     for name, shp in (("kappa_bar", (B, N, 2)), ("tau_bar", (B, N))):
         a = _array(ctrl, "ctrl", name, shp, np.float64, writable=False)
         if not np.isfinite(a).all():
@@ -383,20 +384,27 @@ def check_step_inputs(sim: Any, state: Any, ctrl: Any) -> None:
 
 
 def quarantine_nonfinite(sim: Any, state: Any, stats: Any = None, also: np.ndarray | None = None) -> np.ndarray:
-    """Envs whose state (dof, dof_vel, frames, twist, time) holds NaN/inf: mark them failed and replace their
-    state by the rest configuration (time kept when finite, else 0), so no NaN stays in the state. With
+    """Envs whose state (dof, dof_vel, frames, twist, time, obstacle poses) holds NaN/inf: mark them failed and
+    replace their state by the rest configuration (time kept when finite, else 0; obstacle poses only where they
+    were not finite, back to the scene's), so no NaN stays in the state. With
     ``stats``, those envs' StepStats numbers are zeroed and ``stats.failed`` set; ``also``: more envs treated so
     (the ones quarantined before the step). Returns the (B,) mask."""
-    floats = [name for name in state_arrays(state) if name != "failed"]
+    floats = [name for name in state_arrays(state) if name != "failed" and not name.startswith("obstacle_")]
+    poses = [name for name in state_arrays(state) if name.startswith("obstacle_") and name != "obstacle_active"]
     arrays = [getattr(state, name) for name in floats]  # every state field, before and after
     if stats is not None:  # contact rows: only the filled ones (up to the largest contact_count)
         cmax = int(stats.contact_count.max()) if stats.contact_count.size else 0
         arrays += [a[:, :cmax] if name.startswith("contact_") and name != "contact_force" and a.ndim >= 2 else a
                    for name, a in vars(stats).items() if isinstance(a, np.ndarray) and a.dtype.kind == "f"]
-    bad = np.zeros(state.dof.shape[0], dtype=bool)
-    for a in arrays:
-        if a.size and not math.isfinite(float(a.sum())):  # fast path: one sum per array
-            bad |= ~np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1)
+    def nonfinite(arrays_) -> np.ndarray:
+        out = np.zeros(state.dof.shape[0], dtype=bool)
+        for a in arrays_:
+            if a.size and not math.isfinite(float(a.sum())):  # fast path: one sum per array
+                out |= ~np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1)
+        return out
+
+    bad_poses = nonfinite([getattr(state, name) for name in poses])  # obstacles written with NaN: back to spec
+    bad = nonfinite(arrays) | bad_poses
     if also is not None and stats is not None:
         bad |= also
     if not bad.any():
@@ -405,6 +413,8 @@ def quarantine_nonfinite(sim: Any, state: Any, stats: Any = None, also: np.ndarr
     t = state.time.copy()
     for name in floats:
         getattr(state, name)[bad] = getattr(fresh, name)[bad]
+    for name in poses:  # a failed env keeps its (finite) obstacle poses: the task re-places them at its reset
+        getattr(state, name)[bad_poses] = getattr(fresh, name)[bad_poses]
     state.time[bad] = np.where(np.isfinite(t[bad]), t[bad], 0.0)
     state.failed[bad] = True
     if stats is not None:

@@ -162,11 +162,8 @@ def spec_with(spec, edits: list[ObstacleEdit]):
 def apply_pose(live, index: int, edit: ObstacleEdit) -> None:
     """Push one obstacle pose into the running simulator (no model rebuild): every env of the
     live simulator gets it."""
-    oset = _obstacle_set(live)
-    if oset is None:
-        raise RuntimeError("this simulator has no obstacle set")
     pos, wxyz = sim_pose(edit)
-    oset.set_pose(index, pos, wxyz)
+    live.sim.set_obstacle_pose(live.state, index, pos, wxyz)
 
 
 def dump(spec, path: Path) -> Path:
@@ -256,7 +253,7 @@ def _unchanged(e: ObstacleEdit, orig: ObstacleEdit) -> bool:
 
 
 def sim_pose(e: ObstacleEdit) -> tuple[np.ndarray, np.ndarray]:
-    """(position (3,), wxyz (4,)) for ``ObstacleSet.set_pose``: the rigid motion taking the obstacle
+    """(position (3,), wxyz (4,)) for ``Simulator.set_obstacle_pose``: the rigid motion taking the obstacle
     from its spec placement to the edited one. Capsule/sphere/plane specs are in their local frame
     (initial pose identity); box/mesh/cylinder poses are the obstacle's own pose (a cylinder's frame: centre
     at the axis midpoint, z along the axis)."""
@@ -269,11 +266,6 @@ def sim_pose(e: ObstacleEdit) -> tuple[np.ndarray, np.ndarray]:
     m0 = e.base_position
     R = R_e @ R_0.T
     return e.position - R @ m0, _quat(R)
-
-
-def _obstacle_set(live):
-    """The live state's (per-env) obstacle poses: ``State.obstacles``."""
-    return getattr(live.state, "obstacles", None)
 
 
 def mesh_for_edit(e: ObstacleEdit) -> tuple[np.ndarray, np.ndarray]:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from sim import Simulator, build_model, load_scene
-from sim.contact_set import node_radii
+from sim.contact_set import OBSTACLE_ARRAYS, node_radii
 from sim.internal import internal_loads
 from sim.support.assets import asset_path
 from workbench.frame import Frame, curvature_magnitude, edge_strain
@@ -40,6 +40,18 @@ def assign_struct(dst, src) -> None:
             a[...] = b
         else:
             setattr(dst, name, copy.deepcopy(b))
+
+
+def obstacle_arrays(state) -> dict[str, np.ndarray]:
+    """Copies of ``state``'s obstacle poses (:data:`sim.contact_set.OBSTACLE_ARRAYS`)."""
+    return {name: getattr(state, name).copy() for name in OBSTACLE_ARRAYS}
+
+
+def put_obstacle_arrays(state, arrays: dict[str, np.ndarray]) -> None:
+    """Give ``state`` the obstacle poses ``arrays`` (from :func:`obstacle_arrays`; the scene's obstacles may differ
+    in number from the ones the state had)."""
+    for name, a in arrays.items():
+        setattr(state, name, a)
 
 
 class LiveSim:
@@ -95,10 +107,10 @@ class LiveSim:
         self.rest_ctrl = copy_struct(self.ctrl)
         self.rest_length = np.asarray(self.model.rest_edge_length, dtype=np.float64)  # (a pre-stretched rod: shorter)
         if old_state is not None:
-            obstacles = self.state.obstacles  # the new scene's obstacles, not the old state's
+            obstacles = obstacle_arrays(self.state)  # the new scene's obstacles, not the old state's
             assign_struct(self.state, old_state)
             assign_struct(self.ctrl, old_ctrl)
-            self.state.obstacles = obstacles
+            put_obstacle_arrays(self.state, obstacles)
         self.last_stats = None
         self.step_time = 0.0
 
@@ -147,7 +159,7 @@ class LiveSim:
             self.last_stats = None
             return
         new = self.sim.reset()
-        new.obstacles = self.state.obstacles  # obstacles the user placed stay where they are
+        put_obstacle_arrays(new, obstacle_arrays(self.state))  # obstacles the user placed stay where they are
         assign_struct(self.state, new)
         assign_struct(self.ctrl, self.sim.make_control())
         self.last_stats = None
@@ -194,11 +206,11 @@ class LiveSim:
     def restore(self, snap: tuple) -> None:
         """Back to a snapshot. A task's obstacles (re-placed per episode) come back with its state; obstacles the
         user placed in teleop are scene edits and stay where they are."""
-        keep = self.state.obstacles if self.owner is None else None
+        keep = obstacle_arrays(self.state) if self.owner is None else None
         assign_struct(self.state, snap[0])
         assign_struct(self.ctrl, snap[1])
         if keep is not None:
-            self.state.obstacles = keep
+            put_obstacle_arrays(self.state, keep)
 
     # ---------------------------------------------------------------- drawing
     def frame(self, *, targets: np.ndarray | None = None, scalars: dict | None = None) -> Frame:

@@ -3,7 +3,7 @@
 ``make_elastica_core(task, envs, seed)`` builds the task's ordinary batched core (targets, obstacles, action
 converter, observations and rewards stay exactly the task's code) and replaces its simulator by
 :class:`ElasticaSimulator`, which offers the part of the ``sim.Simulator`` interface a task uses
-(``reset``/``make_control``/``reset_envs``/``step``/``material_frames``; the state's ``obstacles.set_capsules``).
+(``reset``/``make_control``/``reset_envs``/``step``/``material_frames``/``set_capsules``).
 
 Per control step the task core calls ``step`` ``substeps`` times (2 for the arm tasks, 10 for the obstacle
 tasks, each after adding 1/substeps of the control step's natural-curvature increment to the control); every
@@ -39,19 +39,6 @@ _STATE_KEYS = ("position_collection", "velocity_collection", "acceleration_colle
                "alpha_collection", "director_collection", "rest_kappa", "rest_sigma")
 
 
-class _Obstacles:
-    def __init__(self, owner: "ElasticaSimulator"):
-        self.owner = owner
-
-    def set_capsules(self, idx, starts, ends, radius) -> None:
-        """Move the obstacles of envs ``idx`` to the segments (len(idx), M, 3) ``starts`` -> ``ends``."""
-        rods = self.owner.rods
-        if rods.obstacles and abs(float(radius) - rods.obstacles[0].radius) > 1e-12:
-            raise ValueError("ElasticaSimulator: the obstacle radius cannot change")
-        for k, i in enumerate(np.asarray(idx, dtype=np.int64)):
-            rods.move_obstacles(int(i), np.stack([np.asarray(starts[k], float), np.asarray(ends[k], float)], axis=1))
-
-
 class ElasticaSimulator:
     """B identical PyElastica arms (one per env) standing in for ``sim.Simulator`` inside a task core."""
 
@@ -76,7 +63,6 @@ class ElasticaSimulator:
         self._initial_cyl = (self.rods._cyl_pos.copy(), self.rods._cyl_dir.copy()) if self.rods.cylinders else None
         self.applied_kappa = np.zeros((B, N, 2))
         self.applied_tau = np.zeros((B, N))
-        self.obstacles = _Obstacles(self)
         self.sim_steps = 0
 
     # ------------------------------------------------------------------ state / control
@@ -89,10 +75,18 @@ class ElasticaSimulator:
         D = 2 if self.planar else 4
         self.state = SimpleNamespace(dof=np.zeros((B, N, D)), dof_vel=np.zeros((B, N, D)),
                                      failed=np.zeros(B, dtype=bool), edge_tangent=np.zeros((B, N - 1, 3)),
-                                     edge_ref_d1=np.zeros((B, N - 1, 3)), edge_theta=np.zeros((B, N - 1)),
-                                     obstacles=self.obstacles)
+                                     edge_ref_d1=np.zeros((B, N - 1, 3)), edge_theta=np.zeros((B, N - 1)))
         self._sync(self.state)
         return self.state
+
+    def set_capsules(self, state, idx, starts, ends, radius) -> None:
+        """Move the obstacles of envs ``idx`` to the segments (len(idx), M, 3) ``starts`` -> ``ends`` (as
+        ``sim.Simulator.set_capsules``; the PyElastica rods hold them)."""
+        rods = self.rods
+        if rods.obstacles and abs(float(radius) - rods.obstacles[0].radius) > 1e-12:
+            raise ValueError("ElasticaSimulator: the obstacle radius cannot change")
+        for k, i in enumerate(np.asarray(idx, dtype=np.int64)):
+            rods.move_obstacles(int(i), np.stack([np.asarray(starts[k], float), np.asarray(ends[k], float)], axis=1))
 
     def reset_envs(self, state, ctrl, mask) -> None:
         """Straight rod at rest, natural curvature/twist 0, for the envs in ``mask``."""

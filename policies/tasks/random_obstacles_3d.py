@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import scenes  # looked up at call time: the tests' fake simulator swaps scenes.set_env_capsules
+from . import scenes
 from .base import BatchedTask, TaskConfig
 from .env import RodTaskEnv
 from .obstacles3d import FenceSampler, FenceSpec
@@ -58,7 +58,8 @@ class RandomObstacles3DCore(BatchedTask):
     def _reset_task(self, idx: np.ndarray) -> None:
         for i in idx:
             self.fences[i] = self.sampler.sample(self.rngs[i])
-        scenes.set_env_capsules(self.state, idx, self.fences[idx].astype(np.float64), float(self.config.fence.radius))
+        scenes.set_env_capsules(self.sim, self.state, idx, self.fences[idx].astype(np.float64),
+                                float(self.config.fence.radius))
 
     def _fields(self) -> dict[str, np.ndarray]:
         f = self.node_fields()

@@ -77,8 +77,9 @@ def make_simulator(config: Any, *, envs: int, task: Any = None):
     return Simulator(model, envs=envs), model
 
 
-def set_env_capsules(state, idx: np.ndarray, ends: np.ndarray, radius: float) -> None:
-    """Move the capsule obstacles of envs ``idx`` of ``state`` (their poses are part of the state) to ``ends``
-    (len(idx), M, 2, 3) [m] (in place)."""
+def set_env_capsules(sim, state, idx: np.ndarray, ends: np.ndarray, radius: float) -> None:
+    """Move the capsule obstacles of envs ``idx`` of ``state`` (their poses are arrays of the state) to ``ends``
+    (len(idx), M, 2, 3) [m] (in place), through ``sim.set_capsules`` (a ``sim.Simulator`` or the PyElastica
+    back-end's stand-in)."""
     ends = np.asarray(ends, dtype=np.float64)
-    state.obstacles.set_capsules(np.asarray(idx, dtype=np.int64), ends[:, :, 0], ends[:, :, 1], radius)
+    sim.set_capsules(state, np.asarray(idx, dtype=np.int64), ends[:, :, 0], ends[:, :, 1], radius)

@@ -4,7 +4,15 @@ from __future__ import annotations
 import numpy as np
 
 from sim.contact.obstacles import contact_rows, find_candidates, node_forces
-from sim.contact_set import ObstacleSet
+from sim.contact_set import (
+    ObstacleGeometry,
+    ObstacleWorld,
+    SpecPoses,
+    contact_data,
+    contact_scratch,
+    set_capsules,
+    set_pose,
+)
 from sim.kernels.data import PARAMS_DTYPE, ContactReport
 
 K = 1e6
@@ -24,10 +32,32 @@ def law(*, k=K, delta=DELTA, mu=0.0, nu=1e-2):
     return rec[0]
 
 
+class Obstacles:
+    """Obstacles of ``envs`` envs outside a Simulator, through the production route: geometry, the State's pose
+    arrays (at the spec poses), the world arrays derived from them and the kernels' ContactData
+    (``sim.contact_set.contact_data``). Pose edits go through the same functions as ``Simulator.set_obstacle_pose``
+    and ``set_capsules`` and re-derive the world arrays the ContactData holds."""
+
+    def __init__(self, specs, n_nodes: int, *, rod_radius=R_ROD, envs: int = 1):
+        self.geometry = ObstacleGeometry.from_specs(specs)
+        self.poses = SpecPoses(self.geometry, envs)
+        self.world = ObstacleWorld(self.geometry, envs).update(self.poses)
+        self.cd = contact_data(self.geometry, self.world, self.poses,
+                               contact_scratch(envs, n_nodes, self.geometry.count, rod_radius))
+
+    def set_pose(self, i, position, orientation_wxyz=(1.0, 0.0, 0.0, 0.0), *, envs=None) -> None:
+        set_pose(self.geometry, self.poses, i, position, orientation_wxyz, envs=envs)
+        self.world.update(self.poses)
+
+    def set_capsules(self, env_ids, starts, ends, radius, *, obstacle_ids=None) -> None:
+        set_capsules(self.geometry, self.poses, env_ids, starts, ends, radius, obstacle_ids=obstacle_ids)
+        self.world.update(self.poses)
+
+
 def make_set(specs, n_nodes, *, rod_radius=R_ROD, envs=1):
-    os_ = ObstacleSet.from_specs(specs, envs=envs)
-    cd = os_.kernel_data(envs, n_nodes=n_nodes, rod_radius=rod_radius)
-    return os_, cd
+    """(:class:`Obstacles`, its ContactData) for ``envs`` envs of a rod of ``n_nodes`` nodes."""
+    obs = Obstacles(specs, n_nodes, rod_radius=rod_radius, envs=envs)
+    return obs, obs.cd
 
 
 def accumulate(cd, x, *, x_prev=None, dt=0.05, mu=0.0, nu=1e-2, friction_on=False, margin=5e-2,

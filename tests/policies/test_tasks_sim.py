@@ -137,10 +137,10 @@ def test_fences_reach_the_simulator_and_start_contact_free():
     obs, _ = venv.reset()
     for _ in range(2):                                   # every step ends an episode -> autoreset re-samples
         fences = obs[:, 10:58].reshape(3, 8, 2, 3)
-        ob = venv.core.state.obstacles
+        ob = venv.core.sim.contact_data(venv.core.state)  # the world arrays the kernels read
         np.testing.assert_allclose(ob.p0, fences[:, :, 0], atol=1e-6)
         np.testing.assert_allclose(ob.p1, fences[:, :, 1], atol=1e-6)
-        assert np.allclose(ob.radius, 0.03)
+        assert np.allclose(venv.core.state.obstacle_radius, 0.03)
         core = venv.core
         core.converter.apply(core.ctrl, core.converter.convert(np.zeros((3, 10))), 0)
         stats = core.sim.step(core.state, core.ctrl)          # zero action from rest: no contact

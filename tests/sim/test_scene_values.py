@@ -80,7 +80,7 @@ def test_huge_obstacle_unit_vectors_stay_unit_or_are_refused(tmp_path, table, ke
     assert np.isfinite(v).all() and abs(np.linalg.norm(v) - 1.0) < 1e-12
     m = build_model(spec)
     sim = Simulator(m, envs=1)
-    assert np.isfinite(sim.reset().obstacles.orientation).all()
+    assert np.isfinite(sim.reset().obstacle_orientation).all()
 
 
 def test_specs_built_in_code_get_the_same_checks():

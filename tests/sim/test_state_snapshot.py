@@ -1,12 +1,14 @@
-"""A State is the whole per-env state (obstacle poses included) and the Simulator keeps none: copies are full
-snapshots, two states stepped in turn by one Simulator evolve exactly as each alone, resets restore poses."""
+"""A State is the whole per-env state (obstacle poses included, as plain arrays) and the Simulator keeps none: copies
+are full snapshots, two states stepped in turn by one Simulator evolve exactly as each alone, resets restore poses,
+assign copies one state into another."""
 from __future__ import annotations
 
 import numpy as np
 
 from sim import Simulator, build_model, load_scene
 
-FIELDS = ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time", "failed")
+FIELDS = ("dof", "dof_vel", "edge_ref_d1", "edge_tangent", "node_ref_twist", "time", "failed", "obstacle_position",
+          "obstacle_orientation", "obstacle_a", "obstacle_b", "obstacle_radius", "obstacle_active")
 
 
 def _tight(scenes_dir, envs=2):
@@ -24,17 +26,17 @@ def _same(a, b):
 
 def test_copy_is_a_full_snapshot_with_obstacle_poses(scenes_dir):
     sim, state, ctrl = _tight(scenes_dir)
-    ends = state.obstacles.p0[:, 0].copy()
+    ends = sim.contact_data(state).p0[:, 0].copy()
     snap = state.copy()
-    state.obstacles.set_pose(0, (0.0, 0.0, -0.05))  # the original moves; the snapshot keeps its pose
-    assert np.array_equal(snap.obstacles.p0[:, 0], ends)
-    assert not np.array_equal(state.obstacles.p0[:, 0], ends)
+    sim.set_obstacle_pose(state, 0, (0.0, 0.0, -0.05))  # the original moves; the snapshot keeps its pose
+    assert np.array_equal(sim.contact_data(snap).p0[:, 0], ends)
+    assert not np.array_equal(sim.contact_data(state).p0[:, 0], ends)
     snap2 = state.copy()
     for k in range(1, 8):  # the copy steps exactly as the original (same poses, same bits)
         _bend(ctrl, k)
         sa, sb = sim.step(state, ctrl), sim.step(snap2, ctrl)
         assert _same(state, snap2) and np.array_equal(sa.contact_count, sb.contact_count)
-    assert state.obstacles.tri is snap2.obstacles.tri  # static meshes shared, never copied
+    assert not any(np.shares_memory(getattr(state, f), getattr(snap2, f)) for f in FIELDS)  # arrays only, copied
 
 
 def test_the_simulator_keeps_no_per_env_state(scenes_dir):
@@ -42,12 +44,12 @@ def test_the_simulator_keeps_no_per_env_state(scenes_dir):
     stepped alone by its own Simulator."""
     sim, a, ctrl = _tight(scenes_dir)
     b = sim.reset()
-    for i in range(b.obstacles.count):
-        b.obstacles.set_pose(i, (0.01, 0.0, 0.0))
+    for i in range(sim.model.obstacles.count):
+        sim.set_obstacle_pose(b, i, (0.01, 0.0, 0.0))
     ref_sim, ref_a, _ = _tight(scenes_dir)
     ref_sim2, ref_b, _ = _tight(scenes_dir)
-    for i in range(ref_b.obstacles.count):
-        ref_b.obstacles.set_pose(i, (0.01, 0.0, 0.0))
+    for i in range(ref_sim2.model.obstacles.count):
+        ref_sim2.set_obstacle_pose(ref_b, i, (0.01, 0.0, 0.0))
     touched = 0
     for k in range(1, 12):
         _bend(ctrl, k)
@@ -62,11 +64,11 @@ def test_the_simulator_keeps_no_per_env_state(scenes_dir):
 
 def test_reset_envs_restores_the_scene_poses_of_those_envs(scenes_dir):
     sim, state, ctrl = _tight(scenes_dir, envs=3)
-    p0 = state.obstacles.p0.copy()
-    state.obstacles.set_pose(2, (0.1, 0.0, 0.0))
+    p0 = sim.contact_data(state).p0.copy()
+    sim.set_obstacle_pose(state, 2, (0.1, 0.0, 0.0))
     sim.reset_envs(state, ctrl, [0, 2])
-    assert np.array_equal(state.obstacles.p0[[0, 2]], p0[[0, 2]])
-    assert not np.array_equal(state.obstacles.p0[1], p0[1])
+    assert np.array_equal(sim.contact_data(state).p0[[0, 2]], p0[[0, 2]])
+    assert not np.array_equal(sim.contact_data(state).p0[1], p0[1])
 
 
 def test_node_pos_is_a_new_array_in_both_modes(scenes_dir):
@@ -81,10 +83,28 @@ def test_node_pos_is_a_new_array_in_both_modes(scenes_dir):
 def test_state_arrays_are_the_state_fields_and_copy_copies_each(scenes_dir):
     from sim.state import STATE_ARRAYS, STATE_FLOAT_ARRAYS
 
-    assert STATE_ARRAYS == FIELDS and STATE_FLOAT_ARRAYS == FIELDS[:-1]
+    assert STATE_ARRAYS == FIELDS
+    assert STATE_FLOAT_ARRAYS == tuple(f for f in FIELDS if f not in ("failed", "obstacle_active"))
     sim, state, _ = _tight(scenes_dir)
     snap = state.copy()
     for name in STATE_ARRAYS:
         a, b = getattr(state, name), getattr(snap, name)
         assert isinstance(a, np.ndarray) and a.shape[0] == sim.envs and not np.shares_memory(a, b)
         assert np.array_equal(a, b)
+
+
+def test_assign_copies_every_array_in_place(scenes_dir):
+    sim, state, ctrl = _tight(scenes_dir)
+    other = sim.reset()
+    sim.set_obstacle_pose(other, 1, (0.02, 0.0, 0.0))
+    _bend(ctrl, 3)
+    sim.step(other, ctrl)
+    arrays = {f: getattr(state, f) for f in FIELDS}
+    state.assign(other)
+    assert all(getattr(state, f) is arrays[f] for f in FIELDS)  # the same arrays, new values
+    assert _same(state, other) and np.array_equal(state.obstacle_position, other.obstacle_position)
+    small = Simulator(sim.model, envs=1).reset()
+    import pytest
+
+    with pytest.raises(ValueError, match="shape"):
+        state.assign(small)

@@ -1,14 +1,15 @@
 """Obstacle/contact scene tables: validation errors naming file and key, bad meshes, TOML round trip of the
-shipped scenes, and ObstacleSet per-env editing (set_pose / set_capsules) with rigid-motion invariance."""
+shipped scenes, and per-env obstacle poses in the State (set_pose / set_capsules) with rigid-motion invariance."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import tomllib
 
 import numpy as np
 import pytest
 
-from sim.contact_set import ObstacleSet
+from sim import Simulator, build_model
 from sim.obstacles import (
     BoxSpec,
     CapsuleSpec,
@@ -129,24 +130,33 @@ def test_set_pose_rigid_motion_invariance(kind):
 
 
 def test_set_capsules_vectorised_and_validated():
+    """Capsules re-placed per env in the State's arrays; the step derives their world arrays; a reset puts the
+    envs' obstacles back at the scene's poses; the geometry is the Model's, shared by every state and copy."""
     specs = [CapsuleSpec((0, 0, 0), (0, 0, 1), 0.03) for _ in range(8)] + [SphereSpec((5, 5, 5), 0.1)]
-    obs = ObstacleSet.from_specs(specs, envs=6)
+    arm = load_scene(REPO / "assets" / "scenes" / "arm.toml")
+    sim = Simulator(build_model(dataclasses.replace(arm, obstacles=tuple(specs))), envs=6)
+    state = sim.reset()
     rng = np.random.default_rng(0)
     a = rng.uniform(-1, 1, size=(3, 8, 3))
     b = a + rng.normal(size=(3, 8, 3))
-    obs.set_capsules([1, 3, 5], a, b, 0.05)
-    np.testing.assert_allclose(obs.p0[[1, 3, 5], :8], a)
-    np.testing.assert_allclose(obs.p1[[1, 3, 5], :8], b)
-    assert np.all(obs.radius[[1, 3, 5], :8] == 0.05) and np.all(obs.radius[0, :8] == 0.03)
-    np.testing.assert_allclose(obs.box[1, :8, 0], np.minimum(a[0], b[0]) - 0.05)
+    sim.set_capsules(state, [1, 3, 5], a, b, 0.05)
+    np.testing.assert_array_equal(state.obstacle_a[[1, 3, 5], :8], a)
+    assert np.all(state.obstacle_radius[[1, 3, 5], :8] == 0.05) and np.all(state.obstacle_radius[0, :8] == 0.03)
+    cd = sim.contact_data(state)  # the world arrays the kernels read, derived from the poses
+    np.testing.assert_allclose(cd.p0[[1, 3, 5], :8], a)
+    np.testing.assert_allclose(cd.p1[[1, 3, 5], :8], b)
+    np.testing.assert_allclose(cd.box[1, :8, 0], np.minimum(a[0], b[0]) - 0.05)
     with pytest.raises(ValueError, match="shape"):
-        obs.set_capsules([0], a, b, 0.05)
+        sim.set_capsules(state, [0], a, b, 0.05)
     with pytest.raises(ValueError, match="radius"):
-        obs.set_capsules([0], a[:1], b[:1], -1.0)
-    obs.reset_envs([1])
-    np.testing.assert_allclose(obs.p1[1, 0], [0, 0, 1])
-    new = obs.for_envs(2)
-    assert new.envs == 2 and new.tri is obs.tri and obs.envs == 6
+        sim.set_capsules(state, [0], a[:1], b[:1], -1.0)
+    sim.reset_envs(state, None, [1])
+    np.testing.assert_allclose(sim.contact_data(state).p1[1, 0], [0, 0, 1])
+    np.testing.assert_allclose(sim.contact_data(state).p1[3, :8], b[1])  # the other envs keep theirs
+    snap = state.copy()
+    sim.set_obstacle_pose(state, 8, (0.0, 0.0, 1.0))
+    assert not np.array_equal(snap.obstacle_position, state.obstacle_position)  # a copy has its own poses
+    assert sim.model.obstacles.tri is Simulator(sim.model, envs=2).model.obstacles.tri
 
 
 def test_quaternion_matrix_is_rotation():

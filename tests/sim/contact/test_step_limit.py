@@ -25,7 +25,7 @@ def capsule_sim():
     x = np.zeros((21, 3))
     x[:, 0] = np.linspace(0.0, 1.0, 21)
     x[:, 2] = 0.5
-    return sim.reset().obstacles.kernel_data(n_nodes=21, rod_radius=R_ROD), x
+    return sim.contact_data(sim.reset()), x
 
 
 def gap(cd, x):
