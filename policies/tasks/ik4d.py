@@ -53,8 +53,9 @@ class IK4DCore(BatchedTask):
             self.target_pos[i], self.target_quat[i] = sample_ik_targets(
                 self.rngs[i], lo=c.target_lo, hi=c.target_hi, yaw_range=c.yaw_range)
 
-    def tip_quaternion(self) -> np.ndarray:
-        """(B, 4) xyzw quaternion of the tip frame, rotation matrix columns (m1, m2, t) of the last edge."""
+    def tip_quaternion_xyzw(self) -> np.ndarray:
+        """(B, 4) xyzw quaternion of the tip frame (the observation's layout, docs/conventions.md), rotation matrix
+        columns (m1, m2, t) of the last edge."""
         st = self.state
         # the simulator's own frame convention, evaluated on the last edge only (cheap for large B)
         last = SimpleNamespace(edge_tangent=st.edge_tangent[:, -1:], edge_ref_d1=st.edge_ref_d1[:, -1:],
@@ -69,7 +70,7 @@ class IK4DCore(BatchedTask):
         f["curr_twist_bar"] = self.converter.twist_obs
         f["target_pos"] = self.target_pos
         f["target_quat"] = self.target_quat
-        f["tip_orientation"] = self.tip_quaternion()
+        f["tip_orientation"] = self.tip_quaternion_xyzw()
         return f
 
     def _reward(self, fields):

@@ -86,7 +86,7 @@ def sample_ik_targets(rng: np.random.Generator, *, lo: Sequence[float], hi: Sequ
                       yaw_range: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     """One IK target from ``rng``: position uniform in the box (3 uniforms, then) yaw uniform (1 uniform).
 
-    Returns (pos (3,) [m], quat (4,) xyzw).
+    Returns (pos (3,) [m], quat (4,) xyzw: the observation's ``target_quat`` layout, docs/conventions.md).
     """
     lo_a, hi_a = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
     pos = lo_a + (hi_a - lo_a) * rng.random(3)
