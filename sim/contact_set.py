@@ -267,16 +267,24 @@ class ObstacleWorld:
             return self
         poses = tuple(getattr(state, n) for n in self._POSE)
         if self._seen is None:
+            n = np.linalg.norm(poses[1], axis=-1)
+            if (np.isfinite(n) & (n < 1e-12)).any():
+                raise ValueError("state.obstacle_orientation: a quaternion is zero; write unit quaternions wxyz")
             world_arrays(self.geometry, *poses, self.p0, self.p1, self.rot, self.box)
             self._seen = tuple(p.copy() for p in poses)
+            return self
+        if all(np.array_equal(p, q) for p, q in zip(poses, self._seen)):  # the usual step: nothing moved
             return self
         B = poses[0].shape[0]
         changed = np.zeros(B, dtype=bool)
         for p, q in zip(poses, self._seen):
             changed |= (p != q).reshape(B, -1).any(axis=1)  # NaN != NaN: a NaN pose is derived (and quarantined)
-        if not changed.any():
+        if not changed.any():  # NaN poses seen before (array_equal never calls NaN equal)
             return self
         e = np.flatnonzero(changed)
+        n = np.linalg.norm(poses[1][e], axis=-1)
+        if (np.isfinite(n) & (n < 1e-12)).any():  # (NaN is the quarantine's: the env fails, its poses reset)
+            raise ValueError("state.obstacle_orientation: a quaternion is zero; write unit quaternions wxyz")
         out = [a[e] for a in (self.p0, self.p1, self.rot, self.box)]
         world_arrays(self.geometry, *(p[e] for p in poses), *out)
         for a, o in zip((self.p0, self.p1, self.rot, self.box), out):

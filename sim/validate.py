@@ -368,11 +368,7 @@ def check_step_inputs(sim: Any, state: Any, ctrl: Any) -> None:
         if name not in want:
             raise ValueError(f"step: state.{name}: not a field of sim.State")
         _array(state, "state", name, *want[name], writable=True)
-    q = state.obstacle_orientation
-    if q.size:
-        n = np.linalg.norm(q, axis=-1)
-        if (np.isfinite(n) & (n < 1e-12)).any():  # (NaN is the quarantine's: the env fails, its poses reset)
-            raise ValueError("state.obstacle_orientation: a quaternion is zero; write unit quaternions wxyz")
+    # (a zero obstacle quaternion is refused where the poses are read: sim.contact_set.ObstacleWorld.update)
     for name, shp in (("kappa_bar", (B, N, 2)), ("tau_bar", (B, N))):
         a = _array(ctrl, "ctrl", name, shp, np.float64, writable=False)
         if not np.isfinite(a).all():

@@ -108,3 +108,25 @@ def test_assign_copies_every_array_in_place(scenes_dir):
 
     with pytest.raises(ValueError, match="shape"):
         state.assign(small)
+
+
+def test_a_zero_obstacle_quaternion_is_refused_by_name(scenes_dir):
+    sim, state, ctrl = _tight(scenes_dir)
+    sim.step(state, ctrl)
+    state.obstacle_orientation[1, 0] = 0.0
+    import pytest
+
+    with pytest.raises(ValueError, match="state.obstacle_orientation: a quaternion is zero"):
+        sim.step(state, ctrl)
+
+
+def test_a_nan_obstacle_pose_fails_that_env_and_goes_back_to_the_scene(scenes_dir):
+    sim, state, ctrl = _tight(scenes_dir, envs=3)
+    spec_pose = state.obstacle_position.copy()
+    sim.set_obstacle_pose(state, 0, (0.01, 0.0, 0.0), envs=[0, 2])
+    state.obstacle_position[2, 0, 1] = np.nan
+    stats = sim.step(state, ctrl)
+    assert stats.failed.tolist() == [False, False, True] and state.failed[2]
+    assert np.array_equal(state.obstacle_position[2], spec_pose[2])  # the NaN pose is the scene's again
+    np.testing.assert_allclose(state.obstacle_position[0, 0], (0.01, 0.0, 0.0))  # the others keep theirs
+    assert all(np.isfinite(getattr(state, f)).all() for f in FIELDS if f != "failed")
