@@ -9,16 +9,11 @@ import numpy as np
 
 from sim import parse_scene
 from sim.support.assets import asset_path
+from tests.helpers.contact import FLOOR_DOC, FLOOR_NODES
 from workbench.gui_controls import contact_status
 from workbench.simbridge import LiveSim
 
-NODES = 101  # a rod lying on the floor: one plane contact per node, more than the report's first capacity
-DOC = {"sim": dict(dt=0.01, gravity=[0.0, 0.0, -9.8], damping=2.0, newton_tol=1e-8, newton_max_iter=30,
-                   accept_unconverged=False, mode="3d"),
-       "rod": dict(nodes=NODES, length=2.0, radius=0.01, density=1000.0, youngs_modulus=1e6, poisson_ratio=0.5,
-                   start=[0.0, 0.0, 0.0098], direction=[1.0, 0.0, 0.0], clamp="none"),
-       "contact": dict(stiffness=1e5, delta=1e-3, friction=0.5),
-       "obstacle": [dict(type="plane", point=[0.0, 0.0, 0.0], normal=[0.0, 0.0, 1.0])]}
+NODES, DOC = FLOOR_NODES, FLOOR_DOC
 
 
 def _net(line: str) -> float:
