@@ -89,6 +89,9 @@ class RenderPanel:
         self.thread.start()
         return self.thread
 
+    def _connected(self, client) -> bool:
+        return getattr(client, "client_id", None) in self.app.server.get_clients()
+
     def _frame_episode(self, client, rs) -> None:
         """Point ``client``'s camera, from the direction it looks from, at the whole episode: every frame's rod, its
         targets and the obstacles fill the view (the rod is as large in the video as its motion allows)."""
@@ -118,22 +121,37 @@ class RenderPanel:
             self._say(app.status_note)
 
         self.cancel_btn.visible = True
-        cam = client.camera
-        view0 = (tuple(cam.position), tuple(cam.look_at))
+        view0 = _view_of(client)  # None while the page has not reported its camera
         try:
-            self._frame_episode(client, rs)
+            if view0 is not None:
+                self._frame_episode(client, rs)
             out = record_replay(client, draw, rs.length, app.files.recordings, stem, speed=rs.speed,
                                 progress=progress, cancelled=self._cancel.is_set)
         except (RenderError, OSError, TimeoutError, ValueError) as exc:
             self.last_error = str(exc)
             self._say(f"⚠ video not written: {exc}")
+        except RuntimeError as exc:  # viser: the page went away (closed, reloaded) before a frame came back
+            if self._connected(client):
+                raise
+            self.last_error = f"the page closed before the video was done ({exc})"
+            self._say("⚠ video not written: the page that asked for it has closed")
         else:
             self.last_path = out
             self._say(f"saved {out.name} to the recordings folder")
         finally:
-            place_camera(client, *view0)  # the page's own view again
+            if view0 is not None and self._connected(client):
+                place_camera(client, *view0)  # the page's own view again
             app.status_note = ""
             self.cancel_btn.visible = False
             with wb.lock:
                 rs.seek(start)
             app.request_render()
+
+
+def _view_of(client) -> tuple[tuple, tuple] | None:
+    """(position, look-at) of ``client``'s camera, or None before the page has reported one."""
+    try:
+        cam = client.camera
+        return tuple(cam.position), tuple(cam.look_at)
+    except (AssertionError, ValueError, AttributeError):
+        return None

@@ -80,3 +80,30 @@ def _umask() -> int:
     from sim.support.atomicio import default_mode
 
     return 0o666 & ~default_mode()
+
+
+def test_a_page_closed_during_its_video_ends_the_video_with_a_note(tmp_path):
+    """The page that asked for a video goes away while its frames are grabbed: the video thread ends, says so and
+    leaves no file (no exception escapes the thread)."""
+    import contextlib
+    from types import SimpleNamespace
+
+    from tests.workbench.conftest import make_app
+
+    def gone(*_a, **_k):
+        raise RuntimeError("Render request failed: the client disconnected before returning a frame.")
+
+    camera = SimpleNamespace(position=(1.0, -1.0, 1.0), look_at=(0.0, 0.0, 0.5), image_width=64, image_height=48,
+                             get_render=gone)
+    client = SimpleNamespace(client_id=-1, camera=camera, atomic=contextlib.nullcontext)  # no longer connected
+    app = make_app(wait_for_browser=False, recordings_dir=tmp_path / "rec", scenes_dir=tmp_path / "scenes")
+    try:
+        _write(app.files.recordings / "swing.rrd")
+        app.replay.open("swing.rrd")
+        thread = app.pictures.start_video(client)
+        thread.join(120)
+        assert not thread.is_alive()
+        assert "has closed" in app.pictures.msg.content and app.pictures.last_error.startswith("the page closed")
+        assert sorted(p.suffix for p in app.files.recordings.iterdir()) == [".rrd"]  # no video, no temporary
+    finally:
+        app.stop()
