@@ -229,14 +229,11 @@ def eval_main(argv: list[str]) -> int:
 
 # ----------------------------------------------------------------------------------------- bench train
 def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3, seed: int = 0,
-                threads: int = 1, speed=None, overlap: bool = False, device: str = "cpu") -> dict:
+                threads: int = 1, speed=None, device: str = "cpu") -> dict:
     """Time training iterations (one batched env step + ``updates`` gradient updates of batch 1024).
 
     Returns ms per iteration split into policy (action sampling), env step, buffer add and updates.
     The replay buffer is first filled with ``learning_starts`` random transitions (untimed).
-    ``overlap``: the env step runs in a second thread while the updates run (the simulator's kernel releases the
-    GIL), its transition added after them, so the updates of an iteration do not see its own step (training would
-    lag one step); ``env_step_ms`` is then the wait for the step after the updates.
     """
     import numpy as np
     import torch
@@ -264,46 +261,27 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
         rb.add(obs, nobs, act, rew, done, infos)
         obs = nobs
     rows = []
-    pool = None
-    if overlap:
-        from concurrent.futures import ThreadPoolExecutor
-
-        pool = ThreadPoolExecutor(max_workers=1)
     for it in range(warmup + iters):
         t0 = time.perf_counter()
         act, _ = model.predict(obs, deterministic=False)
         t1 = time.perf_counter()
-        if pool is None:
-            nobs, rew, done, infos = env.step(act)
-            t2 = time.perf_counter()
-            rb.add(obs, nobs, model.policy.scale_action(act), rew, done, infos)
-            t3 = time.perf_counter()
-            model.train(gradient_steps=args.updates_per_iter, batch_size=args.batch_size)
-            _sync(model)
-            t4 = time.perf_counter()
-            row = (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t4 - t0)
-        else:
-            fut = pool.submit(env.step, act)
-            model.train(gradient_steps=args.updates_per_iter, batch_size=args.batch_size)
-            _sync(model)
-            t2 = time.perf_counter()
-            nobs, rew, done, infos = fut.result()
-            t3 = time.perf_counter()
-            rb.add(obs, nobs, model.policy.scale_action(act), rew, done, infos)
-            t4 = time.perf_counter()
-            row = (t1 - t0, t3 - t2, t4 - t3, t2 - t1, t4 - t0)
+        nobs, rew, done, infos = env.step(act)
+        t2 = time.perf_counter()
+        rb.add(obs, nobs, model.policy.scale_action(act), rew, done, infos)
+        t3 = time.perf_counter()
+        model.train(gradient_steps=args.updates_per_iter, batch_size=args.batch_size)
+        _sync(model)
+        t4 = time.perf_counter()
         obs = nobs
         if it >= warmup:
-            rows.append(row)
-    if pool is not None:
-        pool.shutdown()
+            rows.append((t1 - t0, t2 - t1, t3 - t2, t4 - t3, t4 - t0))
     env.close()
     r = 1e3 * np.array(rows)
     names = ["policy_ms", "env_step_ms", "buffer_add_ms", "update_ms", "iteration_ms"]
     out = {"task": task, "envs": envs, "iters": iters, "updates_per_iter": args.updates_per_iter,
            "batch_size": args.batch_size, "torch_threads": threads, "device": args.device,
            "setup_s": round(build_s, 2),
-           "speed_settings": speed.label() + (",overlap" if overlap else "")}
+           "speed_settings": speed.label()}
     for j, nm in enumerate(names):
         out[nm] = round(float(np.median(r[:, j])), 2)
         out[nm.replace("_ms", "_ms_mean")] = round(float(r[:, j].mean()), 2)
@@ -335,9 +313,6 @@ def bench_train_main(argv: list[str]) -> int:
     p.add_argument("--bf16", action="store_true", help="updates under bfloat16 autocast")
     p.add_argument("--bf16-layout", choices=BF16_LAYOUTS, default="float32_io",
                    help="with --bf16: which layers stay float32 (as rodlab train --bf16-layout)")
-    p.add_argument("--adam", choices=("fused", "foreach", "plain"), default="fused", help="Adam implementation")
-    p.add_argument("--overlap", action="store_true",
-                   help="run the env step in a second thread during the updates (its transition is added after them)")
     p.add_argument("--device", default="cpu", help="torch device of the updates: cpu (default), cuda or cuda:N")
     p.add_argument("--json", action="store_true")
     a = p.parse_args(argv)
@@ -347,8 +322,8 @@ def bench_train_main(argv: list[str]) -> int:
         if a.compile:
             check_compiler()
         res = bench_train(a.task, envs=a.envs, iters=a.iters, warmup=a.warmup, threads=a.threads,
-                          speed=SpeedSettings(compile=a.compile, bf16=a.bf16, bf16_layout=a.bf16_layout, adam=a.adam),
-                          overlap=a.overlap, device=a.device)
+                          speed=SpeedSettings(compile=a.compile, bf16=a.bf16, bf16_layout=a.bf16_layout),
+                          device=a.device)
     except TrainError as exc:
         print(f"rodlab bench train: {exc}", file=sys.stderr)
         return 2

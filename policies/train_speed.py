@@ -12,17 +12,13 @@ Nothing here is used by ``rodlab train`` by default; each setting must first be 
 * ``bf16``: ``RodSAC.bf16_updates``: each forward pass of the updates runs under
   ``torch.autocast("cpu", dtype=torch.bfloat16)``, with the hidden 256x256 products in bfloat16 and the input
   and output layers, LayerNorms and losses in float32 (policies/sac.py).
-* ``adam``: ``"fused"`` (default of policies/train.py), ``"foreach"`` or ``"plain"`` (one kernel per tensor)
-  for the actor, critic and entropy-coefficient optimizers, rebuilt with the same lr and eps.
 * torch threads: ``torch.set_num_threads`` (``rodlab bench train --threads``).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["SpeedSettings", "apply_speed_settings", "ADAM_KINDS"]
-
-ADAM_KINDS = ("fused", "foreach", "plain")
+__all__ = ["SpeedSettings", "apply_speed_settings"]
 
 
 @dataclass(frozen=True)
@@ -30,27 +26,17 @@ class SpeedSettings:
     compile: bool = False
     bf16: bool = False
     bf16_layout: str = "float32_io"
-    adam: str = "fused"
 
     def __post_init__(self):
-        if self.adam not in ADAM_KINDS:
-            raise ValueError(f"adam must be one of {ADAM_KINDS}, got {self.adam!r}")
         from policies.sac import BF16_LAYOUTS
 
         if self.bf16_layout not in BF16_LAYOUTS:
             raise ValueError(f"bf16_layout must be one of {BF16_LAYOUTS}, got {self.bf16_layout!r}")
 
     def label(self) -> str:
-        return ",".join([f"adam={self.adam}"] + (["compile"] if self.compile else []) + (
-            [f"bf16={self.bf16_layout}"] if self.bf16 else []))
-
-
-def _adam(params, lr, eps, kind: str):
-    import torch as th
-
-    kw = {"fused": {"fused": True}, "foreach": {"foreach": True, "fused": False},
-          "plain": {"foreach": False, "fused": False}}[kind]
-    return th.optim.Adam(params, lr=lr, eps=eps, **kw)
+        """The settings as the benchmark's JSON names them ("float32" when none is on)."""
+        return ",".join((["compile"] if self.compile else []) + ([f"bf16={self.bf16_layout}"] if self.bf16 else [])) \
+            or "float32"
 
 
 def apply_speed_settings(model, settings: SpeedSettings) -> None:
@@ -59,13 +45,4 @@ def apply_speed_settings(model, settings: SpeedSettings) -> None:
         from policies.train import check_compiler
 
         check_compiler()
-    pol = model.policy
-    for holder in (pol.actor, pol.critic):
-        opt = holder.optimizer
-        g = opt.param_groups[0]
-        holder.optimizer = _adam([p for grp in opt.param_groups for p in grp["params"]], g["lr"], g["eps"],
-                                 settings.adam)
-    if model.ent_coef_optimizer is not None:
-        g = model.ent_coef_optimizer.param_groups[0]
-        model.ent_coef_optimizer = _adam([model.log_ent_coef], g["lr"], g["eps"], settings.adam)
     model.set_update_settings(bf16=settings.bf16, bf16_layout=settings.bf16_layout, compile_updates=settings.compile)

@@ -34,7 +34,7 @@ def _params(model):
     return torch.cat([p.detach().flatten().clone() for p in model.policy.parameters()])
 
 
-@pytest.mark.parametrize("settings", [SpeedSettings(adam="plain"), SpeedSettings(adam="foreach", bf16=True)])
+@pytest.mark.parametrize("settings", [SpeedSettings(), SpeedSettings(bf16=True)])
 def test_settings_apply_and_updates_run(settings):
     model = _model()
     apply_speed_settings(model, settings)
@@ -42,8 +42,6 @@ def test_settings_apply_and_updates_run(settings):
     for opt in (model.actor.optimizer, model.critic.optimizer, model.ent_coef_optimizer):
         d = opt.defaults
         assert d["eps"] == pytest.approx(1e-7) and d["lr"] == pytest.approx(1e-3)
-        assert bool(d.get("fused")) is False
-        assert bool(d.get("foreach")) is (settings.adam == "foreach")
     before = _params(model)
     model.train(gradient_steps=2, batch_size=64)
     after = _params(model)
@@ -221,11 +219,6 @@ def test_compile_without_a_compiler_is_refused(monkeypatch, tmp_path, capsys):
     assert not model.compile_updates
 
 
-def test_bad_adam_kind():
-    with pytest.raises(ValueError, match="adam must be one of"):
-        SpeedSettings(adam="sgd")
-
-
 def _trained(bf16: bool):
     th_state = torch.get_rng_state()
     np_state = np.random.get_state()
@@ -364,7 +357,8 @@ def test_bf16_layout_is_a_training_and_speed_setting(tmp_path):
     model = _model()
     apply_speed_settings(model, SpeedSettings(bf16=True, bf16_layout="all"))
     assert model.bf16_updates and not any(isinstance(m, Float32Linear) for m in model.policy.modules())
-    assert SpeedSettings(bf16=True, bf16_layout="all").label() == "adam=fused,bf16=all"
+    assert SpeedSettings(bf16=True, bf16_layout="all").label() == "bf16=all"
+    assert SpeedSettings().label() == "float32" and SpeedSettings(compile=True).label() == "compile"
 
 
 @pytest.mark.parametrize(("argv", "threads"), [([], "1"), (["ik4d", "--threads", "2"], "2"), (["--threads=3"], "3"),
