@@ -112,7 +112,7 @@ class Tape:
         """The kernels' rod data of step k (each env's external forces; no DOF constrained) and its variants with
         the stiffness, twisting stiffness or mass doubled."""
         m = self.sim.model
-        rod = self.sim._rod._replace(grav=np.ascontiguousarray(self.grav[k]))
+        rod = self.sim.kernel_rod._replace(grav=np.ascontiguousarray(self.grav[k]))
         rod = rod._replace(fixed=np.zeros_like(rod.fixed))
         weight = np.asarray(m.dof_gravity)[None, :]
         rod_e = rod._replace(EA=2.0 * rod.EA, EI1=2.0 * rod.EI1, EI2=2.0 * rod.EI2)
@@ -154,15 +154,15 @@ class Tape:
         c = np.ascontiguousarray
         linearise_step(c(self.dof[k]), c(self.vel[k]), c(self.ref_d1[k]), c(self.tangent[k]), c(self.ref_twist[k]),
                        c(self.dof[k + 1]), c(self.kappa_bar[k]), c(self.tau_bar[k]), h, rod, rod_e, rod_g, rod_m,
-                       sim._prm, self._cd, want_kb, want_tb, want_sc, ab, kbc, tbc, sc)
+                       sim.kernel_params, self._cd, want_kb, want_tb, want_sc, ab, kbc, tbc, sc)
         Jf = _dense(ab, n, kl)  # ∂f/∂x' with no DOF constrained
-        fixed = sim._rod.fixed.astype(bool)
+        fixed = sim.kernel_rod.fixed.astype(bool)
         J = Jf.copy()  # constrained DOFs: identity rows and columns (their residual is 0 and they do not move)
         J[:, fixed, :] = 0.0
         J[:, :, fixed] = 0.0
         J[:, fixed, fixed] = 1.0
-        mass = sim._rod.mass
-        damp = float(sim._prm[0]["damping"])
+        mass = sim.kernel_rod.mass
+        damp = float(sim.kernel_params[0]["damping"])
         pos_dof = np.ones(n, bool) if planar else (np.arange(n) % 4 != 3)
         Fx = -(mass / h**2 + np.where(pos_dof, damp * mass / h, 0.0))
         Fu = -mass / h
@@ -183,7 +183,7 @@ class Tape:
         G = Jf[:, :, th].copy()
         G[:, th, np.arange(E)] -= (mass[th] / h**2)[None, :]  # ∂f/∂φ: the elastic part of ∂f/∂θ
         G[:, fixed, :] = 0.0
-        link = sim._rod.link.astype(bool)
+        link = sim.kernel_rod.link.astype(bool)
         t0, t1 = self.tangent[k], self.tangent[k + 1]
         kvec = np.cross(t1, t0) / (1.0 + np.einsum("bij,bij->bi", t0, t1))[..., None]
         a = _turn_map(kvec, self.dof[k], t0, link)
@@ -192,7 +192,7 @@ class Tape:
 
     def _gravity_columns(self) -> np.ndarray:
         """(n, 3) ∂f/∂g (the same for every env and step)."""
-        rod = self.sim._rod
+        rod = self.sim.kernel_rod
         n = self.dof.shape[2]
         out = np.zeros((n, 3))
         mass = rod.mass
@@ -372,12 +372,12 @@ def rollout(sim, state, controls) -> Tape:
     if sim.has_contact:
         raise GradientError("derivatives through contact are not available yet: disable [contact] or remove the "
                             "obstacles and self-contact of this scene")
-    if bool(sim._prm[0]["midpoint"]):
+    if bool(sim.kernel_params[0]["midpoint"]):
         raise GradientError("derivatives of the implicit midpoint rule are not available: use "
                             "integrator = \"backward_euler\"")
     if sim._motion:
         raise GradientError("derivatives with prescribed motion ([[fix]] with a rate) are not available yet")
-    if bool(sim._prm[0]["drag_on"]):
+    if bool(sim.kernel_params[0]["drag_on"]):
         raise GradientError("derivatives with viscous drag ([drag], whose directions follow the rod's tangent) are "
                             "not available yet")
     if sim._frame_loads is not None:
@@ -395,7 +395,7 @@ def rollout(sim, state, controls) -> Tape:
     for k, ctrl in enumerate(controls):
         force = getattr(ctrl, "force", None)  # node forces: held over the step, known inputs like gravity
         gravs.append(sim._external_forces(state.time, force) if sim._loads or force is not None else
-                     np.broadcast_to(sim._rod.grav, (B, sim._rod.grav.shape[1])).copy())
+                     np.broadcast_to(sim.kernel_rod.grav, (B, sim.kernel_rod.grav.shape[1])).copy())
         kbs.append(np.array(ctrl.kappa_bar, dtype=np.float64))
         tbs.append(np.array(ctrl.tau_bar, dtype=np.float64))
         st = sim.step(state, ctrl)

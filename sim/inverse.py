@@ -113,7 +113,7 @@ def reach(spec, targets, *, nodes=None, basis=None, tip: int = -1, bound: float 
     kl = KL_2D if planar else KL_3D
     n = state.dof.reshape(B, -1).shape[1]
     cd = spec_contact_data(model.obstacles, 1, N, model.edge_radius, candidates=0)
-    fixed = sim._rod.fixed.astype(bool)
+    fixed = sim.kernel_rod.fixed.astype(bool)
     conv = np.zeros(B, bool)
     it = 0
     err = np.full(B, np.inf)
@@ -132,17 +132,17 @@ def reach(spec, targets, *, nodes=None, basis=None, tip: int = -1, bound: float 
                     np.ascontiguousarray(state.edge_tangent[e]), np.ascontiguousarray(state.node_ref_twist[e]),
                     _H_STATIC)
             tb = np.ascontiguousarray(ctrl.tau_bar[e], dtype=np.float64)
-            rod = sim._rod._replace(grav=sim._rod.grav[:1])
+            rod = sim.kernel_rod._replace(grav=sim.kernel_rod.grav[:1])
             f0, ab = np.empty(n), np.empty((n + kl, 2 * kl + 1))
             kb = np.ascontiguousarray(ctrl.kappa_bar[e], dtype=np.float64)
-            assemble_at(0, *args, kb, tb, rod, sim._prm, cd, f0, ab)
+            assemble_at(0, *args, kb, tb, rod, sim.kernel_params, cd, f0, ab)
             cols = []
             for p in range(P):
                 for c in comps:
                     kb1 = kb.copy()
                     kb1[:, c] += basis[:, p]
                     f1 = np.empty(n)
-                    assemble_at(0, *args, kb1, tb, rod, sim._prm, cd, f1, ab)
+                    assemble_at(0, *args, kb1, tb, rod, sim.kernel_params, cd, f1, ab)
                     d = f1 - f0
                     d[fixed] = 0.0
                     cols.append(d)

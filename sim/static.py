@@ -191,7 +191,7 @@ def _static_band(sim: Simulator, state: Any, ctrl: Any, e: int):
                            np.ascontiguousarray(state.edge_ref_d1[e]), np.ascontiguousarray(state.edge_tangent[e]),
                            np.ascontiguousarray(state.node_ref_twist[e]),
                            np.ascontiguousarray(ctrl.kappa_bar[e], dtype=np.float64),
-                           np.ascontiguousarray(ctrl.tau_bar[e], dtype=np.float64), sim._rod, sim._prm,
+                           np.ascontiguousarray(ctrl.tau_bar[e], dtype=np.float64), sim.kernel_rod, sim.kernel_params,
                            sim.contact_data(state))
 
 

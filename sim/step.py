@@ -132,6 +132,19 @@ class Simulator:
             ctrl.kappa_bar[mask] = kb
             ctrl.tau_bar[mask] = tb
 
+    # ------------------------------------------------------------------ kernel data
+    @property
+    def kernel_params(self) -> np.ndarray:
+        """The kernels' parameter record (``sim.kernels.data.Params``, a one-element structured array: flags and
+        numbers of the step), built from the Model; read by the static solver, inverse statics and derivatives."""
+        return self._prm
+
+    @property
+    def kernel_rod(self):
+        """The kernels' rod record (``sim.kernels.data.RodData``: masses, stiffnesses, rest shape, fixed DOFs,
+        gravity), built from the Model."""
+        return self._rod
+
     # ------------------------------------------------------------------ obstacle poses (in the State)
     def set_obstacle_pose(self, state: State, i: int, position, orientation_wxyz=(1.0, 0.0, 0.0, 0.0), *,
                           envs: IndexLike = None) -> None:

@@ -155,5 +155,5 @@ def test_tasks_have_no_friction(tid):
     Newton schedule (docs/physics.md §4.6) do not enter their dynamics, so changing them leaves learning curves
     alone."""
     venv = make_vec_env(tid, 1, seed=0)
-    prm = venv.core.sim._prm[0]
+    prm = venv.core.sim.kernel_params[0]
     assert not bool(prm["friction_on"]) and float(prm["friction"]) == 0.0

@@ -80,7 +80,7 @@ def case(request):
 def perturbations(mode, sim, kb, tb, tape, rng):
     """name -> (tangent dict, function eps -> final DOFs of the rollout with the parameters moved by eps·tangent)."""
     n = tape.dof.shape[2]
-    free = ~sim._rod.fixed.astype(bool)
+    free = ~sim.kernel_rod.fixed.astype(bool)
     dk = rng.normal(0.0, 1.0, kb.shape)
     dt_ = rng.normal(0.0, 1.0, tb.shape)
     if mode == "2d":
@@ -139,7 +139,7 @@ def test_envs_of_a_batch_are_differentiated_alone(case):
     mode, sim, kb, tb, tape, rng = case
     n = tape.dof.shape[2]
     v = np.zeros((B, n))
-    v[0] = rng.normal(0.0, 0.1, n) * ~sim._rod.fixed.astype(bool)
+    v[0] = rng.normal(0.0, 0.1, n) * ~sim.kernel_rod.fixed.astype(bool)
     out = tape.jvp({"vel0": v})
     assert np.all(out["dof"][:, 1] == 0.0) and np.any(out["dof"][:, 0] != 0.0)
 
