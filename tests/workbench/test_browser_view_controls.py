@@ -23,18 +23,19 @@ def test_fit_view_keeps_the_direction_and_frames_the_scene(wb_page):
     d = np.array([0.3, -1.0, 0.4])
     far_look = np.array([2.0, 1.0, -0.5])
     place_camera(client, tuple(far_look + 12.0 * d), tuple(far_look))  # far off and looking at nothing
-    wait_for(lambda: np.allclose(cam.look_at, far_look, atol=1e-6), what="the page's camera moved away")
+    wait_for(lambda: np.allclose(cam.look_at, far_look, atol=1e-3), what="the page's camera moved away")
     pos, look = fit_camera_along(d, view.fit_points())
     expand_folder(page, "Display", "Fit view")
     page.get_by_role("button", name="Fit view", exact=True).click()
 
-    def framed() -> bool:
-        return (np.allclose(cam.look_at, look, atol=1e-4) and np.allclose(cam.position, pos, atol=1e-4))
+    def framed() -> bool:  # (1 mm: the page's orbit controls may settle a camera set from the server by a hair)
+        return np.allclose(cam.look_at, look, atol=1e-3) and np.allclose(cam.position, pos, atol=1e-3)
 
     wait_for(framed, what=lambda: f"the scene framed (camera {np.round(cam.position, 4)} -> "
                                   f"{np.round(cam.look_at, 4)}, expected {np.round(pos, 4)} -> {np.round(look, 4)})")
     off = np.asarray(cam.position) - np.asarray(cam.look_at)
-    np.testing.assert_allclose(off / np.linalg.norm(off), d / np.linalg.norm(d), atol=1e-4)  # the same direction
+    np.testing.assert_allclose(off / np.linalg.norm(off), d / np.linalg.norm(d), atol=1e-3)  # the same direction
+    assert np.linalg.norm(np.asarray(cam.look_at) - far_look) > 1.0  # it moved: from looking at nothing to the rod
     # the rod is in front of the camera, at the framed distance: its points lie within the field of view
     rest = np.asarray(view.last_frame.node_pos)
     centre = 0.5 * (rest.min(axis=0) + rest.max(axis=0))

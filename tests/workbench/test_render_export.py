@@ -72,7 +72,8 @@ def test_browser_screenshot_and_video(wb_page):
     assert np.mean(np.abs(first - last) > 30) > 0.002  # the rod moved between the first and the last frame
     assert app.wb.replay.index == 0  # back where it was
     # the video looked at the whole episode; the page's own view is back
-    wait_for(lambda: np.allclose(np.concatenate([cam.position, cam.look_at]), view0, atol=1e-6),
+    # (1 mm: the page's orbit controls may settle a camera set from the server by a hair)
+    wait_for(lambda: np.allclose(np.concatenate([cam.position, cam.look_at]), view0, atol=1e-3),
              what="the page's camera back where it was")
 
 
