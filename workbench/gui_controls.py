@@ -147,6 +147,8 @@ class ControlsPanel:
             # sync that read the state before another thread changed it must not pause or start the session
             if not self._syncing:
                 wb.set_playing(self.playing.value)
+                app.request_render()  # a paused session draws nothing by itself: the readouts (a replay's Play box,
+                # "paused" in the status line) follow at this redraw
 
         @self.step_btn.on_click
         def _(_e) -> None:

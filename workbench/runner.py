@@ -75,7 +75,11 @@ class SimThread:
             try:
                 if self.inputs is not None and self.inputs():
                     self._dirty.set()
+                rp = wb.replay if wb.mode == "replay" else None
+                was_playing = rp is not None and rp.playing
                 moved = wb.advance()
+                if was_playing and not rp.playing:  # a replay stopped at its end: the page is told (Play box)
+                    self._dirty.set()
                 if moved:
                     self.steps += 1
                     self.step_ms = 1000.0 * wb.live.step_time if wb.mode != "replay" else 0.0

@@ -100,3 +100,22 @@ def test_recordings_tab_exports_the_open_episode_into_the_recordings_folder(tmp_
         np.testing.assert_array_equal(unpack_html(html.read_text())["positions"], app.wb.replay.ep.positions)
     finally:
         app.stop()
+
+
+def test_a_replay_that_plays_to_its_end_unticks_the_play_box(tmp_path):
+    """The session draws nothing once a replay stops at its last frame, so the stop itself asks for a redraw: the
+    Recordings tab's Play box and the Run tab's Playing box show the replay stopped (no page needed)."""
+    from tests.workbench.conftest import make_app
+    from tools.browser import wait_for
+
+    _wb, path, _tips = record_session(tmp_path, n=8)
+    app = make_app(wait_for_browser=False, recordings_dir=path.parent, scenes_dir=tmp_path / "scenes")
+    try:
+        wait_for(lambda: not app.compiling, what="the kernels loaded")
+        rs = app.replay.open(path.name)
+        rs.speed = 0.2  # a frame every 0.25 s: each drawn frame refreshes the readouts, none is left for later
+        app.replay.play.value = True  # as the page's tick: its callback plays the replay
+        wait_for(lambda: rs.index == rs.length - 1 and not rs.playing, what="the replay at its end")
+        wait_for(lambda: app.replay.play.value is False, what="the Play box unticked at the end")
+    finally:
+        app.stop()
