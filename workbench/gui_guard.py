@@ -269,16 +269,19 @@ class MessageGuard:
 
 
 class _GuardedExecutor:
-    """viser's callback thread pool, with each callback run through ``report`` on an exception, and at most one
-    call of each callback waiting: a client sending faster than a callback runs (a slider dragged, a hostile
-    client at hundreds of messages per second) replaces the waiting call's arguments with its newest instead of
-    queueing another (callbacks read their element's current value, so the newest call is the one that
-    counts). The queue is then bounded by the number of callbacks, not by the client's rate."""
+    """viser's callback thread pool, with each callback run through ``report`` on an exception, one call of each
+    callback at a time, and at most one call of each callback waiting: a client sending faster than a callback
+    runs (a slider dragged, a button pressed again while its action runs, a hostile client at hundreds of messages
+    per second) replaces the waiting call's arguments with its newest instead of queueing another (callbacks read
+    their element's current value, so the newest call is the one that counts), and the waiting call starts when
+    the running one returns, on the same thread. The queue is then bounded by the number of callbacks, not by the
+    client's rate, and no action overlaps itself (two builds of one grid, two ghosts drawn at once)."""
 
     def __init__(self, inner, report: Callable[[BaseException], None]):
         self._inner, self._report = inner, report
         self._lock = threading.Lock()
         self._waiting: dict[Any, tuple[tuple, dict]] = {}  # callback -> newest (args, kwargs) not yet started
+        self._active: set = set()  # callbacks with a call running or submitted to the pool
         self._running = 0
         self.coalesced = 0  # calls folded into a waiting call of the same callback
 
@@ -286,26 +289,38 @@ class _GuardedExecutor:
         from concurrent.futures import Future
 
         with self._lock:
-            if fn in self._waiting:
-                self._waiting[fn] = (args, kwargs)
+            folded = fn in self._waiting
+            self._waiting[fn] = (args, kwargs)
+            if folded:
                 self.coalesced += 1
+            if folded or fn in self._active:  # the running call's thread starts it next
                 done: Future = Future()
                 done.set_result(None)
                 return done
-            self._waiting[fn] = (args, kwargs)
+            self._active.add(fn)
+        return self._inner.submit(self._run, fn)
 
-        def run():
+    def _run(self, fn) -> None:
+        again = True
+        while again:
             with self._lock:
                 a, kw = self._waiting.pop(fn)
                 self._running += 1
             try:
-                return fn(*a, **kw)
+                fn(*a, **kw)
             except Exception as exc:  # noqa: BLE001 - reported on the page and (unexpected ones) in the log
                 self._report(exc)
+            except BaseException:  # the thread is going away: nothing of this callback is left pending
+                with self._lock:
+                    self._waiting.pop(fn, None)
+                    self._active.discard(fn)
+                raise
             finally:
                 with self._lock:
                     self._running -= 1
-        return self._inner.submit(run)
+                    again = fn in self._waiting
+                    if not again:
+                        self._active.discard(fn)
 
     def waiting(self) -> int:
         """Callbacks waiting to run."""
