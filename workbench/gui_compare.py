@@ -4,6 +4,8 @@ policy on the running task's scene: its episode is computed headless with the li
 episode restarts, so both start from the same target and obstacles."""
 from __future__ import annotations
 
+import threading
+
 from workbench.compare import Ghost, GhostView, policy_episode
 from workbench.files import FileAccessError, page_error
 from workbench.gui_host import PanelHost
@@ -35,6 +37,8 @@ class ComparePanel:
         self._episodes: list = []
         self._path = None
         self.view: GhostView | None = None
+        # the ghost's buttons come on different callback threads: one ghost drawn or removed at a time
+        self._lock = threading.RLock()
         for h in (self.file, self.episode, self.policy):
             app.checks.track(h)
         self._wire()
@@ -119,25 +123,27 @@ class ComparePanel:
 
     def show(self, ep, *, label: str = "") -> Ghost:
         """Overlay ``ep`` (an ``EpisodeData``; trusted callers and :meth:`show_listed`)."""
-        self.hide()
         ghost = Ghost(ep, label=label)
-        self.view = GhostView(self.app.server, ghost)
-        self.app.render_hooks.append(self._draw)
-        fr = self.app.view.last_frame
-        self.view.draw(fr.time if fr is not None else 0.0)
+        with self._lock:
+            self.hide()
+            self.view = GhostView(self.app.server, ghost)
+            self.app.render_hooks.append(self._draw)
+            fr = self.app.view.last_frame
+            self.view.draw(fr.time if fr is not None else 0.0)
         self._say(f"ghost: `{label}` · {len(ghost.t)} frames · blue, translucent")
         self.app.request_render()
         return ghost
 
     def _draw(self, fr) -> None:
-        v = self.view
-        if v is not None:
-            v.draw(fr.time)
+        with self._lock:  # not removed while drawn
+            if self.view is not None:
+                self.view.draw(fr.time)
 
     def hide(self) -> None:
-        if self._draw in self.app.render_hooks:
-            self.app.render_hooks.remove(self._draw)
-        if self.view is not None:
-            self.view.remove()
-            self.view = None
-            self._say("")
+        with self._lock:
+            if self._draw in self.app.render_hooks:
+                self.app.render_hooks.remove(self._draw)
+            if self.view is not None:
+                self.view.remove()
+                self.view = None
+                self._say("")

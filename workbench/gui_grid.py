@@ -110,6 +110,9 @@ class GridPanel:
         self.runner: GridRunner | None = None
         self._syncing = False
         self._cameras: dict[int, tuple[tuple, tuple]] = {}  # page -> (camera position, look-at) before the grid
+        # Run grid, Stop grid and the session's end come on different callback threads: one at a time, so a grid
+        # is never built over another being built (whose thread and simulator would be left running)
+        self._lock = threading.RLock()
         for h in (self.envs, self.focus):
             app.checks.track(h)
         self._wire()
@@ -158,6 +161,10 @@ class GridPanel:
     def start(self, task: str, policy: str, n: int, *, speed: float = 1.0, max_fps: float = 30.0) -> GridSession:
         """Run ``n`` envs of ``task`` under ``policy`` (trusted callers; the page uses :meth:`start_listed`). The grid
         takes the live scene's place (which is hidden, and paused) until :meth:`stop`."""
+        with self._lock:
+            return self._start(task, policy, n, speed=speed, max_fps=max_fps)
+
+    def _start(self, task: str, policy: str, n: int, *, speed: float, max_fps: float) -> GridSession:
         running = self.session is not None
         self._teardown()
         self._say(f"building {n} envs of {task} …")
@@ -238,15 +245,17 @@ class GridPanel:
     def stop(self) -> None:
         """Remove the grid: the live scene is shown again and every page's camera goes back to where it was before
         the grid (a page opened since: the start view)."""
-        if self.session is None and self.view is None:
-            return
-        self._teardown()
-        self._show_live()
+        with self._lock:
+            if self.session is None and self.view is None:
+                return
+            self._teardown()
+            self._show_live()
         self._say("grid stopped")
 
     def close(self) -> None:
         """The session ends: the grid's thread stops and its simulator is freed (nothing redrawn)."""
-        self._teardown()
+        with self._lock:
+            self._teardown()
 
     def _show_live(self) -> None:
         app = self.app

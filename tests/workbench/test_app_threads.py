@@ -112,3 +112,69 @@ def test_rebuilding_the_scene_nodes_while_drawing_never_writes_to_a_removed_node
         stop.set()
         t.join()
     assert errors == [] and app.thread.error is None, (errors, app.thread.error)
+
+
+def test_grids_started_and_stopped_from_several_threads_leave_one_grid_or_none(app):
+    """Run grid pressed on two pages at once, and Stop grid meanwhile: the grids are built one at a time, so no
+    grid is left stepping in a thread nobody can stop (nor its simulator held), and no node is removed twice."""
+    before = _alive("rodlab-grid")
+    errors: list[BaseException] = []
+
+    def run(fn) -> None:
+        try:
+            fn()
+        except BaseException as exc:  # noqa: BLE001 - collected for the assertion
+            errors.append(exc)
+
+    starts = [threading.Thread(target=run, args=(lambda: app.grid.start("follow_target", "zero", 2),))
+              for _ in range(3)]
+    for t in starts:
+        t.start()
+    for t in starts:
+        t.join()
+    assert not errors
+    assert len(_alive("rodlab-grid")) == len(before) + 1
+    stops = [threading.Thread(target=run, args=(app.grid.stop,)) for _ in range(3)]
+    for t in stops:
+        t.start()
+    for t in stops:
+        t.join()
+    assert not errors and app.grid.session is None and app.grid.view is None
+    wait_for(lambda: _alive("rodlab-grid") == before, what="no grid thread left")
+
+
+def test_ghosts_shown_and_removed_from_several_threads_while_drawing(app):
+    """Show ghost, Ghost of a policy and Remove ghost on different callback threads while the stepping thread draws
+    the ghost each frame: each ghost is drawn whole or not at all (no write to a removed node), and one is left."""
+    from workbench.compare import PolicyEpisode
+
+    N = app.wb.live.model.node_count
+    x = np.zeros((20, N, 3))
+    x[:, :, 2] = np.linspace(0.0, 1.0, N)
+    ep = PolicyEpisode(x, np.linspace(0.0, 1.0, 20), None, 0.01, {"task": "", "policy": "test"})
+    errors: list[BaseException] = []
+    app.callback_errors.clear()
+
+    def run(fn, n: int) -> None:
+        try:
+            for _ in range(n):
+                fn()
+                app.request_render()
+        except BaseException as exc:  # noqa: BLE001 - collected for the assertion
+            errors.append(exc)
+
+    app.wb.set_playing(True)
+    threads = [threading.Thread(target=run, args=(lambda: app.compare.show(ep, label="g"), 15)) for _ in range(2)]
+    threads.append(threading.Thread(target=run, args=(app.compare.hide, 15)))
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    app.compare.show(ep, label="last")
+    frames = app.thread.frames
+    wait_for(lambda: app.thread.frames >= frames + 3, what="frames drawn with the ghost")
+    app.wb.set_playing(False)
+    assert not errors and not app.callback_errors and app.thread.error is None
+    assert app.render_hooks.count(app.compare._draw) == 1
+    ghost_nodes = [n for n in app.server.scene._handle_from_node_name if n.startswith("/ghost/")]
+    assert len(ghost_nodes) == 3, ghost_nodes
