@@ -10,6 +10,11 @@ however fast a client sends.
   The session's arenas are capped at :data:`ARENAS` (``mallopt(M_ARENA_MAX)``, before the pool's threads start:
   a few arenas shared by the pool instead of one per busy thread) and ``malloc_trim`` hands free memory back to
   the system every few seconds, so resident memory follows what the session holds.
+* glibc serves a block of at least its mmap threshold with a mapping of its own, returned to the system when
+  freed, but raises that threshold (up to 32 MB) each time such a block is freed; the arrays of a few MB that
+  page actions make and drop (a grid's meshes, a policy's weights, an episode's frames) then come from the arenas
+  and fragment them, and resident memory creeps up under a client that keeps loading things. The threshold is
+  fixed at :data:`MMAP_THRESHOLD` (``mallopt(M_MMAP_THRESHOLD)``, which also ends its raising).
 """
 from __future__ import annotations
 
@@ -20,7 +25,9 @@ from collections.abc import Callable
 
 PERIOD_S = 5.0
 ARENAS = 4  # glibc malloc arenas of a workbench process
-_M_ARENA_MAX = -8  # mallopt parameter (malloc.h)
+MMAP_THRESHOLD = 256 * 1024  # [bytes] blocks this large or larger get a mapping of their own (glibc's start value)
+_M_ARENA_MAX = -8  # mallopt parameters (malloc.h)
+_M_MMAP_THRESHOLD = -3
 
 
 def _glibc(name: str):
@@ -40,14 +47,14 @@ def _malloc_trim() -> Callable[[], None] | None:
     return lambda: fn(0)
 
 
-def limit_arenas(arenas: int = ARENAS) -> bool:
-    """Cap glibc's malloc arenas of this process at ``arenas`` (threads started later share them); False where
-    the C library is not glibc."""
+def limit_arenas(arenas: int = ARENAS, mmap_threshold: int = MMAP_THRESHOLD) -> bool:
+    """Cap glibc's malloc arenas of this process at ``arenas`` (threads started later share them) and fix its mmap
+    threshold at ``mmap_threshold`` bytes; False where the C library is not glibc."""
     fn = _glibc("mallopt")
     if fn is None:
         return False
     fn.argtypes, fn.restype = [ctypes.c_int, ctypes.c_int], ctypes.c_int
-    return bool(fn(_M_ARENA_MAX, int(arenas)))
+    return bool(fn(_M_ARENA_MAX, int(arenas))) and bool(fn(_M_MMAP_THRESHOLD, int(mmap_threshold)))
 
 
 def sweep_removed(server) -> None:

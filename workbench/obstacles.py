@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from sim import build_model
 from sim import obstacles as so
@@ -127,7 +128,7 @@ def free_position(e: ObstacleEdit, rod_nodes: np.ndarray, rod_radius: float, oth
     g = g[np.linalg.norm(g - near, axis=1) <= reach]
     g = g[np.argsort(np.linalg.norm(g - near, axis=1), kind="stable")]
     x = np.asarray(rod_nodes, np.float64).reshape(-1, 3)
-    d_rod = np.min(np.linalg.norm(g[:, None, :] - x[None, :, :], axis=2), axis=1)
+    d_rod = cKDTree(x).query(g)[0]  # distance to the nearest node
     clear_of_rod = d_rod > r + rod_radius + clearance
     ok = clear_of_rod.copy()
     for o in others:

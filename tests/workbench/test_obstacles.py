@@ -128,3 +128,22 @@ def test_cylinder_is_edited_moved_resized_and_saved(wb, tmp_path):
     np.testing.assert_allclose(0.5 * (np.array(cyl.start) + np.array(cyl.end)), (0.11, 0.0, 0.55), atol=1e-12)
     again = Workbench.from_path(path)
     assert again.obstacles[-1].kind == "cylinder"
+
+
+def test_a_new_obstacle_is_placed_clear_of_the_rod_and_the_others_nearest_the_start_view():
+    """``free_position``: a sphere asked for where the rod lies goes to the nearest grid point whose sphere keeps the
+    clearance from every node and from the other obstacle, and no grid point nearer would do."""
+    rod = np.stack([np.full(21, 0.4), np.zeros(21), np.linspace(0.0, 1.0, 21)], 1)  # through NEW_OBSTACLE_AT
+    other = obst.ObstacleEdit(kind="sphere", position=(0.55, 0.0, 0.6), radius=0.05)
+    e = obst.ObstacleEdit(kind="sphere", position=(0.0, 0.0, 0.0), radius=0.08)
+    p = obst.free_position(e, rod, 0.02, [other])
+    need = 0.08 + 0.02 + 0.03
+    assert np.linalg.norm(rod - p, axis=1).min() > need
+    assert obst.surface_distance(other, p[None])[0] > 0.08 + 0.03
+    # every grid point nearer to the start view than p fails one of the two
+    near = np.asarray(obst.NEW_OBSTACLE_AT)
+    ax = np.arange(-0.8, 0.8 + 1e-9, 0.05)
+    g = near + np.stack(np.meshgrid(ax, ax, ax, indexing="ij"), -1).reshape(-1, 3)
+    g = g[np.linalg.norm(g - near, axis=1) < np.linalg.norm(p - near) - 1e-9]
+    d_rod = np.linalg.norm(g[:, None, :] - rod[None], axis=2).min(axis=1)
+    assert not np.any((d_rod > need) & (obst.surface_distance(other, g) > 0.08 + 0.03))
