@@ -312,6 +312,10 @@ class WorkbenchApp:
                               lambda exc: setattr(self, "notice", (f"⚠ {exc}", time.monotonic())),
                               errors=(ValueError, ActionRefused))
 
+    def _run_hooks(self, fr: Frame) -> None:
+        for hook in list(self.render_hooks):
+            hook(fr)
+
     def _render(self, fr: Frame) -> None:
         """Draw ``fr`` and call the render hooks with it. The stepping thread and a video being recorded both
         draw: one frame is drawn whole (view and hooks) before another starts, so the page never shows parts of
@@ -320,9 +324,8 @@ class WorkbenchApp:
             self._draw(fr)
 
     def _draw(self, fr: Frame) -> None:
-        self.view.render(fr, boundary=self.wb.mode != "replay")  # a recording does not carry fixes and loads
-        for hook in list(self.render_hooks):
-            hook(fr)
+        # a recording does not carry fixes and loads; the hooks draw with the frame's tube (SceneView.render)
+        self.view.render(fr, boundary=self.wb.mode != "replay", on_shown=self._run_hooks)
         now = time.perf_counter()
         if now - self._last_gui > 0.2:
             self._last_gui = now

@@ -5,11 +5,13 @@ the page's view comes back afterwards."""
 from __future__ import annotations
 
 import threading
+import time
 
 import numpy as np
 
 from workbench.gui_host import PanelHost
 from workbench.render_export import MAX_VIDEO_FRAMES, RenderError, has_mp4_writer, record_replay, screenshot
+from workbench.view_rod import SWAP_DELAY
 from workbench.view_scene import CAMERAS, fit_camera_along, place_camera
 
 
@@ -114,6 +116,8 @@ class RenderPanel:
                 rs.seek(i)
                 fr = rs.frame()
             app._render(fr)
+            time.sleep(SWAP_DELAY)  # the page parses the frame's tube (view_rod), then it is shown whole
+            app.view.flush()
             return fr.time
 
         def progress(text: str) -> None:

@@ -3,12 +3,15 @@
 The tube is ONE mesh for the whole rod (``workbench.tube``: per-vertex normals and colours), shown as a GLB asset,
 the only viser node with per-vertex colours. The page drops a GLB while it parses a new one, so two GLB nodes take
 turns: each frame's mesh goes into the hidden one, which is shown at the next frame (or after ``SWAP_DELAY`` when
-no frame follows), once the page has had time to parse it. The view lags the simulation by one frame at most.
+no frame follows), once the page has had time to parse it. Everything else of that frame (control points, trail,
+tip frame, the grip; and what the caller draws, ``on_shown``) is drawn in the same message batch as the swap that
+shows its tube, so the page shows one frame whole: the view lags the simulation by one frame at most, all of it.
 """
 from __future__ import annotations
 
 import collections
 import threading
+from typing import Callable
 
 import numpy as np
 import trimesh
@@ -26,7 +29,8 @@ TRAIL_COLOR = (90, 60, 200)
 
 class DoubleBufferedGlb:
     """Two GLB nodes under ``name`` showing one mesh: the newest bytes go to the hidden node, which is shown at the
-    next :meth:`put` or after ``SWAP_DELAY``."""
+    next :meth:`put` or after ``SWAP_DELAY``; the ``on_shown`` given with them is called when they are shown (in
+    the same message batch, under the buffer's lock: the frame's other nodes go with its tube)."""
 
     def __init__(self, server, name: str, first: bytes):
         self.server = server
@@ -35,8 +39,9 @@ class DoubleBufferedGlb:
         self.front = 0
         self.pending = False
         self.shown = True  # the overlay's own visibility
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()  # an on_shown may draw nodes that put into another buffer's turn
         self._timer: threading.Timer | None = None
+        self._on_shown: Callable[[], None] | None = None
 
     def _swap(self) -> None:
         back = 1 - self.front
@@ -44,12 +49,16 @@ class DoubleBufferedGlb:
         self.nodes[self.front].visible = False
         self.front = back
         self.pending = False
+        done, self._on_shown = self._on_shown, None
+        if done is not None:
+            done()
 
-    def put(self, data: bytes) -> None:
+    def put(self, data: bytes, on_shown: Callable[[], None] | None = None) -> None:
         with self._lock:
             if self.pending:
                 self._swap()
             self.nodes[1 - self.front].glb_data = data
+            self._on_shown = on_shown
             self.pending = True
             if self._timer is None or not self._timer.is_alive():
                 self._timer = threading.Timer(SWAP_DELAY, self.flush)
@@ -68,6 +77,7 @@ class DoubleBufferedGlb:
             if self._timer is not None:
                 self._timer.cancel()
             self.pending = False
+            self._on_shown = None
 
     def set_visible(self, on: bool) -> None:
         with self._lock:
@@ -156,20 +166,31 @@ class RodView:
         self.trail_points.clear()
 
     # ------------------------------------------------------------------ per frame
-    def render(self, fr: Frame, colors: np.ndarray, ov) -> None:
-        """Update every rod node for frame ``fr`` (call inside ``server.atomic()``); ``ov``: the view's
-        ``Overlays`` (rest_shape, control_points, trail, tip_frame)."""
+    def render(self, fr: Frame, colors: np.ndarray, ov, on_shown: Callable[[], None] | None = None) -> None:
+        """Send frame ``fr``'s tube (call inside ``server.atomic()``); its control points, trail, tip frame and grip,
+        then ``on_shown()``, are drawn when that tube is shown: at the next :meth:`render` or :meth:`flush`, or
+        after ``SWAP_DELAY``. ``ov``: the view's ``Overlays`` (rest_shape, control_points, trail, tip_frame)."""
         with self._nodes_lock:  # one thread at a time rebuilds or draws these nodes
-            return self._render_unlocked(fr, colors, ov)
+            x = np.asarray(fr.node_pos, np.float64)
+            m1 = fr.m1 if fr.m1 is not None and len(fr.m1) == len(x) - 1 else None
+            nr = fr.node_radius if fr.node_radius is not None and len(fr.node_radius) == len(x) else float(fr.rod_radius)
+            mesh = rods_mesh(x, nr, getattr(fr, "rod_offsets", None), m1=m1, colors=colors, sides=self.sides)
+            self.last_mesh = mesh
+            data = glb_bytes(mesh)
 
-    def _render_unlocked(self, fr: Frame, colors: np.ndarray, ov) -> None:
-        x = np.asarray(fr.node_pos, np.float64)
+        def shown() -> None:
+            with self._nodes_lock:
+                self._overlays(fr, x, m1, ov)
+            if on_shown is not None:
+                on_shown()
+        self.tube.put(data, shown)
+
+    def flush(self) -> None:
+        """Show the last rendered frame now, whole (a paused page, a video frame, a test)."""
+        self.tube.flush()
+
+    def _overlays(self, fr: Frame, x: np.ndarray, m1, ov) -> None:
         r = float(fr.rod_radius)
-        m1 = fr.m1 if fr.m1 is not None and len(fr.m1) == len(x) - 1 else None
-        nr = fr.node_radius if fr.node_radius is not None and len(fr.node_radius) == len(x) else r
-        mesh = rods_mesh(x, nr, getattr(fr, "rod_offsets", None), m1=m1, colors=colors, sides=self.sides)
-        self.last_mesh = mesh
-        self.tube.put(glb_bytes(mesh))
         if self.rest is not None:
             show = bool(ov.rest_shape) and self.rest_nodes is not None and len(self.rest_nodes) == len(x)
             if self.rest.visible != show:

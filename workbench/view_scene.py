@@ -231,10 +231,12 @@ class SceneView:
             if not p.visible:
                 p.visible = True
 
-    def render(self, fr: Frame, *, boundary: bool = True) -> None:
-        """Push one frame (all node updates in one atomic message batch); ``boundary``: the frame is of the live
-        scene, whose fixes and loads are drawn (when their overlay is on)."""
-        x = fr.node_pos
+    def render(self, fr: Frame, *, boundary: bool = True, on_shown: Callable[[Frame], None] | None = None) -> None:
+        """Send one frame. Its tube is shown once the page has had it to parse (``view_rod``: at the next frame, or
+        after ``SWAP_DELAY``, or at :meth:`flush`), and with it, in one atomic message batch, every other node of the
+        frame (overlays, contacts, target, the camera following the tip) and ``on_shown(fr)``: the page shows
+        each frame whole. ``boundary``: the frame is of the live scene, whose fixes and loads are drawn (when their
+        overlay is on)."""
         ov = self.overlays
         vals = coloring.node_values(fr, ov.color_by)
         if vals is not None:
@@ -242,63 +244,77 @@ class SceneView:
             node_c = coloring.colors(vals, lo, hi, ov.color_by)
             self.color_range = (ov.color_by, lo, hi)
         else:
-            node_c = np.tile(ROD_COLOR, (len(x), 1))
+            node_c = np.tile(ROD_COLOR, (len(fr.node_pos), 1))
             self.color_range = ("none", 0.0, 1.0)
+
+        def shown() -> None:
+            self._draw_with_tube(fr, boundary)
+            if on_shown is not None:
+                on_shown(fr)
         with self.server.atomic():
-            self.rod.render(fr, node_c, ov)
-            self._render_hand(fr)
-            self._render_pins(fr)
-            self.boundary.render(x, fr.time, ov.boundary and boundary,
-                                 lambda f: arrow_vectors(f, ov.arrows, ov.force_scale))
-            if ov.frames and fr.m1 is not None and fr.m2 is not None:
-                pos, wxyz = material_frame_poses(x, fr.m1, fr.m2, getattr(fr, "rod_offsets", None))
-                self.frames.batched_positions = pos
-                self.frames.batched_wxyzs = wxyz
-                self.frames.visible = True
-            elif self.frames.visible:
-                self.frames.visible = False
-            k = len(fr.contact_points)
-            if ov.contacts and k > 0:
-                p = fr.contact_points
-                vec = arrow_vectors(fr.contact_forces, ov.arrows, ov.force_scale)
-                self.contact_arrows.points = np.stack([p, p + vec], 1)
-                self.contact_points.points = p
-                self.contact_arrows.visible = True
-                self.contact_points.visible = True
-                # one label per contact patch (its total force), at the tip of its strongest arrow
-                found = patches(p, fr.contact_forces, reach_of(x), getattr(fr, "contact_obstacle", None),
-                                getattr(fr, "contact_edge", None), getattr(fr, "contact_partner_edge", None))
-                shown = labelled(found, N_FORCE_LABELS)
-                for j, lab in enumerate(self.force_labels):
-                    if j < len(shown):
-                        i = shown[j].main_row
-                        lab.text = f"{shown[j].magnitude:.3g} N"
-                        lab.position = tuple(p[i] + vec[i])
-                        if not lab.visible:
-                            lab.visible = True
-                    elif lab.visible:
-                        lab.visible = False
-            elif self.contact_arrows.visible:
-                self.contact_arrows.visible = False
-                self.contact_points.visible = False
-                for lab in self.force_labels:
-                    if lab.visible:
-                        lab.visible = False
-            if len(fr.targets) and self.live_shown:
-                self.target.position = fr.targets[0]
-                if not self.target.visible:
-                    self.target.visible = True
-                show_f = fr.target_wxyz is not None
-                if show_f:
-                    self.target_frame.wxyz = fr.target_wxyz
-                if self.target_frame.visible != show_f:
-                    self.target_frame.visible = show_f
-            else:  # no target in this frame (e.g. teleop after a task), or the live scene hidden: no marker, no frame
-                if self.target.visible:
-                    self.target.visible = False
-                if self.target_frame.visible:
-                    self.target_frame.visible = False
+            self.rod.render(fr, node_c, ov, on_shown=shown)
         self.last_frame = fr
+
+    def flush(self) -> None:
+        """Show the last frame sent now, whole."""
+        self.rod.flush()
+
+    def _draw_with_tube(self, fr: Frame, boundary: bool) -> None:
+        """Every node of ``fr`` but the rod's own, drawn with the swap that shows its tube (inside its batch)."""
+        x = fr.node_pos
+        ov = self.overlays
+        self._render_hand(fr)
+        self._render_pins(fr)
+        self.boundary.render(x, fr.time, ov.boundary and boundary,
+                             lambda f: arrow_vectors(f, ov.arrows, ov.force_scale))
+        if ov.frames and fr.m1 is not None and fr.m2 is not None:
+            pos, wxyz = material_frame_poses(x, fr.m1, fr.m2, getattr(fr, "rod_offsets", None))
+            self.frames.batched_positions = pos
+            self.frames.batched_wxyzs = wxyz
+            self.frames.visible = True
+        elif self.frames.visible:
+            self.frames.visible = False
+        k = len(fr.contact_points)
+        if ov.contacts and k > 0:
+            p = fr.contact_points
+            vec = arrow_vectors(fr.contact_forces, ov.arrows, ov.force_scale)
+            self.contact_arrows.points = np.stack([p, p + vec], 1)
+            self.contact_points.points = p
+            self.contact_arrows.visible = True
+            self.contact_points.visible = True
+            # one label per contact patch (its total force), at the tip of its strongest arrow
+            found = patches(p, fr.contact_forces, reach_of(x), getattr(fr, "contact_obstacle", None),
+                            getattr(fr, "contact_edge", None), getattr(fr, "contact_partner_edge", None))
+            shown = labelled(found, N_FORCE_LABELS)
+            for j, lab in enumerate(self.force_labels):
+                if j < len(shown):
+                    i = shown[j].main_row
+                    lab.text = f"{shown[j].magnitude:.3g} N"
+                    lab.position = tuple(p[i] + vec[i])
+                    if not lab.visible:
+                        lab.visible = True
+                elif lab.visible:
+                    lab.visible = False
+        elif self.contact_arrows.visible:
+            self.contact_arrows.visible = False
+            self.contact_points.visible = False
+            for lab in self.force_labels:
+                if lab.visible:
+                    lab.visible = False
+        if len(fr.targets) and self.live_shown:
+            self.target.position = fr.targets[0]
+            if not self.target.visible:
+                self.target.visible = True
+            show_f = fr.target_wxyz is not None
+            if show_f:
+                self.target_frame.wxyz = fr.target_wxyz
+            if self.target_frame.visible != show_f:
+                self.target_frame.visible = show_f
+        else:  # no target in this frame (e.g. teleop after a task), or the live scene hidden: no marker, no frame
+            if self.target.visible:
+                self.target.visible = False
+            if self.target_frame.visible:
+                self.target_frame.visible = False
         if ov.follow_tip:
             self.follow(fr.tip)
 

@@ -226,14 +226,18 @@ def test_scene_view_draws_them_for_live_frames_only():
         x = np.asarray(model.rest_node_pos, np.float64)
         fr = Frame(node_pos=x, rod_radius=float(model.radius_max), time=0.0)
         view.render(fr)
+        view.flush()
         assert all(h.visible for h in view.boundary.nodes)
         view.overlays.arrows, view.overlays.force_scale = "linear", 2.0
         view.render(fr)
+        view.flush()
         np.testing.assert_allclose(view.boundary.arrows.points[0], [x[-1], x[-1] + [0.0, 0.0, -0.02]], atol=1e-6)
         view.render(fr, boundary=False)
+        view.flush()
         assert not any(h.visible for h in view.boundary.nodes)
         view.overlays.boundary = False
         view.render(fr)
+        view.flush()
         assert not any(h.visible for h in view.boundary.nodes)
         view.rod.tube.close()  # no delayed tube swap after the server stops
     finally:

@@ -64,6 +64,7 @@ def test_two_rods_at_rest_read_one_label_per_touch(tmp_path):
         on_base = floor[0].force[2] - base_w  # the largest floor patch is under the base: what the crossing adds
         assert crossing[0].magnitude == pytest.approx(on_base, rel=2e-2)
         app.view.render(fr)
+        app.view.flush()
         texts = sorted(lab.text for lab in app.view.force_labels if lab.visible)
         assert texts == sorted(f"{q.magnitude:.3g} N" for q in found)
         # a recording's frame has no row data: grouped by distance alone, the crossing joins the base's patch

@@ -180,14 +180,17 @@ def test_trail_keeps_two_seconds_and_clears_when_time_goes_back():
         y = x.copy()
         y[-1, 0] = 0.01 * i
         rod.render(Frame(node_pos=y, rod_radius=R, time=0.05 * i), np.zeros((N, 3), np.uint8), ov)
+        rod.flush()
     tr = rod.trail_positions()
     assert len(tr) == int(TRAIL_SECONDS / 0.05) + 1
     assert tr[-1][0] == pytest.approx(0.99) and tr[0][0] == pytest.approx(0.99 - TRAIL_SECONDS / 0.05 * 0.01)
     assert rod.trail.visible
     np.testing.assert_allclose(rod.controls.batched_positions, x[[2, 6, 10, 14, 18]])
     rod.render(Frame(node_pos=x, rod_radius=R, time=0.0), np.zeros((N, 3), np.uint8), ov)  # a reset
+    rod.flush()
     assert len(rod.trail_positions()) == 1 and not rod.trail.visible
     rod.render(Frame(node_pos=x, rod_radius=R, time=0.0), np.zeros((N, 3), np.uint8), _overlays(trail=False))
+    rod.flush()
     assert not rod.trail.visible
 
 
@@ -202,11 +205,13 @@ def test_tip_frame_is_the_last_edges_material_frame():
     t /= np.linalg.norm(t, axis=1, keepdims=True)
     m2 = np.cross(t, m1)
     rod.render(Frame(node_pos=x, rod_radius=R, m1=m1, m2=m2), np.zeros((N, 3), np.uint8), _overlays())
+    rod.flush()
     assert rod.tip_frame.visible
     np.testing.assert_allclose(rod.tip_frame.position, x[-1])
     Rm = quat_to_matrix(np.asarray(rod.tip_frame.wxyz))
     np.testing.assert_allclose(Rm, np.stack([m1[-1], m2[-1], t[-1]], axis=-1), atol=1e-9)
     rod.render(Frame(node_pos=x, rod_radius=R), np.zeros((N, 3), np.uint8), _overlays())  # no frames known
+    rod.flush()
     assert not rod.tip_frame.visible
 
 
@@ -264,8 +269,10 @@ def test_target_and_its_frame_hide_when_a_frame_has_no_target():
         x = straight()
         view.render(Frame(node_pos=x, rod_radius=R, targets=np.array([[0.3, 0.0, 0.5]]),
                           target_wxyz=np.array([1.0, 0.0, 0.0, 0.0])))
+        view.flush()
         assert view.target.visible and view.target_frame.visible
         view.render(Frame(node_pos=x, rod_radius=R))
+        view.flush()
         assert not view.target.visible and not view.target_frame.visible
         view.rod.tube.close()
     finally:
@@ -293,11 +300,57 @@ def _labels_follow_the_control_points(rod) -> None:
     rod.set_scene(straight(), nodes, R)
     x = sharp()
     rod.render(Frame(node_pos=x, rod_radius=R), np.zeros((N, 3), np.uint8), _overlays())
+    rod.flush()
     assert [lab.text for lab in rod.control_labels] == [f"node {c}" for c in nodes]
     assert all(lab.visible for lab in rod.control_labels)
     for lab, c in zip(rod.control_labels, nodes):
         np.testing.assert_allclose(lab.position, x[c] + 1.5 * R)
     rod.render(Frame(node_pos=x, rod_radius=R), np.zeros((N, 3), np.uint8), _overlays(control_points=False))
+    rod.flush()
     assert not any(lab.visible for lab in rod.control_labels)
     rod.set_scene(straight(), (3, 9), R)  # other control nodes: other labels
     assert [lab.text for lab in rod.control_labels] == ["node 3", "node 9"]
+
+
+def test_each_frame_is_shown_whole_with_its_tube():
+    """The tube of a frame is shown a frame later (the page parses it while hidden); the frame's target, tip frame,
+    control points and trail are shown in the same batch as that tube, never ahead of it (a playing Follow Target
+    run showed the target and tip axes 20-30 cm from the tube's tip); flush shows the newest frame whole."""
+    import viser
+
+    from workbench.view_scene import SceneView
+
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        view = SceneView(server, N, env_map=False)
+        view.set_rod_scene(straight(), (2, 6, 10, 14, 18), R)
+        for name in ("trail", "tip_frame", "control_points"):
+            setattr(view.overlays, name, True)
+        frames, sent = [], []
+        for k in range(6):
+            x = straight()
+            x[:, 0] += 0.05 * k * np.linspace(0.0, 1.0, N) ** 2  # bends further each frame
+            m1 = material_m1(x)
+            e = np.diff(x, axis=0)
+            m2 = np.cross(e / np.linalg.norm(e, axis=1, keepdims=True), m1)
+            frames.append(Frame(node_pos=x, rod_radius=R, time=0.1 * k, targets=x[-1:] + [0.0, 0.0, 0.05],
+                                m1=m1, m2=m2))
+            view.render(frames[-1])
+            buf = view.rod.tube
+            sent.append(buf.nodes[1 - buf.front].glb_data)  # parsed while hidden
+            if k == 0:
+                continue
+            shown = frames[k - 1]  # what the page shows now: the previous frame, all of it
+            assert buf.visible_node.glb_data == sent[k - 1] and buf.visible_node.visible
+            np.testing.assert_allclose(view.target.position, shown.targets[0])
+            np.testing.assert_allclose(view.rod.tip_frame.position, shown.node_pos[-1])
+            np.testing.assert_allclose(view.rod.controls.batched_positions, shown.node_pos[[2, 6, 10, 14, 18]])
+            np.testing.assert_allclose(view.rod.trail_positions()[-1], shown.node_pos[-1])
+        view.flush()
+        last = frames[-1]
+        assert view.rod.tube.visible_node.glb_data == sent[-1]
+        np.testing.assert_allclose(view.target.position, last.targets[0])
+        np.testing.assert_allclose(view.rod.tip_frame.position, last.node_pos[-1])
+        view.rod.tube.close()
+    finally:
+        server.stop()

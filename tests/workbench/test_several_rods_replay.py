@@ -76,6 +76,7 @@ def test_replayed_frame_draws_two_tubes_and_no_frame_on_the_joint(recorded, serv
         for fr in (s.frame(), wb.live.frame()):  # replayed, then live
             assert fr.m1 is not None and len(fr.m1) == 41
             view.render(fr, boundary=False)
+            view.flush()
             mesh = view.rod.last_mesh
             assert len(mesh.vertices) == 2 * vertex_count(21, SIDES)  # one capped tube per rod
             split = vertex_count(21, SIDES)
@@ -123,6 +124,7 @@ def test_an_old_recording_replays_as_one_rod(server):
     try:
         view.overlays.frames = True
         view.render(fr, boundary=False)
+        view.flush()
         assert len(view.rod.last_mesh.vertices) == vertex_count(n, SIDES)
         if fr.m1 is not None:
             assert len(view.frames.batched_positions) == n - 1
