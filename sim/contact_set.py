@@ -267,9 +267,7 @@ class ObstacleWorld:
             return self
         poses = tuple(getattr(state, n) for n in self._POSE)
         if self._seen is None:
-            n = np.linalg.norm(poses[1], axis=-1)
-            if (np.isfinite(n) & (n < 1e-12)).any():
-                raise ValueError("state.obstacle_orientation: a quaternion is zero; write unit quaternions wxyz")
+            _unit_orientations(poses[1])
             world_arrays(self.geometry, *poses, self.p0, self.p1, self.rot, self.box)
             self._seen = tuple(p.copy() for p in poses)
             return self
@@ -282,9 +280,7 @@ class ObstacleWorld:
         if not changed.any():  # NaN poses seen before (array_equal never calls NaN equal)
             return self
         e = np.flatnonzero(changed)
-        n = np.linalg.norm(poses[1][e], axis=-1)
-        if (np.isfinite(n) & (n < 1e-12)).any():  # (NaN is the quarantine's: the env fails, its poses reset)
-            raise ValueError("state.obstacle_orientation: a quaternion is zero; write unit quaternions wxyz")
+        _unit_orientations(poses[1][e])
         out = [a[e] for a in (self.p0, self.p1, self.rot, self.box)]
         world_arrays(self.geometry, *(p[e] for p in poses), *out)
         for a, o in zip((self.p0, self.p1, self.rot, self.box), out):
@@ -292,6 +288,14 @@ class ObstacleWorld:
         for p, q in zip(poses, self._seen):
             q[e] = p[e]
         return self
+
+
+def _unit_orientations(q: np.ndarray) -> None:
+    """Refuse a zero quaternion among the obstacle orientations ``q`` (..., 4); NaN passes (the quarantine's: the
+    env fails and its poses are reset)."""
+    n = np.linalg.norm(q, axis=-1)
+    if (np.isfinite(n) & (n < 1e-12)).any():
+        raise ValueError("state.obstacle_orientation: a quaternion is zero; write unit quaternions wxyz")
 
 
 def _env_ids(envs, B: int) -> np.ndarray:
