@@ -167,6 +167,7 @@ class WorkbenchApp:
             self.controls.set_quiet(self.controls.playing, False)
             self.server.on_client_connect(self._first_client)
         self._render(self.wb.frame())
+        self.view.flush()  # the first frame whole at once (no earlier tube for the page to show meanwhile)
         self.fit_camera_to_scene()
         self.thread.start()
         self.housekeeping.start()
