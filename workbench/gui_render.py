@@ -72,6 +72,11 @@ class RenderPanel:
         except (RenderError, OSError, TimeoutError) as exc:
             self._say(f"⚠ screenshot failed: {exc}")
             return None
+        except RuntimeError:  # viser: the page went away (closed, reloaded) before its frame came back
+            if self._connected(client):
+                raise
+            self._say("⚠ screenshot not taken: the page that asked for it has closed")
+            return None
         self.last_path = out
         self._say(f"saved {out.name} to the recordings folder")
         return out

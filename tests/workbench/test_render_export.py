@@ -84,8 +84,8 @@ def _umask() -> int:
 
 
 def test_a_page_closed_during_its_video_ends_the_video_with_a_note(tmp_path):
-    """The page that asked for a video goes away while its frames are grabbed: the video thread ends, says so and
-    leaves no file (no exception escapes the thread)."""
+    """The page that asked for a video (or a screenshot) goes away while its frames are grabbed: the video thread
+    ends, says so and leaves no file (no exception escapes the thread); the screenshot is not taken, and says so."""
     import contextlib
     from types import SimpleNamespace
 
@@ -106,5 +106,10 @@ def test_a_page_closed_during_its_video_ends_the_video_with_a_note(tmp_path):
         assert not thread.is_alive()
         assert "has closed" in app.pictures.msg.content and app.pictures.last_error.startswith("the page closed")
         assert sorted(p.suffix for p in app.files.recordings.iterdir()) == [".rrd"]  # no video, no temporary
+        # a screenshot asked for by a page that closed before its frame came back: said, no file, nothing raised
+        app.pictures.msg.content = ""
+        assert app.pictures.take_screenshot(client) is None
+        assert "screenshot not taken" in app.pictures.msg.content and "has closed" in app.pictures.msg.content
+        assert sorted(p.suffix for p in app.files.recordings.iterdir()) == [".rrd"]
     finally:
         app.stop()
