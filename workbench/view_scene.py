@@ -186,7 +186,7 @@ class SceneView:
         self._on_move = None
         self.selected: int | None = None
         self.color_range: tuple[str, float, float] = ("none", 0.0, 1.0)  # what the rod's colours mean now
-        self.last_frame: Frame | None = None
+        self.last_frame: Frame | None = None  # the frame shown (each is shown whole, with its tube: render)
 
     # ------------------------------------------------------------------ per frame
     def toggle_pin(self, node: int) -> None:
@@ -249,11 +249,11 @@ class SceneView:
 
         def shown() -> None:
             self._draw_with_tube(fr, boundary)
+            self.last_frame = fr  # the frame the page shows (what a click on the rod hits)
             if on_shown is not None:
                 on_shown(fr)
         with self.server.atomic():
             self.rod.render(fr, node_c, ov, on_shown=shown)
-        self.last_frame = fr
 
     def flush(self) -> None:
         """Show the last frame sent now, whole."""

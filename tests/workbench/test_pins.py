@@ -125,6 +125,7 @@ def test_pins_toggle_and_keep_the_newest(tmp_path):
         v.toggle_pin(3)
         assert 3 not in v.pins
         v.render(app.wb.frame())
+        v.flush()  # the frame shown whole now (not at the next frame)
         assert len(v.pin_texts) == MAX_PINS - 1 and v.pin_texts[0].startswith("node 2 ·")
     finally:
         app.stop()
