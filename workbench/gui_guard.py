@@ -310,10 +310,9 @@ class _GuardedExecutor:
                 fn(*a, **kw)
             except Exception as exc:  # noqa: BLE001 - reported on the page and (unexpected ones) in the log
                 self._report(exc)
-            except BaseException:  # the thread is going away: nothing of this callback is left pending
+            except BaseException:  # the thread is going away: its waiting call goes with it (finally frees fn)
                 with self._lock:
                     self._waiting.pop(fn, None)
-                    self._active.discard(fn)
                 raise
             finally:
                 with self._lock:

@@ -25,7 +25,7 @@ from collections.abc import Callable
 
 PERIOD_S = 5.0
 ARENAS = 4  # glibc malloc arenas of a workbench process
-MMAP_THRESHOLD = 256 * 1024  # [bytes] blocks this large or larger get a mapping of their own (glibc's start value)
+MMAP_THRESHOLD = 256 * 1024  # [bytes] blocks this large or larger get a mapping of their own (glibc starts at 128 KiB)
 _M_ARENA_MAX = -8  # mallopt parameters (malloc.h)
 _M_MMAP_THRESHOLD = -3
 
@@ -47,14 +47,16 @@ def _malloc_trim() -> Callable[[], None] | None:
     return lambda: fn(0)
 
 
-def limit_arenas(arenas: int = ARENAS, mmap_threshold: int = MMAP_THRESHOLD) -> bool:
+def tune_malloc(arenas: int = ARENAS, mmap_threshold: int = MMAP_THRESHOLD) -> bool:
     """Cap glibc's malloc arenas of this process at ``arenas`` (threads started later share them) and fix its mmap
-    threshold at ``mmap_threshold`` bytes; False where the C library is not glibc."""
+    threshold at ``mmap_threshold`` bytes; False where the C library is not glibc or refused either."""
     fn = _glibc("mallopt")
     if fn is None:
         return False
     fn.argtypes, fn.restype = [ctypes.c_int, ctypes.c_int], ctypes.c_int
-    return bool(fn(_M_ARENA_MAX, int(arenas))) and bool(fn(_M_MMAP_THRESHOLD, int(mmap_threshold)))
+    capped = bool(fn(_M_ARENA_MAX, int(arenas)))
+    fixed = bool(fn(_M_MMAP_THRESHOLD, int(mmap_threshold)))
+    return capped and fixed
 
 
 def sweep_removed(server) -> None:
@@ -70,7 +72,7 @@ class Housekeeping:
             raise RuntimeError("viser changed: the workbench cannot sweep its message buffer")
         self.server, self.period = server, period
         self.rounds = 0
-        self.arenas_capped = limit_arenas()
+        self.malloc_tuned = tune_malloc()
         self._trim = _malloc_trim()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True, name="workbench-housekeeping")

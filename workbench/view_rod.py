@@ -39,7 +39,7 @@ class DoubleBufferedGlb:
         self.front = 0
         self.pending = False
         self.shown = True  # the overlay's own visibility
-        self._lock = threading.RLock()  # an on_shown may draw nodes that put into another buffer's turn
+        self._lock = threading.RLock()  # on_shown runs under it, and may show or hide the tube (set_visible)
         self._timer: threading.Timer | None = None
         self._on_shown: Callable[[], None] | None = None
 
