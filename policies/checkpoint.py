@@ -131,12 +131,16 @@ def resume_seed(seed: int, num_timesteps: int) -> int:
     return int(np.random.SeedSequence([int(seed), int(num_timesteps)]).generate_state(1)[0] % (2**31 - 1))
 
 
-def load_checkpoint(run_dir: Path, env, *, device: str, buffer_size: int):
-    """-> (model, state). Restores model, counters and replay buffer (grown to ``buffer_size`` when larger).
+def load_checkpoint(run_dir: Path, env, *, device: str, buffer_size: int, algorithm: str = "sac"):
+    """-> (model, state). Restores model, counters and replay buffer (grown to ``buffer_size`` when larger);
+    ``algorithm``: the run's (sac: ``RodSAC``, crossq: ``RodCrossQ``).
 
     Raises ``CheckpointError`` when there is no usable checkpoint or the buffer does not fit.
     """
-    from policies.sac import RodSAC
+    if algorithm == "crossq":
+        from policies.crossq import RodCrossQ as model_class
+    else:
+        from policies.sac import RodSAC as model_class
 
     ck = find_checkpoint(run_dir)
     if ck is None:
@@ -146,18 +150,19 @@ def load_checkpoint(run_dir: Path, env, *, device: str, buffer_size: int):
     except (OSError, json.JSONDecodeError) as exc:
         raise CheckpointError(f"cannot read {ck / 'state.json'}: {exc}") from None
     try:
-        model = RodSAC.load(ck / "model.zip", env=env, device=device)
+        model = model_class.load(ck / "model.zip", env=env, device=device)
     except Exception as exc:  # SB3 raises assorted errors on corrupt zips / space mismatch
         raise CheckpointError(f"cannot load {ck / 'model.zip'}: {exc}") from None
     model.num_timesteps = int(state["num_timesteps"])
     model._last_obs = None  # the envs are new: start fresh episodes (SB3 resets them in learn())
     model._last_original_obs = None
     if buffer_size > model.buffer_size:  # the run was extended (--steps larger): grow the buffer
-        from stable_baselines3.common.buffers import ReplayBuffer
-
+        old_rb = model.replay_buffer  # its kind (an n-step buffer keeps its n and discount)
+        n_step = {"n_steps": old_rb.n_steps, "gamma": old_rb.gamma} if hasattr(old_rb, "n_steps") else {}
         model.buffer_size = buffer_size
-        model.replay_buffer = ReplayBuffer(buffer_size, model.observation_space, model.action_space,
-                                           device=model.device, n_envs=model.n_envs, handle_timeout_termination=True)
+        model.replay_buffer = type(old_rb)(buffer_size, model.observation_space, model.action_space,
+                                           device=model.device, n_envs=model.n_envs, handle_timeout_termination=True,
+                                           **n_step)
     if (ck / "replay.npz").is_file():
         rb = model.replay_buffer
         with np.load(ck / "replay.npz") as z:

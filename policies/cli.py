@@ -19,6 +19,8 @@ from sim.support.text import count
 from policies.tasks import gym_task_id
 from policies.train_speed import SpeedSettings, apply_speed_settings
 
+STARTED_AT = time.perf_counter()  # when the command started: a training run's wall-clock includes its start-up
+
 
 def _threads_env(argv: list[str] | None = None) -> None:
     """Thread counts of OpenMP, MKL and numba, set before torch and numba load them: the command's ``--threads``
@@ -50,14 +52,24 @@ def _argv_threads(argv: list[str]) -> int:
 # ----------------------------------------------------------------------------------------- train
 def train_main(argv: list[str]) -> int:
     _threads_env(argv)
+    from policies.precision import PRECISIONS
+    from policies.presets import DEFAULT_PRESET, PRESETS, preset_settings
     from policies.sac import BF16_LAYOUTS
-    from policies.train import Args, TrainError, check_compiler, check_device, train
+    from policies.train import ALGORITHMS, Args, TrainError, check_compiler, check_device, train
 
     d = Args()
-    p = argparse.ArgumentParser(prog="rodlab train", description="Train SAC on a rodlab task (headless). "
-                                "Defaults follow the paper (docs/tasks.md §8.1).")
+    p = argparse.ArgumentParser(prog="rodlab train", description="Train SAC (or CrossQ) on a rodlab task "
+                                "(headless). Defaults: the --preset's settings (paper: docs/tasks.md §8.1).")
     p.add_argument("task", nargs="?", default="", help="task short name (e.g. follow_target) or gymnasium id")
-    p.add_argument("--envs", type=int, default=None, help=f"parallel envs (default {d.num_envs})")
+    p.add_argument("--preset", choices=list(PRESETS), default=DEFAULT_PRESET,
+                   help="named settings the options below start from: " + "; ".join(
+                       f"{n}: {pr.summary}" for n, pr in PRESETS.items()) + f" (default {DEFAULT_PRESET}; "
+                       "BENCHMARKS.md §6)")
+    p.add_argument("--algorithm", choices=ALGORITHMS, default=None,
+                   help="sac (default) or crossq (sb3-contrib's CrossQ: no target networks, batch renormalisation)")
+    p.add_argument("--policy-delay", type=int, default=None,
+                   help=f"crossq: critic updates per actor update (default {d.policy_delay})")
+    p.add_argument("--envs", type=int, default=None, help=f"parallel envs (paper: {d.num_envs})")
     p.add_argument("--steps", type=int, default=d.total_steps, help="total env steps over all envs")
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument("--run-dir", default="", help="run directory (default runs/<task>__s<seed>__<time>)")
@@ -70,10 +82,18 @@ def train_main(argv: list[str]) -> int:
     p.add_argument("--init-ent-coef", type=float, default=d.init_ent_coef,
                    help=f"initial entropy coefficient alpha (default {d.init_ent_coef}; with --init-from it is "
                         "used only when the policy file holds no entropy coefficient)")
-    p.add_argument("--updates", type=int, default=d.updates_per_iter, help="gradient updates per iteration")
-    p.add_argument("--batch-size", type=int, default=d.batch_size)
-    p.add_argument("--buffer-size", type=int, default=d.buffer_size)
-    p.add_argument("--learning-starts", type=int, default=d.learning_starts)
+    p.add_argument("--updates", type=int, default=None,
+                   help=f"gradient updates per batched env step (paper: {d.updates_per_iter})")
+    p.add_argument("--batch-size", type=int, default=None, help=f"replay batch per update (paper: {d.batch_size})")
+    p.add_argument("--learning-rate", type=float, default=None, help=f"Adam step size (paper: {d.learning_rate})")
+    p.add_argument("--target-update-interval", type=int, default=None,
+                   help=f"sac: gradient updates between target-critic soft updates (paper: {d.target_update_interval})")
+    p.add_argument("--tau", type=float, default=None, help=f"sac: target-critic soft-update rate (paper: {d.tau})")
+    p.add_argument("--n-steps", type=int, default=None,
+                   help=f"n-step returns: each TD target sums n rewards (paper: {d.n_steps})")
+    p.add_argument("--buffer-size", type=int, default=None, help=f"replay transitions (paper: {d.buffer_size})")
+    p.add_argument("--learning-starts", type=int, default=None,
+                   help=f"random transitions before the first update (paper: {d.learning_starts})")
     p.add_argument("--checkpoint-minutes", type=float, default=d.checkpoint_minutes)
     p.add_argument("--first-checkpoint-minutes", type=float, default=d.first_checkpoint_minutes,
                    help="the first checkpoint comes after this many minutes, then every --checkpoint-minutes")
@@ -88,15 +108,17 @@ def train_main(argv: list[str]) -> int:
                    help="stop (checkpoint + policy) after MIN minutes of wall-clock in this session")
     p.add_argument("--no-replay-checkpoint", action="store_true", help="do not save the replay buffer")
     p.add_argument("--threads", type=int, default=d.torch_threads, help="torch threads")
-    p.add_argument("--bf16", action="store_true",
-                   help="the updates in bfloat16 (keeps the learning curve; with --bf16-layout all 0.76x the float32 iteration "
-                        "time on the 2-core test CPU: BENCHMARKS.md §6)")
+    p.add_argument("--precision", choices=PRECISIONS, default=d.precision,
+                   help="how the SAC updates compute: auto (default) runs them in bfloat16, compiled, when the CPU "
+                        "has bfloat16 instructions and a C++ compiler is present (about half the float32 iteration "
+                        "time, the same learning curve: BENCHMARKS.md §6), else float32 with a notice; float32 is "
+                        "the paper's precision")
     p.add_argument("--bf16-layout", choices=BF16_LAYOUTS, default=d.bf16_layout,
-                   help="with --bf16: float32_io keeps input/output layers and LayerNorms in float32 (0.85x), all runs "
-                        "every layer in bfloat16 (0.76x; BENCHMARKS.md §6)")
-    p.add_argument("--compile", action="store_true",
-                   help="run each SAC update (losses, gradients, Adam steps) as one torch.compile-d function (needs "
-                        "a C++ compiler; about a minute of compiling at the start; BENCHMARKS.md §6)")
+                   help="in bfloat16: all (default) runs every layer in bfloat16, float32_io keeps the input/output "
+                        "layers and LayerNorms in float32 (slower)")
+    p.add_argument("--compile", action=argparse.BooleanOptionalAction, default=None,
+                   help="each SAC update as one torch.compile-d function (default: with bfloat16 when a C++ compiler "
+                        "is present; the first compile takes about 45 s on 2 cores and is cached for later runs)")
     p.add_argument("--log-interval", type=float, default=d.log_interval_s, help="seconds between log lines")
     p.add_argument("--device", default=d.device,
                    help="torch device of the SAC networks and replay sampling: cpu (default), cuda or cuda:N; the "
@@ -110,8 +132,14 @@ def train_main(argv: list[str]) -> int:
         p.error("--init-ent-coef must be positive")
     if not a.resume and not a.task:
         p.error("TASK is required")
-    if a.steps < 1 or (a.envs is not None and a.envs < 1):
-        p.error("--steps and --envs must be positive")
+    if a.steps < 1 or any(v is not None and v < 1 for v in (a.envs, a.updates, a.batch_size, a.policy_delay,
+                                                           a.n_steps, a.target_update_interval)):
+        p.error("--steps, --envs, --updates, --batch-size, --policy-delay, --n-steps and --target-update-interval "
+                "must be positive")
+    if a.tau is not None and not 0 < a.tau <= 1:
+        p.error("--tau must be in (0, 1]")
+    if a.learning_rate is not None and not a.learning_rate > 0:
+        p.error("--learning-rate must be positive")
 
     try:  # before any work: a run directory that cannot be written loses nothing
         check_device(a.device)
@@ -125,14 +153,18 @@ def train_main(argv: list[str]) -> int:
     except ValueError as exc:
         print(f"rodlab train: --run-dir: {exc}", file=sys.stderr)
         return 2
-    args = Args(task=a.task, num_envs=a.envs or d.num_envs, total_steps=a.steps, seed=a.seed, run_dir=a.run_dir,
-                updates_per_iter=a.updates, batch_size=a.batch_size, buffer_size=a.buffer_size,
-                learning_starts=a.learning_starts, checkpoint_minutes=a.checkpoint_minutes,
+    chosen = {k: v for k, v in dict(num_envs=a.envs, updates_per_iter=a.updates, batch_size=a.batch_size,
+                                     learning_rate=a.learning_rate, buffer_size=a.buffer_size,
+                                     learning_starts=a.learning_starts, algorithm=a.algorithm,
+                                     policy_delay=a.policy_delay, n_steps=a.n_steps, tau=a.tau,
+                                     target_update_interval=a.target_update_interval).items() if v is not None}
+    args = Args(**{**preset_settings(a.preset), **chosen}, task=a.task, total_steps=a.steps, seed=a.seed,
+                run_dir=a.run_dir, checkpoint_minutes=a.checkpoint_minutes,
                 save_replay_buffer=not a.no_replay_checkpoint, torch_threads=a.threads,
                 log_interval_s=a.log_interval, time_limit_minutes=a.time_limit, init_from=a.init_from,
                 init_ent_coef=a.init_ent_coef, first_checkpoint_minutes=a.first_checkpoint_minutes,
                 eval_minutes=a.eval_minutes, eval_every_steps=a.eval_every_steps, eval_episodes=a.eval_episodes,
-                eval_stochastic=a.eval_stochastic, bf16=a.bf16, bf16_layout=a.bf16_layout,
+                eval_stochastic=a.eval_stochastic, precision=a.precision, bf16_layout=a.bf16_layout,
                 compile_updates=a.compile, device=a.device)
     if a.resume:
         cfg = os.path.join(a.run_dir, "config.json")
@@ -146,7 +178,7 @@ def train_main(argv: list[str]) -> int:
             return 2
         args.num_envs = saved_envs
     try:
-        run_dir = train(args, resume=a.resume)
+        run_dir = train(args, resume=a.resume, started_at=STARTED_AT)
     except TrainError as exc:
         print(f"rodlab train: {exc}", file=sys.stderr)
         return 2
@@ -229,8 +261,10 @@ def eval_main(argv: list[str]) -> int:
 
 # ----------------------------------------------------------------------------------------- bench train
 def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3, seed: int = 0,
-                threads: int = 1, speed=None, device: str = "cpu") -> dict:
-    """Time training iterations (one batched env step + ``updates`` gradient updates of batch 1024).
+                threads: int = 1, speed=None, device: str = "cpu", batch_size: int | None = None,
+                updates: int | None = None) -> dict:
+    """Time training iterations (one batched env step + ``updates`` gradient updates of ``batch_size``; the
+    training defaults when None).
 
     Returns ms per iteration split into policy (action sampling), env step, buffer add and updates.
     The replay buffer is first filled with ``learning_starts`` random transitions (untimed).
@@ -241,8 +275,10 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
     from policies.train import Args, build_sac, check_device, make_sb3_env
 
     torch.set_num_threads(threads)
+    d = Args()
     args = Args(task=task, num_envs=envs, total_steps=max(envs * (iters + warmup + 10), 20_000), seed=seed,
-                device=check_device(device))
+                device=check_device(device), batch_size=batch_size or d.batch_size,
+                updates_per_iter=updates or d.updates_per_iter)
     t_build = time.perf_counter()
     env = make_sb3_env(task, envs, seed)
     model = build_sac(args, env)
@@ -260,8 +296,10 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
         nobs, rew, done, infos = env.step(act)
         rb.add(obs, nobs, act, rew, done, infos)
         obs = nobs
-    rows = []
+    rows, t_warm, warmup_s = [], time.perf_counter(), 0.0
     for it in range(warmup + iters):
+        if it == warmup:
+            warmup_s = time.perf_counter() - t_warm  # the untimed iterations: compiling (or loading) compiled updates
         t0 = time.perf_counter()
         act, _ = model.predict(obs, deterministic=False)
         t1 = time.perf_counter()
@@ -280,7 +318,7 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
     names = ["policy_ms", "env_step_ms", "buffer_add_ms", "update_ms", "iteration_ms"]
     out = {"task": task, "envs": envs, "iters": iters, "updates_per_iter": args.updates_per_iter,
            "batch_size": args.batch_size, "torch_threads": threads, "device": args.device,
-           "setup_s": round(build_s, 2),
+           "setup_s": round(build_s, 2), "warmup_s": round(warmup_s, 2),
            "speed_settings": speed.label()}
     for j, nm in enumerate(names):
         out[nm] = round(float(np.median(r[:, j])), 2)
@@ -314,16 +352,22 @@ def bench_train_main(argv: list[str]) -> int:
     p.add_argument("--bf16-layout", choices=BF16_LAYOUTS, default="float32_io",
                    help="with --bf16: which layers stay float32 (as rodlab train --bf16-layout)")
     p.add_argument("--device", default="cpu", help="torch device of the updates: cpu (default), cuda or cuda:N")
+    p.add_argument("--batch-size", type=int, default=None, help="replay batch of each update (default: training's)")
+    p.add_argument("--updates", type=int, default=None, help="updates per iteration (default: training's)")
     p.add_argument("--json", action="store_true")
     a = p.parse_args(argv)
+    if (a.batch_size is not None and a.batch_size < 1) or (a.updates is not None and a.updates < 1):
+        p.error("--batch-size and --updates must be positive")
+    from policies.precision import configure_compile_cache
     from policies.train import TrainError, check_compiler
 
     try:
         if a.compile:
             check_compiler()
+            configure_compile_cache()
         res = bench_train(a.task, envs=a.envs, iters=a.iters, warmup=a.warmup, threads=a.threads,
                           speed=SpeedSettings(compile=a.compile, bf16=a.bf16, bf16_layout=a.bf16_layout),
-                          device=a.device)
+                          device=a.device, batch_size=a.batch_size, updates=a.updates)
     except TrainError as exc:
         print(f"rodlab bench train: {exc}", file=sys.stderr)
         return 2

@@ -10,7 +10,7 @@ runs at a fraction of its rate and allocates its output; as loops they fuse with
 ``UnitProductLoops`` (part of ``--compile``) rewrites them and keeps the library's precision: the loops multiply and
 sum in float32 and round once to bfloat16, after the bias (the output layer's ``addmm`` becomes one dot-plus-bias
 loop), as the library's bfloat16 product does. It acts where a product computes in bfloat16 (or float16) on the
-CPU, as under ``--bf16``; float32 products and everything else are left to inductor.
+CPU, as in bfloat16 training (``--precision bfloat16``); float32 products and everything else are left to inductor.
 """
 from __future__ import annotations
 

@@ -18,7 +18,8 @@ metrics.csv, eval.csv) and groups the seeds of one task and setting (the directo
   quote (trials sharing the machine with other work, or run with fewer threads than the quoted setting); the MS
   comes from a measurement on a quiet machine (``rodlab bench train``), which the report names.
 
-Writes ``REPORT_DIR/fig2.png`` (Agg), ``report.md`` and ``report.json`` (default REPORT_DIR: SWEEP_DIR/report).
+Writes ``REPORT_DIR/fig2.png`` (Agg), ``report.md`` and ``report.json`` (default REPORT_DIR: SWEEP_DIR/report), and
+``compare.png`` when a task has several settings (each setting's seed-mean curves overlaid, e.g. the presets).
 """
 from __future__ import annotations
 
@@ -276,16 +277,72 @@ def plot(rows: list[dict], out_png: Path) -> Path:
                            alpha=0.1, label="paper plateau ± std (Table II)")
             if axis == "hours" and r["paper_wallclock_h"]:
                 ax.axvline(r["paper_wallclock_h"], color="gray", ls="--", lw=1, label="paper wall-clock (5 M steps)")
-            ax.set_xlabel("env steps" if axis == "steps" else "wall-clock [h]")
-            ax.set_ylabel("average discounted return")
-            ax.set_title(r["group"], fontsize=9)
-            ax.grid(alpha=0.3)
-            ax.legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
+            _label(ax, "env steps" if axis == "steps" else "wall-clock [h]", r["group"])
+    return _save(fig, out_png)
 
+
+def _label(ax, xlabel: str, title: str) -> None:
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("average discounted return")
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+
+
+def _save(fig, out_png: Path) -> Path:
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
     write_via_path(out_png, lambda tmp: fig.savefig(tmp, format="png", dpi=90))
     plt.close(fig)
     return out_png
+
+
+def plot_compare(rows: list[dict], out_png: Path) -> Path | None:
+    """The settings of each task side by side (e.g. the presets of ``rodlab sweep --set preset=paper,fast``): per task
+    with two or more groups one row, the seed-mean training (solid) and evaluation (dashed) curves of every group
+    against env steps and wall-clock [min], the paper's plateau band (Table II) and wall-clock to 5 M steps, and a
+    dot where each group's training curve reaches the plateau. None when no task has two groups."""
+    tasks: dict[str, list[dict]] = {}
+    for r in rows:
+        tasks.setdefault(r["task"], []).append(r)
+    tasks = {t: rs for t, rs in tasks.items() if len(rs) > 1}
+    if not tasks:
+        return None
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(tasks), 2, figsize=(12, 3.8 * len(tasks)), squeeze=False)
+    for i, (task, rs) in enumerate(sorted(tasks.items())):
+        for j, axis in enumerate(("steps", "hours")):
+            ax = axes[i, j]
+            scale = 60.0 if axis == "hours" else 1.0  # wall-clock in minutes
+            for r in rs:
+                color = None
+                for kind, style in (("train", "-"), ("eval", "--")):
+                    c = r["curves"].get(f"{kind}_{axis}")
+                    if not c:
+                        continue
+                    x = np.asarray(c["x"], float) * scale
+                    m = np.asarray([np.nan if v is None else v for v in c["mean"]], float)
+                    label = f"{r['group']} ({len(r['seeds'])} seeds)" if kind == "train" else None
+                    line, = ax.plot(x, m, style, color=color, label=label, lw=1.4)
+                    color = line.get_color()
+                reach = r.get("train_env_steps_to_plateau" if axis == "steps" else "train_hours_to_plateau")
+                if reach is not None and r.get("plateau_level") is not None:
+                    ax.plot([reach * scale], [r["plateau_level"]], "o", color=color, ms=5)
+            top = rs[0]
+            if top["paper_return"] is not None:
+                ax.axhspan(top["paper_return"] - top["paper_std"], top["paper_return"] + top["paper_std"],
+                           color="gray", alpha=0.12, label="paper plateau ± std (Table II)")
+            if axis == "hours" and top["paper_wallclock_h"]:
+                ax.axvline(top["paper_wallclock_h"] * scale, color="gray", ls="--", lw=1,
+                           label=f"paper wall-clock to 5 M steps ({top['paper_wallclock_h'] * 60:.0f} min)")
+            _label(ax, "env steps" if axis == "steps" else "wall-clock from the command's start [min]",
+                   f"{task}: training (solid), evaluation (dashed); dot: plateau reached")
+    return _save(fig, out_png)
 
 
 def report(sweep_dir: str | Path | list, out_dir: str | Path | None = None,
@@ -310,11 +367,12 @@ def report(sweep_dir: str | Path | list, out_dir: str | Path | None = None,
     out = Path(out_dir) if out_dir else sweep_dir / "report"
     out.mkdir(parents=True, exist_ok=True)
     png = plot(rows, out / "fig2.png")
+    compare = plot_compare(rows, out / "compare.png")
     md = markdown(rows)
     write_bytes(out / "report.md", md.encode())
     write_bytes(out / "report.json", json.dumps({"groups": rows}, indent=1).encode())
-    return {"png": str(png), "markdown": str(out / "report.md"), "json": str(out / "report.json"), "table": md,
-            "groups": rows}
+    return {"png": str(png), "compare_png": str(compare) if compare else None, "markdown": str(out / "report.md"),
+            "json": str(out / "report.json"), "table": md, "groups": rows}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -344,7 +402,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rodlab report: {exc}", file=sys.stderr)
         return 2
     print(res["table"])
-    print(f"figure {res['png']}\ntable {res['markdown']} and {res['json']}")
+    print(f"figure {res['png']}" + (f", settings side by side {res['compare_png']}" if res["compare_png"] else "")
+          + f"\ntable {res['markdown']} and {res['json']}")
     return 0
 
 

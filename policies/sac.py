@@ -13,11 +13,11 @@ What SB3's ``SAC`` lacks and how it is added here (nothing else is changed):
   call, so with 4 updates per call and interval 8 it would update every 4th update).
 * **Adam eps 1e-7** for all three optimizers (AdamTF); SB3 keeps three Adam instances where the
   reference shares one. Adam is element-wise, so this is the same update rule.
-* **bfloat16 updates** (``RodSAC.bf16_updates``, ``rodlab train --bf16``): the updates run under
+* **bfloat16 updates** (``RodSAC.bf16_updates``, ``rodlab train --precision bfloat16``, and ``auto``'s fast path): the updates run under
   ``torch.autocast(dtype=bfloat16)`` with the input and output layers and the LayerNorms kept in float32
   (``Float32Linear``, ``Float32LayerNorm``): only the hidden 256x256 products run in bfloat16, so observations,
   actions, Q values and log-probabilities are not rounded to bfloat16's 8-bit mantissa. ``set_bf16_layout(policy,
-  "all")`` (``rodlab train --bf16 --bf16-layout all``) turns them back into plain layers: every product in bfloat16.
+  "all")`` (``rodlab train --bf16-layout all``, the default) turns them back into plain layers: every product in bfloat16.
 * **Compiled updates** (``RodSAC.compile_updates``, ``rodlab train --compile``): each update is one call of
   ``_fused_update`` through ``torch.compile``: the same loss methods as the eager updates, gradients by
   ``torch.func.grad_and_value`` and the Adam steps written out on the optimizers' own state (docs/training.md);
@@ -95,7 +95,7 @@ class Float32LayerNorm(nn.LayerNorm):
 _FLOAT32_CLASSES = {nn.Linear: Float32Linear, nn.LayerNorm: Float32LayerNorm}
 _PLAIN_CLASSES = {v: k for k, v in _FLOAT32_CLASSES.items()}
 
-#: where ``--bf16`` uses bfloat16: ``float32_io`` keeps the input/output layers and LayerNorms in float32 (only the
+#: where bfloat16 updates use bfloat16: ``float32_io`` keeps the input/output layers and LayerNorms in float32 (only the
 #: hidden products in bfloat16), ``all`` runs every layer in bfloat16 (docs/training.md, "bfloat16 updates")
 BF16_LAYOUTS = ("float32_io", "all")
 
@@ -130,7 +130,7 @@ def _bf16_guard(mlp: nn.Sequential, *, output_layer: bool) -> None:
     """Keep in float32 what bfloat16 (8-bit mantissa) would spoil in an MLP: the input layer (observations and
     actions rounded to bfloat16 shift Q by ~0.05 and turn dQ/da by ~20 %), the LayerNorms and the output layer
     (a Q of 100 in bfloat16 is a multiple of 0.5). Only the hidden 256x256 products, most of the work, run in
-    bfloat16 under ``--bf16``."""
+    bfloat16 in bfloat16 training."""
     linears = [m for m in mlp if isinstance(m, nn.Linear)]
     _keep_float32(linears[0])
     if output_layer:
@@ -530,8 +530,12 @@ def save_policy(model: SAC, path: str | os.PathLike, *, task: str | None, extra:
         "net_arch": list(pol.actor_kwargs["net_arch"]),
         "n_critics": int(pol.critic_kwargs["n_critics"]),
         "head_init_gain": float(getattr(pol, "head_init_gain", 0.3)),
+        "algorithm": "crossq" if hasattr(pol, "batch_norm_params") else "sac",
         "extra": extra or {},
     }
+    if meta["algorithm"] == "crossq":  # policies/crossq.py: critics' layout and batch renormalisation
+        meta["critic_net_arch"] = list(pol.critic_kwargs["net_arch"])
+        meta.update({k: v for k, v in pol.batch_norm_params.items()})
     zbuf = io.BytesIO()
     with zipfile.ZipFile(zbuf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("meta.json", json.dumps(meta, indent=1))
@@ -650,9 +654,17 @@ def load_policy(path: str | os.PathLike, *, device: str = "cpu", trust_pickle: b
                                    dtype=np.float32)
             act_space = spaces.Box(np.asarray(meta["action_low"], np.float32),
                                    np.asarray(meta["action_high"], np.float32), dtype=np.float32)
-            pol = LayerNormSACPolicy(obs_space, act_space, lambda _: 1e-3, net_arch=[int(n) for n in meta["net_arch"]],
-                                     n_critics=int(meta["n_critics"]),
-                                     head_init_gain=float(meta.get("head_init_gain", 0.3)))
+            algorithm = meta.get("algorithm", "sac")
+            if algorithm == "crossq":
+                from policies.crossq import crossq_policy
+
+                pol = crossq_policy(obs_space, act_space, meta)
+            elif algorithm == "sac":
+                pol = LayerNormSACPolicy(obs_space, act_space, lambda _: 1e-3,
+                                         net_arch=[int(n) for n in meta["net_arch"]], n_critics=int(meta["n_critics"]),
+                                         head_init_gain=float(meta.get("head_init_gain", 0.3)))
+            else:
+                raise PolicyLoadError(f"policy file {path}: unknown algorithm {str(algorithm)[:40]!r} (sac, crossq)")
             with zipfile.ZipFile(path) as zf:
                 sd = _load_weights(zf, "policy.pt", path, device)
             missing, unexpected = pol.load_state_dict(sd, strict=False)
@@ -660,7 +672,8 @@ def load_policy(path: str | os.PathLike, *, device: str = "cpu", trust_pickle: b
             if missing or unexpected:
                 raise PolicyLoadError(f"policy file {path}: weights do not match the network "
                                       f"(missing {missing[:3]}, unexpected {unexpected[:3]})")
-            pol.critic_target.load_state_dict(pol.critic.state_dict())
+            if getattr(pol, "critic_target", None) is not None:
+                pol.critic_target.load_state_dict(pol.critic.state_dict())
         else:
             raise PolicyLoadError(f"policy file {path}: unknown format {str(meta.get('format'))[:40]!r}")
     except PolicyLoadError:

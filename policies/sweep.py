@@ -1,6 +1,6 @@
 """``rodlab sweep``: seeds x tasks x hyper-parameter grids of ``rodlab train`` runs, scheduled by Ray.
 
-    rodlab sweep TASK [TASK ...] --seeds 0,1,2 [--envs 500] [--steps N] [--time-limit MIN]
+    rodlab sweep TASK [TASK ...] --seeds 0,1,2 [--preset paper] [--envs N] [--steps N] [--time-limit MIN]
                  [--address ADDR] [--set key=v1,v2 ...] [--out DIR] [--cpus-per-trial N]
 
 * **Trials.** One trial per (task, grid point of ``--set``, seed). Each trial is an ordinary training run
@@ -21,7 +21,9 @@
   sent SIGTERM and write a checkpoint before the sweep exits; a trial whose process was killed outright resumes
   from its last periodic checkpoint.
 * **--set key=v1,v2** sets any ``Args`` field (policies/train.py), several values make a grid (the product of
-  all ``--set`` options); list values separate their items with ':' (``net_arch=256:256``).
+  all ``--set`` options); list values separate their items with ':' (``net_arch=256:256``); an optional field
+  takes ``auto`` for "as the run decides" (``compile_updates=auto``). Each trial starts from ``--preset``
+  (policies/presets.py), or from its grid value of ``--set preset=paper,fast``, then ``--envs`` and the rest.
 * **Progress**: a table of trials (state, env steps, returns, ETA) refreshed in the terminal.
 """
 from __future__ import annotations
@@ -41,6 +43,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from sim.support.atomicio import write_bytes
+
+from policies.presets import DEFAULT_PRESET, PRESETS, preset_settings
+
+STARTED_AT = time.perf_counter()  # in a trial's process: when it started (the run's wall-clock counts its start-up)
 
 FIXED_KEYS = {"task", "seed", "run_dir", "num_envs", "total_steps", "time_limit_minutes", "init_from"}
 
@@ -65,6 +71,10 @@ class Trial:
 # ------------------------------------------------------------------------------------ parsing
 def _convert(name: str, ftype, text: str):
     t = str(ftype)
+    if t.endswith(" | None"):  # an optional setting: "auto" (or "none") leaves it to the run
+        if text.lower() in ("auto", "none"):
+            return None
+        t = t[: -len(" | None")]
     try:
         if t in ("int", "<class 'int'>"):
             try:
@@ -123,16 +133,25 @@ def group_name(task: str, grid: dict) -> str:
     return "__".join([task] + [f"{k}={_value_tag(v)}" for k, v in sorted(grid.items())])
 
 
-def make_trials(tasks: list[str], seeds: list[int], sets: dict[str, list], out: Path, *, envs: int, steps: int,
-                time_limit_minutes: float, cpus_per_trial: int) -> list[Trial]:
+def make_trials(tasks: list[str], seeds: list[int], sets: dict[str, list], out: Path, *, envs: int | None,
+                steps: int, time_limit_minutes: float, cpus_per_trial: int, preset: str = DEFAULT_PRESET
+                ) -> list[Trial]:
+    """One trial per (task, grid point, seed). Each starts from its preset's settings (``preset``, or the grid's
+    ``preset`` value: ``--set preset=paper,fast`` compares presets), then ``envs`` (when given) and the grid's other
+    values."""
     from policies.train import Args, TrainError, check_update_settings, task_short_name
 
     if not tasks:
         raise SweepError("no task given")
     if not seeds:
         raise SweepError("no seed given")
-    if envs < 1 or steps < 1:
+    if (envs is not None and envs < 1) or steps < 1:
         raise SweepError("--envs and --steps must be positive")
+    for name in sets.get("preset", [preset]):
+        try:
+            preset_settings(name)
+        except ValueError as exc:
+            raise SweepError(f"--preset: {exc}") from None
     trials = []
     keys = sorted(sets)
     for task in tasks:
@@ -146,10 +165,13 @@ def make_trials(tasks: list[str], seeds: list[int], sets: dict[str, list], out: 
                 varying = {k: v for k, v in grid.items() if len(sets[k]) > 1}  # single values stay out of names
                 name = f"{group_name(task, varying)}__s{seed}"
                 run_dir = out / name
-                a = Args(task=task, num_envs=envs, total_steps=steps, seed=int(seed), run_dir=str(run_dir),
-                         torch_threads=cpus_per_trial)
+                a = Args(**preset_settings(grid.get("preset", preset)), task=task, total_steps=steps,
+                         seed=int(seed), run_dir=str(run_dir), torch_threads=cpus_per_trial)
+                if envs is not None:
+                    a.num_envs = envs
                 for k, v in grid.items():
-                    setattr(a, k, v)
+                    if k != "preset":
+                        setattr(a, k, v)
                 try:  # before Ray starts: a setting no trial could run with
                     check_update_settings(a)
                 except TrainError as exc:
@@ -233,7 +255,7 @@ def run_trial_process(run_dir: Path) -> int:
         used_min = (float(st["wall_s"]) / 60.0) if st else 0.0
         if limit > 0:
             args.time_limit_minutes = max(limit - used_min, 1e-3)
-        train(args, resume=st is not None)
+        train(args, resume=st is not None, started_at=STARTED_AT)
         st = read_state(run_dir)
         side = json.loads((run_dir / "policy.json").read_text())
         training = side.get("training", {})
@@ -470,7 +492,11 @@ def main(argv: list[str] | None = None) -> int:
                                 "command to continue an interrupted sweep.")
     p.add_argument("tasks", nargs="+", metavar="TASK")
     p.add_argument("--seeds", default="0", help="comma-separated seeds or ranges (0,1,2 or 0-4; default 0)")
-    p.add_argument("--envs", type=int, default=d.num_envs, help=f"parallel envs per trial (default {d.num_envs})")
+    p.add_argument("--preset", choices=list(PRESETS), default=DEFAULT_PRESET,
+                   help=f"named training settings each trial starts from (default {DEFAULT_PRESET}; as rodlab train "
+                        "--preset; --set preset=paper,fast makes them a grid)")
+    p.add_argument("--envs", type=int, default=None, help=f"parallel envs per trial (default: the preset's; paper "
+                                                          f"{d.num_envs})")
     p.add_argument("--steps", type=int, default=d.total_steps, help=f"env steps per trial (default {d.total_steps:,})")
     p.add_argument("--time-limit", type=float, default=0.0, metavar="MIN",
                    help="training wall-clock budget per trial in minutes, summed over resumes (0 = none)")
@@ -492,7 +518,7 @@ def main(argv: list[str] | None = None) -> int:
         sets = parse_sets(a.set)
         out = Path(a.out or f"runs/sweep_{'_'.join(a.tasks)}")
         trials = make_trials(a.tasks, parse_seeds(a.seeds), sets, out, envs=a.envs, steps=a.steps,
-                             time_limit_minutes=a.time_limit, cpus_per_trial=cpus)
+                             time_limit_minutes=a.time_limit, cpus_per_trial=cpus, preset=a.preset)
     except SweepError as exc:
         print(f"rodlab sweep: {exc}", file=sys.stderr)
         return 2

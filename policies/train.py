@@ -45,6 +45,7 @@ from sim.support.atomicio import write_bytes
 from policies.checkpoint import CheckpointError, find_checkpoint, read_state, resume_seed
 from policies.checkpoint import load_checkpoint as _load
 from policies.checkpoint import save_checkpoint as _save_checkpoint
+from policies.precision import PRECISIONS, UpdatePlan, configure_compile_cache, find_compiler, plan_updates
 from policies.sac import (
     BF16_LAYOUTS,
     POLICY_FORMAT,
@@ -64,6 +65,17 @@ from policies.train_monitor import monitor_callback
 RETIRED_SETTINGS = {"compile_split_products": False}
 
 
+def _translate_retired(data: dict) -> dict:
+    """A saved config in this version's terms: ``bf16`` (true/false, before ``precision``) becomes ``precision``
+    (bfloat16 / float32), and a run saved before ``precision`` keeps its layout and compile choice as saved."""
+    data = dict(data)
+    if "bf16" in data and "precision" not in data:
+        data["precision"] = "bfloat16" if data.pop("bf16") else "float32"
+        data.setdefault("bf16_layout", "float32_io")
+        data.setdefault("compile_updates", False)
+    return data
+
+
 @dataclass
 class Args:
     """Training configuration; defaults follow docs/tasks.md §8.1/8.2 (the paper's setup)."""
@@ -73,6 +85,8 @@ class Args:
     total_steps: int = 5_000_000            # env (control) steps summed over envs
     seed: int = 0
     run_dir: str = ""
+    preset: str = "paper"                   # the named settings these started from (policies/presets.py)
+    algorithm: str = "sac"                  # sac (RodSAC, policies/sac.py) or crossq (policies/crossq.py)
     # SAC
     learning_rate: float = 1e-3
     adam_eps: float = 1e-7
@@ -83,18 +97,22 @@ class Args:
     tau: float = 0.005
     target_update_interval: int = 8         # gradient updates between target soft-updates
     gamma: float = 0.99
+    n_steps: int = 1                        # n-step returns: TD targets over n rewards (SB3's n-step replay buffer)
     net_arch: list[int] = field(default_factory=lambda: [256, 256, 256])
+    critic_net_arch: list[int] = field(default_factory=list)  # crossq: the critics' layers (empty: net_arch)
     n_critics: int = 2
+    policy_delay: int = 3                   # crossq: critic updates per actor (and entropy) update
     entropy_in_target: bool = False         # reference: use_entropy_reward = False
     target_entropy_scale: float = 0.1       # target entropy = sum ln(scale * (high - low)) = -1.609 * dim
     init_ent_coef: float = 1.0
     init_from: str = ""                     # warm start: policy .zip to copy the weights from (fresh runs only)
-    bf16: bool = False                      # hidden products of the updates in bfloat16 (docs/training.md;
-                                            # BENCHMARKS.md §6: same learning curve, faster on a CPU)
-    bf16_layout: str = "float32_io"         # with bf16: float32_io (input/output layers, LayerNorms in float32)
-                                            # or all (every layer in bfloat16); policies/sac.py BF16_LAYOUTS
-    compile_updates: bool = False           # each update one torch.compile-d function (docs/training.md,
-                                            # "Compiled updates"; needs a C++ compiler)
+    precision: str = "auto"                 # auto | bfloat16 | float32: how the updates compute, resolved against
+                                            # the machine by policies/precision.py (auto: compiled bfloat16 where
+                                            # the CPU and a compiler allow it, else float32; docs/training.md)
+    bf16_layout: str = "all"                # in bfloat16: all (every layer) or float32_io (input/output layers
+                                            # and LayerNorms in float32); policies/sac.py BF16_LAYOUTS
+    compile_updates: bool | None = None     # each update one torch.compile-d function; None: as the precision
+                                            # resolves (compiled with bfloat16 when a C++ compiler is present)
     # runtime
     torch_threads: int = 1
     checkpoint_minutes: float = 5.0
@@ -118,6 +136,7 @@ class Args:
     @classmethod
     def from_json(cls, data: dict) -> "Args":
         names = {f.name for f in dataclasses.fields(cls)}
+        data = _translate_retired(data)
         # settings that no longer exist, dropped from a saved config when they hold the value that behaves as now
         data = {k: v for k, v in data.items() if not (k in RETIRED_SETTINGS and v == RETIRED_SETTINGS[k])}
         unknown = sorted(set(data) - names)
@@ -156,14 +175,11 @@ def target_entropy(action_space, scale: float) -> float:
 
 def check_compiler() -> str:
     """The C++ compiler that torch.compile's CPU back-end will call; ``TrainError`` when there is none."""
-    import shutil
-
-    for name in (os.environ.get("CXX", ""), "g++", "c++", "clang++"):
-        path = shutil.which(name) if name else None
-        if path:
-            return path
-    raise TrainError("--compile: torch.compile needs a C++ compiler on the PATH (g++, c++ or clang++; set CXX to "
-                     "choose one); install one (Debian: apt-get install g++) or train without --compile")
+    path = find_compiler()
+    if path is None:
+        raise TrainError("--compile: torch.compile needs a C++ compiler on the PATH (g++, c++ or clang++; set CXX to "
+                         "choose one); install one (Debian: apt-get install g++) or train without --compile")
+    return path
 
 
 def build_sac(args: Args, env):
@@ -176,11 +192,48 @@ def build_sac(args: Args, env):
         train_freq=1, gradient_steps=args.updates_per_iter, ent_coef=f"auto_{args.init_ent_coef}",
         target_update_interval=args.target_update_interval,
         target_entropy=target_entropy(env.action_space, args.target_entropy_scale),
-        entropy_in_target=args.entropy_in_target, adam_eps=args.adam_eps,
-        replay_buffer_kwargs=dict(handle_timeout_termination=True),
+        entropy_in_target=args.entropy_in_target, adam_eps=args.adam_eps, **_replay_buffer(args),
         policy_kwargs=dict(net_arch=list(args.net_arch), n_critics=args.n_critics, activation_fn=InplaceReLU,
                            optimizer_kwargs=dict(eps=args.adam_eps, fused=True)),
         seed=args.seed, device=args.device, verbose=0)
+
+
+ALGORITHMS = ("sac", "crossq")
+
+
+def _replay_buffer(args: Args) -> dict:
+    """The replay buffer's class and settings, named explicitly so that a checkpoint reloads the same kind: with
+    ``n_steps`` > 1 SB3's n-step buffer, whose n and discount would otherwise fall back to its defaults on load."""
+    if args.n_steps == 1:
+        return dict(replay_buffer_kwargs=dict(handle_timeout_termination=True))
+    from stable_baselines3.common.buffers import NStepReplayBuffer
+
+    return dict(replay_buffer_class=NStepReplayBuffer,
+                replay_buffer_kwargs=dict(handle_timeout_termination=True, n_steps=args.n_steps, gamma=args.gamma))
+
+
+def build_crossq(args: Args, env):
+    """A fresh ``RodCrossQ`` (policies/crossq.py) for ``env`` configured from ``args``: the run's learning rate,
+    batch, updates per env step, entropy target and coefficient as for SAC; no target networks (``tau`` and
+    ``target_update_interval`` do not apply), batch renormalisation and sb3-contrib's Adam betas (0.5, 0.999)."""
+    from torch import nn
+
+    from policies.crossq import RodCrossQ
+
+    return RodCrossQ(
+        "MlpPolicy", env, learning_rate=args.learning_rate, buffer_size=_buffer_size(args),
+        learning_starts=args.learning_starts, batch_size=args.batch_size, gamma=args.gamma, train_freq=1,
+        gradient_steps=args.updates_per_iter, ent_coef=f"auto_{args.init_ent_coef}",
+        target_entropy=target_entropy(env.action_space, args.target_entropy_scale), policy_delay=args.policy_delay,
+        **_replay_buffer(args),
+        policy_kwargs=dict(net_arch=dict(pi=list(args.net_arch), qf=list(args.critic_net_arch or args.net_arch)),
+                           n_critics=args.n_critics, activation_fn=nn.ReLU),
+        seed=args.seed, device=args.device, verbose=0)
+
+
+def build_model(args: Args, env):
+    """A fresh model of the run's algorithm."""
+    return build_crossq(args, env) if args.algorithm == "crossq" else build_sac(args, env)
 
 
 def git_commit() -> str:
@@ -276,7 +329,7 @@ def load_checkpoint(args: Args, run_dir: Path, env):
     """-> (model, state dict). Replay buffer restored when present; raises TrainError when unusable."""
 
     try:
-        return _load(run_dir, env, device=args.device, buffer_size=_buffer_size(args))
+        return _load(run_dir, env, device=args.device, buffer_size=_buffer_size(args), algorithm=args.algorithm)
     except CheckpointError as exc:
         raise TrainError(f"--resume: {exc}") from None
 
@@ -286,12 +339,45 @@ def check_update_settings(args: Args) -> None:
     ``train`` and, for every trial before any starts, by ``rodlab sweep``)."""
     if args.bf16_layout not in BF16_LAYOUTS:
         raise TrainError(f"--bf16-layout: expected one of {', '.join(BF16_LAYOUTS)}, got {args.bf16_layout!r}")
+    if args.precision not in PRECISIONS:
+        raise TrainError(f"--precision: expected one of {', '.join(PRECISIONS)}, got {args.precision!r}")
+    if args.algorithm not in ALGORITHMS:
+        raise TrainError(f"--algorithm: expected one of {', '.join(ALGORITHMS)}, got {args.algorithm!r}")
+    if args.algorithm == "crossq" and (args.precision == "bfloat16" or args.compile_updates):
+        raise TrainError("--algorithm crossq runs its updates eagerly in float32 (sb3-contrib's CrossQ); "
+                         "--precision bfloat16 and --compile are SAC's")
+    if args.n_steps < 1:
+        raise TrainError(f"--n-steps must be at least 1, got {args.n_steps}")
+    if args.policy_delay < 1:
+        raise TrainError(f"--policy-delay must be at least 1, got {args.policy_delay}")
+    if args.compile_updates:
+        check_compiler()
 
 
-def configure_updates(model, args: Args) -> None:
-    """The run's update settings on a new or loaded model: bfloat16 and its layout, compiled updates (none of them
-    is part of a checkpoint, so a resumed run takes them from its config)."""
-    model.set_update_settings(bf16=args.bf16, bf16_layout=args.bf16_layout, compile_updates=args.compile_updates)
+def gradient_updates(args: Args, done_steps: int = 0) -> int:
+    """The gradient updates a run of ``args`` still makes after ``done_steps`` env steps (one batched env step
+    makes ``updates_per_iter`` once ``learning_starts`` transitions are collected)."""
+    iters = max(0, args.total_steps - max(args.learning_starts, done_steps)) // max(1, args.num_envs)
+    return iters * args.updates_per_iter
+
+
+def update_plan(args: Args, done_steps: int = 0) -> UpdatePlan:
+    """How this run's updates compute on this machine (``policies.precision.plan_updates``)."""
+    check_update_settings(args)
+    if args.algorithm == "crossq":
+        return UpdatePlan(bf16=False, bf16_layout=args.bf16_layout, compiled=False,
+                          reason="CrossQ: sb3-contrib's eager float32 updates")
+    try:
+        return plan_updates(args.precision, device=args.device, gradient_updates=gradient_updates(args, done_steps),
+                            bf16_layout=args.bf16_layout, compile_updates=args.compile_updates)
+    except ValueError as exc:
+        raise TrainError(f"--precision: {exc}") from None
+
+
+def configure_updates(model, plan: UpdatePlan) -> None:
+    """The run's update plan on a new or loaded model: bfloat16 and its layout, compiled updates (none of them is
+    part of a checkpoint, so a resumed run plans them again from its config)."""
+    model.set_update_settings(bf16=plan.bf16, bf16_layout=plan.bf16_layout, compile_updates=plan.compiled)
 
 
 def _buffer_size(args: Args) -> int:
@@ -317,8 +403,12 @@ def check_device(name: str) -> str:
 
 
 # ------------------------------------------------------------------------------------ main entry
-def train(args: Args, *, resume: bool = False) -> Path:
-    """Train (or resume) a run; returns the run directory. Writes policy.zip at the end or on stop."""
+def train(args: Args, *, resume: bool = False, started_at: float | None = None) -> Path:
+    """Train (or resume) a run; returns the run directory. Writes policy.zip at the end or on stop.
+
+    ``started_at``: the ``time.perf_counter()`` at which the command started (``rodlab train``, a sweep trial), so
+    a fresh run's wall-clock counts its start-up (imports, env and model set-up) too; None counts from here."""
+    started_at = time.perf_counter() if started_at is None else started_at
     import torch as th
     from stable_baselines3.common.logger import configure
 
@@ -348,11 +438,13 @@ def train(args: Args, *, resume: bool = False) -> Path:
             raise TrainError(f"--init-from: policy file not found: {args.init_from}")
     args.device = check_device(args.device)  # before the run directory is made
     check_update_settings(args)
-    if args.compile_updates:
-        check_compiler()
     run_dir.mkdir(parents=True, exist_ok=True)
 
     state = read_state(run_dir) if resume else None
+    plan = update_plan(args, int(state["num_timesteps"]) if state else 0)
+    if plan.compiled:
+        configure_compile_cache()
+    print(plan.notice(), file=sys.stderr, flush=True)
     if resume and state is None:
         raise TrainError(f"--resume: no checkpoint in {run_dir / 'checkpoint'} (expected model.zip and state.json)")
     # a resumed run starts fresh episodes from its own seed (not a replay of the first episodes)
@@ -363,8 +455,9 @@ def train(args: Args, *, resume: bool = False) -> Path:
         wall_offset = float(state.get("wall_s", 0.0))
         model.set_random_seed(env_seed)  # SB3's load re-seeds the env with the run's seed: use the derived one
     else:
-        model, wall_offset = build_sac(args, env), 0.0
-    configure_updates(model, args)
+        model = build_model(args, env)
+        wall_offset = time.perf_counter() - started_at  # the start-up belongs to the run's wall-clock
+    configure_updates(model, plan)
     init_info = None
     if args.init_from and not resume:
         try:
@@ -378,11 +471,12 @@ def train(args: Args, *, resume: bool = False) -> Path:
     if not resume or not (run_dir / "config.json").exists():
         import gymnasium
         import stable_baselines3
-        cfg = {"args": args.to_json(), "git_commit": git_commit(), "algorithm": "RodSAC (policies/sac.py)",
+        cfg = {"args": args.to_json(), "git_commit": git_commit(), "algorithm": ("RodCrossQ (policies/crossq.py)" if args.algorithm == "crossq"
+                                                            else "RodSAC (policies/sac.py)"),
                "versions": {"torch": th.__version__, "stable_baselines3": stable_baselines3.__version__,
                             "gymnasium": gymnasium.__version__, "numpy": np.__version__},
                "obs_shape": list(env.observation_space.shape), "action_shape": list(env.action_space.shape),
-               "target_entropy": float(model.target_entropy), "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+               "updates": plan.to_json(), "target_entropy": float(model.target_entropy), "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
         if init_info is not None:
             cfg["init_from"] = init_info
         write_bytes(run_dir / "config.json", json.dumps(cfg, indent=1).encode())
@@ -415,7 +509,8 @@ def train(args: Args, *, resume: bool = False) -> Path:
                    "stopped_by_time_limit": bool(stop_flag.get("time_limit")),
                    "last_train_return": float(monitor.last["ret"]) if hasattr(monitor, "last") else None,
                    "last_train_avg_disc_return": float(monitor.last["dret"]) if hasattr(monitor, "last") else None,
-                   "last_eval": getattr(monitor, "last_eval_result", None), "eval_s_total": round(eval_s, 2)}
+                   "last_eval": getattr(monitor, "last_eval_result", None), "eval_s_total": round(eval_s, 2),
+                   "updates": plan.to_json()}
         save_policy(model, run_dir / "policy.zip", task=args.task,
                     extra={"training": summary, "log_ent_coef": _log_ent_coef(model)})
         side = {"task": args.task, "config": args.to_json(), "git_commit": git_commit(), "training": summary}
@@ -425,4 +520,5 @@ def train(args: Args, *, resume: bool = False) -> Path:
 
 
 __all__ = ["Args", "TrainError", "PolicyLoadError", "train", "make_sb3_env", "task_short_name", "build_sac",
+           "build_crossq", "build_model",
            "save_checkpoint", "load_checkpoint", "target_entropy", "warm_start"]

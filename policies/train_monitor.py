@@ -127,7 +127,7 @@ def monitor_callback(args, run_dir: Path, wall_offset: float, stop_flag: dict, e
         def _show_phase(self) -> None:
             """The bar's label follows the run's phase (env steps race ahead during SB3's warm-up, then slow down)."""
             phase = bar_phase(self.num_timesteps, int(getattr(self.model, "learning_starts", 0)), self.updates,
-                              bool(getattr(args, "compile_updates", False)))
+                              bool(getattr(self.model, "compile_updates", False)))
             if phase != self.phase:
                 self.phase = phase
                 self.bar.set_description_str(phase, refresh=True)

@@ -1,9 +1,9 @@
 """Settings that may make the SAC updates faster on a CPU, for ``rodlab bench train`` to try one at a time.
 
-Nothing here is used by ``rodlab train`` by default; each setting must first be measured on a quiet machine
-(iteration time) and checked to keep the learning curve (docs/training.md). ``bf16`` is also a training setting
-(``rodlab train --bf16``, ``Args.bf16``; a sweep compares it with float32 on the same seeds:
-``rodlab sweep follow_target --seeds 0,1,2 --set bf16=false,true``). Settings:
+Training chooses its own from ``Args.precision`` (policies/precision.py); here each setting is timed alone, and must
+be measured on a quiet machine (iteration time) and checked to keep the learning curve (docs/training.md) before a
+run uses it. A sweep compares the precisions on the same seeds:
+``rodlab sweep follow_target --seeds 0,1,2 --set precision=float32,bfloat16``. Settings:
 
 * ``compile``: ``RodSAC.compile_updates`` (also ``rodlab train --compile``): each SAC update (losses, their
   gradients, the Adam steps) runs as one ``torch.compile``d function; the target update stays eager. Needs a C++

@@ -26,7 +26,7 @@ ENVS = 4
 def _args(run_dir: Path, steps: int, **kw) -> Args:
     base = dict(task=TASK, num_envs=ENVS, total_steps=steps, seed=3, run_dir=str(run_dir), batch_size=32,
                 learning_starts=16, updates_per_iter=1, net_arch=[32, 32], buffer_size=100_000, log_interval_s=0.0,
-                checkpoint_minutes=60.0, first_checkpoint_minutes=60.0, eval_minutes=0.0)
+                checkpoint_minutes=60.0, first_checkpoint_minutes=60.0, eval_minutes=0.0, precision="float32")
     base.update(kw)
     return Args(**base)
 
@@ -78,7 +78,7 @@ import sys
 from policies.train import Args, train
 train(Args(task={task!r}, num_envs={envs}, total_steps=10**8, seed=5, run_dir=sys.argv[1], batch_size=32,
            learning_starts=16, updates_per_iter=1, net_arch=[32, 32], buffer_size=100_000, log_interval_s=1.0,
-           checkpoint_minutes=0.004, first_checkpoint_minutes=0.002, eval_minutes=0.0))
+           checkpoint_minutes=0.004, first_checkpoint_minutes=0.002, eval_minutes=0.0, precision="float32"))
 """
 
 

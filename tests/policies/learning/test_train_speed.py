@@ -244,10 +244,19 @@ def test_bf16_training_setting_runs_the_updates_in_bfloat16():
     assert (a16 - a32).abs().max() < 0.05 * a32.abs().max()
 
 
-def test_bf16_is_a_training_setting():
+def test_precision_is_a_training_setting_and_old_configs_keep_theirs():
+    """``Args.precision`` (auto by default); a config.json saved with the earlier ``bf16`` switch loads as the run it
+    was: bf16 true -> bfloat16 with the float32_io layout and eager updates unless it said otherwise, false ->
+    float32."""
     from policies.train import Args
 
-    assert Args().bf16 is False and Args.from_json({**Args().to_json(), "bf16": True}).bf16 is True
+    fields = {k: v for k, v in Args().to_json().items() if k not in ("precision", "bf16_layout", "compile_updates")}
+    assert Args().precision == "auto"
+    old = Args.from_json({**fields, "bf16": True})
+    assert (old.precision, old.bf16_layout, old.compile_updates) == ("bfloat16", "float32_io", False)
+    old = Args.from_json({**fields, "bf16": True, "bf16_layout": "all", "compile_updates": True})
+    assert (old.precision, old.bf16_layout, old.compile_updates) == ("bfloat16", "all", True)
+    assert Args.from_json({**fields, "bf16": False}).precision == "float32"
 
 
 def test_bf16_keeps_q_values_and_log_probabilities_in_float32():
@@ -347,10 +356,10 @@ def test_bf16_layout_is_a_training_and_speed_setting(tmp_path):
     from policies.sac import Float32Linear
     from policies.train import TrainError, train
 
-    assert Args().bf16_layout == "float32_io"
-    assert Args.from_json({**Args().to_json(), "bf16_layout": "all"}).bf16_layout == "all"
+    assert Args().bf16_layout == "all"
+    assert Args.from_json({**Args().to_json(), "bf16_layout": "float32_io"}).bf16_layout == "float32_io"
     with pytest.raises(TrainError, match="--bf16-layout: expected one of float32_io, all"):
-        train(Args(task="ik4d", bf16=True, bf16_layout="half", run_dir=str(tmp_path / "bad")))
+        train(Args(task="ik4d", precision="bfloat16", bf16_layout="half", run_dir=str(tmp_path / "bad")))
     assert not (tmp_path / "bad").exists()
     with pytest.raises(ValueError, match="bf16_layout must be one of"):
         SpeedSettings(bf16=True, bf16_layout="half")
@@ -410,16 +419,17 @@ def _compiled_with(fn, graph_pass):
 
 
 def test_run_settings_reach_the_model():
-    """``configure_updates`` puts a run's update settings (``Args``: bf16, its layout, compiled updates) on the
-    model, and the defaults take them off again."""
+    """``configure_updates`` puts a run's update plan (bfloat16, its layout, compiled updates; from ``Args`` through
+    ``update_plan``) on the model, and a float32 plan takes them off again."""
     from policies.sac import Float32Linear
-    from policies.train import configure_updates
+    from policies.train import configure_updates, update_plan
 
     model = _model()
-    configure_updates(model, Args(task="ik4d", bf16=True, bf16_layout="all", compile_updates=True))
+    plan = update_plan(Args(task="ik4d", precision="bfloat16", bf16_layout="all", compile_updates=True))
+    configure_updates(model, plan)
     assert model.bf16_updates and model.compile_updates
     assert not any(isinstance(m, Float32Linear) for m in model.policy.modules())  # every layer in bfloat16
-    configure_updates(model, Args(task="ik4d"))
+    configure_updates(model, update_plan(Args(task="ik4d", precision="float32", bf16_layout="float32_io")))
     assert not model.bf16_updates and not model.compile_updates
     assert any(isinstance(m, Float32Linear) for m in model.policy.modules())
 
