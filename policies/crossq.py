@@ -38,11 +38,12 @@ class RodCrossQ(CrossQ):
 
 
 def crossq_policy(observation_space, action_space, meta: dict) -> CrossQPolicy:
-    """A fresh ``CrossQPolicy`` with the layout a policy file's ``meta`` names (its weights are loaded after)."""
+    """A fresh ``CrossQPolicy`` with the layout a policy file's ``meta`` names (``save_policy`` writes the critics'
+    layers and the batch-renormalisation settings; its weights are loaded after)."""
     return CrossQPolicy(observation_space, action_space, lambda _: 1e-3,
                         net_arch={"pi": [int(n) for n in meta["net_arch"]],
-                                  "qf": [int(n) for n in meta.get("critic_net_arch") or meta["net_arch"]]},
-                        n_critics=int(meta["n_critics"]), batch_norm=bool(meta.get("batch_norm", True)),
-                        batch_norm_momentum=float(meta.get("batch_norm_momentum", 0.01)),
-                        batch_norm_eps=float(meta.get("batch_norm_eps", 0.001)),
-                        renorm_warmup_steps=int(meta.get("renorm_warmup_steps", 100_000)))
+                                  "qf": [int(n) for n in meta["critic_net_arch"]]},
+                        n_critics=int(meta["n_critics"]), batch_norm=bool(meta["batch_norm"]),
+                        batch_norm_momentum=float(meta["batch_norm_momentum"]),
+                        batch_norm_eps=float(meta["batch_norm_eps"]),
+                        renorm_warmup_steps=int(meta["renorm_warmup_steps"]))

@@ -4,7 +4,7 @@
 ``precision`` is what a run asks for, ``UpdatePlan`` what it gets:
 
 * ``auto`` (the default): the compiled bfloat16 updates (every layer in bfloat16, each update one ``torch.compile``d
-  function; BENCHMARKS.md §6: 0.53x the float32 iteration time, the same learning curve over 7 seeds) when all of
+  function; BENCHMARKS.md §6: about half the float32 iteration time, the same learning curve over 7 seeds) when all of
   these hold, else the float32 eager updates, with a one-line notice naming the first that fails: the networks are
   on the CPU, the CPU has bfloat16 instructions (x86 AVX512-BF16 or AMX, Arm BF16), a C++ compiler is on the PATH
   (inductor's CPU back-end), and the run makes enough gradient updates to pay the compile back
@@ -29,7 +29,7 @@ __all__ = ["PRECISIONS", "MIN_COMPILED_UPDATES", "UpdatePlan", "cpu_has_bf16", "
 PRECISIONS = ("auto", "bfloat16", "float32")
 
 #: fewer gradient updates than this and ``auto`` runs eager float32: the compiled bfloat16 update saves ≈ 23 ms per
-#: update on the 2-core test CPU (BENCHMARKS.md §6) and its first compile costs about a minute
+#: update on the 2-core test CPU and its first compile costs 45 s (8-10 s from the cache; BENCHMARKS.md §6)
 MIN_COMPILED_UPDATES = 3000
 
 

@@ -535,7 +535,7 @@ def save_policy(model: SAC, path: str | os.PathLike, *, task: str | None, extra:
     }
     if meta["algorithm"] == "crossq":  # policies/crossq.py: critics' layout and batch renormalisation
         meta["critic_net_arch"] = list(pol.critic_kwargs["net_arch"])
-        meta.update({k: v for k, v in pol.batch_norm_params.items()})
+        meta.update(pol.batch_norm_params)
     zbuf = io.BytesIO()
     with zipfile.ZipFile(zbuf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("meta.json", json.dumps(meta, indent=1))
