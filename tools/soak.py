@@ -32,6 +32,7 @@ class Sample(NamedTuple):
     rss_mb: float  # resident memory [MB]
     backlog: int  # messages held for pages plus callbacks waiting to run
     threads: int  # OS threads of the process
+    pool_threads: int  # of which the page callbacks' thread pool (viser's, up to its max_workers)
 
 
 def threads() -> int:
@@ -43,7 +44,15 @@ def threads() -> int:
 
 
 def sample(app, t: float) -> Sample:
-    return Sample(t, rss_mb(), backlog(app), threads())
+    return Sample(t, rss_mb(), backlog(app), threads(), pool_threads(app))
+
+
+def pool_threads(app) -> int:
+    """Threads of the thread pool that runs the page's callbacks. The pool starts a thread whenever a callback
+    is submitted while all its threads are busy, up to its ``max_workers``, and keeps it: on a busy machine the
+    count climbs towards that bound as actions overlap more, which is growth by design, not a leak."""
+    pools = {id(p): p for p in (api._thread_executor._inner for api in (app.server.gui, app.server.scene))}
+    return sum(len(p._threads) for p in pools.values())
 
 
 def rss_mb() -> float:
@@ -171,7 +180,8 @@ def main(argv=None) -> int:
         try:
             samples = drive(app, args.seconds, seed=args.seed, rate_hz=args.rate, read=not args.no_read,
                             progress=lambda s: print(f"{s.t:7.1f} s  RSS {s.rss_mb:8.1f} MB  backlog {s.backlog}"
-                                                     f"  threads {s.threads}", flush=True))
+                                                     f"  threads {s.threads} ({s.pool_threads} in the callback"
+                                                     " pool)", flush=True))
         finally:
             app.stop()
     if args.json:

@@ -1,8 +1,9 @@
 """A session driven for minutes by a hostile client sending hundreds of GUI values per second (plausible ones
 that load scenes, run policies and grids, open recordings, record and export; and values of the wrong kind):
 the callbacks waiting to run stay bounded by the number of callbacks (not by the client's rate), what the
-process holds (resident memory, threads, messages kept for pages) does not grow once every element has been set
-once (a warm-up, one at a time), every failed action is accounted for, and the server still answers afterwards."""
+process holds (resident memory, threads outside the callback pool, messages kept for pages) does not grow once
+every element has been set once (a warm-up, one at a time), the pool stays within its bound, every failed action
+is accounted for, and the server still answers afterwards."""
 from __future__ import annotations
 
 import pytest
@@ -15,7 +16,7 @@ SOAK_S = 150.0  # after a warm-up that has set every element once (what a sessio
 # first third lets actions running at once reach their working set, which takes ~45 s beside two busy processes
 GROWTH_MB = 100.0  # between the lowest resident memory of the second and of the last third (heavy actions
 # running at once make peaks of several hundred MB that the upkeep hands back; a leak lifts the floor)
-GROWTH_THREADS = 8
+GROWTH_THREADS = 8  # between the fewest threads outside the callback pool in the second and in the last third
 HISTORY_BYTES = 4 * 2**20  # the rewind history's bound in this session
 
 
@@ -63,8 +64,14 @@ def test_hostile_session_stays_bounded_and_answers(app):
     last = [s for s in samples if s.t >= 2 * third]
     growth = min(s.rss_mb for s in last) - min(s.rss_mb for s in middle)
     assert growth < GROWTH_MB, f"resident memory still grew by {growth:.0f} MB: {[round(s.rss_mb) for s in samples]}"
-    more_threads = max(s.threads for s in last) - max(s.threads for s in middle)
-    assert more_threads <= GROWTH_THREADS, f"{more_threads} more threads: {[s.threads for s in samples]}"
+    # the callback pool keeps each thread it started for overlapping actions, up to its bound (more on a busy
+    # machine, where actions overlap more): bounded by design; the rest (threads of actions that run on, rerun's
+    # streams) come and go with the actions, so a leak lifts their floor
+    pool = app.server.gui._thread_executor._inner
+    assert max(s.pool_threads for s in samples) <= pool._max_workers
+    others = [s.threads - s.pool_threads for s in samples]
+    more_threads = min(s.threads - s.pool_threads for s in last) - min(s.threads - s.pool_threads for s in middle)
+    assert more_threads <= GROWTH_THREADS, f"{more_threads} more threads outside the callback pool: {others}"
     # the client has gone: upkeep leaves viser no tombstones of removed elements to keep (once the actions
     # still running when the client left have finished)
     def swept() -> bool:
