@@ -170,7 +170,7 @@ def bench_baseline(episodes: int) -> dict:
     from pathlib import Path
 
     import policies
-    from policies.evaluate import evaluate
+    from policies.learning import evaluate
 
     out = {}
     root = Path(policies.__file__).parent / "pretrained"

@@ -2,7 +2,7 @@
 
 Purpose: load a policy file (policies/pretrained/*.zip; the task is read from the file), build the task's
 batched vector env and step it with the policy's deterministic actions, reporting reward and tip distance.
-For the paper's metric over whole episodes use ``rodlab eval POLICY.zip`` (policies.evaluate.evaluate).
+For the paper's metric over whole episodes use ``rodlab eval POLICY.zip`` (policies.learning.evaluation.evaluate).
 
 Run:  .venv/bin/python examples/evaluate_policy.py [POLICY.zip] [--envs 8 --steps 100]
       .venv/bin/python examples/evaluate_policy.py --smoke
@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 import policies
-from policies.sac import load_policy
+from policies.learning import load_policy
 
 ROOT = Path(__file__).resolve().parents[1]
 

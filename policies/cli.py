@@ -16,8 +16,8 @@ from sim.support.paths import check_output_path
 from sim.support.progress import add_progress_flag, progress_bar, progress_wanted
 from sim.support.text import count
 
+from policies.learning import SpeedSettings, apply_speed_settings
 from policies.tasks import gym_task_id
-from policies.train_speed import SpeedSettings, apply_speed_settings
 
 STARTED_AT = time.perf_counter()  # when the command started: a training run's wall-clock includes its start-up
 
@@ -52,10 +52,19 @@ def _argv_threads(argv: list[str]) -> int:
 # ----------------------------------------------------------------------------------------- train
 def train_main(argv: list[str]) -> int:
     _threads_env(argv)
-    from policies.precision import PRECISIONS
-    from policies.presets import DEFAULT_PRESET, PRESETS, preset_settings
-    from policies.sac import BF16_LAYOUTS
-    from policies.train import ALGORITHMS, Args, TrainError, check_compiler, check_device, train
+    from policies.learning import (
+        ALGORITHMS,
+        BF16_LAYOUTS,
+        DEFAULT_PRESET,
+        PRECISIONS,
+        PRESETS,
+        Args,
+        TrainError,
+        check_compiler,
+        check_device,
+        preset_settings,
+        train,
+    )
 
     d = Args()
     p = argparse.ArgumentParser(prog="rodlab train", description="Train SAC (or CrossQ) on a rodlab task "
@@ -217,9 +226,7 @@ def eval_main(argv: list[str]) -> int:
     import torch
 
     torch.set_num_threads(1)
-    from policies.evaluate import evaluate
-    from policies.sac import PolicyLoadError
-    from policies.train import TrainError
+    from policies.learning import PolicyLoadError, TrainError, evaluate
 
     total = max(1, a.episodes) * max(1, a.seeds)
     bar = progress_bar(total, desc="rodlab eval", unit="episode", enabled=progress_wanted(a.progress, json_output=a.json))
@@ -272,7 +279,7 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
     import numpy as np
     import torch
 
-    from policies.train import Args, build_sac, check_device, make_sb3_env
+    from policies.learning import Args, build_sac, check_device, make_sb3_env
 
     torch.set_num_threads(threads)
     d = Args()
@@ -284,7 +291,7 @@ def bench_train(task: str, *, envs: int = 500, iters: int = 20, warmup: int = 3,
     model = build_sac(args, env)
 
     speed = speed or SpeedSettings()
-    apply_speed_settings(model, speed)  # settings to try (policies/train_speed.py)
+    apply_speed_settings(model, speed)  # settings to try (policies/learning/train_speed.py)
     from stable_baselines3.common.logger import configure
 
     model.set_logger(configure(None, [""]))
@@ -337,7 +344,7 @@ def _sync(model) -> None:
 
 def bench_train_main(argv: list[str]) -> int:
     _threads_env(argv)
-    from policies.sac import BF16_LAYOUTS
+    from policies.learning import BF16_LAYOUTS
 
     p = argparse.ArgumentParser(prog="rodlab bench train", description="Time one training iteration "
                                 "(batched env step + 4 SAC updates of batch 1024), split into env/update time.")
@@ -358,8 +365,7 @@ def bench_train_main(argv: list[str]) -> int:
     a = p.parse_args(argv)
     if (a.batch_size is not None and a.batch_size < 1) or (a.updates is not None and a.updates < 1):
         p.error("--batch-size and --updates must be positive")
-    from policies.precision import configure_compile_cache
-    from policies.train import TrainError, check_compiler
+    from policies.learning import TrainError, check_compiler, configure_compile_cache
 
     try:
         if a.compile:

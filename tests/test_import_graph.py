@@ -55,6 +55,13 @@ def imports_of(module: str, path: Path, mods: dict[str, Path]) -> list[tuple[str
         if isinstance(node, (ast.If, ast.Try)):
             top_level.update(id(n) for n in ast.walk(node) if isinstance(n, (ast.Import, ast.ImportFrom)))
     out: list[tuple[str, int, bool]] = []
+    for node in tree.body:  # a package's lazy public face (PEP 562): `_LAZY = {name: "module", ...}` imports those
+        if (is_pkg and isinstance(node, ast.Assign) and any(getattr(t, "id", "") == "_LAZY" for t in node.targets)
+                and isinstance(node.value, ast.Dict)):
+            for value in node.value.values:
+                tgt = _target(value.value, mods) if isinstance(value, ast.Constant) else None
+                if tgt is not None and tgt != module:
+                    out.append((tgt, value.lineno, True))
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             names = [alias.name for alias in node.names]
@@ -174,6 +181,7 @@ def cycle_path(graph: dict[str, dict[str, int]], comp: list[str]) -> str:
 
 def test_graph_sees_project_imports():
     graph = import_graph()
+    assert "policies.learning.training" in graph["policies.learning"]  # a lazy face's `_LAZY` entries are imports
     assert "sim.model" in graph["sim"] and "sim.step" in graph["sim"]
     assert "policies.tasks.registry" in graph["policies.vec_env"]  # relative `from .tasks.registry import ...`
     assert "policies.vec_env" in graph["policies.tasks"]  # inside a function (gymnasium's vector entry point)
@@ -224,3 +232,14 @@ if __name__ == "__main__":  # report: the cycles and the function-level project 
     print(len(fl), "function-level imports of project modules")
     for line in fl:
         print("  ", line)
+
+
+# packages whose modules are their own: code outside imports the package's public face (its __init__) only
+FACES = ("policies.learning",)
+
+
+def test_packages_are_used_through_their_public_face():
+    bad = [f"{mod} (line {line}) imports {tgt}: use `from {face} import ...`"
+           for mod, edges in import_graph().items() for tgt, line in edges.items() for face in FACES
+           if tgt.startswith(face + ".") and not (mod == face or mod.startswith(face + "."))]
+    assert not bad, "\n".join(bad)

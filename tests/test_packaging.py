@@ -70,8 +70,8 @@ def test_scenes_and_meshes_are_found_through_the_resource_function():
 
 
 def test_product_modules_read_shipped_data_through_the_resource_function():
+    from policies.learning.training_report import PRETRAINED
     from policies.tasks.scenes import ARM_SCENE, scene_path
-    from policies.training_report import PRETRAINED
     from sim.support.assets import asset_path
     from workbench import cli, files, obstacles
 

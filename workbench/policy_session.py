@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from policies.training_report import PRETRAINED
+from policies.learning import PRETRAINED
 from sim.obstacles import CapsuleSpec
 from workbench.obstacles import edits_from_spec
 
@@ -48,7 +48,7 @@ def shipped_policies(task: str | None = None) -> list[Path]:
 
 def policy_task(path: Path) -> str | None:
     try:
-        from policies.sac import read_policy_meta
+        from policies.learning import read_policy_meta
 
         return read_policy_meta(path).get("task")
     except Exception:  # noqa: BLE001 - unreadable: listed, fails on load with a clear message
@@ -66,8 +66,7 @@ def load_for(policy: str | Path, core, task: str):
     sizes must fit the task's; ``PolicyLoadError`` otherwise)."""
     if str(policy) in ("zero", "random"):
         return str(policy)
-    from policies.evaluate import PolicyLoadError
-    from policies.sac import load_policy
+    from policies.learning import PolicyLoadError, load_policy
 
     pol, _meta = load_policy(policy)
     shape = tuple(pol.observation_space.shape), tuple(pol.action_space.shape)

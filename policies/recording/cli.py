@@ -46,8 +46,7 @@ def _policy_fn(args, venv) -> tuple[Any, str]:
     B = venv.num_envs
     dim = int(np.prod(venv.single_action_space.shape))
     if args.policy:
-        from policies.evaluate import check_compatible
-        from policies.sac import load_policy
+        from policies.learning import check_compatible, load_policy
 
         pol, _meta = load_policy(args.policy)
         check_compatible(pol, _Spaces(venv), args.task, args.policy)
@@ -142,7 +141,7 @@ def record_main(argv: list[str]) -> int:
     add_progress_flag(p)
     a = p.parse_args(argv)
     mode = "policy" if a.policy else "scripted" if a.scripted else "random"
-    from policies.sac import PolicyLoadError
+    from policies.learning import PolicyLoadError
 
     folder = Path(a.out).parent
     if not (folder.exists() or folder.is_symlink()):  # a mistyped folder is not silently created

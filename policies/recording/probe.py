@@ -13,7 +13,7 @@
   StepStats only; the control-step frame carries the reward).
 
 Per env ``i`` at most ``quota[i] = episodes // B + (i < episodes % B)`` episodes are recorded (the
-split ``policies.evaluate`` uses). Attach it before the env's first ``reset``::
+split ``policies.learning.evaluation`` uses). Attach it before the env's first ``reset``::
 
     probe = TaskProbe(recorder, episodes=4, meta={"policy": "random", "seed": 0})
     probe.attach(venv)            # SB3 adapter, BatchedVecEnv or the core itself
@@ -370,7 +370,7 @@ class TaskProbe:
 @contextlib.contextmanager
 def record_hook(path: Any, *, episodes: int, meta: Mapping[str, Any] | None = None,
                 **probe_kw: Any) -> Iterator[Callable[[Any], TaskProbe]]:
-    """Context manager giving an ``env_hook`` for ``policies.evaluate.evaluate`` that records every
+    """Context manager giving an ``env_hook`` for ``policies.learning.evaluation.evaluate`` that records every
     evaluated episode to ``path`` (written atomically when the block ends without an exception)::
 
         with record_hook("recordings/eval.rrd", episodes=n, meta={"policy": p, "seed": s}) as hook:

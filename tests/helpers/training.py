@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from policies.train import Args
+from policies.learning.training import Args
 
 TASK = "follow_target"
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from policies.evaluate import evaluate, task_metrics
+from policies.learning.evaluation import evaluate, task_metrics
 
 
 def tip_errors(policy: str, task: str, steps: int) -> list[float]:

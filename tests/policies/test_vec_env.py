@@ -117,7 +117,7 @@ def test_bench_env_cli(capsys):
 def test_sb3_adapter_keeps_the_reward_terms_of_each_step():
     """The training env (``make_sb3_env``) carries the core's ``reward/<term>`` arrays of the latest step through
     its reward-terms observer, the same values the batched env's info holds (including a finished episode)."""
-    from policies.train import make_sb3_env
+    from policies.learning.training import make_sb3_env
 
     env = make_sb3_env("follow_target", 3, seed=4)
     twin = make_vec_env("follow_target", 3, seed=4)

@@ -4,6 +4,7 @@ Real SB3 training of the follow_target task (4 envs, small networks, a few hundr
 """
 from __future__ import annotations
 
+import base64
 import csv
 import json
 import os
@@ -11,12 +12,15 @@ import signal
 import subprocess
 import sys
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
+import pytest
 
-from policies.checkpoint import find_checkpoint, read_state, resume_seed
-from policies.train import Args, make_sb3_env, train
+import policies.learning.sac as sac
+from policies.learning.checkpoint import find_checkpoint, read_state, resume_seed
+from policies.learning.training import Args, make_sb3_env, train
 from tests.helpers.paths import REPO
 
 TASK = "follow_target"
@@ -75,7 +79,7 @@ def test_stop_then_resume_keeps_every_transition(tmp_path):
 
 _KILL_SCRIPT = """
 import sys
-from policies.train import Args, train
+from policies.learning.training import Args, train
 train(Args(task={task!r}, num_envs={envs}, total_steps=10**8, seed=5, run_dir=sys.argv[1], batch_size=32,
            learning_starts=16, updates_per_iter=1, net_arch=[32, 32], buffer_size=100_000, log_interval_s=1.0,
            checkpoint_minutes=0.004, first_checkpoint_minutes=0.002, eval_minutes=0.0, precision="float32"))
@@ -112,7 +116,7 @@ def test_hard_kill_leaves_a_consistent_checkpoint_that_resumes(tmp_path):
 
 
 def test_first_checkpoint_is_early(tmp_path, monkeypatch):
-    import policies.train_monitor as tm
+    import policies.learning.train_monitor as tm
 
     calls = []
     real = tm.save_checkpoint
@@ -153,7 +157,7 @@ def test_evaluation_during_training_is_logged(tmp_path):
         assert float(r["wall_s"]) > 0 and float(r["eval_s"]) > 0
     assert float(rows[-1]["eval_s_total"]) >= float(rows[0]["eval_s_total"])
     # fixed evaluation seeds: evaluating the final policy again gives the logged figure
-    from policies.evaluate import evaluate
+    from policies.learning.evaluation import evaluate
 
     again = evaluate(run / "policy.zip", episodes=2, seed=1_000_003, num_envs=2)
     assert abs(again["avg_discounted_return_mean"] - float(rows[-1]["eval_avg_disc_return_mean"])) < 1e-3
@@ -165,9 +169,36 @@ def test_evaluation_during_training_is_logged(tmp_path):
     side = json.loads((run / "policy.json").read_text())
     assert side["training"]["last_eval"]["env_steps"] == 240
     # policy_best.zip: the policy of the best of the three evaluations
-    from policies.sac import read_policy_meta
+    from policies.learning.sac import read_policy_meta
 
     best = read_policy_meta(run / "policy_best.zip")["extra"]["best_eval"]
     assert best["eval_avg_disc_return_mean"] == max(float(r["eval_avg_disc_return_mean"]) for r in rows)
     again = evaluate(run / "policy_best.zip", episodes=2, seed=1_000_003, num_envs=2)
     assert abs(again["avg_discounted_return_mean"] - best["eval_avg_disc_return_mean"]) < 1e-3
+
+
+def test_a_checkpoint_that_names_the_old_sac_module_resumes(tmp_path, monkeypatch):
+    """SB3 pickles a model's policy class and activation by module name. Checkpoints written before the learning
+    package existed name them ``policies.sac.*``: such a run still resumes (policies.learning.sac.LEGACY_MODULES),
+    and without that alias it could not."""
+
+    run = tmp_path / "run"
+    with monkeypatch.context() as old:  # saved as an older rodlab saved it: the classes live in policies.sac
+        old.setitem(sys.modules, "policies.sac", sac)
+        for cls in (sac.LayerNormSACPolicy, sac.InplaceReLU):
+            old.setattr(cls, "__module__", "policies.sac")
+        train(_args(run, 40 * ENVS))
+    assert "policies.sac" not in sys.modules
+    with zipfile.ZipFile(find_checkpoint(run) / "model.zip") as z:
+        data = json.loads(z.read("data"))
+    pickled = base64.b64decode(data["policy_class"][":serialized:"])
+    assert b"policies.sac" in pickled and b"policies.learning" not in pickled
+
+    n1 = read_state(run)["num_timesteps"]
+    with monkeypatch.context() as none:
+        none.setattr(sac, "LEGACY_MODULES", {})
+        with pytest.raises(Exception, match="cannot load"):
+            train(_args(run, n1 + 10 * ENVS), resume=True)
+    train(_args(run, n1 + 10 * ENVS), resume=True)
+    assert read_state(run)["num_timesteps"] == n1 + 10 * ENVS
+    assert "policies.sac" not in sys.modules  # the alias is gone again after loading

@@ -11,8 +11,8 @@ pytest.importorskip("elastica", reason="PyElastica is the peers extra (make test
 
 from policies import make_vec_env  # noqa: E402
 from policies.elastica import make_elastica_core, make_elastica_vec_env  # noqa: E402
-from policies.evaluate import OBS_LAYOUT  # noqa: E402
-from policies.sac import load_policy  # noqa: E402
+from policies.learning.evaluation import OBS_LAYOUT  # noqa: E402
+from policies.learning.sac import load_policy  # noqa: E402
 from policies.tasks.rewards import FAILURE_REWARD  # noqa: E402
 from tests.helpers.paths import REPO
 

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 import torch as th
 
-from policies.sac import load_policy, read_policy_meta
-from policies.train import TrainError, train
+from policies.learning.sac import load_policy, read_policy_meta
+from policies.learning.training import TrainError, train
 from tests.helpers.training import TASK, train_args
 
 

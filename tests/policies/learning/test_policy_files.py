@@ -9,7 +9,7 @@ import zipfile
 
 import pytest
 
-from policies.sac import PolicyLoadError, load_policy, read_policy_meta
+from policies.learning.sac import PolicyLoadError, load_policy, read_policy_meta
 from tests.helpers.paths import REPO
 from tests.helpers.payloads import rodlab_zip, sb3_zip
 
@@ -50,7 +50,7 @@ def test_load_policy_refuses_sb3_without_trust_and_payload_never_runs(tmp_path):
 def test_trust_pickle_loads_a_real_sb3_checkpoint_with_a_warning(tmp_path, capsys):
     import gymnasium as gym
 
-    from policies.sac import LayerNormSACPolicy, RodSAC
+    from policies.learning.sac import LayerNormSACPolicy, RodSAC
 
     model = RodSAC(LayerNormSACPolicy, gym.make("Pendulum-v1"), policy_kwargs={"net_arch": [8]}, buffer_size=100)
     path = tmp_path / "model.zip"
@@ -89,7 +89,7 @@ def test_garbage_policy_pt_is_a_clear_error(tmp_path):
 
 def test_train_init_from_reads_weights_only(tmp_path):
     """--init-from with an SB3-shaped zip: only tensor entries are read (weights_only); the payload never runs."""
-    from policies.train import TrainError, train
+    from policies.learning.training import TrainError, train
     from tests.helpers.training import train_args
 
     marker = tmp_path / "PWNED"

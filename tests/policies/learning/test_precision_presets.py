@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from policies import precision
-from policies.precision import MIN_COMPILED_UPDATES, cpu_has_bf16, plan_updates
-from policies.presets import DEFAULT_PRESET, PRESETS, preset_settings
-from policies.train import Args, TrainError, gradient_updates, train, update_plan
+from policies.learning.precision import MIN_COMPILED_UPDATES, cpu_has_bf16, plan_updates
+from policies.learning.presets import DEFAULT_PRESET, PRESETS, preset_settings
+from policies.learning.training import Args, TrainError, gradient_updates, train, update_plan
 from tests.helpers.training import train_args
 
 LONG = 10 * MIN_COMPILED_UPDATES
@@ -129,7 +129,7 @@ def test_the_command_line_starts_from_the_preset_and_its_options_win(tmp_path):
 
 
 def test_a_sweep_compares_presets_as_a_grid(tmp_path):
-    from policies.sweep import SweepError, make_trials, parse_sets
+    from policies.learning.sweep import SweepError, make_trials, parse_sets
 
     trials = make_trials(["follow_target"], [0], parse_sets(["preset=paper,fast"]), tmp_path, envs=None, steps=100,
                          time_limit_minutes=0.0, cpus_per_trial=1)
@@ -151,11 +151,11 @@ def test_crossq_trains_saves_resumes_evaluates_and_reports(tmp_path):
     """``--algorithm crossq``: a few hundred env steps train, checkpoint, resume (the update counter and replay
     buffer continue), write a policy file that loads as weights only and evaluates, and the run reads into the
     report like a SAC run."""
-    from policies.checkpoint import read_state
-    from policies.crossq import CrossQPolicy
-    from policies.evaluate import evaluate
-    from policies.report import report
-    from policies.sac import load_policy, read_policy_meta
+    from policies.learning.checkpoint import read_state
+    from policies.learning.crossq import CrossQPolicy
+    from policies.learning.evaluation import evaluate
+    from policies.learning.report import report
+    from policies.learning.sac import load_policy, read_policy_meta
 
     run = tmp_path / "follow_target__crossq__s1"
     train(train_args(run, 160, algorithm="crossq", policy_delay=2, eval_every_steps=80, eval_episodes=2,
@@ -192,8 +192,8 @@ def test_n_step_returns_train_and_resume_with_their_buffer(tmp_path, algorithm):
     targets use it, and a resumed run that grows its buffer keeps n and the discount."""
     from stable_baselines3.common.buffers import NStepReplayBuffer
 
-    from policies.checkpoint import read_state
-    from policies.train import build_model, load_checkpoint, make_sb3_env
+    from policies.learning.checkpoint import read_state
+    from policies.learning.training import build_model, load_checkpoint, make_sb3_env
 
     args = train_args(tmp_path / "unused", 40, algorithm=algorithm, n_steps=5)
     env = make_sb3_env(args.task, args.num_envs, 0)

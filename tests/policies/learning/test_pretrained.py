@@ -10,8 +10,8 @@ import json
 
 import pytest
 
-from policies.evaluate import evaluate
-from policies.sac import read_policy_meta
+from policies.learning.evaluation import evaluate
+from policies.learning.sac import read_policy_meta
 from tests.helpers.paths import REPO
 
 PRETRAINED = REPO / "policies" / "pretrained"
@@ -27,9 +27,9 @@ BEATS_RANDOM = [pytest.param(n, marks=pytest.mark.slow) if n == "follow_target" 
 def test_shipped_policy_loads_and_fits_its_task(name):
     import numpy as np
 
-    from policies.evaluate import check_compatible
-    from policies.sac import load_policy
-    from policies.train import make_sb3_env
+    from policies.learning.evaluation import check_compatible
+    from policies.learning.sac import load_policy
+    from policies.learning.training import make_sb3_env
 
     path = PRETRAINED / f"{name}.zip"
     assert path.is_file(), f"{path.name} not shipped: policies/pretrained/ must hold a trained policy for {name}"

@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from policies.report import ReportError, main, report
-from policies.train_monitor import EVAL_COLUMNS, METRICS_COLUMNS
-from policies.training_report import PAPER_TABLE_II
+from policies.learning.report import ReportError, main, report
+from policies.learning.train_monitor import EVAL_COLUMNS, METRICS_COLUMNS
+from policies.learning.training_report import PAPER_TABLE_II
 
 
 def _fake_run(root: Path, task: str, seed: int, *, rate: float, scale: float, envs: int = 500,

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch as th
 
-from policies.train import Args, build_sac, make_sb3_env, target_entropy
+from policies.learning.training import Args, build_sac, make_sb3_env, target_entropy
 
 
 def _model(**kw):
@@ -87,7 +87,7 @@ def test_target_network_updates_every_8_updates_across_calls():
 
 def test_avg_discounted_return_metric_formula(monkeypatch):
     """alf: R = (1/L) sum_l r_l (1 - gamma^l) / (1 - gamma); checked on a two-episode fake env."""
-    from policies.evaluate import _run_episodes
+    from policies.learning.evaluation import _run_episodes
 
     rewards = np.array([1.0, 0.0, 2.0, -1.0])
     L, g = len(rewards), 0.9
@@ -117,7 +117,7 @@ def test_avg_discounted_return_metric_formula(monkeypatch):
         def close(self):
             pass
 
-    import policies.evaluate as ev
+    import policies.learning.evaluation as ev
 
     monkeypatch.setattr(ev, "make_sb3_env", lambda task, n, seed: FakeVec())
     eps = _run_episodes("random", "fake", 2, 0, 1, True, None, g, "fake")

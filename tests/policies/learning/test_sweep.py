@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from policies.checkpoint import read_state
-from policies.sweep import SweepError, is_done, make_trials, parse_seeds, parse_sets
+from policies.learning.checkpoint import read_state
+from policies.learning.sweep import SweepError, is_done, make_trials, parse_seeds, parse_sets
 from tests.helpers.paths import REPO
 
 TINY = ["--set", "net_arch=32:32", "--set", "batch_size=32", "--set", "learning_starts=16",

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import sys
 
-from policies.train import train
-from policies.train_monitor import bar_phase
+from policies.learning.train_monitor import bar_phase
+from policies.learning.training import train
 from tests.helpers.training import train_args
 
 

@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from policies.evaluate import evaluate
-from policies.sac import PolicyLoadError, load_policy, read_policy_meta
-from policies.train import Args, TrainError, train
+from policies.learning.evaluation import evaluate
+from policies.learning.sac import PolicyLoadError, load_policy, read_policy_meta
+from policies.learning.training import Args, TrainError, train
 from tests.helpers.paths import REPO
 from tests.helpers.training import train_args
 
@@ -124,7 +124,7 @@ def test_device_is_checked_before_any_work(tmp_path, capsys):
     import torch
 
     from policies.cli import bench_train_main, train_main
-    from policies.train import check_device
+    from policies.learning.training import check_device
 
     assert check_device("cpu") == "cpu"
     with pytest.raises(TrainError, match="not a torch device"):
@@ -147,8 +147,8 @@ def test_device_is_checked_before_any_work(tmp_path, capsys):
 def test_ship_copies_and_refuses_a_worse_policy(tmp_path, monkeypatch):
     """training_report ship: final or best policy into a pretrained folder with its source; --only-if-better keeps
     the shipped file when the candidate evaluates lower on the same episodes."""
-    import policies.evaluate as ev_mod
-    from policies.training_report import ShipError, main, ship
+    import policies.learning.evaluation as ev_mod
+    from policies.learning.training_report import ShipError, main, ship
 
     run = tmp_path / "run"
     train(train_args(run, 120, task="Pendulum-v1", eval_every_steps=40, eval_episodes=2, eval_envs=2))

@@ -1,4 +1,4 @@
-"""The speed settings `rodlab bench train` can try (policies/train_speed.py) apply and keep the updates working.
+"""The speed settings `rodlab bench train` can try (policies/learning/train_speed.py) apply and keep the updates working.
 
 No timing is asserted (speed is measured on a quiet machine)."""
 from __future__ import annotations
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import torch
 
-from policies.train import Args, build_sac, make_sb3_env
-from policies.train_speed import SpeedSettings, apply_speed_settings
+from policies.learning.train_speed import SpeedSettings, apply_speed_settings
+from policies.learning.training import Args, build_sac, make_sb3_env
 
 
 def _model():
@@ -163,7 +163,7 @@ def test_sample_policy_is_sb3s_squashed_gaussian():
 
 def test_compiled_updates_refuse_an_adam_they_do_not_write_out():
     """The compiled Adam step is plain Adam: an optimizer with AMSGrad (or another class) is refused by name."""
-    from policies.sac import _adam_state
+    from policies.learning.sac import _adam_state
 
     model = _model()
     opt = torch.optim.Adam(model.actor.parameters(), lr=1e-3, amsgrad=True)
@@ -189,7 +189,7 @@ def test_compiled_functions_are_not_saved(tmp_path):
     """A checkpoint of a model with compiled update functions saves and loads (they are rebuilt when needed)."""
     import threading
 
-    from policies.sac import RodSAC
+    from policies.learning.sac import RodSAC
 
     model = _model()
     model.compile_updates = True
@@ -201,7 +201,7 @@ def test_compiled_functions_are_not_saved(tmp_path):
 
 def test_compile_without_a_compiler_is_refused(monkeypatch, tmp_path, capsys):
     """``rodlab train --compile`` on a machine without a C++ compiler stops before any work with a message."""
-    from policies.train import TrainError, train
+    from policies.learning.training import TrainError, train
 
     monkeypatch.setenv("PATH", str(tmp_path))
     monkeypatch.delenv("CXX", raising=False)
@@ -248,7 +248,7 @@ def test_precision_is_a_training_setting_and_old_configs_keep_theirs():
     """``Args.precision`` (auto by default); a config.json saved with the earlier ``bf16`` switch loads as the run it
     was: bf16 true -> bfloat16 with the float32_io layout and eager updates unless it said otherwise, false ->
     float32."""
-    from policies.train import Args
+    from policies.learning.training import Args
 
     fields = {k: v for k, v in Args().to_json().items() if k not in ("precision", "bf16_layout", "compile_updates")}
     assert Args().precision == "auto"
@@ -263,7 +263,7 @@ def test_bf16_keeps_q_values_and_log_probabilities_in_float32():
     """Under --bf16 the hidden products run in bfloat16 but the input and output layers and the LayerNorms do not:
     a Q value of about 100 is not rounded to bfloat16's grid (multiples of 0.5 there), and the actor's
     log-probabilities are float32 too."""
-    from policies.sac import Float32LayerNorm, Float32Linear
+    from policies.learning.sac import Float32LayerNorm, Float32Linear
 
     model = _model()
     critic, actor = model.critic, model.actor
@@ -322,7 +322,7 @@ def test_bf16_layout_all_runs_every_layer_in_bfloat16_and_switches_back():
     """``set_bf16_layout(policy, "all")`` (``--bf16-layout all``) turns the float32 layers into plain ones: under
     autocast Q and the actor's mean come out in bfloat16; ``float32_io`` restores the float32 layers. Parameters,
     state_dict and the float32 network (no autocast) are the same in both layouts."""
-    from policies.sac import Float32Linear, set_bf16_layout
+    from policies.learning.sac import Float32Linear, set_bf16_layout
 
     model = _model()
     policy, critic, actor = model.policy, model.critic, model.actor
@@ -353,8 +353,8 @@ def test_bf16_layout_all_runs_every_layer_in_bfloat16_and_switches_back():
 def test_bf16_layout_is_a_training_and_speed_setting(tmp_path):
     """``rodlab train --bf16-layout all`` reaches the model (the trained layers are plain ones); an unknown layout is
     refused before a run directory is made."""
-    from policies.sac import Float32Linear
-    from policies.train import TrainError, train
+    from policies.learning.sac import Float32Linear
+    from policies.learning.training import TrainError, train
 
     assert Args().bf16_layout == "all"
     assert Args.from_json({**Args().to_json(), "bf16_layout": "float32_io"}).bf16_layout == "float32_io"
@@ -421,8 +421,8 @@ def _compiled_with(fn, graph_pass):
 def test_run_settings_reach_the_model():
     """``configure_updates`` puts a run's update plan (bfloat16, its layout, compiled updates; from ``Args`` through
     ``update_plan``) on the model, and a float32 plan takes them off again."""
-    from policies.sac import Float32Linear
-    from policies.train import configure_updates, update_plan
+    from policies.learning.sac import Float32Linear
+    from policies.learning.training import configure_updates, update_plan
 
     model = _model()
     plan = update_plan(Args(task="ik4d", precision="bfloat16", bf16_layout="all", compile_updates=True))
@@ -438,7 +438,7 @@ def test_saved_config_with_a_retired_setting():
     """A run's config.json written when ``compile_split_products`` still existed loads when it holds the value that
     runs as now (off), and names the key otherwise; ``--split-products`` is no option any more."""
     from policies.cli import bench_train_main
-    from policies.train import TrainError
+    from policies.learning.training import TrainError
 
     saved = Args(task="ik4d").to_json()
     assert Args.from_json({**saved, "compile_split_products": False}) == Args(task="ik4d")
@@ -451,10 +451,10 @@ def test_saved_config_with_a_retired_setting():
 
 @pytest.mark.parametrize("bf16", [False, True])
 def test_unit_product_loops_rewrite_and_keep_the_precision(fresh_dynamo, bf16):
-    """``UnitProductLoops`` (policies/compile_passes.py, part of ``--compile``) turns the bfloat16 products with a
+    """``UnitProductLoops`` (policies/learning/compile_passes.py, part of ``--compile``) turns the bfloat16 products with a
     unit dimension of a critic's loss and gradients into float32 loops rounded once, leaves the wide products and
     float32 alone, and is as close to the float32 gradients as the library's bfloat16 products are."""
-    from policies.compile_passes import UnitProductLoops
+    from policies.learning.compile_passes import UnitProductLoops
 
     params, x = _critic_like_inputs(256)
     grads, loops = _critic_grads(bf16), UnitProductLoops()

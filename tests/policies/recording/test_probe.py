@@ -173,7 +173,7 @@ def test_real_simulator_recording(task, tmp_path, verify):
 
 
 def test_evaluate_env_hook_records_every_evaluated_episode(tmp_path, verify):
-    from policies.evaluate import evaluate
+    from policies.learning.evaluation import evaluate
     from policies.recording.probe import record_hook
 
     out = tmp_path / "eval.rrd"

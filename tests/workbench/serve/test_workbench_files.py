@@ -196,7 +196,7 @@ def test_policy_path_from_the_page_is_never_loaded(env, tmp_path):
         pp.policy._impl.value = pp.policy.options[0]
         assert app.wb.policy is None and not marker.exists()
     # the workbench's own policy loading refuses them too (no unpickling)
-    from policies.sac import PolicyLoadError
+    from policies.learning.sac import PolicyLoadError
     from workbench.policy_session import PolicySession
 
     for payload in (tmp_path / "model.zip", tmp_path / "p.zip"):

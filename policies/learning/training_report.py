@@ -1,9 +1,9 @@
 """Training curves (PNG) and shipping of trained policies into ``policies/pretrained/``.
 
-    python -m policies.training_report plot RUN_DIR [RUN_DIR ...] --out docs/training_<task>.png
-    python -m policies.training_report ship RUN_DIR --name follow_target [--episodes 50] [--seed 100]
+    python -m policies.learning.training_report plot RUN_DIR [RUN_DIR ...] --out docs/training_<task>.png
+    python -m policies.learning.training_report ship RUN_DIR --name follow_target [--episodes 50] [--seed 100]
 
-``plot`` reads each run's ``metrics.csv`` (written by policies/train.py) and draws the training
+``plot`` reads each run's ``metrics.csv`` (written by policies/learning/training.py) and draws the training
 average discounted return (alf metric, stochastic policy) against env steps and against wall-clock.
 ``ship`` copies ``RUN_DIR/policy.zip`` (``--policy best``: ``RUN_DIR/policy_best.zip``, the policy of the run's
 best evaluation during training) to ``policies/pretrained/<name>.zip`` and writes ``<name>.json`` beside it: task,
@@ -104,8 +104,8 @@ def ship(run_dir: str | Path, name: str, *, episodes: int = 50, seed: int = 100,
     ``ShipError`` and nothing is written.
     """
 
-    from policies.evaluate import evaluate
-    from policies.train_monitor import best_logged_eval
+    from policies.learning.evaluation import evaluate
+    from policies.learning.train_monitor import best_logged_eval
 
     run_dir = Path(run_dir)
     if policy not in POLICY_FILES:
@@ -164,7 +164,7 @@ def _finite(obj):
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m policies.training_report")
+    p = argparse.ArgumentParser(prog="python -m policies.learning.training_report")
     sub = p.add_subparsers(dest="cmd", required=True)
     pp = sub.add_parser("plot")
     pp.add_argument("runs", nargs="+")

@@ -5,12 +5,12 @@ A run directory holds::
     config.json           Args + git commit + library versions + spaces (written once, kept on resume)
     metrics.csv           one row per log interval: env steps, wall-clock [s], returns, timings
     tb/                   TensorBoard event files (rollout/*, train/*, time/*)
-    eval.csv              one row per deterministic evaluation during training (policies/train_monitor.py)
+    eval.csv              one row per deterministic evaluation during training (policies/learning/train_monitor.py)
     checkpoint/           model.zip (SB3, with optimizers), replay.npz (filled rows only), state.json
     policy.zip            policy only (actor + critics, no optimizer/buffer), loadable by `rodlab eval`
     policy.json           sidecar: task, config, final training figures
 
-Checkpoints (policies/checkpoint.py) are written as one atomic unit, the first after
+Checkpoints (policies/learning/checkpoint.py) are written as one atomic unit, the first after
 ``first_checkpoint_minutes`` (1 min), then every ``checkpoint_minutes``, and when SIGINT/SIGTERM or the time
 limit stops the run; every counted env step is in the saved replay buffer (none dropped at a stop).
 ``--resume`` reloads model, optimizers, entropy coefficient and replay buffer, and continues the step
@@ -42,11 +42,17 @@ from pathlib import Path
 import numpy as np
 from sim.support.atomicio import write_bytes
 
-from policies.checkpoint import CheckpointError, find_checkpoint, read_state, resume_seed
-from policies.checkpoint import load_checkpoint as _load
-from policies.checkpoint import save_checkpoint as _save_checkpoint
-from policies.precision import PRECISIONS, UpdatePlan, configure_compile_cache, find_compiler, plan_updates
-from policies.sac import (
+from policies.learning.checkpoint import CheckpointError, find_checkpoint, read_state, resume_seed
+from policies.learning.checkpoint import load_checkpoint as _load
+from policies.learning.checkpoint import save_checkpoint as _save_checkpoint
+from policies.learning.precision import (
+    PRECISIONS,
+    UpdatePlan,
+    configure_compile_cache,
+    find_compiler,
+    plan_updates,
+)
+from policies.learning.sac import (
     BF16_LAYOUTS,
     POLICY_FORMAT,
     InplaceReLU,
@@ -58,8 +64,8 @@ from policies.sac import (
     save_policy,
     sb3_policy_weights,
 )
-from policies.sb3_env import TrainError, make_sb3_env, task_short_name
-from policies.train_monitor import monitor_callback
+from policies.learning.sb3_env import TrainError, make_sb3_env, task_short_name
+from policies.learning.train_monitor import monitor_callback
 
 # a setting a saved config.json may still hold -> its value that runs as this version does
 RETIRED_SETTINGS = {"compile_split_products": False}
@@ -85,8 +91,8 @@ class Args:
     total_steps: int = 5_000_000            # env (control) steps summed over envs
     seed: int = 0
     run_dir: str = ""
-    preset: str = "paper"                   # the named settings these started from (policies/presets.py)
-    algorithm: str = "sac"                  # sac (RodSAC, policies/sac.py) or crossq (policies/crossq.py)
+    preset: str = "paper"                   # the named settings these started from (policies/learning/presets.py)
+    algorithm: str = "sac"                  # sac (RodSAC, policies/learning/sac.py) or crossq (policies/learning/crossq.py)
     # SAC
     learning_rate: float = 1e-3
     adam_eps: float = 1e-7
@@ -107,10 +113,10 @@ class Args:
     init_ent_coef: float = 1.0
     init_from: str = ""                     # warm start: policy .zip to copy the weights from (fresh runs only)
     precision: str = "auto"                 # auto | bfloat16 | float32: how the updates compute, resolved against
-                                            # the machine by policies/precision.py (auto: compiled bfloat16 where
+                                            # the machine by policies/learning/precision.py (auto: compiled bfloat16 where
                                             # the CPU and a compiler allow it, else float32; docs/training.md)
     bf16_layout: str = "all"                # in bfloat16: all (every layer) or float32_io (input/output layers
-                                            # and LayerNorms in float32); policies/sac.py BF16_LAYOUTS
+                                            # and LayerNorms in float32); policies/learning/sac.py BF16_LAYOUTS
     compile_updates: bool | None = None     # each update one torch.compile-d function; None: as the precision
                                             # resolves (compiled with bfloat16 when a C++ compiler is present)
     # runtime
@@ -121,7 +127,7 @@ class Args:
     save_replay_buffer: bool = True
     log_interval_s: float = 15.0
     device: str = "cpu"                     # torch device of the networks and replay sampling: cpu, cuda, cuda:N
-    # deterministic evaluation during training (policies/train_monitor.py); 0 disables a trigger
+    # deterministic evaluation during training (policies/learning/train_monitor.py); 0 disables a trigger
     eval_minutes: float = 3.0               # wall-clock between evaluations
     eval_every_steps: int = 0               # env steps between evaluations (tests, step-based curves)
     eval_episodes: int = 50                 # per evaluation (fixed seeds: the same episodes every time)
@@ -213,12 +219,12 @@ def _replay_buffer(args: Args) -> dict:
 
 
 def build_crossq(args: Args, env):
-    """A fresh ``RodCrossQ`` (policies/crossq.py) for ``env`` configured from ``args``: the run's learning rate,
+    """A fresh ``RodCrossQ`` (policies/learning/crossq.py) for ``env`` configured from ``args``: the run's learning rate,
     batch, updates per env step, entropy target and coefficient as for SAC; no target networks (``tau`` and
     ``target_update_interval`` do not apply), batch renormalisation and sb3-contrib's Adam betas (0.5, 0.999)."""
     from torch import nn
 
-    from policies.crossq import RodCrossQ
+    from policies.learning.crossq import RodCrossQ
 
     return RodCrossQ(
         "MlpPolicy", env, learning_rate=args.learning_rate, buffer_size=_buffer_size(args),
@@ -320,7 +326,7 @@ def _log_ent_coef(model) -> float | None:
 
 # ------------------------------------------------------------------------------------ checkpoints
 def save_checkpoint(model, run_dir: Path, *, wall_s: float, save_buffer: bool) -> None:
-    """Write one checkpoint of ``model`` into RUN_DIR/checkpoint/ (see policies/checkpoint.py)."""
+    """Write one checkpoint of ``model`` into RUN_DIR/checkpoint/ (see policies/learning/checkpoint.py)."""
 
     _save_checkpoint(model, run_dir, wall_s=wall_s, save_buffer=save_buffer)
 
@@ -362,7 +368,7 @@ def gradient_updates(args: Args, done_steps: int = 0) -> int:
 
 
 def update_plan(args: Args, done_steps: int = 0) -> UpdatePlan:
-    """How this run's updates compute on this machine (``policies.precision.plan_updates``)."""
+    """How this run's updates compute on this machine (``policies.learning.precision.plan_updates``)."""
     check_update_settings(args)
     if args.algorithm == "crossq":
         return UpdatePlan(bf16=False, bf16_layout=args.bf16_layout, compiled=False,
@@ -471,8 +477,8 @@ def train(args: Args, *, resume: bool = False, started_at: float | None = None) 
     if not resume or not (run_dir / "config.json").exists():
         import gymnasium
         import stable_baselines3
-        cfg = {"args": args.to_json(), "git_commit": git_commit(), "algorithm": ("RodCrossQ (policies/crossq.py)" if args.algorithm == "crossq"
-                                                            else "RodSAC (policies/sac.py)"),
+        cfg = {"args": args.to_json(), "git_commit": git_commit(), "algorithm": ("RodCrossQ (policies/learning/crossq.py)" if args.algorithm == "crossq"
+                                                            else "RodSAC (policies/learning/sac.py)"),
                "versions": {"torch": th.__version__, "stable_baselines3": stable_baselines3.__version__,
                             "gymnasium": gymnasium.__version__, "numpy": np.__version__},
                "obs_shape": list(env.observation_space.shape), "action_shape": list(env.action_space.shape),

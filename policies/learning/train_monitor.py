@@ -1,4 +1,4 @@
-"""The training callback of ``policies.train``: episode statistics, logs, checkpoints, evaluation, stopping.
+"""The training callback of ``policies.learning.training``: episode statistics, logs, checkpoints, evaluation, stopping.
 
 Order inside one SB3 iteration (``collect_rollouts`` with ``train_freq=1``): env step -> ``_on_step``
 (statistics, stop requests) -> SB3 stores the transition in the replay buffer -> ``_on_rollout_end``
@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 from sim.support.text import count, number
 
-from policies.checkpoint import save_checkpoint
-from policies.evaluate import evaluate
-from policies.sac import save_policy
+from policies.learning.checkpoint import save_checkpoint
+from policies.learning.evaluation import evaluate
+from policies.learning.sac import save_policy
 
 METRICS_COLUMNS = ["env_steps", "wall_s", "episodes", "return_mean", "avg_disc_return_mean", "ep_len_mean",
                    "env_step_ms", "update_ms", "iter_ms", "steps_per_s", "step_reward_mean", "n_updates"]

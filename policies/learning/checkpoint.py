@@ -15,7 +15,7 @@ when it holds ``state.json``, else ``checkpoint.new/`` (complete once its ``stat
 
 **No transition lost.** ``save_checkpoint`` must be called when every env step counted in
 ``model.num_timesteps`` is in the replay buffer (after SB3 has stored the step's transition, see
-``policies/train_monitor.py``); ``state.json`` records ``replay_rows`` and the loader checks
+``policies/learning/train_monitor.py``); ``state.json`` records ``replay_rows`` and the loader checks
 ``replay_rows * n_envs == num_timesteps`` while the buffer has not wrapped. On resume the envs start fresh
 episodes (``model._last_obs`` is cleared, so the first new transition is not paired with an observation of
 the previous process's episodes) from a seed derived from (seed, num_timesteps), so a resumed run does not
@@ -138,9 +138,10 @@ def load_checkpoint(run_dir: Path, env, *, device: str, buffer_size: int, algori
     Raises ``CheckpointError`` when there is no usable checkpoint or the buffer does not fit.
     """
     if algorithm == "crossq":
-        from policies.crossq import RodCrossQ as model_class
+        from policies.learning.crossq import RodCrossQ as model_class
     else:
-        from policies.sac import RodSAC as model_class
+        from policies.learning.sac import RodSAC as model_class
+    from policies.learning.sac import legacy_module_names
 
     ck = find_checkpoint(run_dir)
     if ck is None:
@@ -150,7 +151,8 @@ def load_checkpoint(run_dir: Path, env, *, device: str, buffer_size: int, algori
     except (OSError, json.JSONDecodeError) as exc:
         raise CheckpointError(f"cannot read {ck / 'state.json'}: {exc}") from None
     try:
-        model = model_class.load(ck / "model.zip", env=env, device=device)
+        with legacy_module_names():  # a checkpoint written before the learning package names policies.sac
+            model = model_class.load(ck / "model.zip", env=env, device=device)
     except Exception as exc:  # SB3 raises assorted errors on corrupt zips / space mismatch
         raise CheckpointError(f"cannot load {ck / 'model.zip'}: {exc}") from None
     model.num_timesteps = int(state["num_timesteps"])

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 from sim.support.atomicio import write_bytes, write_via_path
 
-from policies.training_report import PAPER_TABLE_II
+from policies.learning.training_report import PAPER_TABLE_II
 
 PAPER_WALLCLOCK_H = {"follow_target": 0.33, "ik4d": 0.37, "tight_obstacles_2d": 0.6, "random_obstacles_3d": 1.0}
 PAPER_ITER_MS = {"follow_target": 122.0}

@@ -21,7 +21,7 @@ What SB3's ``SAC`` lacks and how it is added here (nothing else is changed):
 * **Compiled updates** (``RodSAC.compile_updates``, ``rodlab train --compile``): each update is one call of
   ``_fused_update`` through ``torch.compile``: the same loss methods as the eager updates, gradients by
   ``torch.func.grad_and_value`` and the Adam steps written out on the optimizers' own state (docs/training.md);
-  inductor compiles it with the graph pass ``UnitProductLoops`` (policies/compile_passes.py). The policy noise is
+  inductor compiles it with the graph pass ``UnitProductLoops`` (policies/learning/compile_passes.py). The policy noise is
   drawn eagerly and passed in.
 * **Replay batches** (``_sample_replay``): SB3's sampling draws and batch, gathered in one pass per field.
 * **Timing**: ``last_update_time`` [s] of the most recent ``train()`` call, for logging/benchmarks.
@@ -57,9 +57,33 @@ from stable_baselines3.sac.policies import Actor, SACPolicy
 from torch import nn
 from torch.func import functional_call, grad_and_value
 
-from policies.compile_passes import UnitProductLoops
+from policies.learning.compile_passes import UnitProductLoops
 
 POLICY_FORMAT = "rodlab-sac-policy/1"
+
+
+#: modules whose classes SB3 checkpoints written before the learning package existed name (their policy class and
+#: activation were pickled as ``policies.sac.*``); ``legacy_module_names`` lets such a checkpoint load
+LEGACY_MODULES = {"policies.sac": "policies.learning.sac", "policies.crossq": "policies.learning.crossq"}
+
+
+@contextlib.contextmanager
+def legacy_module_names():
+    """While loading an SB3 checkpoint: the modules of ``LEGACY_MODULES`` importable under their old names, so the
+    classes a checkpoint of an older rodlab pickled by name are found. Only names that are not already importable
+    are added, and they are removed again afterwards."""
+    import importlib
+
+    added = []
+    for old, new in LEGACY_MODULES.items():
+        if old not in sys.modules:
+            sys.modules[old] = importlib.import_module(new)
+            added.append(old)
+    try:
+        yield
+    finally:
+        for old in added:
+            sys.modules.pop(old, None)
 
 
 class PolicyLoadError(Exception):
@@ -262,7 +286,7 @@ class RodSAC(SAC):
         self.entropy_in_target = entropy_in_target
         self.adam_eps = adam_eps
         self.last_update_time = 0.0
-        self.bf16_updates = False  # the gradient updates under bfloat16 autocast (policies/train.py Args.bf16)
+        self.bf16_updates = False  # the gradient updates under bfloat16 autocast (policies/learning/training.py Args.bf16)
         self.compile_updates = False  # each update one torch.compile-d function (Args.compile_updates)
         self._compiled_fns = None
         super().__init__(*args, **kwargs)
@@ -533,7 +557,7 @@ def save_policy(model: SAC, path: str | os.PathLike, *, task: str | None, extra:
         "algorithm": "crossq" if hasattr(pol, "batch_norm_params") else "sac",
         "extra": extra or {},
     }
-    if meta["algorithm"] == "crossq":  # policies/crossq.py: critics' layout and batch renormalisation
+    if meta["algorithm"] == "crossq":  # policies/learning/crossq.py: critics' layout and batch renormalisation
         meta["critic_net_arch"] = list(pol.critic_kwargs["net_arch"])
         meta.update(pol.batch_norm_params)
     zbuf = io.BytesIO()
@@ -644,7 +668,8 @@ def load_policy(path: str | os.PathLike, *, device: str = "cpu", trust_pickle: b
                     "default; pass --trust-pickle only for a file you made yourself or fully trust")
             print(f"warning: {path}: unpickling a stable-baselines3 checkpoint (--trust-pickle); this runs code "
                   "stored in the file", file=sys.stderr)
-            model = RodSAC.load(path, device=device)
+            with legacy_module_names():
+                model = RodSAC.load(path, device=device)
             pol = model.policy
             meta["obs_shape"] = list(pol.observation_space.shape)
             meta["action_low"] = pol.action_space.low.tolist()
@@ -656,7 +681,7 @@ def load_policy(path: str | os.PathLike, *, device: str = "cpu", trust_pickle: b
                                    np.asarray(meta["action_high"], np.float32), dtype=np.float32)
             algorithm = meta.get("algorithm", "sac")
             if algorithm == "crossq":
-                from policies.crossq import crossq_policy
+                from policies.learning.crossq import crossq_policy
 
                 pol = crossq_policy(obs_space, act_space, meta)
             elif algorithm == "sac":

@@ -1,6 +1,6 @@
 """The environments training and evaluation run on: task names (a rodlab task or a gymnasium id) and the SB3 VecEnv
-of a task (``make_sb3_env``). Used by ``policies.train`` (which re-exports these names), ``policies.evaluate`` and
-``policies.sweep``; it imports neither of them."""
+of a task (``make_sb3_env``). Used by ``policies.learning.training`` (which re-exports these names), ``policies.learning.evaluation`` and
+``policies.learning.sweep``; it imports neither of them."""
 from __future__ import annotations
 
 __all__ = ["TrainError", "task_short_name", "make_sb3_env"]

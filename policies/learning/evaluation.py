@@ -17,7 +17,7 @@
 ``policy_or_path`` may be a path (policy zip or SB3 checkpoint), an SB3 model or policy, or
 ``"random"`` (uniform random actions; baseline) or ``"inverse-statics"`` (the model-based baseline of
 :mod:`policies.model_based`). Loading a path never unpickles: a full SB3 checkpoint is
-refused unless ``trust_pickle=True`` (``rodlab eval --trust-pickle``; see ``policies.sac.load_policy``).
+refused unless ``trust_pickle=True`` (``rodlab eval --trust-pickle``; see ``policies.learning.sac.load_policy``).
 """
 from __future__ import annotations
 
@@ -31,9 +31,9 @@ import numpy as np
 from sim.rotations import from_xyzw, quat_yaw
 
 from policies.elastica import make_elastica_vec_env
+from policies.learning.sac import PolicyLoadError, load_policy
+from policies.learning.sb3_env import make_sb3_env, task_short_name
 from policies.model_based import MODEL_BASED, InverseStaticsController
-from policies.sac import PolicyLoadError, load_policy
-from policies.sb3_env import make_sb3_env, task_short_name
 from policies.vec_env import SB3VecEnvAdapter
 
 # Slices into the flat observation (fields concatenated alphabetically, docs/tasks.md §4.3-7.3):

@@ -5,7 +5,7 @@
 
 * **Trials.** One trial per (task, grid point of ``--set``, seed). Each trial is an ordinary training run
   directory ``OUT/<task>[__key=value...]__s<seed>/`` (config.json, metrics.csv, eval.csv, checkpoint/,
-  policy.zip; see policies/train.py) plus ``trial.json`` (the trial's ``Args``, grid point and time budget),
+  policy.zip; see policies/learning/training.py) plus ``trial.json`` (the trial's ``Args``, grid point and time budget),
   ``train.log`` (the trial's output) and, once finished, ``trial_done.json``. Only ``--set`` keys with
   several values appear in the directory names.
 * **Ray.** Without ``--address`` an embedded local Ray is started with this machine's cores
@@ -20,10 +20,10 @@
   ``--steps`` or ``--time-limit`` continues a trial that stopped at the smaller one. On Ctrl-C the local trials are
   sent SIGTERM and write a checkpoint before the sweep exits; a trial whose process was killed outright resumes
   from its last periodic checkpoint.
-* **--set key=v1,v2** sets any ``Args`` field (policies/train.py), several values make a grid (the product of
+* **--set key=v1,v2** sets any ``Args`` field (policies/learning/training.py), several values make a grid (the product of
   all ``--set`` options); list values separate their items with ':' (``net_arch=256:256``); an optional field
   takes ``auto`` for "as the run decides" (``compile_updates=auto``). Each trial starts from ``--preset``
-  (policies/presets.py), or from its grid value of ``--set preset=paper,fast``, then ``--envs`` and the rest.
+  (policies/learning/presets.py), or from its grid value of ``--set preset=paper,fast``, then ``--envs`` and the rest.
 * **Progress**: a table of trials (state, env steps, returns, ETA) refreshed in the terminal.
 """
 from __future__ import annotations
@@ -44,7 +44,7 @@ from pathlib import Path
 
 from sim.support.atomicio import write_bytes
 
-from policies.presets import DEFAULT_PRESET, PRESETS, preset_settings
+from policies.learning.presets import DEFAULT_PRESET, PRESETS, preset_settings
 
 STARTED_AT = time.perf_counter()  # in a trial's process: when it started (the run's wall-clock counts its start-up)
 
@@ -102,7 +102,7 @@ def _convert(name: str, ftype, text: str):
 
 def parse_sets(items: list[str]) -> dict[str, list]:
     """``["learning_rate=1e-3,3e-4", ...]`` -> {"learning_rate": [0.001, 0.0003], ...} (typed like Args)."""
-    from policies.train import Args
+    from policies.learning.training import Args
 
     fields = {f.name: f.type for f in dataclasses.fields(Args)}
     out: dict[str, list] = {}
@@ -139,7 +139,7 @@ def make_trials(tasks: list[str], seeds: list[int], sets: dict[str, list], out: 
     """One trial per (task, grid point, seed). Each starts from its preset's settings (``preset``, or the grid's
     ``preset`` value: ``--set preset=paper,fast`` compares presets), then ``envs`` (when given) and the grid's other
     values."""
-    from policies.train import Args, TrainError, check_update_settings, task_short_name
+    from policies.learning.training import Args, TrainError, check_update_settings, task_short_name
 
     if not tasks:
         raise SweepError("no task given")
@@ -183,7 +183,7 @@ def make_trials(tasks: list[str], seeds: list[int], sets: dict[str, list], out: 
 # ------------------------------------------------------------------------------------ trial state
 def trial_progress(run_dir: Path) -> dict:
     """env steps, wall-clock, last returns of a trial from its files (cheap; for the progress view)."""
-    from policies.checkpoint import read_state
+    from policies.learning.checkpoint import read_state
 
     out = {"env_steps": 0, "wall_s": 0.0, "train": float("nan"), "eval": float("nan")}
     st = read_state(run_dir)
@@ -241,8 +241,8 @@ def _write_json(path: Path, data: dict) -> None:
 # ------------------------------------------------------------------------------------ one trial (child process)
 def run_trial_process(run_dir: Path) -> int:
     """Train (or resume) the trial in ``run_dir`` (reads trial.json); writes trial_done.json when finished."""
-    from policies.checkpoint import read_state
-    from policies.train import Args, train
+    from policies.learning.checkpoint import read_state
+    from policies.learning.training import Args, train
 
     _set_parent_death_signal()
     spec = json.loads((run_dir / "trial.json").read_text())
@@ -287,11 +287,11 @@ def launch_trial(run_dir: str, cpus: int, cwd: str | None = None) -> dict:
     # every library's threads = the trial's cores (policies/cli.py _threads_env)
     env = dict(os.environ, NUMBA_NUM_THREADS=str(cpus), OMP_NUM_THREADS=str(cpus), MKL_NUM_THREADS=str(cpus))
     # the child imports the same rodlab: the sys.path entry this package came from (a checkout or site-packages)
-    packages_dir = str(Path(__file__).resolve().parent.parent)
+    packages_dir = str(Path(__file__).resolve().parents[2])  # policies/learning/sweep.py -> the folder of policies
     env["PYTHONPATH"] = packages_dir + os.pathsep + env.get("PYTHONPATH", "")
     with open(Path(run_dir) / "train.log", "ab") as log:
         env["RODLAB_TRIAL_PARENT"] = str(os.getpid())
-        proc = subprocess.Popen([sys.executable, "-m", "policies.sweep", "_trial", run_dir], cwd=cwd, env=env,
+        proc = subprocess.Popen([sys.executable, "-m", "policies.learning.sweep", "_trial", run_dir], cwd=cwd, env=env,
                                 stdout=log, stderr=subprocess.STDOUT)
         rc = proc.wait()
     return {"run_dir": run_dir, "returncode": rc}
@@ -370,7 +370,7 @@ def _stop_local_trials(trials: list[Trial], wait_s: float = 300.0) -> None:
             cmd = Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace")
         except (OSError, ValueError):
             continue
-        if "policies.sweep" in cmd and str(t.run_dir) in cmd:
+        if "policies.learning.sweep" in cmd and str(t.run_dir) in cmd:
             try:
                 os.kill(pid, signal.SIGTERM)
             except OSError:
@@ -484,7 +484,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["_trial"]:  # internal: one trial's training process (started by launch_trial)
         return run_trial_process(Path(argv[1]))
-    from policies.train import Args
+    from policies.learning.training import Args
 
     d = Args()
     p = argparse.ArgumentParser(prog="rodlab sweep", description="Seeds x tasks x hyper-parameter sweep of "
@@ -504,7 +504,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--cpus-per-trial", type=int, default=None,
                    help="CPUs per trial (default: all local cores; 2 with --address)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2",
-                   help="training setting (an Args field of policies/train.py); several values make a grid")
+                   help="training setting (an Args field of policies/learning/training.py); several values make a grid")
     p.add_argument("--out", default=None, help="sweep directory (default runs/sweep_<tasks>)")
     a = p.parse_args(argv)
     try:
