@@ -12,8 +12,7 @@ installed). Names are resolved lazily, so ``policies.control`` (numpy only) work
 """
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from sim.support.lazy import lazy_face
 
 from .tasks import TASK_SPECS, TASKS, gym_task_id, register_tasks
 
@@ -40,14 +39,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    mod = _LAZY.get(name)
-    if mod is None:
-        raise AttributeError(f"module 'policies' has no attribute {name!r}")
-    value = getattr(importlib.import_module(mod), name)
-    globals()[name] = value
-    return value
-
+__getattr__, __dir__ = lazy_face(__name__, _LAZY)
 
 try:
     register_tasks()

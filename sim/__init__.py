@@ -20,19 +20,19 @@ Compiling the kernels ahead of time: ``python -m sim.warmup`` (not imported here
 """
 from __future__ import annotations
 
-from importlib import import_module
 from typing import TYPE_CHECKING
 
 from ._cache import invalidate_if_sources_changed as _invalidate
+from .support.lazy import lazy_face
 
 _invalidate()  # before any kernel module loads its numba cache
 
 # The public names load on first use (PEP 562), so importing a light submodule (sim.support, sim.rotations,
 # sim.scene) does not load the step and its numba kernels.
-_PUBLIC = {"FixSpec": ".boundary", "LoadSpec": ".boundary", "Model": ".model", "build_model": ".model",
-           "RodSpec": ".scene", "SceneError": ".scene", "SceneSpec": ".scene", "SimSpec": ".scene",
-           "dump_scene": ".scene", "load_scene": ".scene", "parse_scene": ".scene", "Control": ".state",
-           "State": ".state", "StepStats": ".state", "Simulator": ".step"}
+_LAZY = {"FixSpec": "sim.boundary", "LoadSpec": "sim.boundary", "Model": "sim.model", "build_model": "sim.model",
+         "RodSpec": "sim.scene", "SceneError": "sim.scene", "SceneSpec": "sim.scene", "SimSpec": "sim.scene",
+         "dump_scene": "sim.scene", "load_scene": "sim.scene", "parse_scene": "sim.scene", "Control": "sim.state",
+         "State": "sim.state", "StepStats": "sim.state", "Simulator": "sim.step"}
 
 __all__ = ["load_scene", "parse_scene", "dump_scene", "SceneError", "SceneSpec", "SimSpec", "RodSpec", "Model",
            "build_model", "Simulator", "State", "Control", "StepStats", "LoadSpec", "FixSpec"]
@@ -45,14 +45,4 @@ if TYPE_CHECKING:
     from .step import Simulator
 
 
-def __getattr__(name: str):
-    module = _PUBLIC.get(name)
-    if module is None:
-        raise AttributeError(f"module 'sim' has no attribute {name!r}")
-    value = getattr(import_module(module, __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_PUBLIC))
+__getattr__, __dir__ = lazy_face(__name__, _LAZY)

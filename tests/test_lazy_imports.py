@@ -16,3 +16,23 @@ def test_import_sim_loads_no_heavy_modules():
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr
     assert json.loads(out.stdout.strip().splitlines()[-1]) == []
+
+
+FACES = ("sim", "policies", "policies.learning", "policies.recording", "workbench")
+
+
+def test_every_public_name_of_a_lazy_face_loads_from_its_module():
+    """Each package's ``_LAZY`` table (sim.support.lazy) names modules that define those names; dir() lists them,
+    and an unknown name is an AttributeError naming the package."""
+    import importlib
+
+    import pytest
+
+    for face in FACES:
+        pkg = importlib.import_module(face)
+        assert set(pkg._LAZY) <= set(dir(pkg)), face
+        for name, module in pkg._LAZY.items():
+            value = getattr(pkg, name)
+            assert getattr(importlib.import_module(module), name) is value, (face, name)
+        with pytest.raises(AttributeError, match=f"module '{face}' has no attribute 'no_such_name'"):
+            pkg.no_such_name  # noqa: B018

@@ -12,25 +12,11 @@ Public surface::
 """
 from __future__ import annotations
 
-from typing import Any
+from sim.support.lazy import lazy_face
+
+_LAZY = {"Workbench": "workbench.core", "WorkbenchApp": "workbench.app", "PolicySession": "workbench.policy_session",
+         "ReplaySession": "workbench.replay", "workbench_main": "workbench.cli"}
 
 __all__ = ["Workbench", "WorkbenchApp", "PolicySession", "ReplaySession", "workbench_main"]
 
-
-def __getattr__(name: str) -> Any:
-    if name == "Workbench":
-        from workbench.core import Workbench
-        return Workbench
-    if name == "WorkbenchApp":
-        from workbench.app import WorkbenchApp
-        return WorkbenchApp
-    if name == "PolicySession":
-        from workbench.policy_session import PolicySession
-        return PolicySession
-    if name == "ReplaySession":
-        from workbench.replay import ReplaySession
-        return ReplaySession
-    if name == "workbench_main":
-        from workbench.cli import workbench_main
-        return workbench_main
-    raise AttributeError(name)
+__getattr__, __dir__ = lazy_face(__name__, _LAZY)

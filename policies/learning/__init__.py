@@ -14,8 +14,7 @@ Names load on first use (PEP 562): every module here loads torch and stable-base
 """
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from sim.support.lazy import lazy_face
 
 # public name -> the module of this package that defines it (read by tests/test_import_graph.py as imports)
 _LAZY = {
@@ -60,14 +59,4 @@ _LAZY = {
 __all__ = sorted(_LAZY)
 
 
-def __getattr__(name: str) -> Any:
-    mod = _LAZY.get(name)
-    if mod is None:
-        raise AttributeError(f"module 'policies.learning' has no attribute {name!r}")
-    value = getattr(importlib.import_module(mod), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_face(__name__, _LAZY)

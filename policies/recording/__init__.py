@@ -5,18 +5,14 @@ Attributes are imported lazily so ``import policies.recording`` does not import 
 """
 from __future__ import annotations
 
-from typing import Any
+from sim.support.lazy import lazy_face
 
 from .schema import EpisodeData, RecordingError, StaticScene
 
 __all__ = ["Recorder", "StaticScene", "EpisodeData", "RecordingError", "read_recording", "summarize"]
 
 
-def __getattr__(name: str) -> Any:
-    if name == "Recorder":
-        from .recorder import Recorder
-        return Recorder
-    if name in ("read_recording", "summarize"):
-        from . import reader
-        return getattr(reader, name)
-    raise AttributeError(name)
+_LAZY = {"Recorder": "policies.recording.recorder", "read_recording": "policies.recording.reader",
+         "summarize": "policies.recording.reader"}
+
+__getattr__, __dir__ = lazy_face(__name__, _LAZY)

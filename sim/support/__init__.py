@@ -1,5 +1,5 @@
 """Support code that is not physics: atomic file writes, progress with ETA, output-path checks, counted
-nouns in messages.
+nouns in messages, packages' lazy public faces.
 
 The bottom layer of rodlab: these modules import nothing else of rodlab (standard library; numpy and tqdm only
 inside the functions that need them), so every package (``sim``, ``policies``, ``workbench``, ``benchmarks``,
@@ -9,4 +9,5 @@ inside the functions that need them), so every package (``sim``, ``policies``, `
     from sim.support.progress import add_progress_flag, progress_bar, progress_wanted
     from sim.support.paths import check_output_path
     from sim.support.text import count
+    from sim.support.lazy import lazy_face
 """
