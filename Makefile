@@ -44,11 +44,11 @@ run: install warmup
 	$(VENV)/bin/rodlab workbench
 
 # The suite runs on TEST_WORKERS processes (pytest-xdist; which tests stay together on one process is said in
-# tests/conftest.py: a file's, and all that drive Chromium); TEST_WORKERS=0 runs it in this process.
+# tests/conftest.py, process_group); TEST_WORKERS=0 runs it in this process.
 TEST_WORKERS ?= 2
 
 test: install system-deps warmup
-	$(PY) -m pytest $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS) --dist loadgroup)
+	$(PY) -m pytest $(if $(filter 0,$(TEST_WORKERS)),,-n $(TEST_WORKERS))
 
 lint: install
 	$(VENV)/bin/ruff check sim policies workbench benchmarks tests examples tools rodlab_cli.py

@@ -16,11 +16,23 @@ def scenes_dir() -> Path:
     return SCENES
 
 
-def pytest_collection_modifyitems(config, items) -> None:
-    """Which tests run together when the suite runs on several processes (``make test``: pytest-xdist with
-    ``--dist loadgroup``): a file's tests on one process, in their order, so its module fixtures are built once;
-    and every test that drives the session's Chromium (the ``browser`` fixture) on one process, in the order of
-    a run in one process, so those tests share one browser and one page as they do there."""
-    for item in items:
-        group = "browser" if "browser" in getattr(item, "fixturenames", ()) else item.nodeid.split("::")[0]
-        item.add_marker(pytest.mark.xdist_group(group))
+def process_group(nodeid: str) -> str:
+    """Which tests run together on one process when the suite runs on several (``make test``, pytest-xdist):
+    every test of tests/workbench but the soak on one, in the order of a run in one process (they share one
+    Chromium, one page and one workbench session, as they do there), and each other file's tests on one, so a
+    module's fixtures are built once."""
+    path = nodeid.split("::")[0]
+    if path.startswith("tests/workbench/") and not path.endswith("/test_soak.py"):
+        return "tests/workbench"
+    return path
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    from xdist.scheduler import LoadScopeScheduling
+
+    class ByGroup(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return process_group(nodeid)
+
+    return ByGroup(config, log)
