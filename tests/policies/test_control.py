@@ -1,6 +1,7 @@
 """Action converter (docs/tasks.md §2): worked values of §2.7, intended mapping, clipping, ramp, reset, errors."""
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -142,8 +143,12 @@ def test_bad_actions_raise():
 
 
 def test_control_module_needs_no_gymnasium():
-    code = ("import sys; sys.modules['gymnasium'] = None; sys.modules['sim'] = None\n"
+    """policies.control is numpy only: no gymnasium, no numba (so none of the simulator's kernels); of sim it
+    loads only the package's light face and its support layer."""
+    code = ("import sys, json; sys.modules['gymnasium'] = None; sys.modules['numba'] = None\n"
             "from policies.control import ActionConverter, control_config\n"
-            "c = ActionConverter(control_config('bend', substeps=2), envs=3); c.convert([[0.5]*10]*3); print('ok')")
+            "c = ActionConverter(control_config('bend', substeps=2), envs=3); c.convert([[0.5]*10]*3)\n"
+            "print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] == 'sim')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=".")
-    assert out.returncode == 0 and "ok" in out.stdout, out.stderr
+    assert out.returncode == 0, out.stderr
+    assert all(m in ("sim", "sim._cache") or m.startswith("sim.support") for m in json.loads(out.stdout)), out.stdout

@@ -8,7 +8,7 @@ import os
 import numpy as np
 import pytest
 
-from policies import precision
+from policies.learning import precision
 from policies.learning.precision import MIN_COMPILED_UPDATES, cpu_has_bf16, plan_updates
 from policies.learning.presets import DEFAULT_PRESET, PRESETS, preset_settings
 from policies.learning.training import Args, TrainError, gradient_updates, train, update_plan
