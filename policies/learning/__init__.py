@@ -8,8 +8,8 @@ Public surface (what the rest of rodlab and a user's script use; the modules beh
     policy, meta = load_policy("runs/ft/policy.zip")                           # rodlab's pickle-free format
     evaluate("runs/ft/policy.zip", "follow_target", episodes=20)               # `rodlab eval`
 
-Names load on first use (PEP 562): every module here loads torch and stable-baselines3, the light ones
-(``PRESETS``, ``PRECISIONS``) only what they need. ``python -m policies.learning.sweep`` / ``.report`` /
+Names load on first use (PEP 562): most modules here load torch and stable-baselines3; the light names
+(``PRESETS``, ``PRECISIONS``) load only what they need. ``python -m policies.learning.sweep`` / ``.report`` /
 ``.training_report`` are the command lines of the modules of those names.
 """
 from __future__ import annotations
