@@ -34,6 +34,11 @@ class Sample(NamedTuple):
     threads: int  # OS threads of the process
     pool_threads: int  # of which the page callbacks' thread pool (viser's, up to its max_workers)
 
+    @property
+    def outside_pool(self) -> int:
+        """Threads outside the callback pool: those of actions that run on, rerun's streams, the server's own."""
+        return self.threads - self.pool_threads
+
 
 def threads() -> int:
     """OS threads of this process (Linux /proc; Python's count misses native ones, e.g. rerun's)."""
@@ -47,12 +52,18 @@ def sample(app, t: float) -> Sample:
     return Sample(t, rss_mb(), backlog(app), threads(), pool_threads(app))
 
 
-def pool_threads(app) -> int:
-    """Threads of the thread pool that runs the page's callbacks. The pool starts a thread whenever a callback
-    is submitted while all its threads are busy, up to its ``max_workers``, and keeps it: on a busy machine the
-    count climbs towards that bound as actions overlap more, which is growth by design, not a leak."""
+def callback_pools(app) -> list:
+    """The thread pools that run the page's GUI and scene callbacks (viser shares one between them). A pool starts
+    a thread whenever a callback is submitted while all its threads are busy, up to its ``max_workers``, and keeps
+    it: on a busy machine the count climbs towards that bound as actions overlap more, which is growth by design,
+    not a leak."""
     pools = {id(p): p for p in (api._thread_executor._inner for api in (app.server.gui, app.server.scene))}
-    return sum(len(p._threads) for p in pools.values())
+    return list(pools.values())
+
+
+def pool_threads(app) -> int:
+    """Threads of the callback pools (:func:`callback_pools`)."""
+    return sum(len(p._threads) for p in callback_pools(app))
 
 
 def rss_mb() -> float:

@@ -35,6 +35,7 @@ unpickles: a full SB3 checkpoint (which holds cloudpickled objects) is refused u
 from __future__ import annotations
 
 import contextlib
+import importlib
 import io
 import json
 import os
@@ -72,8 +73,6 @@ def legacy_module_names():
     """While loading an SB3 checkpoint: the modules of ``LEGACY_MODULES`` importable under their old names, so the
     classes a checkpoint of an older rodlab pickled by name are found. Only names that are not already importable
     are added, and they are removed again afterwards."""
-    import importlib
-
     added = []
     for old, new in LEGACY_MODULES.items():
         if old not in sys.modules:

@@ -67,11 +67,10 @@ def test_hostile_session_stays_bounded_and_answers(app):
     # the callback pool keeps each thread it started for overlapping actions, up to its bound (more on a busy
     # machine, where actions overlap more): bounded by design; the rest (threads of actions that run on, rerun's
     # streams) come and go with the actions, so a leak lifts their floor
-    pool = app.server.gui._thread_executor._inner
-    assert max(s.pool_threads for s in samples) <= pool._max_workers
-    others = [s.threads - s.pool_threads for s in samples]
-    more_threads = min(s.threads - s.pool_threads for s in last) - min(s.threads - s.pool_threads for s in middle)
-    assert more_threads <= GROWTH_THREADS, f"{more_threads} more threads outside the callback pool: {others}"
+    assert max(s.pool_threads for s in samples) <= sum(p._max_workers for p in soak.callback_pools(app))
+    more_threads = min(s.outside_pool for s in last) - min(s.outside_pool for s in middle)
+    assert more_threads <= GROWTH_THREADS, \
+        f"{more_threads} more threads outside the callback pool: {[s.outside_pool for s in samples]}"
     # the client has gone: upkeep leaves viser no tombstones of removed elements to keep (once the actions
     # still running when the client left have finished)
     def swept() -> bool:
