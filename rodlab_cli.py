@@ -22,8 +22,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "report": ("policies.learning.report:main", "learning curves and time-to-plateau table of a sweep"),
     "record": ("policies.recording.cli:record_main", "record episodes to a rerun .rrd file"),
     "inspect": ("policies.recording.cli:inspect_main", "summarise a recorded .rrd file"),
-    "export": ("workbench.export:main", "export a recorded episode to a standalone HTML player / PNG"),
-    "workbench": ("workbench.cli:workbench_main", "open the interactive web workbench"),
+    "export": ("policies.recording.export:main", "export a recorded episode to a standalone HTML player / PNG"),
+    "workbench": ("workbench.serve.cli:workbench_main", "open the interactive web workbench"),
 }
 BENCH: dict[str, tuple[str, str]] = {
     "sim": ("sim.cli:bench_sim_main", "time one batched sim step / control step"),

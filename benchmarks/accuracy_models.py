@@ -25,10 +25,9 @@ from scipy.special import ellipk
 
 from benchmarks.common import machine_info, write_json
 from sim import Simulator, build_model, parse_scene
-from sim.boundary import DragSpec, FixSpec, LineLoadSpec, LoadSpec
-from sim.rotations import matrix_from_rotvec
-from sim.scene import RodSpec, SceneSpec, SimSpec
-from sim.static import solve_static
+from sim.analysis import solve_static
+from sim.geometry import matrix_from_rotvec
+from sim.scene import DragSpec, FixSpec, LineLoadSpec, LoadSpec, RodSpec, SceneSpec, SimSpec
 
 COMMAND = "python -m benchmarks.accuracy_models"
 
@@ -61,7 +60,7 @@ def _within(r: dict[str, Any]) -> bool:
 
 
 def _relaxed(spec: SceneSpec):
-    """(sim, state, ctrl) at the static equilibrium of ``spec`` (sim.static, as the tests relax them)."""
+    """(sim, state, ctrl) at the static equilibrium of ``spec`` (sim.analysis.static, as the tests relax them)."""
     sim = Simulator(build_model(spec), envs=1)
     st, ctrl = sim.reset(), sim.make_control()
     res = solve_static(spec, st, ctrl, xtol=1e-13, check_stability=False, max_steps=400)

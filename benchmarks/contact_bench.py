@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from sim import Simulator, build_model, load_scene
-from sim.obstacles import CapsuleSpec, MeshSpec, SphereSpec
+from sim.scene import CapsuleSpec, MeshSpec, SphereSpec
 from sim.support.assets import asset_path
 
 SCENES = asset_path("scenes")

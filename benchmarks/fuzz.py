@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 import rodlab_cli
-from sim.state import STATE_FLOAT_ARRAYS
+from sim import STATE_FLOAT_ARRAYS
 from sim.support.assets import asset_path
 from sim.support.atomicio import write_text
 from sim.support.paths import check_output_path

@@ -34,9 +34,8 @@ def _arm_spec(converged: bool = True):
 
 def bench_step(envs: int, repeats: int) -> dict:
     """Forward step vs the backward pass of one step (linearisation included), per env."""
-    from sim import build_model
-    from sim import gradients as G
-    from sim.step import Simulator
+    from sim import Simulator, build_model
+    from sim.analysis import rollout
 
     spec = _arm_spec()
     sim = Simulator(build_model(spec), envs=envs)
@@ -45,7 +44,7 @@ def bench_step(envs: int, repeats: int) -> dict:
     ctrl.kappa_bar[:, 1:-1] += rng.normal(0.0, 0.05, ctrl.kappa_bar[:, 1:-1].shape)
     for _ in range(3):
         sim.step(state, ctrl)  # moving, bent
-    G.rollout(sim, state.copy(), [ctrl])._linear(0, ("kappa_bar",))  # load the kernels (untimed)
+    rollout(sim, state.copy(), [ctrl])._linear(0, ("kappa_bar",))  # load the kernels (untimed)
     fwd, bwd, lin = [], [], []
     for _ in range(repeats):
         st = state.copy()
@@ -53,7 +52,7 @@ def bench_step(envs: int, repeats: int) -> dict:
         sim.step(st, ctrl)
         fwd.append(time.perf_counter() - t0)
         st = state.copy()
-        tape = G.rollout(sim, st, [ctrl])
+        tape = rollout(sim, st, [ctrl])
         n = tape.dof.shape[2]
         t0 = time.perf_counter()
         tape._linear(0, ("kappa_bar",))
@@ -77,9 +76,8 @@ def bench_unconverged_gap(steps: int, iterations=(2, 3, 5, 30)) -> dict:
     what was computed. The force tolerance is set far below reach, so each step takes exactly its iteration cap
     (or converges) and the computed map is smooth; the 30-iteration row is the check (converged: the gap is the
     finite differences' own error)."""
-    from sim import build_model
-    from sim import gradients as G
-    from sim.step import Simulator
+    from sim import Simulator, build_model
+    from sim.analysis import rollout
 
     base = _arm_spec(converged=False)
     rng = np.random.default_rng(0)
@@ -100,7 +98,7 @@ def bench_unconverged_gap(steps: int, iterations=(2, 3, 5, 30)) -> dict:
                 c.kappa_bar[:] = k[i]
                 ctrls.append(c)
             if tape:
-                return G.rollout(sim, st, ctrls)
+                return rollout(sim, st, ctrls)
             for c in ctrls:
                 sim.step(st, c)
             return st.dof.reshape(1, -1).copy()
@@ -122,7 +120,7 @@ def bench_fit(seconds: float, repeats: int) -> dict:
     import scipy.optimize
 
     from sim import build_model
-    from sim import fit as F
+    from sim.analysis import Measurements, Problem, fit, load_controls
 
     spec = _arm_spec()
     with tempfile.TemporaryDirectory() as tmp:
@@ -131,26 +129,26 @@ def bench_fit(seconds: float, repeats: int) -> dict:
         for k, t in enumerate(np.arange(0.0, seconds, 1.0)):  # a new command every second
             rows.append(f"{t:.3f},10,{0.15 * math.sin(1.3 * k + 0.2):.5f},{0.1 * math.cos(0.7 * k):.5f},0")
         path.write_text("\n".join(rows) + "\n")
-        cmds = F.load_controls(path, build_model(spec))
+        cmds = load_controls(path, build_model(spec))
     params = ["youngs_modulus", "damping", "actuation_gain"]
     t = np.arange(0.0, seconds + 1e-9, 1.0 / 30.0)
     s = np.linspace(0.2, 1.0, 5)
-    meas0 = F.Measurements(np.repeat(t, 5), np.tile(s, t.size), np.zeros(t.size * 5, int), np.zeros((t.size * 5, 3)))
-    prob = F.Problem(spec, meas0, cmds, params)
+    meas0 = Measurements(np.repeat(t, 5), np.tile(s, t.size), np.zeros(t.size * 5, int), np.zeros((t.size * 5, 3)))
+    prob = Problem(spec, meas0, cmds, params)
     z_true = np.array([math.log(1.3), 0.3, 0.8])
     pos = prob.predict(prob._node_pos(prob.rollout(z_true).dof[:, 0], None))
-    meas = F.Measurements(meas0.t, meas0.s, meas0.rod, pos + np.random.default_rng(1).normal(0.0, 1e-3, pos.shape))
+    meas = Measurements(meas0.t, meas0.s, meas0.rod, pos + np.random.default_rng(1).normal(0.0, 1e-3, pos.shape))
     truth = prob.values(z_true)
     out: dict = {"seconds_of_motion": seconds, "steps": prob.steps, "points": int(meas.t.size), "params": params,
                  "truth": truth}
     exact, probe = [], []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        res = F.fit(spec, meas, params, cmds=cmds)
+        res = fit(spec, meas, params, cmds=cmds)
         exact.append(time.perf_counter() - t0)
         out["exact"] = {"values": res.params, "stderr": res.stderr, "rms_m": res.rms_m, "evaluations": res.iterations,
                         "relative_error": {k: abs(res.params[k] - v) / abs(v) for k, v in truth.items()}}
-        pr = F.Problem(spec, meas, cmds, params)
+        pr = Problem(spec, meas, cmds, params)
         lo, hi = pr.bounds()
         t0 = time.perf_counter()
         ls = scipy.optimize.least_squares(lambda z: pr.residuals(pr.rollout(z)), pr.z0(), jac="2-point",

@@ -98,8 +98,7 @@ def bench_synthetic(steps: int, repeats: int) -> dict:
 def bench_env(task: str, steps: int) -> dict:
     """Wall time per control step of the real task env (1 env), without and with the probe."""
     import policies
-    from policies.recording import Recorder
-    from policies.recording.probe import TaskProbe
+    from policies.recording import Recorder, TaskProbe
 
     def run(probe: bool) -> tuple[float, int]:
         venv = policies.make_vec_env(task, 1, seed=0)

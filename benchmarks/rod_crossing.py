@@ -15,7 +15,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from sim import Simulator, build_model
-from sim.contact.imc import imc_energy
+from sim.contact import imc_energy
 from sim.scene import parse_scene
 from sim.support.atomicio import write_text
 

@@ -1,6 +1,6 @@
 """rodlab realisations of the accuracy scenes (:mod:`benchmarks.scenes`).
 
-Every runner builds a scene in code (through the validating ``sim.scene.parse_scene``), simulates one
+Every runner builds a scene in code (through the validating ``sim.scene.spec.parse_scene``), simulates one
 env and returns a dict with the wall time of the stepping loop ``wall_s`` [s] (setup and numba warm-up
 excluded), ``sim_s`` [s], ``stable``, the sampled output and Newton statistics
 (``newton_iters_mean``, ``newton_iters_max``, ``substeps_max``, ``failed``, ``unconverged_frac``).
@@ -47,7 +47,7 @@ def scene_dict(*, nodes: int, length: float, radius: float, density: float, youn
                start=(0.0, 0.0, 0.0), direction=(0.0, 0.0, 1.0), dt: float, gravity=(0.0, 0.0, -9.8),
                damping: float = 0.0, solver: Solver = PAPER, mode: Mode = "3d",
                obstacles: list | None = None, contact: dict | None = None) -> dict:
-    """The TOML-equivalent dict of a one-rod scene (see sim/scene.py for the keys)."""
+    """The TOML-equivalent dict of a one-rod scene (see sim/scene/spec.py for the keys)."""
     d = {
         "sim": {"dt": float(dt), "gravity": [float(g) for g in gravity], "damping": float(damping),
                 "newton_tol": float(solver.tol), "newton_max_iter": int(solver.max_iter),

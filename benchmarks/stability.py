@@ -1,5 +1,5 @@
 """Stability check of a static equilibrium (``rodlab bench stability``): the banded eigensolver of
-``sim.static.static_stability`` against the dense eigensolver on the same mass-weighted static Hessian, against the
+``sim.analysis.static.static_stability`` against the dense eigensolver on the same mass-weighted static Hessian, against the
 rod's node count.
 
 The scene: a clamped column under twice its buckling load, straight (a saddle with two negative directions).
@@ -19,9 +19,8 @@ from benchmarks.common import base_parser, machine_info, write_json
 def _saddle(nodes: int):
     """(sim, state, ctrl) of the straight column at twice its Euler load (statically solved, it stays straight)."""
     from sim import Simulator, build_model
-    from sim.boundary import LoadSpec
-    from sim.scene import RodSpec, SceneSpec, SimSpec
-    from sim.static import solve_static
+    from sim.analysis import solve_static
+    from sim.scene import LoadSpec, RodSpec, SceneSpec, SimSpec
 
     R, E = 0.02, 1e7
     EI = E * np.pi * R ** 4 / 4
@@ -39,7 +38,7 @@ def _saddle(nodes: int):
 
 
 def _dense(sim, state, ctrl) -> tuple[int, float, float]:
-    from sim.static import negative_threshold, static_hessian
+    from sim.analysis import negative_threshold, static_hessian
 
     m = sim.model
     free = np.flatnonzero(~np.asarray(m.dof_fixed))
@@ -51,7 +50,7 @@ def _dense(sim, state, ctrl) -> tuple[int, float, float]:
 
 
 def bench(nodes: int, repeats: int) -> dict:
-    from sim.static import static_stability
+    from sim.analysis import static_stability
 
     sim, state, ctrl = _saddle(nodes)
     static_stability(sim, state, ctrl, 0)  # warm (the Hessian kernel's compile)

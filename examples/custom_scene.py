@@ -1,7 +1,7 @@
 """Build a custom scene from TOML (a string or a file) and step it.
 
-Purpose: a scene is plain TOML ([sim], [rod], [[obstacle]], [contact]; keys and units in sim/scene.py and
-sim/obstacles.py). This example writes a horizontal rod clamped at one end that falls onto a sphere under
+Purpose: a scene is plain TOML ([sim], [rod], [[obstacle]], [contact]; keys and units in sim/scene/spec.py and
+sim/scene/obstacles.py). This example writes a horizontal rod clamped at one end that falls onto a sphere under
 gravity, and reports the contacts the simulator found.
 
 Run:  .venv/bin/python examples/custom_scene.py [SCENE.toml] [--steps 60]

@@ -237,7 +237,7 @@ def eval_main(argv: list[str]) -> int:
     try:
         if a.record:
             check_output_path(a.record, suffix=".rrd")  # before the evaluation: nothing is lost
-            from policies.recording.probe import record_hook
+            from policies.recording import record_hook
 
             hook_cm = record_hook(a.record, episodes=a.episodes, meta={"policy": a.policy, "seed": a.seed})
         else:

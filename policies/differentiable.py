@@ -1,4 +1,4 @@
-"""A rodlab rollout as a differentiable torch function (its gradients: :mod:`sim.gradients`, the adjoint mode).
+"""A rodlab rollout as a differentiable torch function (its gradients: :mod:`sim.analysis.gradients`, the adjoint mode).
 
     from policies.differentiable import DifferentiableRollout
     roll = DifferentiableRollout(sim, sim.reset())                  # the start state is copied, never changed
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 import torch
-from sim import gradients as G
+from sim.analysis import GradientError, Tape, rollout
 
 __all__ = ["DifferentiableRollout"]
 
@@ -43,35 +43,35 @@ class _Rollout(torch.autograd.Function):
 
 class DifferentiableRollout:
     """Rollouts of ``sim`` from a copy of ``state`` as a torch function of the per-step natural curvature and twist.
-    :attr:`last_tape` is the :class:`sim.gradients.Tape` of the last call (its states, ``unconverged``)."""
+    :attr:`last_tape` is the :class:`sim.analysis.gradients.Tape` of the last call (its states, ``unconverged``)."""
 
     def __init__(self, sim, state):
         self.sim = sim
         self.state = state.copy()
-        self.last_tape: G.Tape | None = None
+        self.last_tape: Tape | None = None
 
-    def run(self, kappa_bar: np.ndarray, tau_bar: np.ndarray) -> G.Tape:
+    def run(self, kappa_bar: np.ndarray, tau_bar: np.ndarray) -> Tape:
         B, N = self.sim.envs, self.sim.model.node_count
         if kappa_bar.ndim != 4 or kappa_bar.shape[1:] != (B, N, 2):
-            raise G.GradientError(f"kappa_bar has shape {kappa_bar.shape}, expected (T, {B}, {N}, 2)")
+            raise GradientError(f"kappa_bar has shape {kappa_bar.shape}, expected (T, {B}, {N}, 2)")
         if tau_bar.shape != kappa_bar.shape[:3]:
-            raise G.GradientError(f"tau_bar has shape {tau_bar.shape}, expected {kappa_bar.shape[:3]}")
+            raise GradientError(f"tau_bar has shape {tau_bar.shape}, expected {kappa_bar.shape[:3]}")
         if not (np.all(np.isfinite(kappa_bar)) and np.all(np.isfinite(tau_bar))):
-            raise G.GradientError("kappa_bar / tau_bar have non-finite values")
+            raise GradientError("kappa_bar / tau_bar have non-finite values")
         ctrls = []
         for k in range(kappa_bar.shape[0]):
             c = self.sim.make_control()
             c.kappa_bar[...] = kappa_bar[k]
             c.tau_bar[...] = tau_bar[k]
             ctrls.append(c)
-        return G.rollout(self.sim, self.state.copy(), ctrls)
+        return rollout(self.sim, self.state.copy(), ctrls)
 
     def __call__(self, kappa_bar: torch.Tensor, tau_bar: torch.Tensor | None = None):
         if kappa_bar.dtype != torch.float64:
             raise TypeError(f"kappa_bar must be float64 (the simulator's precision), got {kappa_bar.dtype}")
         B, N = self.sim.envs, self.sim.model.node_count
         if kappa_bar.ndim != 4 or tuple(kappa_bar.shape[1:]) != (B, N, 2):
-            raise G.GradientError(f"kappa_bar has shape {tuple(kappa_bar.shape)}, expected (T, {B}, {N}, 2)")
+            raise GradientError(f"kappa_bar has shape {tuple(kappa_bar.shape)}, expected (T, {B}, {N}, 2)")
         if tau_bar is None:  # the rest twist at every step
             rest = torch.from_numpy(self.sim.make_control().tau_bar.astype(np.float64))
             tau_bar = rest.expand(kappa_bar.shape[:3]).clone()

@@ -1,6 +1,6 @@
 """A model-based baseline for the reaching tasks: inverse statics (``rodlab eval inverse-statics --task T``).
 
-Each control step it asks :func:`sim.inverse.reach` for the control points' natural curvature that would hold the tip
+Each control step it asks :func:`sim.analysis.inverse.reach` for the control points' natural curvature that would hold the tip
 on the current target at equilibrium (warm-started from its previous answer, a few Gauss–Newton iterations per
 control step, the task's bound on |K|), and moves the accumulated curvature toward it as fast as the task's action
 allows: a = clip((K* − K) / s_κ, −1, 1). It reads the current K and the target from the observation, and the scene,
@@ -10,7 +10,7 @@ control points and smoothing from the task, so it acts through the same converte
 from __future__ import annotations
 
 import numpy as np
-from sim.inverse import reach
+from sim.analysis import reach
 
 from .control import smoothing_basis
 

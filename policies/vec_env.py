@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
-from sim.validate import env_mask  # a boolean mask, or integer env indices (never guessed)
+from sim.scene import env_mask  # a boolean mask, or integer env indices (never guessed)
 
 from .tasks.base import BatchedTask, RewardTermsObserver, check_field_value
 from .tasks.env import action_space, observation_space

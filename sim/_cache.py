@@ -1,7 +1,7 @@
 """Guard against stale numba caches.
 
 numba's ``cache=True`` only checks the source file of the cached function itself, so a change in a callee
-defined in another module (an energy, ``frames.py``, ``vec3.py``, ``contact/obstacles.py``) would leave the fused kernels in
+defined in another module (an energy, ``geometry/frames.py``, ``geometry/vec3.py``, ``contact/obstacles.py``) would leave the fused kernels in
 ``sim/kernels/`` stale. :func:`invalidate_if_sources_changed` hashes all kernel sources and, when the hash differs
 from the stamp written last time, deletes the cached ``*.nbi``/``*.nbc`` files of those modules.
 """
@@ -12,18 +12,17 @@ import os
 from pathlib import Path
 
 _HERE = Path(__file__).resolve().parent
-_SOURCES = ["numba_options.py", "frames.py", "kernels/banded.py", "kernels/data.py", "kernels/workspace.py",
+_SOURCES = ["numba_options.py", "geometry/frames.py", "kernels/banded.py", "kernels/data.py", "kernels/workspace.py",
             "kernels/assemble_3d.py", "kernels/assemble_2d.py", "kernels/drag.py", "kernels/newton.py",
             "kernels/ladder.py", "kernels/batch.py", "contact/imc.py", "contact/obstacles.py", "contact/edge_pairs.py", "contact/stages.py",
-            "geometry_distance.py", "vec3.py", "kinds.py",
-            "energies/stretch.py", "energies/bend_twist.py", "energies/planar.py", "hessian.py", "kernels/probe.py", "kernels/linearise.py"]
+            "geometry/distance.py", "geometry/vec3.py", "scene/kinds.py",
+            "energies/stretch.py", "energies/bend_twist.py", "energies/planar.py", "analysis/hessian.py", "kernels/probe.py", "kernels/linearise.py"]
 # modules whose numba functions call no numba function of another module (their own cache check suffices)
 SELF_CONTAINED = ["contact/mesh.py"]
 
 
 def _cache_dirs() -> list[Path]:
-    dirs = [_HERE / "__pycache__", _HERE / "energies" / "__pycache__", _HERE / "kernels" / "__pycache__",
-            _HERE / "contact" / "__pycache__"]
+    dirs = sorted({(_HERE / rel).parent / "__pycache__" for rel in _SOURCES + SELF_CONTAINED})
     env = os.environ.get("NUMBA_CACHE_DIR")
     if env:
         dirs.append(Path(env))

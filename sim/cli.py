@@ -11,16 +11,16 @@ from pathlib import Path
 
 import numpy as np
 
-from . import Simulator, build_model, load_scene
-from .scene import SceneError
-from .scene_check import overlap_warning, rod_obstacle_overlaps
-from .static import solve_static
-from .support.assets import asset_path
-from .support.atomicio import savez
-from .support.paths import check_output_path
-from .support.progress import add_progress_flag, progress_bar, progress_wanted
-from .support.text import count
-from .warmup import warmup
+from sim import Simulator, build_model, load_scene
+from sim.analysis.static import solve_static
+from sim.scene.check import overlap_warning, rod_obstacle_overlaps
+from sim.scene.spec import SceneError
+from sim.support.assets import asset_path
+from sim.support.atomicio import savez
+from sim.support.paths import check_output_path
+from sim.support.progress import add_progress_flag, progress_bar, progress_wanted
+from sim.support.text import count
+from sim.warmup import compile_kernels
 
 __all__ = ["sim_main", "bench_sim_main"]
 
@@ -41,7 +41,7 @@ def sim_main(argv: list[str] | None = None) -> int:
     ap.add_argument("scene", help="scene TOML file")
     ap.add_argument("--duration", type=float, help="simulated time [s] (finite, > 0; required unless --static)")
     ap.add_argument("--static", action="store_true",
-                    help="solve for static equilibrium instead (sim.static: backward-Euler pseudo-time steps growing "
+                    help="solve for static equilibrium instead (sim.analysis.static: backward-Euler pseudo-time steps growing "
                          "to 1e5 s with zeroed velocities, until a step moves no node by more than "
                          "--static-tol x rod length); --out then holds one frame. Exit status 0: every env at a "
                          "stable equilibrium, 1: some env did not converge, 3: converged, but some env is at an "
@@ -200,7 +200,7 @@ def _print_tips(model, state, precision: int) -> None:
 
 
 def _static_main(a: argparse.Namespace, spec, fail) -> int:
-    """``rodlab sim --static``: relax the rest state to equilibrium (sim.static) and report / write it."""
+    """``rodlab sim --static``: relax the rest state to equilibrium (sim.analysis.static) and report / write it."""
     t0 = time.perf_counter()
     model = build_model(spec)
     sim = Simulator(model, envs=a.envs)
@@ -248,7 +248,7 @@ def bench_sim_main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", help="also write the JSON to this file")
     a = ap.parse_args(argv)
     t0 = time.perf_counter()
-    compile_s = warmup()
+    compile_s = compile_kernels()
     import_and_compile_s = time.perf_counter() - t0
     model = build_model(load_scene(a.scene))
     sim = Simulator(model, envs=a.envs)

@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .validate import state_arrays
+from sim.scene.validate import state_arrays
 
 __all__ = ["State", "Control", "StepStats", "STATE_ARRAYS", "STATE_FLOAT_ARRAYS"]
 
@@ -98,7 +98,7 @@ class State:
 
 
 # The per-env arrays of a State (leading axis B), in field order: the fields typed np.ndarray (plane_y is not a
-# per-env array), read from the dataclass by sim.validate.state_arrays; copies, input checks, quarantine, static
+# per-env array), read from the dataclass by sim.scene.validate.state_arrays; copies, input checks, quarantine, static
 # restores and the fuzz benchmark go through it.
 STATE_ARRAYS: tuple[str, ...] = state_arrays(State)
 # the float ones (all but the bool ``failed`` and ``obstacle_active``)

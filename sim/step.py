@@ -9,10 +9,9 @@ from collections.abc import Sequence
 import numba
 import numpy as np
 
-from . import validate as _validate
-from .boundary import frame_load_forces, turn_fix, window_fraction
-from .contact.edge_pairs import model_pairs
-from .contact_set import (
+from sim.analysis.internal import InternalLoads, internal_loads
+from sim.contact.edge_pairs import model_pairs
+from sim.contact.world import (
     PAIR_REPORT_CAPACITY,
     ObstacleWorld,
     contact_data,
@@ -21,10 +20,9 @@ from .contact_set import (
     set_capsules,
     set_pose,
 )
-from .frames import transport
-from .internal import InternalLoads, internal_loads
-from .kernels.batch import CHUNK, step_kernel
-from .kernels.data import (
+from sim.geometry.frames import transport
+from sim.kernels.batch import CHUNK, step_kernel
+from sim.kernels.data import (
     MIDPOINT_ENERGY_TOL,
     ContactReport,
     ControlArrays,
@@ -33,8 +31,10 @@ from .kernels.data import (
     StateArrays,
     StepOutput,
 )
-from .model import Model, planar_nodes
-from .state import STATE_ARRAYS, Control, State, StepStats
+from sim.scene import validate as _validate
+from sim.scene.boundary import frame_load_forces, turn_fix, window_fraction
+from sim.scene.model import Model, planar_nodes
+from sim.state import STATE_ARRAYS, Control, State, StepStats
 
 __all__ = ["Simulator", "MIDPOINT_ENERGY_TOL"]
 
@@ -59,7 +59,7 @@ class Simulator:
         pairs = model_pairs(m)  # edge pairs that may touch (self- / rod–rod contact); (0, 2) without
         self._prm = Params.from_model(m, pairs=pairs).record()  # one typed record (passed by reference)
         self._rod = RodData.from_model(m, pairs=pairs)
-        # point loads (sim.boundary): per-env external forces only when a scene has loads; prescribed motion
+        # point loads (sim.scene.boundary): per-env external forces only when a scene has loads; prescribed motion
         self._loads = m.load_force.shape[0] > 0
         self._frame_loads = m.frame_loads  # moments and material-frame loads: evaluated at each step's start
         self._motion = m.motion_rate.shape[0] > 0 or bool(m.rotating_fixes)
@@ -122,7 +122,7 @@ class Simulator:
 
     def reset_envs(self, state: State, ctrl: Control | None, mask: np.ndarray) -> None:
         """Reset the envs selected by ``mask`` to rest (state, the obstacles' spec poses and, if given, control):
-        a (B,) boolean mask, or integer env indices (list/tuple/int array/int); see :func:`sim.validate.env_mask`."""
+        a (B,) boolean mask, or integer env indices (list/tuple/int array/int); see :func:`sim.scene.validate.env_mask`."""
         mask = _validate.env_mask(mask, self.envs)
         fresh = self.reset()
         for name in STATE_ARRAYS:  # the obstacles' poses among them
@@ -163,7 +163,7 @@ class Simulator:
 
     def contact_data(self, state: State):
         """The contact kernels' view of ``state``'s obstacles (world arrays derived from its poses) with this
-        Simulator's work space (:func:`sim.contact_set.contact_data`)."""
+        Simulator's work space (:func:`sim.contact.world.contact_data`)."""
         return contact_data(self.model.obstacles, self._world.update(state), state, self._scratch)
 
     # ------------------------------------------------------------------ control helpers
@@ -191,7 +191,7 @@ class Simulator:
 
     # ------------------------------------------------------------------ stepping
     def _check(self, state: State, ctrl: Control) -> None:
-        _validate.check_step_inputs(self, state, ctrl)  # every field named (sim/validate.py)
+        _validate.check_step_inputs(self, state, ctrl)  # every field named (sim/scene/validate.py)
         self._bad_in = _validate.quarantine_nonfinite(self, state)  # NaN/inf state: env failed, rest state
 
     def step(self, state: State, ctrl: Control) -> StepStats:
@@ -235,7 +235,7 @@ class Simulator:
                          state: State | None = None) -> np.ndarray:
         """(B, n) gravity plus the point and line loads, each weighted by the fraction of the env's step in its
         window, plus the moments and material-frame loads at the configuration of ``state`` (the step's start;
-        sim.boundary.frame_load_forces), plus the control's node forces ``force`` (B, N, 3) [N] (in 2-D its x and z
+        sim.scene.boundary.frame_load_forces), plus the control's node forces ``force`` (B, N, 3) [N] (in 2-D its x and z
         components)."""
         m = self.model
         grav = self._rod.grav
@@ -271,7 +271,7 @@ class Simulator:
             dof += disp
         else:
             disp = np.zeros_like(dof)
-        if m.rotating_fixes:  # rotating clamps: a rigid turn of their nodes and edges (sim.boundary.turn_fix)
+        if m.rotating_fixes:  # rotating clamps: a rigid turn of their nodes and edges (sim.scene.boundary.turn_fix)
             before = dof.copy()
             seconds = window_fraction(state.time, m.dt, np.stack([rf.window for rf in m.rotating_fixes])) * m.dt
             for b in np.flatnonzero(~state.failed):
@@ -284,7 +284,7 @@ class Simulator:
 
     def _checked_stats(self, state: State) -> StepStats:
         stats = self._stats()
-        _validate.quarantine_nonfinite(self, state, stats, self._bad_in)  # no NaN leaves a step (sim/validate.py)
+        _validate.quarantine_nonfinite(self, state, stats, self._bad_in)  # no NaN leaves a step (sim/scene/validate.py)
         return stats
 
     def _stats(self) -> StepStats:
@@ -305,7 +305,7 @@ class Simulator:
 
     # ------------------------------------------------------------------ frames
     def internal_loads(self, state: State, ctrl: Control) -> InternalLoads:
-        """Axial force, bending and twisting moments of every env (``sim.internal.InternalLoads``, docs/physics.md
+        """Axial force, bending and twisting moments of every env (``sim.analysis.internal.InternalLoads``, docs/physics.md
         §2.5) at the end of the last step, under the natural curvature and twist of ``ctrl``."""
         m1, m2, _t = self.material_frames(state)
         return internal_loads(self.model, state.node_pos, m1, m2, ctrl.kappa_bar, ctrl.tau_bar)
@@ -321,7 +321,7 @@ class Simulator:
 
 
 def _transport(u, ta, tb):
-    """``sim.frames.transport`` (the step's own) on three 3-vectors given as arrays."""
+    """``sim.geometry.frames.transport`` (the step's own) on three 3-vectors given as arrays."""
     return transport(tuple(map(float, u)), tuple(map(float, ta)), tuple(map(float, tb)))
 
 

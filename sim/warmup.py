@@ -1,6 +1,6 @@
 """Compile (or load from the numba cache) the kernels on a tiny model: ``python -m sim.warmup``. Besides the step
-kernels, the static solve's Hessian (sim.hessian, the stability check) and the rollout derivatives' linearisation
-(sim.gradients), so a first ``rodlab sim --static`` or ``rodlab fit`` does not wait for them."""
+kernels, the static solve's Hessian (sim.analysis.hessian, the stability check) and the rollout derivatives' linearisation
+(sim.analysis.gradients), so a first ``rodlab sim --static`` or ``rodlab fit`` does not wait for them."""
 from __future__ import annotations
 
 import sys
@@ -9,13 +9,13 @@ from typing import Callable
 
 import numpy as np
 
-from .gradients import rollout
-from .model import build_model
-from .scene import RodSpec, SceneSpec, SimSpec
-from .static import solve_static
-from .step import Simulator
+from sim.analysis.gradients import rollout
+from sim.analysis.static import solve_static
+from sim.scene.model import build_model
+from sim.scene.spec import RodSpec, SceneSpec, SimSpec
+from sim.step import Simulator
 
-__all__ = ["warmup", "STAGES"]
+__all__ = ["compile_kernels", "STAGES"]
 
 STAGES = 4  # kernel groups compiled by warmup: the step, then the static Hessian and derivatives, in 3-D and in 2-D
 
@@ -28,7 +28,7 @@ def _tiny_spec(mode: str):
                     start=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0)))
 
 
-def warmup(*, verbose: bool = False, on_stage: Callable[[str], None] | None = None) -> float:
+def compile_kernels(*, verbose: bool = False, on_stage: Callable[[str], None] | None = None) -> float:
     """Compile/load the 3-D and 2-D kernels; returns the seconds it took. ``on_stage(what)`` is called before each
     of the :data:`STAGES` kernel groups with what is compiled next and how far along that is ("… (stage k of 4)";
     the workbench shows it while the page waits)."""
@@ -61,7 +61,7 @@ def warmup(*, verbose: bool = False, on_stage: Callable[[str], None] | None = No
 
 
 def main() -> int:
-    dt = warmup(verbose=True)
+    dt = compile_kernels(verbose=True)
     print(f"sim.warmup: kernels ready in {dt:.1f} s")
     return 0
 

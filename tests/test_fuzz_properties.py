@@ -85,7 +85,7 @@ def test_the_fuzz_detects_what_it_should():
     import copy
 
     from benchmarks.fuzz import _kept_as_given
-    from sim.scene import parse_scene
+    from sim.scene.spec import parse_scene
 
     assert run_scene_case(copy.deepcopy(BASE))[0] == "ok"
     doc = copy.deepcopy(BASE)

@@ -182,10 +182,10 @@ def cycle_path(graph: dict[str, dict[str, int]], comp: list[str]) -> str:
 def test_graph_sees_project_imports():
     graph = import_graph()
     assert "policies.learning.training" in graph["policies.learning"]  # a lazy face's `_LAZY` entries are imports
-    assert "sim.model" in graph["sim"] and "sim.step" in graph["sim"]
+    assert "sim.scene" in graph["sim"] and "sim.step" in graph["sim"]
     assert "policies.tasks.registry" in graph["policies.vec_env"]  # relative `from .tasks.registry import ...`
     assert "policies.vec_env" in graph["policies.tasks"]  # inside a function (gymnasium's vector entry point)
-    assert "sim.support.atomicio" in graph["workbench.export"]  # `from sim.support import atomicio`: a submodule
+    assert "sim.support.atomicio" in graph["policies.recording.export"]  # `from sim.support import atomicio`: a submodule
 
 
 def test_import_graph_has_no_cycle():
@@ -234,12 +234,68 @@ if __name__ == "__main__":  # report: the cycles and the function-level project 
         print("  ", line)
 
 
-# packages whose modules are their own: code outside imports the package's public face (its __init__) only
-FACES = ("policies.learning",)
+# Public faces: code outside a face's scope imports the face (its __init__), never a module behind it. The scope is
+# the package whose own modules may still import those modules directly (sim's kernels import sim.geometry.vec3).
+FACES = {"policies.learning": "policies.learning", "policies.recording": "policies.recording",
+         "workbench.session": "workbench.session", "workbench.view": "workbench.view",
+         "workbench.panels": "workbench.panels", "workbench.serve": "workbench.serve",
+         "sim": "sim", "sim.scene": "sim", "sim.geometry": "sim", "sim.analysis": "sim", "sim.contact": "sim",
+         "sim.kernels": "sim", "sim.energies": "sim"}
+# modules anyone may import: the support layer's helpers, one module each (sim/support/__init__.py)
+OPEN = ("sim.support",)
+
+
+def _inside(mod: str, pkg: str) -> bool:
+    return mod == pkg or mod.startswith(pkg + ".")
+
+
+def face_violations(graph: dict[str, dict[str, int]]) -> list[str]:
+    """'importer (line) imports module: use the face' for every import of a module behind a face from outside its
+    scope. A target that is itself a face (or under OPEN) is fine."""
+    bad = []
+    for mod, edges in graph.items():
+        for tgt, line in edges.items():
+            if tgt in FACES or any(_inside(tgt, o) for o in OPEN):
+                continue
+            faces = [f for f in FACES if tgt.startswith(f + ".")]
+            if not faces:
+                continue
+            face = max(faces, key=len)  # the nearest face in front of the module
+            if not _inside(mod, FACES[face]):
+                bad.append(f"{mod} (line {line}) imports {tgt}: use `from {face} import ...`")
+    return bad
 
 
 def test_packages_are_used_through_their_public_face():
-    bad = [f"{mod} (line {line}) imports {tgt}: use `from {face} import ...`"
-           for mod, edges in import_graph().items() for tgt, line in edges.items() for face in FACES
-           if tgt.startswith(face + ".") and not (mod == face or mod.startswith(face + "."))]
+    bad = face_violations(import_graph())
+    assert not bad, "\n".join(bad)
+
+
+def test_face_rule_sees_a_private_import():
+    graph = {"workbench.view.scene": {"workbench.session.frame": 3, "workbench.session": 4},
+             "policies.vec_env": {"sim.step": 7, "sim": 8, "sim.support.atomicio": 9, "sim.scene": 10},
+             "sim.kernels.batch": {"sim.geometry.vec3": 5}}
+    assert face_violations(graph) == [
+        "workbench.view.scene (line 3) imports workbench.session.frame: use `from workbench.session import ...`",
+        "policies.vec_env (line 7) imports sim.step: use `from sim import ...`"]
+
+
+# a package's roles, bottom up: a module may import its own role and the ones below it, never one above
+ROLES = {"workbench": ("session", "view", "panels", "serve")}
+
+
+def test_roles_inside_a_package_point_one_way():
+    def role(mod: str) -> tuple[str, int] | None:
+        parts = mod.split(".")
+        order = ROLES.get(parts[0])
+        return (parts[0], order.index(parts[1])) if order and len(parts) > 1 and parts[1] in order else None
+
+    bad = []
+    for mod, edges in import_graph().items():
+        own = role(mod)
+        for tgt, line in edges.items():
+            other = role(tgt)
+            if own and other and own[0] == other[0] and other[1] > own[1]:
+                order = ROLES[own[0]]
+                bad.append(f"{mod} (line {line}) imports {tgt}: {order[own[1]]} sits below {order[other[1]]}")
     assert not bad, "\n".join(bad)

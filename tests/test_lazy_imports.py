@@ -18,7 +18,8 @@ def test_import_sim_loads_no_heavy_modules():
     assert json.loads(out.stdout.strip().splitlines()[-1]) == []
 
 
-FACES = ("sim", "policies", "policies.learning", "policies.recording", "workbench")
+FACES = ("sim", "sim.scene", "sim.geometry", "sim.analysis", "sim.contact", "policies", "policies.learning",
+         "policies.recording", "workbench", "workbench.session", "workbench.view", "workbench.panels", "workbench.serve")
 
 
 def test_every_public_name_of_a_lazy_face_loads_from_its_module():
@@ -36,3 +37,15 @@ def test_every_public_name_of_a_lazy_face_loads_from_its_module():
             assert getattr(importlib.import_module(module), name) is value, (face, name)
         with pytest.raises(AttributeError, match=f"module '{face}' has no attribute 'no_such_name'"):
             pkg.no_such_name  # noqa: B018
+
+
+def test_no_face_name_is_also_a_submodule():
+    """A face's name equal to one of its submodules would be replaced by that module as soon as anything imports
+    the submodule (Python binds a submodule on its package)."""
+    import importlib
+
+    for face in FACES:
+        folder = Path(importlib.import_module(face).__file__).parent
+        clash = sorted(n for n in importlib.import_module(face)._LAZY if (folder / f"{n}.py").exists()
+                       or (folder / n / "__init__.py").exists())
+        assert not clash, (face, clash)

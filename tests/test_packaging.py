@@ -73,7 +73,8 @@ def test_product_modules_read_shipped_data_through_the_resource_function():
     from policies.learning.training_report import PRETRAINED
     from policies.tasks.scenes import ARM_SCENE, scene_path
     from sim.support.assets import asset_path
-    from workbench import cli, files, obstacles
+    from workbench.serve import cli
+    from workbench.session import files, obstacles
 
     assert scene_path(ARM_SCENE) == asset_path("scenes/arm.toml")
     assert scene_path("my/scene.toml") == Path("my/scene.toml")  # the working directory's

@@ -138,7 +138,7 @@ def project(cam, pts: np.ndarray, W: int, H: int) -> np.ndarray:
 def drag_gizmo_x(page, client, origin: np.ndarray, *, scale: float | None = None, dist: float = 0.2) -> None:
     """Drag a transform gizmo at ``origin`` along its +x arrow by roughly ``dist`` metres."""
     if scale is None:
-        from workbench.view_scene import GIZMO_SCALE as scale
+        from workbench.view import GIZMO_SCALE as scale
     box = page.locator("canvas").first.bounding_box()
     W, H = box["width"], box["height"]
     a = origin + np.array([0.73 * scale, 0.0, 0.0])

@@ -1,5 +1,5 @@
 """Frame-rate benchmark of the workbench with a real headless Chromium attached: one env (teleop) and a grid of
-N envs of a task under its shipped policy (``workbench.grid``).
+N envs of a task under its shipped policy (``workbench.session.grid``).
 
     python -m tools.fps_bench [--envs 1,16] [--seconds 10] [--json docs/bench/workbench_fps.json] [SCENE.toml]
 
@@ -22,7 +22,7 @@ from pathlib import Path
 
 from sim.support import atomicio
 from tools.browser import close_toasts, launch, newest_client, wait_for
-from workbench.cli import default_scene
+from workbench.serve import default_scene
 
 RAF_JS = ("() => { window.__raf = 0; const f = () => { window.__raf++; requestAnimationFrame(f); }; "
           "requestAnimationFrame(f); return 0; }")
@@ -51,8 +51,8 @@ def _open_page(browser, app, width: int, height: int, counter: dict):
 
 
 def measure(args, n_envs: int, browser) -> dict:
-    from workbench.app import WorkbenchApp
-    from workbench.core import Workbench
+    from workbench.serve import WorkbenchApp
+    from workbench.session import Workbench
 
     scene = Path(args.scene) if args.scene else default_scene()
     wb = Workbench.from_path(scene) if scene else Workbench.builtin()
@@ -78,7 +78,7 @@ def measure(args, n_envs: int, browser) -> dict:
             def steps() -> int:
                 return wb.frame_index
         else:
-            from workbench.policy_session import shipped_policies
+            from workbench.session import shipped_policies
 
             pol = shipped_policies(args.task)
             app.grid.start(args.task, str(pol[0]) if pol else "zero", n_envs, speed=float("inf"),
@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
         counts = [int(v) for v in args.envs.split(",") if v.strip()]
     except ValueError:
         ap.error(f"--envs {args.envs!r}: give comma-separated integers, e.g. 1,16")
-    from workbench.grid import MAX_ENVS
+    from workbench.session import MAX_ENVS
 
     if not counts or any(not 1 <= n <= MAX_ENVS for n in counts):
         ap.error(f"--envs {args.envs!r}: each count must be in [1, {MAX_ENVS}]")

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from tools.browser import WAIT_MS, close_toasts, expand_folder, launch, open_page, wait_for
-from workbench.cli import default_scene
-from workbench.policy_session import policy_task, shipped_policies
+from workbench.serve import default_scene
+from workbench.session import policy_task, shipped_policies
 
 
 def _shot(page, path: Path) -> None:
@@ -38,8 +38,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from playwright.sync_api import sync_playwright
 
-    from workbench.app import WorkbenchApp
-    from workbench.core import Workbench
+    from workbench.serve import WorkbenchApp
+    from workbench.session import Workbench
 
     rec_dir = Path(tempfile.mkdtemp(prefix="rodlab_shots_"))
     scene = default_scene()

@@ -182,8 +182,8 @@ def main(argv=None) -> int:
     ap.add_argument("--no-read", action="store_true", help="never read what the server sends (a stalled client)")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
-    from workbench.app import WorkbenchApp
-    from workbench.core import Workbench
+    from workbench.serve import WorkbenchApp
+    from workbench.session import Workbench
 
     with tempfile.TemporaryDirectory() as tmp:
         app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, wait_for_browser=False,

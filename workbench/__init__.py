@@ -7,15 +7,17 @@ Public surface::
     app = WorkbenchApp(wb, port=8080).start()                 # viser page + real-time sim thread
     app.stop()
 
-``rodlab workbench`` is :func:`workbench.cli.workbench_main`. Names are imported lazily so that
+Packages by role, each used through its ``__init__`` (docs/architecture.md): :mod:`workbench.session` (the state
+without a page), :mod:`workbench.view` (the 3-D scene), :mod:`workbench.panels` (the side panel's tabs),
+:mod:`workbench.serve` (the server, the handshake and ``rodlab workbench``). Names are imported lazily so that
 ``import workbench`` stays cheap.
 """
 from __future__ import annotations
 
 from sim.support.lazy import lazy_face
 
-_LAZY = {"Workbench": "workbench.core", "WorkbenchApp": "workbench.app", "PolicySession": "workbench.policy_session",
-         "ReplaySession": "workbench.replay", "workbench_main": "workbench.cli"}
+_LAZY = {"Workbench": "workbench.session", "PolicySession": "workbench.session", "ReplaySession": "workbench.session",
+         "WorkbenchApp": "workbench.serve", "workbench_main": "workbench.serve"}
 
 __all__ = ["Workbench", "WorkbenchApp", "PolicySession", "ReplaySession", "workbench_main"]
 

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
-from sim.rotations import from_xyzw, quat_yaw
+from sim.geometry import from_xyzw, quat_yaw
 
 from policies.elastica import make_elastica_vec_env
 from policies.learning.sac import PolicyLoadError, load_policy

@@ -1,7 +1,7 @@
 """Events of an episode: the moments worth jumping to on its timeline.
 
 One detector serves recorded episodes (the recorder writes them beside the scalars they come from, as text at
-``events``, so the rerun viewer lists them) and the workbench's live history (``workbench.events``): per-frame
+``events``, so the rerun viewer lists them) and the workbench's live history (``workbench.session.events``): per-frame
 series in, a list of :class:`Event` out, in frame order.
 
 - ``episode start`` / ``episode end``: where an episode begins and ends (recordings: the episode's first and last
@@ -11,7 +11,7 @@ series in, a list of :class:`Event` out, in frame order.
 - ``unconverged``: the first frame of a run of steps whose Newton solve was accepted unconverged (the run's length);
 - ``reward spike``: a reward farther than :data:`SPIKE_MADS` median absolute deviations from the episode's median
   (and than :data:`SPIKE_MIN` from it), e.g. a failure penalty or a bonus;
-- ``pull`` / ``released``: where a hand grabbed the rod and let go (``workbench.pull``);
+- ``pull`` / ``released``: where a hand grabbed the rod and let go (``workbench.session.pull``);
 - ``take-over`` / ``hand back``: where the user took over from the policy and handed back.
 """
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """A recorded episode as measured motion for ``rodlab fit`` (sim-to-sim): the node positions of one episode of a
-rodlab ``.rrd`` recording as the arrays ``sim.fit`` takes, and the ``rodlab fit`` entry that reads ``.rrd`` DATA.
+rodlab ``.rrd`` recording as the arrays ``sim.analysis.calibration`` takes, and the ``rodlab fit`` entry that reads ``.rrd`` DATA.
 
 sim does not import policies (sim <- policies <- workbench), so the recording is read here and handed to
-``sim.fit`` as arrays: ``t (T,)`` [s] the frames' simulated time since reset, ``s (M,)`` [m] each recorded node's
+``sim.analysis.calibration`` as arrays: ``t (T,)`` [s] the frames' simulated time since reset, ``s (M,)`` [m] each recorded node's
 arclength from its rod's first node (along the scene's rest shape when the scene is given, else along the first
 frame), ``pos (T, M, 3)`` [m]. The episode must start from the scene's initial state (t = 0 is the scene's
 ``reset``); frames logged twice at one time (per-sim-step logging) count once.
@@ -46,7 +46,7 @@ def episode_to_measurements(ep: EpisodeData, *, spec: Any = None, rod: int = 0,
     first = np.concatenate([[True], np.diff(t) > 0.0])  # one frame per time
     t, pos = t[first], pos[first]
     if spec is not None:
-        from sim.fit import node_arclength
+        from sim.analysis import node_arclength
 
         s_all, rod_of = node_arclength(spec)
         s = s_all[rod_of == rod]
@@ -63,15 +63,15 @@ def recording_to_measurements(path: str | os.PathLike[str], episode: int = 0, *,
                               rod: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Node positions of episode ``episode`` (its index in the file, as ``rodlab inspect`` lists it) of the .rrd at
     ``path`` as ``(t (T,) [s], s (M,) [m], pos (T, M, 3) [m])`` of rod ``rod``: the arrays of a ``rodlab fit``
-    ``.npz`` (``sim.fit.measurements_from_arrays``). With the scene ``spec``, s is along its rest shape (the s the
+    ``.npz`` (``sim.analysis.calibration.measurements_from_arrays``). With the scene ``spec``, s is along its rest shape (the s the
     fit interpolates at: a recorded node is the scene's node) and the node counts are checked."""
     return episode_to_measurements(_episode(path, episode), spec=spec, rod=rod, where=f"{path}: episode {episode}")
 
 
 def read_rrd_measurements(path: str | os.PathLike[str], spec: Any, *, episode: int = 0):
-    """``sim.fit.load_measurements`` reader of ``.rrd`` DATA: every rod of the scene from episode ``episode``
-    (raises sim.fit.FitError naming the file)."""
-    from sim.fit import FitError, Measurements, measurements_from_arrays
+    """``sim.analysis.calibration.load_measurements`` reader of ``.rrd`` DATA: every rod of the scene from episode ``episode``
+    (raises sim.analysis.calibration.FitError naming the file)."""
+    from sim.analysis import FitError, Measurements, measurements_from_arrays
 
     try:
         ep = _episode(path, episode)
@@ -89,8 +89,8 @@ def read_rrd_measurements(path: str | os.PathLike[str], spec: Any, *, episode: i
 
 
 def fit_main(argv: list[str] | None = None) -> int:
-    """``rodlab fit`` (sim.fit.main) with ``.rrd`` recordings as DATA."""
-    from sim import fit as F
+    """``rodlab fit`` (sim.analysis.fit_command) with ``.rrd`` recordings as DATA."""
+    from sim.analysis import fit_command
 
-    return F.main(argv, readers={".rrd": read_rrd_measurements})
+    return fit_command(argv, readers={".rrd": read_rrd_measurements})
 

@@ -26,9 +26,8 @@ from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
-from sim.contact.mesh import load_mesh_triangles
-from sim.curvature import material_curvature
-from sim.rotations import quat_to_matrix, quat_z_to, to_xyzw
+from sim.contact import load_mesh_triangles
+from sim.geometry import material_curvature, quat_to_matrix, quat_z_to, to_xyzw
 
 from .schema import StaticScene
 
@@ -76,7 +75,7 @@ def task_target(core: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
 
 def scene_from_specs(specs: Any, *, rod_radius: float = 0.05, planar: bool = False,
                      plane_half_size: float = 2.0) -> StaticScene:
-    """StaticScene from ``sim.obstacles`` specs (capsules, spheres, boxes, meshes; a plane is shown as a
+    """StaticScene from ``sim.scene.obstacles`` specs (capsules, spheres, boxes, meshes; a plane is shown as a
     thin square box of half size ``plane_half_size`` [m] centred at its point)."""
     caps, crad, sc, sr, bc, bh, bq, meshes = [], [], [], [], [], [], [], []
     for o in specs or ():

@@ -36,7 +36,7 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 import rerun as rr
 import rerun_bindings
-from sim.rotations import quat_z_to, to_xyzw
+from sim.geometry import quat_z_to, to_xyzw
 
 from . import schema as S
 from .events import LEVELS as EVENT_LEVELS

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 from sim import Simulator, build_model, load_scene
-from sim.obstacles import CapsuleSpec, ContactSpec
+from sim.scene import CapsuleSpec, ContactSpec
 from sim.support.assets import asset_path
 
 __all__ = ["ARM_SCENE", "scene_for", "scene_path", "make_simulator", "set_env_capsules"]

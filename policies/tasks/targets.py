@@ -10,7 +10,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from sim.rotations import matrix_to_quat, to_xyzw, yaw_quat
+from sim.geometry import matrix_to_quat, to_xyzw, yaw_quat
 
 __all__ = ["FollowTargetMotion", "sample_ik_targets", "matrix_to_quat_xyzw", "yaw_quat_xyzw"]
 
@@ -96,5 +96,5 @@ def sample_ik_targets(rng: np.random.Generator, *, lo: Sequence[float], hi: Sequ
 
 def matrix_to_quat_xyzw(R: np.ndarray) -> np.ndarray:
     """Rotation matrices (..., 3, 3) -> scalar-last quaternions (..., 4), SciPy's convention
-    (:func:`sim.rotations.matrix_to_quat`, reordered)."""
+    (:func:`sim.geometry.rotations.matrix_to_quat`, reordered)."""
     return to_xyzw(matrix_to_quat(R))

@@ -42,11 +42,10 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from sim.geometry_distance import closest_seg_seg
+from sim.contact.imc import coulomb_factor, edge_radius, friction_tangent_entry, imc_energy, row3
+from sim.geometry.distance import closest_seg_seg
+from sim.geometry.vec3 import vcross, vdot, vlerp, vsub
 from sim.numba_options import OPT_ALLOC, OPT_CONTACT
-from sim.vec3 import vcross, vdot, vlerp, vsub
-
-from .imc import coulomb_factor, edge_radius, friction_tangent_entry, imc_energy, row3
 
 __all__ = ["allowed_pairs", "model_pairs", "pair_links", "edge_rods", "seg_seg_derivs", "find_candidates", "add_candidates",
            "add_forces", "smallest_gap", "pair_energy", "pair_rows", "update_fraction", "Coupling", "alloc_coupling",

@@ -11,8 +11,8 @@ import math
 
 from numba import njit
 
+from sim.geometry.vec3 import vdot
 from sim.numba_options import OPT_CONTACT
-from sim.vec3 import vdot
 
 __all__ = ["imc_energy", "coulomb_factor", "friction_tangent_entry", "friction_block", "row3", "edge_radius",
            "node_radius"]

@@ -20,7 +20,7 @@ strictly closer. So each local minimum of the distance along the rod is counted 
 Friction (§4.6): smooth Coulomb with lagged ``n`` and ``s`` (no derivatives through them), at every Newton
 iterate, the first one included, as for edge pairs; skipped when ``friction_on`` is False.
 
-``cd`` is the :class:`sim.contact_set.ContactData` namedtuple (:func:`sim.contact_set.contact_data`):
+``cd`` is the :class:`sim.contact.world.ContactData` namedtuple (:func:`sim.contact.world.contact_data`):
 ``(kind (M,), p0 (B,M,3), p1 (B,M,3), rot (B,M,3,3), obstacle_radius (B,M), half (M,3), mesh_root (M,),
 tri (T,3,3), node_lo (K,3), node_hi (K,3), node_child (K,2), node_range (K,2), cand (B,C,2) int64,
 cand_count (B,), broadphase_radius (1,) [m] (the rod's largest radius: the broad phase's inflation), active (B,M)
@@ -45,18 +45,17 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from sim.geometry_distance import (
+from sim.contact.imc import edge_radius, friction_block, imc_energy, node_radius, row3
+from sim.geometry.distance import (
     closest_seg_box,
     closest_seg_point,
     closest_seg_seg,
     closest_seg_triangle,
     dist_derivs,
 )
-from sim.kinds import BOX, CAPSULE, MESH, PLANE, SPHERE
+from sim.geometry.vec3 import vdot, vlerp, vmul, vsub
 from sim.numba_options import OPT, OPT_ALLOC, OPT_CONTACT
-from sim.vec3 import vdot, vlerp, vmul, vsub
-
-from .imc import edge_radius, friction_block, imc_energy, node_radius, row3
+from sim.scene.kinds import BOX, CAPSULE, MESH, PLANE, SPHERE
 
 __all__ = ["find_candidates", "merge_candidates", "smallest_gap", "update_fraction", "node_forces", "contact_rows",
            "ObstacleContact", "alloc", "present", "candidates", "friction_acts", "broadphase", "refresh",

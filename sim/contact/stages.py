@@ -18,9 +18,8 @@ from collections import namedtuple
 
 from numba import njit
 
+from sim.contact import edge_pairs, obstacles
 from sim.numba_options import OPT_ALLOC, OPT_CONTACT
-
-from . import edge_pairs, obstacles
 
 __all__ = ["ContactSets", "alloc", "present", "has_candidates", "friction_acts", "symmetric", "broadphase",
            "refresh", "penetration", "step_limit", "accumulate", "energy", "report"]

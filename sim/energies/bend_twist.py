@@ -11,8 +11,8 @@ import math
 
 from numba import njit
 
+from sim.geometry.vec3 import vadd, vaxpy, vcross, vdot, vmul, vnorm, vsub
 from sim.numba_options import OPT
-from sim.vec3 import vadd, vaxpy, vcross, vdot, vmul, vnorm, vsub
 
 __all__ = ["bend_twist_core", "bend_twist_element", "material_curvatures", "material_directors"]
 

@@ -13,12 +13,11 @@ from numba import njit
 from sim.contact import stages as contact
 from sim.energies.planar import planar_bend_element
 from sim.energies.stretch import stretch_element_2d
-from sim.frames import update_frames
+from sim.geometry.frames import update_frames
+from sim.kernels.data import KL_2D
+from sim.kernels.drag import add_drag
+from sim.kernels.workspace import copy_into
 from sim.numba_options import OPT
-
-from .data import KL_2D
-from .drag import add_drag
-from .workspace import copy_into
 
 __all__ = ["assemble_2d", "energies_2d", "frames_from_2d"]
 

@@ -13,11 +13,10 @@ from numba import njit
 from sim.contact import stages as contact
 from sim.energies.bend_twist import bend_twist_core, material_curvatures, material_directors
 from sim.energies.stretch import stretch_element
-from sim.frames import update_frames
+from sim.geometry.frames import update_frames
+from sim.kernels.data import KL_3D
+from sim.kernels.drag import add_drag
 from sim.numba_options import OPT
-
-from .data import KL_3D
-from .drag import add_drag
 
 __all__ = ["assemble_3d", "energies_3d"]
 

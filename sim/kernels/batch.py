@@ -7,10 +7,9 @@ from __future__ import annotations
 from numba import njit, prange
 
 from sim.contact import stages as contact
+from sim.kernels.ladder import env_step
+from sim.kernels.workspace import alloc_workspace
 from sim.numba_options import OPT, OPT_ALLOC
-
-from .ladder import env_step
-from .workspace import alloc_workspace
 
 __all__ = ["step_kernel"]
 
@@ -40,7 +39,7 @@ def step_kernel(state, ctl, rod, prm_arr, cd, crep, out):
     """Advance all non-failed envs of ``state`` (:class:`sim.kernels.data.StateArrays`, dof/vel (B, n)) by
     prm.dt under ``ctl`` (:class:`sim.kernels.data.ControlArrays`) with the rod ``rod``
     (:class:`sim.kernels.data.RodData`), the parameters ``prm_arr`` (:meth:`sim.kernels.data.Params.record`) and
-    the obstacles ``cd`` (:class:`sim.contact_set.ContactData`, joined per chunk of envs with the contact
+    the obstacles ``cd`` (:class:`sim.contact.world.ContactData`, joined per chunk of envs with the contact
     implementations' scratch into a :class:`sim.contact.ContactSets`); per-env results into ``out``
     (:class:`sim.kernels.data.StepOutput`) and the contact rows ``crep`` (:class:`sim.kernels.data.ContactReport`)."""
     dof, vel, ref_d1, tangent, ref_twist = state.dof, state.vel, state.ref_d1, state.tangent, state.ref_twist

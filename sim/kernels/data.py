@@ -15,8 +15,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from sim.contact.edge_pairs import model_pairs, pair_links
-from sim.contact_set import contact_radii
-from sim.model import planar_nodes
+from sim.contact.world import contact_radii
+from sim.scene.model import planar_nodes
 
 __all__ = ["LineSearch", "Params", "PARAMS_DTYPE", "RodData", "StateArrays", "ControlArrays", "StepOutput",
            "ContactReport", "OK", "NON_FINITE", "RESIDUAL_GROWTH", "BAD_PIVOT", "UNCONVERGED", "STRAIN",

@@ -9,12 +9,11 @@ import numpy as np
 from numba import njit
 
 from sim.contact import stages as contact
+from sim.kernels.assemble_2d import frames_from_2d
+from sim.kernels.data import OK
+from sim.kernels.newton import energies, positions, predicted_positions, substep
+from sim.kernels.workspace import copy_into
 from sim.numba_options import OPT
-
-from .assemble_2d import frames_from_2d
-from .data import OK
-from .newton import energies, positions, predicted_positions, substep
-from .workspace import copy_into
 
 __all__ = ["env_step", "guard_score"]
 

@@ -1,4 +1,4 @@
-"""The linearisation of recorded steps for their derivatives (sim.gradients; docs/physics.md §3.9), all envs of a step
+"""The linearisation of recorded steps for their derivatives (sim.analysis.gradients; docs/physics.md §3.9), all envs of a step
 in one parallel call.
 
 Per env: the full band of ∂f/∂x' at the step's solution with no DOF constrained; in 3-D its position columns by
@@ -14,11 +14,10 @@ import numpy as np
 from numba import njit, prange
 
 from sim.contact import stages as contact
+from sim.kernels.data import KL_2D, KL_3D
+from sim.kernels.newton import assemble
+from sim.kernels.workspace import alloc_workspace, copy_into
 from sim.numba_options import OPT_ALLOC
-
-from .data import KL_2D, KL_3D
-from .newton import assemble
-from .workspace import alloc_workspace, copy_into
 
 __all__ = ["linearise_step"]
 

@@ -29,13 +29,11 @@ import numpy as np
 from numba import njit
 
 from sim.contact import stages as contact
-from sim.frames import update_frames
-from sim.numba_options import OPT
-
-from .assemble_2d import assemble_2d, energies_2d
-from .assemble_3d import assemble_3d, energies_3d
-from .banded import band_ldl_apply, band_ldl_factor, band_lu_apply, band_lu_factor, dense_lu_solve
-from .data import (
+from sim.geometry.frames import update_frames
+from sim.kernels.assemble_2d import assemble_2d, energies_2d
+from sim.kernels.assemble_3d import assemble_3d, energies_3d
+from sim.kernels.banded import band_ldl_apply, band_ldl_factor, band_lu_apply, band_lu_factor, dense_lu_solve
+from sim.kernels.data import (
     BAD_PIVOT,
     KL_2D,
     KL_3D,
@@ -47,7 +45,8 @@ from .data import (
     UNCONVERGED,
     LineSearch,
 )
-from .workspace import copy_into
+from sim.kernels.workspace import copy_into
+from sim.numba_options import OPT
 
 __all__ = ["newton", "substep", "substep_with", "mech_energy", "assemble", "energies", "positions",
            "predicted_positions", "linear_solve", "jacobian_symmetric", "midpoint_gained_energy"]

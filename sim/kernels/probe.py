@@ -1,13 +1,12 @@
-"""The step's residual and Jacobian at a given iterate, for analysis outside the step (sim.gradients)."""
+"""The step's residual and Jacobian at a given iterate, for analysis outside the step (sim.analysis.gradients)."""
 from __future__ import annotations
 
 from numba import njit
 
 from sim.contact import stages as contact
+from sim.kernels.newton import assemble
+from sim.kernels.workspace import alloc_workspace, copy_into
 from sim.numba_options import OPT_ALLOC
-
-from .newton import assemble
-from .workspace import alloc_workspace, copy_into
 
 __all__ = ["assemble_at"]
 

@@ -17,9 +17,8 @@ import numpy as np
 from numba import njit
 
 from sim.contact.edge_pairs import alloc_coupling
+from sim.kernels.data import KL_2D, KL_3D
 from sim.numba_options import OPT, OPT_ALLOC
-
-from .data import KL_2D, KL_3D
 
 __all__ = ["Workspace", "alloc_workspace", "copy_into"]
 

@@ -35,7 +35,7 @@ def test_capstan_holds():
 
 
 def test_buckled_column_matches_the_elastica():
-    """tests/sim/test_static_stability.py: the tip within 1e-3 L' of the elastica, from 2 negative directions
+    """tests/sim/analysis/test_static_stability.py: the tip within 1e-3 L' of the elastica, from 2 negative directions
     to none."""
     (row,) = am.buckled_column()
     assert abs(row["value"]) < 1e-3

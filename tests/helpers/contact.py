@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim.contact.obstacles import contact_rows, find_candidates, node_forces
-from sim.contact_set import (
+from sim.contact.world import (
     ObstacleGeometry,
     ObstacleWorld,
     SpecPoses,
@@ -35,7 +35,7 @@ def law(*, k=K, delta=DELTA, mu=0.0, nu=1e-2):
 class Obstacles:
     """Obstacles of ``envs`` envs outside a Simulator, through the production route: geometry, the State's pose
     arrays (at the spec poses), the world arrays derived from them and the kernels' ContactData
-    (``sim.contact_set.contact_data``). Pose edits go through the same functions as ``Simulator.set_obstacle_pose``
+    (``sim.contact.world.contact_data``). Pose edits go through the same functions as ``Simulator.set_obstacle_pose``
     and ``set_capsules`` and re-derive the world arrays the ContactData holds."""
 
     def __init__(self, specs, n_nodes: int, *, rod_radius=R_ROD, envs: int = 1):

@@ -1,4 +1,4 @@
-"""Synthetic measurements for the fit tests (sim.fit and the workbench's Fit tab): made by rodlab at known
+"""Synthetic measurements for the fit tests (sim.analysis.calibration and the workbench's Fit tab): made by rodlab at known
 unknowns plus NOISE_M Gaussian noise, and written as the measurement CSV `rodlab fit` reads."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sim import fit as F
+from sim.analysis import calibration as F
 
 NOISE_M = 1e-3
 

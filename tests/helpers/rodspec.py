@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from sim.scene import RodSpec, SceneSpec, SimSpec
+from sim.scene.spec import RodSpec, SceneSpec, SimSpec
 
 
 def make_spec(*, nodes=11, length=1.0, radius=0.02, density=1000.0, E=1e6, nu=0.5, start=(0.0, 0.0, 0.0),

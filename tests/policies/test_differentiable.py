@@ -1,4 +1,4 @@
-"""A rollout as a torch function (policies.differentiable): its gradient is the adjoint of sim.gradients and matches
+"""A rollout as a torch function (policies.differentiable): its gradient is the adjoint of sim.analysis.gradients and matches
 central differences; a torch optimiser uses it to bend a rod's tip onto a target."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from policies.differentiable import DifferentiableRollout
-from sim.model import build_model
+from sim.scene.model import build_model
 from sim.step import Simulator
 from tests.helpers.rodspec import make_spec
 

@@ -9,7 +9,7 @@ import pytest
 
 import policies
 from policies import SB3VecEnvAdapter, make_vec_env
-from sim.scene import SceneError
+from sim.scene.spec import SceneError
 
 
 def _batch_vs_single(tid, B, steps, seed=11, **kw):

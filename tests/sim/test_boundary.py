@@ -1,4 +1,4 @@
-"""[[load]] and [[fix]] tables (sim.boundary): parsing, errors naming the key, dump round trip, constrained DOFs,
+"""[[load]] and [[fix]] tables (sim.scene.boundary): parsing, errors naming the key, dump round trip, constrained DOFs,
 per-env load windows and prescribed motion through the Simulator."""
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from sim import Simulator, build_model, dump_scene, load_scene, parse_scene
-from sim.boundary import FixSpec, LoadSpec
-from sim.scene import SceneError, scene_to_toml
+from sim.scene.boundary import FixSpec, LoadSpec
+from sim.scene.spec import SceneError, scene_to_toml
 from tests.helpers.rodspec import make_spec
 
 BASE = """

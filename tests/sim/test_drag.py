@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from sim import Simulator, build_model, parse_scene
-from sim.boundary import DragSpec, LineLoadSpec
-from sim.gradients import GradientError, rollout
-from sim.scene import SceneError, scene_to_toml
-from sim.static import solve_static
+from sim.analysis.gradients import GradientError, rollout
+from sim.analysis.static import solve_static
+from sim.scene.boundary import DragSpec, LineLoadSpec
+from sim.scene.spec import SceneError, scene_to_toml
 from tests.helpers.rodspec import make_spec
 
 R, E, L = 0.01, 1e6, 0.5

@@ -12,7 +12,7 @@ import pytest
 from sim.energies.bend_twist import bend_twist_element
 from sim.energies.planar import planar_bend_element
 from sim.energies.stretch import stretch_element, stretch_element_2d
-from sim.frames import initial_reference_frames, reference_twist, transport
+from sim.geometry.frames import initial_reference_frames, reference_twist, transport
 
 
 def _bt_energy(q, d1o, to, beta_o, params, with_hess=False):

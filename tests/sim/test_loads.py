@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from sim import Simulator, build_model
-from sim.boundary import FixSpec, LineLoadSpec, LoadSpec
-from sim.gradients import GradientError, rollout
-from sim.static import solve_static
+from sim.analysis.gradients import GradientError, rollout
+from sim.analysis.static import solve_static
+from sim.scene.boundary import FixSpec, LineLoadSpec, LoadSpec
 from tests.helpers.rodspec import make_spec
 from tests.helpers.statics import elastica_tip, static_solve, turning_angles_xz
 
@@ -120,7 +120,7 @@ def test_tip_torque_twists_the_rod_linearly():
 
 
 def _relaxed(spec):
-    """(model, state) at the static equilibrium of ``spec`` (sim.static: moments and follower loads evaluated at
+    """(model, state) at the static equilibrium of ``spec`` (sim.analysis.static: moments and follower loads evaluated at
     each pseudo-time step's start, so the rest state is their exact equilibrium)."""
     sim = Simulator(build_model(spec), envs=1)
     state, ctrl = sim.reset(), sim.make_control()

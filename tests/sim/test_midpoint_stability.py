@@ -84,7 +84,7 @@ def test_cli_summary_reports_fallbacks(tmp_path, capsys):
     """`rodlab sim` prints the count of fallbacks for a midpoint scene (a rod swinging under gravity: none), and
     nothing about them for backward Euler."""
     from sim.cli import sim_main
-    from sim.scene import scene_to_toml
+    from sim.scene.spec import scene_to_toml
 
     doc = _free_rod("midpoint")
     doc["rod"] = dict(ROD, clamp="first_edge", direction=[1.0, 0.0, 0.0])

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from sim import Simulator, build_model
-from sim.boundary import FixSpec, LoadSpec
-from sim.scene import parse_scene, scene_to_toml
-from sim.tomlio import SceneError
+from sim.scene.boundary import FixSpec, LoadSpec
+from sim.scene.spec import parse_scene, scene_to_toml
+from sim.scene.tomlio import SceneError
 from tests.helpers.rodspec import make_spec, small_scene_toml
 from tests.helpers.statics import static_solve
 

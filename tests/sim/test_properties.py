@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from sim.energies.bend_twist import bend_twist_element, material_curvatures
 from sim.energies.planar import planar_bend_element
 from sim.energies.stretch import stretch_element
-from sim.frames import initial_reference_frames
+from sim.geometry.frames import initial_reference_frames
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from sim import Simulator, build_model, dump_scene, load_scene, parse_scene
-from sim.scene import SceneError, rest_shape_fields
+from sim.scene.spec import SceneError, rest_shape_fields
 from tests.helpers.rodspec import make_spec
 
 HEAD = """

@@ -11,8 +11,8 @@ import pytest
 
 from benchmarks.throughput_pairs import two_rod_doc
 from sim import Simulator, build_model
-from sim.geometry_distance import closest_seg_seg
-from sim.scene import parse_scene
+from sim.geometry.distance import closest_seg_seg
+from sim.scene.spec import parse_scene
 
 R = 0.01
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from sim import Simulator, build_model
-from sim.scene import parse_scene
+from sim.scene.spec import parse_scene
 
 THETA = math.radians(15.0)
 G = 9.81

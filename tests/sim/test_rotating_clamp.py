@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from sim import FixSpec, Simulator, build_model, parse_scene
-from sim.gradients import GradientError, rollout
-from sim.rotations import matrix_from_rotvec as rotation_matrix
-from sim.scene import SceneError, scene_to_toml
+from sim.analysis.gradients import GradientError, rollout
+from sim.geometry.rotations import matrix_from_rotvec as rotation_matrix
+from sim.scene.spec import SceneError, scene_to_toml
 from tests.helpers.rodspec import make_spec
 
 

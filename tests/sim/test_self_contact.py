@@ -10,7 +10,7 @@ import pytest
 
 from sim import Simulator, build_model, parse_scene
 from sim.contact.edge_pairs import model_pairs
-from sim.geometry_distance import closest_seg_seg
+from sim.geometry.distance import closest_seg_seg
 
 RADIUS = 0.02
 DELTA = 2e-3

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from sim import Simulator, build_model, dump_scene, load_scene
-from sim.boundary import FixSpec, LoadSpec
-from sim.scene import SceneError, rest_shape_fields
+from sim.scene.boundary import FixSpec, LoadSpec
+from sim.scene.spec import SceneError, rest_shape_fields
 from tests.helpers.rodspec import make_spec, small_scene_toml
 
 REPO = Path(__file__).resolve().parents[2]

@@ -1,5 +1,5 @@
 """Hardening, `rodlab sim`: unwritable --out refused before the simulation, --duration inf refused, progress bar
-on request, and a warning when the rod starts inside an obstacle (sim/scene_check.py)."""
+on request, and a warning when the rod starts inside an obstacle (sim/scene/check.py)."""
 from __future__ import annotations
 
 import numpy as np
@@ -7,7 +7,7 @@ import pytest
 
 from sim import build_model, load_scene
 from sim.cli import sim_main
-from sim.scene_check import rod_obstacle_overlaps
+from sim.scene.check import rod_obstacle_overlaps
 
 ARM = "assets/scenes/arm.toml"
 SPHERE_IN_ROD = '\n[[obstacle]]\ntype = "sphere"\nname = "ball"\ncenter = [0.0, 0.0, 0.5]\nradius = 0.1\n'

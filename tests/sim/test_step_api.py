@@ -1,6 +1,6 @@
 """Simulator API: control validation, control helpers, reset_envs, material frames, State properties; NaN state
 never stays in the state or StepStats, dtypes/None give errors naming the field, reset_envs takes integer indices
-(sim/validate.py; docs/conventions.md "Input bounds")."""
+(sim/scene/validate.py; docs/conventions.md "Input bounds")."""
 from __future__ import annotations
 
 import warnings

@@ -11,7 +11,7 @@ import pytest
 
 import sim.step as sim_step
 from sim import Simulator, build_model, load_scene
-from sim.boundary import LoadSpec
+from sim.scene.boundary import LoadSpec
 from sim.support.assets import asset_path
 
 

@@ -37,8 +37,8 @@ def browser():
 
 
 def make_app(wb=None, **kw):
-    from workbench.app import WorkbenchApp
-    from workbench.core import Workbench
+    from workbench.serve.app import WorkbenchApp
+    from workbench.session.core import Workbench
 
     wb = wb if wb is not None else Workbench.builtin()
     return WorkbenchApp(wb, port=0, env_map=False, **kw).start()
@@ -75,7 +75,7 @@ def wb_page(shared):
     app.request_render()
     app.thread.error = None
     yield app, page
-    # the real page only ever sends the message types the server accepts (workbench.gui_guard.PAGE_MESSAGES)
+    # the real page only ever sends the message types the server accepts (workbench.panels.guard.PAGE_MESSAGES)
     assert app.messages.refused == [], f"the page sent refused message types: {app.messages.refused}"
     # and nothing failed in the stepping thread (it shows the error in the page and pauses: never in a test)
     assert app.thread.error is None, f"the stepping thread failed: {app.thread.error!r}"

@@ -7,7 +7,7 @@ import pytest
 
 from policies.recording import Recorder, read_recording
 from policies.recording.probe import TaskProbe, integrated_twist
-from sim.curvature import material_curvature
+from sim.geometry.curvature import material_curvature
 
 F32 = dict(rtol=1e-6, atol=1e-6)
 TASKS = ["follow_target", "follow_target_2d", "ik4d", "tight_obstacles_2d", "random_obstacles_3d"]

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from sim.contact.imc import friction_block, imc_energy
-from sim.obstacles import BoxSpec, CapsuleSpec, MeshSpec, PlaneSpec, SphereSpec
+from sim.scene.obstacles import BoxSpec, CapsuleSpec, MeshSpec, PlaneSpec, SphereSpec
 from tests.helpers.contact import DELTA, R_ROD, K, accumulate, fd_check, make_set, place_at_gap, report
 from tests.helpers.paths import REPO
 

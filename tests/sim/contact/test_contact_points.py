@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from test_contact_derivatives import CASES
 
-from sim.obstacles import PlaneSpec, quat_to_matrix
+from sim.scene.obstacles import PlaneSpec, quat_to_matrix
 from tests.helpers.contact import R_ROD, make_set, place_at_gap, report
 
 ALL = dict(CASES, plane=([PlaneSpec((0.0, 0.0, 0.1), (0.0, 0.6, 0.8))], [[0.0, 0.3, 0.5], [0.2, 0.3, 0.55]]))

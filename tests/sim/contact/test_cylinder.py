@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from sim.contact.obstacles import find_candidates
-from sim.obstacles import CapsuleSpec, CylinderSpec, dump_obstacles, parse_obstacles
-from sim.tomlio import SceneError
+from sim.scene.obstacles import CapsuleSpec, CylinderSpec, dump_obstacles, parse_obstacles
+from sim.scene.tomlio import SceneError
 from tests.helpers.contact import R_ROD, make_set, report
 
 CYL = dict(type="cylinder", start=[0.0, 0.0, 0.0], end=[0.0, 0.0, 0.4], radius=0.1, friction=0.3)

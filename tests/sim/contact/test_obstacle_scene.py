@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sim import Simulator, build_model
-from sim.obstacles import (
+from sim.scene.obstacles import (
     BoxSpec,
     CapsuleSpec,
     ContactSpec,
@@ -21,7 +21,7 @@ from sim.obstacles import (
     parse_obstacles,
     quat_to_matrix,
 )
-from sim.scene import SceneError, dump_scene, load_scene
+from sim.scene.spec import SceneError, dump_scene, load_scene
 from tests.helpers.contact import accumulate, make_set
 from tests.helpers.paths import REPO
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from sim import Simulator, build_model, parse_scene
-from sim.obstacles import ContactSpec, dump_contact, parse_contact
-from sim.tomlio import SceneError
+from sim.scene.obstacles import ContactSpec, dump_contact, parse_contact
+from sim.scene.tomlio import SceneError
 from tests.helpers.paths import REPO
 
 SCENE_PATH = str(REPO / "assets" / "scenes" / "_test.toml")

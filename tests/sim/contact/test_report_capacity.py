@@ -7,7 +7,7 @@ import numpy as np
 
 from sim import Simulator, build_model, parse_scene
 from sim.cli import sim_main
-from sim.contact_set import REPORT_CAPACITY
+from sim.contact.world import REPORT_CAPACITY
 from sim.support.assets import asset_path
 from tests.helpers.contact import FLOOR_DOC, FLOOR_NODES
 

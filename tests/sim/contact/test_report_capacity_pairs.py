@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from sim import Simulator, build_model, parse_scene
-from sim.contact_set import PAIR_REPORT_CAPACITY
+from sim.contact.world import PAIR_REPORT_CAPACITY
 
 R = 0.01
 SUPPORTS = 40  # fixed rods across the resting rod, 7.5 mm apart: one crossing each

@@ -1,4 +1,4 @@
-"""The page's callback pool (``workbench.gui_guard``): one call of each callback at a time, at most one waiting
+"""The page's callback pool (``workbench.panels.guard``): one call of each callback at a time, at most one waiting
 (with the newest arguments), the waiting one started when the running one returns; different callbacks still run
 side by side, and an exception is reported without stopping what waits."""
 from __future__ import annotations
@@ -7,7 +7,7 @@ import threading
 from concurrent.futures import ThreadPoolExecutor
 
 from tools.browser import wait_for
-from workbench.gui_guard import _GuardedExecutor
+from workbench.panels.guard import _GuardedExecutor
 
 
 def _pool(errors: list):

@@ -17,8 +17,8 @@ from websockets.sync.client import connect
 
 from tests.helpers.paths import REPO
 from tools.hostile_client import HostileClient
-from workbench.cli import workbench_main
-from workbench.handshake import BindError, check_bindable
+from workbench.serve.cli import workbench_main
+from workbench.serve.handshake import BindError, check_bindable
 
 PROTO = f"viser-v{viser.__version__}"
 
@@ -40,8 +40,8 @@ def raw_request(port: int, host: str, *, origin: str | None = None, websocket: b
 
 @pytest.fixture(scope="module")
 def app(tmp_path_factory):
-    from workbench.app import WorkbenchApp
-    from workbench.core import Workbench
+    from workbench.serve.app import WorkbenchApp
+    from workbench.session.core import Workbench
 
     a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, scenes_dir=tmp_path_factory.mktemp("scenes"))
     yield a
@@ -86,8 +86,8 @@ def test_a_real_client_with_its_own_origin_connects(app):
 
 
 def test_non_loopback_bind_needs_the_token():
-    from workbench.app import WorkbenchApp
-    from workbench.core import Workbench
+    from workbench.serve.app import WorkbenchApp
+    from workbench.session.core import Workbench
 
     a = WorkbenchApp(Workbench.builtin(), host="0.0.0.0", port=0, env_map=False)
     try:
@@ -146,7 +146,7 @@ def test_server_refuses_to_run_unguarded(monkeypatch):
     workbench then refuses to serve instead of serving unchecked."""
     import viser
 
-    from workbench.handshake import Guard, HandshakeGuardMissing, start_viser
+    from workbench.serve.handshake import Guard, HandshakeGuardMissing, start_viser
 
     class ServerWithoutServe:
         def __init__(self, **_kw):

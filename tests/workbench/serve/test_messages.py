@@ -13,7 +13,7 @@ from viser import _messages as vm
 
 from tests.helpers.paths import REPO
 from tools.hostile_client import HostileClient
-from workbench.gui_guard import PAGE_MESSAGES, REFUSED_CLOSE_CODE
+from workbench.panels.guard import PAGE_MESSAGES, REFUSED_CLOSE_CODE
 
 
 class TunnelMarker:
@@ -53,8 +53,8 @@ def tunnel_marker(monkeypatch):
 
 @pytest.fixture(scope="module")
 def app(tmp_path_factory):
-    from workbench.app import WorkbenchApp
-    from workbench.core import Workbench
+    from workbench.serve.app import WorkbenchApp
+    from workbench.session.core import Workbench
 
     a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, scenes_dir=tmp_path_factory.mktemp("scenes"),
                      recordings_dir=tmp_path_factory.mktemp("recordings"))

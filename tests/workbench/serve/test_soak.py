@@ -22,12 +22,12 @@ HISTORY_BYTES = 4 * 2**20  # the rewind history's bound in this session
 
 @pytest.fixture
 def app(tmp_path):
-    from workbench.app import WorkbenchApp
-    from workbench.core import Workbench
+    from workbench.serve.app import WorkbenchApp
+    from workbench.session.core import Workbench
 
     wb = Workbench.builtin()
-    # the rewind history grows by design up to its bound (workbench.history.MAX_BYTES, 200 MB; tested in
-    # tests/workbench/test_core.py), filling over minutes at the session's frame rate: kept small here, it is full
+    # the rewind history grows by design up to its bound (workbench.session.history.MAX_BYTES, 200 MB; tested in
+    # tests/workbench/session/test_core.py), filling over minutes at the session's frame rate: kept small here, it is full
     # within the warm-up and what the soak watches is growth beyond the designed bounds
     wb.history.max_bytes = HISTORY_BYTES
     a = WorkbenchApp(wb, port=0, env_map=False, wait_for_browser=False,

@@ -9,7 +9,7 @@ import pytest
 
 from tools.browser import wait_for
 from tools.hostile_client import HostileClient
-from workbench.gui_guard import MAX_TEXT, value_problem
+from workbench.panels.guard import MAX_TEXT, value_problem
 
 
 @pytest.mark.parametrize("current, value, ok", [
@@ -28,8 +28,8 @@ def test_value_problem_by_kind(current, value, ok):
 
 
 def _start_app(tmp_path_factory):
-    from workbench.app import WorkbenchApp
-    from workbench.core import Workbench
+    from workbench.serve.app import WorkbenchApp
+    from workbench.session.core import Workbench
 
     return WorkbenchApp(Workbench.builtin(), port=0, env_map=False, wait_for_browser=False,
                         scenes_dir=tmp_path_factory.mktemp("scenes"),

@@ -18,15 +18,15 @@ from tests.helpers.paths import REPO
 from tests.helpers.payloads import rodlab_zip, sb3_zip
 from tools.browser import wait_for
 from tools.hostile_client import HostileClient
-from workbench.coloring import QUANTITIES
+from workbench.session.coloring import QUANTITIES
 
 DEFAULT = REPO / "assets" / "scenes" / "default.toml"
 
 
 @pytest.fixture(scope="module")
 def env(tmp_path_factory):
-    from workbench.app import WorkbenchApp
-    from workbench.core import Workbench
+    from workbench.serve.app import WorkbenchApp
+    from workbench.session.core import Workbench
 
     root = tmp_path_factory.mktemp("wb")
     (root / "scenes").mkdir()
@@ -130,7 +130,7 @@ def test_open_recording_only_from_the_list_inside_the_recordings_folder(env):
         rp.file._impl.value = value
         assert rp.open_listed() is None and app.wb.mode != "replay"
         wait_for(lambda: rp.file.value == "junk.rrd", what="value put back")
-    from workbench.files import FileAccessError
+    from workbench.session.files import FileAccessError
 
     for rel in ("../outside.rrd", str(outside), "a/../../outside.rrd"):
         with pytest.raises(FileAccessError):
@@ -197,7 +197,7 @@ def test_policy_path_from_the_page_is_never_loaded(env, tmp_path):
         assert app.wb.policy is None and not marker.exists()
     # the workbench's own policy loading refuses them too (no unpickling)
     from policies.learning.sac import PolicyLoadError
-    from workbench.policy_session import PolicySession
+    from workbench.session.policy_session import PolicySession
 
     for payload in (tmp_path / "model.zip", tmp_path / "p.zip"):
         with pytest.raises(PolicyLoadError):
@@ -210,7 +210,7 @@ def test_oversize_upload_is_refused(env):
     ob = app.obstacles
     n = len(app.wb.obstacles)
     big = b"solid x\n" * (200 * 1024)  # 1.6 MB > 1 MB limit
-    from workbench.gui_guard import _CappedUploads
+    from workbench.panels.guard import _CappedUploads
 
     # the limit sits in viser's upload bookkeeping (fails if viser's internals change): refused before the
     # bytes are collected, not only after
@@ -236,9 +236,9 @@ def test_oversize_upload_is_refused(env):
 
 
 def test_small_upload_goes_to_the_per_launch_folder_which_is_removed_on_exit(tmp_path):
-    from workbench.app import WorkbenchApp
-    from workbench.core import Workbench
-    from workbench.obstacles import MESH_DIR
+    from workbench.serve.app import WorkbenchApp
+    from workbench.session.core import Workbench
+    from workbench.session.obstacles import MESH_DIR
 
     app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, scenes_dir=tmp_path / "s")
     up = app.files.uploads

@@ -1,0 +1,414 @@
+"""Derivatives of a rollout by the implicit function theorem (docs/physics.md §3.9).
+
+A backward-Euler step solves f(x'; x, u, frames, κ̄, τ̄, θ) = 0 for the new DOFs x'. At the solution,
+J δx' = −(∂f/∂s δs + ∂f/∂p δp), J = ∂f/∂x' the Newton Jacobian, s the step-start state, p the controls and
+parameters; u' = (x' − x)/h. Chained over the steps this gives the tangent (forward) mode :meth:`Tape.jvp` and,
+transposed, the adjoint (reverse) mode :meth:`Tape.vjp`.
+
+* ∂f/∂p: the residual is affine in every parameter differentiated here (κ̄, τ̄, the stiffness scales, the mass
+  scale, damping, gravity), so its column is the difference of two residual evaluations of the step's own
+  element kernels, exact up to rounding (no step size).
+* 3-D frames: the residual depends on the step-start reference frames only through one angle per edge (turning a
+  reference director about its tangent is the same as turning the material frame, i.e. adding to θ). The state
+  carried through the steps is (x, u, φ): φ the angle by which each edge's reference director is turned. Time-
+  parallel transport adds φ' = φ + k·(δt + δt') per edge, k = (t' × t)/(1 + t·t') (the holonomy of the transport).
+* J: exact in 2-D. In 3-D the Newton Jacobian leaves out how the transported frames turn with the new positions;
+  its θ columns are kept and its position columns replaced by central differences of the residual (~1e-9).
+
+The derivatives are of the backward-Euler map the Newton iterate satisfies; a step that ended unconverged
+(``accept_unconverged``) is differentiated as if it had converged (:attr:`Tape.unconverged` counts them). Not
+covered yet (a clear :class:`GradientError`): contact, implicit midpoint, prescribed motion, viscous drag, steps
+that took the retry ladder (sub-steps).
+
+Parameters (keys of the tangent / gradient dicts):
+
+    dof0, vel0          (B, n)        the initial DOFs (3-D: the stored frames follow by parallel transport)
+                                      and their velocities
+    kappa_bar           (T, B, N, 2)  the natural curvature of every step (2-D: column 0)
+    tau_bar             (T, B, N)     the natural twist of every step (3-D)
+    log_youngs_modulus  (B,)          ln of a factor on every stretching and bending stiffness
+    log_shear_modulus   (B,)          ln of a factor on every twisting stiffness
+    log_density         (B,)          ln of a factor on every mass (and weight)
+    damping             (B,)          the viscous damping rate [1/s]
+    gravity             (B, 3)        the gravity vector [m/s²]
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from sim.contact.world import spec_contact_data
+from sim.kernels.data import KL_2D, KL_3D
+from sim.kernels.linearise import linearise_step
+
+__all__ = ["GradientError", "Tape", "rollout", "PARAMETERS"]
+
+PARAMETERS = ("dof0", "vel0", "kappa_bar", "tau_bar", "log_youngs_modulus", "log_shear_modulus", "log_density",
+              "damping", "gravity")
+
+
+class GradientError(ValueError):
+    """A rollout or a request the derivatives do not cover, with what and where."""
+
+
+def _dense(ab: np.ndarray, n: int, kl: int) -> np.ndarray:
+    """The (..., n, n) matrices of full bands (..., n + kl, 2 kl + 1), ab[r, kl + c − r] = J[r, c]."""
+    J = np.zeros(ab.shape[:-2] + (n, n))
+    for d in range(2 * kl + 1):
+        off = d - kl
+        r = np.arange(max(0, -off), min(n, n - off))
+        J[..., r, r + off] = ab[..., r, d]
+    return J
+
+
+_SCALARS = ("log_youngs_modulus", "log_shear_modulus", "log_density", "damping")
+_CACHE_BYTES = 256 * 2**20  # linearisations kept for further passes while they fit in this
+
+
+@dataclasses.dataclass
+class _Lin:
+    """All envs' step linearised at its solution: J (B, n, n) (constrained DOFs: identity); the start-state columns
+    Fx, Fu (n,) (diagonal); frame maps G (B, n, E) (∂f/∂φ), a, b (B, E, n) (φ' = φ + a δx + b δx'); parameter
+    columns P (name -> (B, n, k))."""
+
+    J: np.ndarray
+    Fx: np.ndarray
+    Fu: np.ndarray
+    G: np.ndarray | None
+    a: np.ndarray | None
+    b: np.ndarray | None
+    P: dict
+
+    def solve(self, rhs: np.ndarray, *, transpose: bool = False) -> np.ndarray:
+        """J⁻¹ rhs or J⁻ᵀ rhs for every env: rhs (B, n, P)."""
+        J = self.J.transpose(0, 2, 1) if transpose else self.J
+        return np.linalg.solve(J, rhs)
+
+
+@dataclasses.dataclass
+class Tape:
+    """A recorded rollout of ``T`` steps of B envs (see :func:`rollout`): the states before and after every step
+    and the controls each step read. :attr:`unconverged` counts the steps (over envs) that ended unconverged."""
+
+    sim: object
+    dof: np.ndarray  # (T + 1, B, n)
+    vel: np.ndarray  # (T + 1, B, n)
+    ref_d1: np.ndarray  # (T + 1, B, E, 3)
+    tangent: np.ndarray  # (T + 1, B, E, 3)
+    ref_twist: np.ndarray  # (T + 1, B, N)
+    kappa_bar: np.ndarray  # (T, B, N, 2)
+    tau_bar: np.ndarray  # (T, B, N)
+    grav: np.ndarray  # (T, B, n) the external forces (gravity and loads) of each step
+    unconverged: int = 0
+    _lin: dict = dataclasses.field(default_factory=dict, repr=False)
+
+    @property
+    def steps(self) -> int:
+        return self.kappa_bar.shape[0]
+
+    # ------------------------------------------------------------------ linearisation of one step (all envs)
+    def _rods(self, k: int):
+        """The kernels' rod data of step k (each env's external forces; no DOF constrained) and its variants with
+        the stiffness, twisting stiffness or mass doubled."""
+        m = self.sim.model
+        rod = self.sim.kernel_rod._replace(grav=np.ascontiguousarray(self.grav[k]))
+        rod = rod._replace(fixed=np.zeros_like(rod.fixed))
+        weight = np.asarray(m.dof_gravity)[None, :]
+        rod_e = rod._replace(EA=2.0 * rod.EA, EI1=2.0 * rod.EI1, EI2=2.0 * rod.EI2)
+        rod_g = rod._replace(GJ=2.0 * rod.GJ)
+        rod_m = rod._replace(mass=2.0 * rod.mass, grav=np.ascontiguousarray(rod.grav + weight))
+        return rod, rod_e, rod_g, rod_m
+
+    @property
+    def _cd(self):
+        if "cd" not in self._lin:
+            m = self.sim.model
+            self._lin["cd"] = spec_contact_data(m.obstacles, 1, m.node_count, m.edge_radius, candidates=0)
+        return self._lin["cd"]
+
+    def _linear(self, k: int, names: tuple[str, ...]) -> _Lin:
+        lin = self._lin.get(k)
+        if lin is None or any(nm not in lin.P for nm in names if nm != "gravity"):
+            lin = self._linearise(k, names)
+            B, n = self.dof.shape[1], self.dof.shape[2]
+            if len(self._lin) * B * n * n * 8 < _CACHE_BYTES:
+                self._lin[k] = lin
+        return lin
+
+    def _linearise(self, k: int, names: tuple[str, ...]) -> _Lin:
+        sim, m = self.sim, self.sim.model
+        h = m.dt
+        planar = m.mode == "2d"
+        kl = KL_2D if planar else KL_3D
+        B, n = self.dof.shape[1], self.dof.shape[2]
+        N = self.ref_twist.shape[2]
+        E = N - 1
+        want_kb, want_tb = "kappa_bar" in names, "tau_bar" in names
+        want_sc = any(nm in _SCALARS[:3] for nm in names)
+        ab = np.zeros((B, n + kl, 2 * kl + 1))
+        kbc = np.zeros((B, n, N, 2) if want_kb or want_tb else (1, 1, 1, 2))
+        tbc = np.zeros((B, n, N) if want_tb else (1, 1, 1))
+        sc = np.zeros((B, n, 3) if want_sc else (1, 1, 3))
+        rod, rod_e, rod_g, rod_m = self._rods(k)
+        c = np.ascontiguousarray
+        linearise_step(c(self.dof[k]), c(self.vel[k]), c(self.ref_d1[k]), c(self.tangent[k]), c(self.ref_twist[k]),
+                       c(self.dof[k + 1]), c(self.kappa_bar[k]), c(self.tau_bar[k]), h, rod, rod_e, rod_g, rod_m,
+                       sim.kernel_params, self._cd, want_kb, want_tb, want_sc, ab, kbc, tbc, sc)
+        Jf = _dense(ab, n, kl)  # ∂f/∂x' with no DOF constrained
+        fixed = sim.kernel_rod.fixed.astype(bool)
+        J = Jf.copy()  # constrained DOFs: identity rows and columns (their residual is 0 and they do not move)
+        J[:, fixed, :] = 0.0
+        J[:, :, fixed] = 0.0
+        J[:, fixed, fixed] = 1.0
+        mass = sim.kernel_rod.mass
+        damp = float(sim.kernel_params[0]["damping"])
+        pos_dof = np.ones(n, bool) if planar else (np.arange(n) % 4 != 3)
+        Fx = -(mass / h**2 + np.where(pos_dof, damp * mass / h, 0.0))
+        Fu = -mass / h
+        Fx[fixed], Fu[fixed] = 0.0, 0.0
+        P: dict = {}
+        if want_kb:
+            P["kappa_bar"] = kbc.reshape(B, n, 2 * N) * ~fixed[None, :, None]
+        if want_tb:
+            P["tau_bar"] = tbc * ~fixed[None, :, None]
+        for j, nm in enumerate(_SCALARS[:3]):
+            if want_sc and nm in names:
+                P[nm] = sc[:, :, j:j + 1] * ~fixed[None, :, None]
+        if "damping" in names:  # the damping force c m (x' − x)/h on positions
+            P["damping"] = ((mass * pos_dof * ~fixed)[None, :] * (self.dof[k + 1] - self.dof[k]) / h)[:, :, None]
+        if planar:
+            return _Lin(J, Fx, Fu, None, None, None, P)
+        th = 4 * np.arange(E) + 3
+        G = Jf[:, :, th].copy()
+        G[:, th, np.arange(E)] -= (mass[th] / h**2)[None, :]  # ∂f/∂φ: the elastic part of ∂f/∂θ
+        G[:, fixed, :] = 0.0
+        link = sim.kernel_rod.link.astype(bool)
+        t0, t1 = self.tangent[k], self.tangent[k + 1]
+        kvec = np.cross(t1, t0) / (1.0 + np.einsum("bij,bij->bi", t0, t1))[..., None]
+        a = _turn_map(kvec, self.dof[k], t0, link)
+        b = _turn_map(kvec, self.dof[k + 1], t1, link)
+        return _Lin(J, Fx, Fu, G, a, b, P)
+
+    def _gravity_columns(self) -> np.ndarray:
+        """(n, 3) ∂f/∂g (the same for every env and step)."""
+        rod = self.sim.kernel_rod
+        n = self.dof.shape[2]
+        out = np.zeros((n, 3))
+        mass = rod.mass
+        if self.sim.model.mode == "2d":
+            out[0::2, 0] = -mass[0::2]
+            out[1::2, 2] = -mass[1::2]
+        else:
+            for c in range(3):
+                out[c::4, c] = -mass[c::4]
+        out[rod.fixed.astype(bool)] = 0.0
+        return out
+
+    def _rhs_params(self, lin: _Lin, name: str, tan: np.ndarray, k: int) -> np.ndarray:
+        """(B, n) ∂f/∂p · δp of step k for the tangent ``tan`` of parameter ``name``."""
+        if name == "gravity":
+            return tan @ self._gravity_columns().T
+        if name == "kappa_bar":
+            v = tan[k].reshape(tan.shape[1], -1)
+        elif name == "tau_bar":
+            v = tan[k]
+        else:
+            v = tan[:, None]
+        return np.einsum("bnk,bk->bn", lin.P[name], v)
+
+    # ------------------------------------------------------------------ forward mode
+    def jvp(self, tangents: dict | list[dict]) -> dict:
+        """Tangents of every state of the rollout for the parameter tangents ``tangents`` (name -> array shaped as
+        in the module docstring; absent = 0). Returns {"dof": (T + 1, B, n), "vel": (T + 1, B, n)}; for a list of
+        Q tangent dicts, arrays (Q, T + 1, B, n) (one linearisation and factorisation per step serves them all)."""
+        many = isinstance(tangents, (list, tuple))
+        tans = [_checked(t, self) for t in (tangents if many else [tangents])]
+        T, B, n = self.steps, self.dof.shape[1], self.dof.shape[2]
+        Q = len(tans)
+        planar = self.sim.model.mode == "2d"
+        h = self.sim.model.dt
+        E = self.ref_d1.shape[2]
+        ddof = np.zeros((Q, T + 1, B, n))
+        dvel = np.zeros((Q, T + 1, B, n))
+        names = tuple(sorted({nm for t in tans for nm in t if nm not in ("dof0", "vel0")}))
+        zero = np.zeros((B, n))
+        dx = np.stack([t.get("dof0", zero) for t in tans], axis=2)  # (B, n, Q)
+        du = np.stack([t.get("vel0", zero) for t in tans], axis=2)
+        phi = np.zeros((B, E, Q))
+        ddof[:, 0], dvel[:, 0] = dx.transpose(2, 0, 1), du.transpose(2, 0, 1)
+        for k in range(T):
+            lin = self._linear(k, names)
+            rhs = lin.Fx[None, :, None] * dx + lin.Fu[None, :, None] * du
+            if not planar:
+                rhs += lin.G @ (phi + lin.a @ dx)
+            for q, t in enumerate(tans):
+                for nm in names:
+                    if nm in t:
+                        rhs[:, :, q] += self._rhs_params(lin, nm, t[nm], k)
+            dx1 = -lin.solve(rhs)
+            du = (dx1 - dx) / h
+            if not planar:
+                phi = phi + lin.a @ dx + lin.b @ dx1
+            dx = dx1
+            ddof[:, k + 1], dvel[:, k + 1] = dx.transpose(2, 0, 1), du.transpose(2, 0, 1)
+        if many:
+            return {"dof": ddof, "vel": dvel}
+        return {"dof": ddof[0], "vel": dvel[0]}
+
+    # ------------------------------------------------------------------ reverse mode
+    def vjp(self, cotangents: dict, params=PARAMETERS) -> dict:
+        """Gradients of the scalar Σ ⟨cotangent, state⟩ with respect to ``params``; ``cotangents``: "dof" and/or
+        "vel", each (T + 1, B, n) (every state of the rollout) or (B, n) (the final state). One backward pass:
+        transposed solves with the steps' Jacobians."""
+        T, B, n = self.steps, self.dof.shape[1], self.dof.shape[2]
+        cx = _cotangent(cotangents.get("dof"), T, B, n)
+        cu = _cotangent(cotangents.get("vel"), T, B, n)
+        for nm in params:
+            if nm not in PARAMETERS:
+                raise GradientError(f"unknown parameter {nm!r}; known: {', '.join(PARAMETERS)}")
+        planar = self.sim.model.mode == "2d"
+        h = self.sim.model.dt
+        N = self.tau_bar.shape[2]
+        E = self.ref_d1.shape[2]
+        out = {nm: np.zeros(_param_shape(nm, T, B, n, N)) for nm in params}
+        names = tuple(nm for nm in params if nm not in ("dof0", "vel0"))
+        gx = cx[T].copy()  # (B, n) adjoint of x_k (total, including the later steps' dependence)
+        gu = cu[T].copy()
+        gphi = np.zeros((B, E))
+        for k in range(T - 1, -1, -1):
+            lin = self._linear(k, names)
+            # x_{k+1} enters u_{k+1} = (x_{k+1} − x_k)/h and φ_{k+1} = φ_k + a x_k + b x_{k+1}
+            gx1 = gx + gu / h
+            if not planar:
+                gx1 = gx1 + np.einsum("ben,be->bn", lin.b, gphi)
+            lam = lin.solve(gx1[:, :, None], transpose=True)[:, :, 0]  # x_{k+1} = −J⁻¹ rhs ⇒ ∂/∂rhs = −λ
+            for nm in names:
+                if nm == "gravity":
+                    out[nm] += -(lam @ self._gravity_columns())
+                    continue
+                g = -np.einsum("bnk,bn->bk", lin.P[nm], lam)
+                if nm == "kappa_bar":
+                    out[nm][k] = g.reshape(B, N, 2)
+                elif nm == "tau_bar":
+                    out[nm][k] = g
+                else:
+                    out[nm] += g[:, 0]
+            gx_prev = -lin.Fx * lam - gu / h + cx[k]
+            gu_prev = -lin.Fu * lam + cu[k]
+            if not planar:
+                Gl = -np.einsum("bne,bn->be", lin.G, lam)
+                gx_prev = gx_prev + np.einsum("ben,be->bn", lin.a, Gl + gphi)
+                gphi = gphi + Gl
+            gx, gu = gx_prev, gu_prev
+        if "dof0" in out:
+            out["dof0"][:] = gx
+        if "vel0" in out:
+            out["vel0"][:] = gu
+        return out
+
+
+def _turn_map(kvec: np.ndarray, x: np.ndarray, t: np.ndarray, link: np.ndarray) -> np.ndarray:
+    """(B, E, n) map of a change δx of the 3-D DOFs x (B, n) to kvec_j · δt_j per edge, δt = (I − t tᵀ) δe / |e|
+    (a joint edge keeps its frame: 0)."""
+    B, E = t.shape[0], t.shape[1]
+    n = x.shape[1]
+    pos = x.reshape(B, E + 1, 4)[:, :, :3]
+    le = np.linalg.norm(pos[:, 1:] - pos[:, :-1], axis=2)
+    w = (kvec - np.einsum("bij,bij->bi", t, kvec)[..., None] * t) / le[..., None]  # (B, E, 3)
+    w[:, ~link] = 0.0
+    out = np.zeros((B, E, n))
+    j = np.arange(E)
+    for c in range(3):
+        out[:, j, 4 * (j + 1) + c] = w[:, :, c]
+        out[:, j, 4 * j + c] = -w[:, :, c]
+    return out
+
+
+def _param_shape(name, T, B, n, N):
+    return {"dof0": (B, n), "vel0": (B, n), "kappa_bar": (T, B, N, 2), "tau_bar": (T, B, N),
+            "log_youngs_modulus": (B,), "log_shear_modulus": (B,), "log_density": (B,), "damping": (B,),
+            "gravity": (B, 3)}[name]
+
+
+def _checked(tangents: dict, tape: Tape) -> dict:
+    T, B, n = tape.steps, tape.dof.shape[1], tape.dof.shape[2]
+    N = tape.tau_bar.shape[2]
+    out = {}
+    for nm, v in tangents.items():
+        if nm not in PARAMETERS:
+            raise GradientError(f"unknown parameter {nm!r}; known: {', '.join(PARAMETERS)}")
+        arr = np.asarray(v, dtype=np.float64)
+        want = _param_shape(nm, T, B, n, N)
+        if arr.shape != want:
+            raise GradientError(f"tangent of {nm!r} has shape {arr.shape}, expected {want}")
+        if not np.all(np.isfinite(arr)):
+            raise GradientError(f"tangent of {nm!r} has non-finite values")
+        out[nm] = arr
+    return out
+
+
+def _cotangent(v, T, B, n) -> np.ndarray:
+    out = np.zeros((T + 1, B, n))
+    if v is None:
+        return out
+    arr = np.asarray(v, dtype=np.float64)
+    if arr.shape == (B, n):
+        out[T] = arr
+    elif arr.shape == (T + 1, B, n):
+        out[:] = arr
+    else:
+        raise GradientError(f"cotangent has shape {arr.shape}, expected {(B, n)} or {(T + 1, B, n)}")
+    if not np.all(np.isfinite(out)):
+        raise GradientError("cotangent has non-finite values")
+    return out
+
+
+def rollout(sim, state, controls) -> Tape:
+    """Run ``sim`` from ``state`` (advanced in place) for T steps under ``controls`` (a sequence of T
+    :class:`sim.Control`, one per step) and record what :class:`Tape` needs to differentiate it. Raises
+    :class:`GradientError` for what the derivatives do not cover (contact, implicit midpoint, prescribed motion,
+    a step that failed or took the retry ladder)."""
+    if sim.has_contact:
+        raise GradientError("derivatives through contact are not available yet: disable [contact] or remove the "
+                            "obstacles and self-contact of this scene")
+    if bool(sim.kernel_params[0]["midpoint"]):
+        raise GradientError("derivatives of the implicit midpoint rule are not available: use "
+                            "integrator = \"backward_euler\"")
+    if sim._motion:
+        raise GradientError("derivatives with prescribed motion ([[fix]] with a rate) are not available yet")
+    if bool(sim.kernel_params[0]["drag_on"]):
+        raise GradientError("derivatives with viscous drag ([drag], whose directions follow the rod's tangent) are "
+                            "not available yet")
+    if sim._frame_loads is not None:
+        raise GradientError("derivatives with moments or material-frame loads ([[load]] moment / frame = "
+                            "\"material\", which depend on the configuration) are not available yet")
+    controls = list(controls)
+    if not controls:
+        raise GradientError("rollout needs at least one control (one per step)")
+    B = sim.envs
+    snap = lambda: (state.dof.reshape(B, -1).copy(), state.dof_vel.reshape(B, -1).copy(),  # noqa: E731
+                    state.edge_ref_d1.copy(), state.edge_tangent.copy(), state.node_ref_twist.copy())
+    frames = [snap()]
+    kbs, tbs, gravs = [], [], []
+    unconverged = 0
+    for k, ctrl in enumerate(controls):
+        force = getattr(ctrl, "force", None)  # node forces: held over the step, known inputs like gravity
+        gravs.append(sim._external_forces(state.time, force) if sim._loads or force is not None else
+                     np.broadcast_to(sim.kernel_rod.grav, (B, sim.kernel_rod.grav.shape[1])).copy())
+        kbs.append(np.array(ctrl.kappa_bar, dtype=np.float64))
+        tbs.append(np.array(ctrl.tau_bar, dtype=np.float64))
+        st = sim.step(state, ctrl)
+        bad = np.flatnonzero(st.failed)
+        if bad.size:
+            raise GradientError(f"step {k}: env {int(bad[0])} failed; a failed step has no derivative")
+        sub = np.flatnonzero(st.substeps > 1)
+        if sub.size:
+            e = int(sub[0])
+            raise GradientError(f"step {k}: env {e} took the retry ladder ({int(st.substeps[e])} sub-steps); "
+                                "derivatives through sub-steps are not available yet (a smaller dt avoids them)")
+        unconverged += int(np.count_nonzero(~st.converged))
+        frames.append(snap())
+    dof, vel, d1, t, beta = (np.stack(a) for a in zip(*frames))
+    return Tape(sim=sim, dof=dof, vel=vel, ref_d1=d1, tangent=t, ref_twist=beta, kappa_bar=np.stack(kbs),
+                tau_bar=np.stack(tbs), grav=np.stack(gravs), unconverged=unconverged)

@@ -1,0 +1,225 @@
+"""`rodlab fit` (sim.analysis.calibration): parameters recovered from synthetic measurements made by rodlab at known values plus
+1 mm noise, standard errors consistent with the errors over noise draws, the actuation map, parameters the data
+cannot separate said, held-out error, Ctrl-C keeping the best so far, bounds from the validation table, the report
+folder (plots, held-out residuals), and bad input refused by name."""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim.analysis import calibration as F
+from sim.scene.spec import dump_scene, load_scene
+from sim.scene.validate import BOUNDS
+from tests.helpers.fit import NOISE_M, synthetic, write_csv
+from tests.helpers.rodspec import make_spec
+
+
+def scene(tmp_path: Path, mode: str = "3d") -> Path:
+    """A 9-node clamped rod leaning over under gravity, damped, Newton converged tightly, as a scene file."""
+    p = tmp_path / f"rod_{mode}.toml"
+    direction = tuple(np.array([1.0, 0.0, 0.3]) / np.hypot(1.0, 0.3))
+    dump_scene(make_spec(nodes=9, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.2, max_iter=30, mode=mode,
+                         direction=direction), p)
+    return p
+
+
+def test_stiffness_and_damping_are_recovered_with_consistent_standard_errors(tmp_path):
+    spec = load_scene(scene(tmp_path))
+    params = ["youngs_modulus", "damping"]
+    truth = {"youngs_modulus": 1.3e6, "damping": 0.5}
+    z_true = [math.log(1.3), 0.5]
+    zs = []
+    for seed in range(4):  # noise draws
+        meas, _ = synthetic(spec, params, z_true, seed=seed)
+        res = F.fit(spec, meas, params)
+        assert res.rms_m == pytest.approx(NOISE_M, rel=0.15)  # the fit leaves the noise
+        for k, v in truth.items():
+            assert res.params[k] == pytest.approx(v, rel=0.02), (k, res.params)
+            zs.append((res.params[k] - v) / res.stderr[k])
+        assert res.confounded == [] and not res.interrupted and res.unconverged_steps == 0
+    zs = np.array(zs)
+    # errors in units of the reported standard error: of order one (not 10 or 0.01) over the draws
+    assert np.all(np.abs(zs) < 4.0), zs
+    assert 0.2 < float(np.sqrt(np.mean(zs**2))) < 3.0, zs
+
+
+def test_the_actuation_map_is_recovered_from_commanded_curvature(tmp_path):
+    """2-D arm driven by commanded curvature at two nodes; the rod bends gain · command + offset."""
+    spec = load_scene(scene(tmp_path, "2d"))
+    path = tmp_path / "controls.csv"
+    path.write_text("t,node,kappa1,kappa2,twist\n0,3,0.2,0,0\n0.5,3,-0.15,0,0\n0,6,0.3,0,0\n0.8,6,-0.2,0,0\n")
+    from sim.scene.model import build_model
+    cmds = F.load_controls(path, build_model(spec))
+    params = ["actuation_gain", "actuation_offset"]
+    z_true = [0.8, 1.2, 0.02, -0.03]  # gains of nodes 3, 6; offsets of nodes 3, 6 (κ1)
+    meas, prob = synthetic(spec, params, z_true, cmds=cmds)
+    assert [u.label for u in prob.unknowns] == ["actuation_gain[3]", "actuation_gain[6]",
+                                                "actuation_offset[3].kappa1", "actuation_offset[6].kappa1"]
+    res = F.fit(spec, meas, params, cmds=cmds)
+    got = list(res.params.values())
+    np.testing.assert_allclose(got[:2], z_true[:2], rtol=0.02)
+    np.testing.assert_allclose(got[2:], z_true[2:], atol=0.002)
+
+
+def test_parameters_the_data_cannot_separate_are_said(tmp_path):
+    """Gravity, inertia and damping all scale with the mass: motion sets only E/ρ."""
+    spec = load_scene(scene(tmp_path))
+    meas, _ = synthetic(spec, ["youngs_modulus"], [math.log(1.3)], seconds=0.6)
+    res = F.fit(spec, meas, ["youngs_modulus", "density"])
+    assert res.confounded == [["youngs_modulus", "density"]]
+    assert math.isinf(res.stderr["youngs_modulus"]) and math.isinf(res.stderr["density"])
+    assert res.params["youngs_modulus"] / res.params["density"] == pytest.approx(1.3e6 / 1000.0, rel=0.01)
+
+
+def test_ctrl_c_keeps_the_best_so_far(tmp_path):
+    spec = load_scene(scene(tmp_path))
+    meas, _ = synthetic(spec, ["damping"], [0.5], seconds=0.5)
+    seen = []
+
+    def log(line):
+        seen.append(line)
+        if len(seen) == 3:
+            raise KeyboardInterrupt
+
+    res = F.fit(spec, meas, ["damping"], log=log)
+    assert res.interrupted and len(seen) == 3
+    start = F.fit(spec, meas, ["damping"], max_iterations=1)  # the starting point only
+    assert res.rms_m <= start.rms_m
+
+
+def test_cli_writes_a_new_scene_a_report_and_json(tmp_path):
+    path = scene(tmp_path)
+    spec = load_scene(path)
+    meas, _ = synthetic(spec, ["youngs_modulus"], [math.log(1.3)], seconds=1.0)
+    data = write_csv(tmp_path / "data.csv", meas)
+    out = tmp_path / "fitted.toml"
+    cmd = [sys.executable, "-m", "rodlab_cli", "fit", str(path), str(data), "--params", "youngs_modulus",
+           "--out", str(out), "--report", str(tmp_path / "report"), "--holdout", "0.25", "--json"]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    doc = json.loads(p.stdout.strip().splitlines()[-1])
+    assert doc["params"]["youngs_modulus"] == pytest.approx(1.3e6, rel=0.02)
+    assert doc["holdout_rms_m"] < 3 * NOISE_M and doc["rms_m"] < 1.5 * NOISE_M
+    assert load_scene(out).rods[0].youngs_modulus == pytest.approx(doc["params"]["youngs_modulus"])
+    report = json.loads((tmp_path / "report" / "fit.json").read_text())
+    assert report["fitted_scene"] == str(out) and report["correlation"]["labels"] == ["youngs_modulus"]
+    assert report["plots"] == list(F.PLOTS) and all((tmp_path / "report" / n).is_file() for n in F.PLOTS)
+    lines = (tmp_path / "report" / "residuals.csv").read_text().splitlines()
+    assert lines[0] == "t,s,rod,dx,dy,dz,distance,split" and len(lines) == meas.t.size + 1
+    assert {ln.rsplit(",", 1)[1] for ln in lines[1:]} == {"fit", "holdout"}
+    # never over an existing file (the input scene included)
+    for target in (out, path):
+        p = subprocess.run(cmd[:6] + ["--params", "damping", "--out", str(target)], capture_output=True, text=True,
+                           timeout=600)
+        assert p.returncode == 2 and "always written to a new file" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_report_has_plots_and_the_held_out_residuals(tmp_path):
+    """--report: fit.json lists the four plots, written atomically (no temporary file left); residuals.csv has every
+    measured point with its split, the held-out rows' RMS being the held-out RMS; the track covers the whole motion."""
+    import matplotlib.image
+
+    spec = load_scene(scene(tmp_path))
+    meas, _ = synthetic(spec, ["youngs_modulus", "damping"], [math.log(1.3), 0.5], seconds=1.0)
+    res = F.fit(spec, meas, ["youngs_modulus", "damping"], holdout=0.25)
+    cut = float(np.quantile(meas.t, 0.75))
+    tr = res.track
+    assert tr.measured_t.size == meas.t.size and np.array_equal(tr.held_out, meas.t >= cut)
+    assert tr.t[-1] >= meas.t.max() - 1e-12 and tr.node_s.shape == (9,) and tr.axes == (0, 1, 2)
+    folder = tmp_path / "report"
+    written = F.write_report(folder, res, scene="rod.toml")
+    assert [p.name for p in written] == [*F.PLOTS, "residuals.csv", "fit.json"]
+    assert sorted(p.name for p in folder.iterdir()) == sorted(p.name for p in written)  # no temporary file left
+    doc = json.loads((folder / "fit.json").read_text())
+    assert doc["plots"] == list(F.PLOTS) and doc["scene"] == "rod.toml"
+    assert doc["holdout_rms_m"] == pytest.approx(res.holdout_rms_m)
+    assert doc["correlation"]["labels"] == ["youngs_modulus", "damping"]
+    for name in F.PLOTS:
+        assert (folder / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        img = matplotlib.image.imread(folder / name)
+        assert img.shape[0] >= 250 and img.shape[1] >= 250 and float(img[..., :3].std()) > 0.05, name
+    lines = (folder / "residuals.csv").read_text().splitlines()
+    assert lines[0] == ",".join(F.RESIDUAL_COLUMNS)
+    rows = [ln.split(",") for ln in lines[1:]]
+    assert len(rows) == meas.t.size
+    t = np.array([float(r[0]) for r in rows])
+    d = np.array([[float(v) for v in r[3:6]] for r in rows])
+    split = np.array([r[7] for r in rows])
+    assert set(split) == {"fit", "holdout"} and np.array_equal(split == "holdout", t >= cut)
+    assert float(np.sqrt(np.mean(d[split == "holdout"] ** 2))) == pytest.approx(res.holdout_rms_m, rel=1e-6)
+    assert float(np.sqrt(np.mean(d[split == "fit"] ** 2))) == pytest.approx(res.rms_m, rel=1e-6)
+    # the plots are drawn on demand: importing sim.analysis.calibration loads no matplotlib
+    code = "import sys, sim.analysis.calibration; print('matplotlib' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0 and out.stdout.strip() == "False", out.stderr
+
+
+def test_report_of_a_2d_fit_draws_the_plane(tmp_path):
+    spec = load_scene(scene(tmp_path, "2d"))
+    meas, _ = synthetic(spec, ["damping"], [0.5], seconds=0.5)
+    res = F.fit(spec, meas, ["damping"])
+    assert res.track.axes == (0, 2) and not res.track.held_out.any()
+    written = F.write_report(tmp_path / "r2", res)
+    assert [p.name for p in written][:4] == list(F.PLOTS)
+    assert {ln.rsplit(",", 1)[1] for ln in (tmp_path / "r2" / "residuals.csv").read_text().splitlines()[1:]} == \
+        {"fit"}
+
+
+def test_bounds_come_from_the_validation_table(tmp_path):
+    """A fit whose optimum lies outside the valid scene values stops on the bound, says so, and its scene loads.
+    Motion sets only E/ρ: data of a rod 4× as dense asks for E / 4 = 0.5 Pa, below the lowest valid 1 Pa."""
+    direction = tuple(np.array([1.0, 0.0, 0.3]) / np.hypot(1.0, 0.3))
+    spec = make_spec(nodes=9, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.2, max_iter=30, direction=direction,
+                     E=2.0, density=0.002)
+    meas, _ = synthetic(spec, ["density"], [math.log(4.0)], seconds=1.0)
+    prob = F.Problem(spec, meas, None, ["youngs_modulus", "density", "shear_modulus", "damping", "gravity"])
+    lo, hi = prob.bounds()
+    E_lo, E_hi, _ = BOUNDS["rod.youngs_modulus"]
+    R_lo, R_hi, _ = BOUNDS["rod.density"]
+    np.testing.assert_allclose(lo, [math.log(E_lo / 2.0), math.log(R_lo / 0.002), 0.0, 0.0, -1e4, -1e4, -1e4])
+    np.testing.assert_allclose(hi[[0, 1, 3, 4]], [math.log(E_hi / 2.0), math.log(R_hi / 0.002), 1e9, 1e4])
+    assert hi[2] == pytest.approx(math.log(1.5 / 1e-9))  # ν = 0.5 may only go down (toward -1)
+    res = F.fit(spec, meas, ["youngs_modulus"])
+    assert res.params["youngs_modulus"] == pytest.approx(E_lo, rel=1e-9) and res.params["youngs_modulus"] >= E_lo
+    assert res.at_bound == ["youngs_modulus"] and res.summary()["at_bound"] == ["youngs_modulus"]
+    dump_scene(res.spec, tmp_path / "fitted.toml")
+    assert load_scene(tmp_path / "fitted.toml").rods[0].youngs_modulus == res.params["youngs_modulus"]
+    free = F.fit(spec, meas, ["damping"], max_iterations=3)  # inside its bounds: not said
+    assert free.at_bound == []
+
+
+@pytest.mark.parametrize("rows, message", [
+    ("t,s,x,y,z\n0,0.5,0,0,0\n0.1,1.7,0,0,0\n", "data.csv:3: s = 1.7 m is off the rod"),
+    ("t,s,x,y,z\n0,0.5,0,0,nan\n", "data.csv:2: z = 'nan' is not finite"),
+    ("t,s,x,y,z\n0,0.5,0,0,abc\n", "data.csv:2: z = 'abc' is not a number"),
+    ("t,s,x,y,z\n-1,0.5,0,0,0\n", "data.csv:2: t = -1 s is before"),
+    ("t,s,x,y,z\n0,0.5,0,0,800\n", "data.csv:2: position [0.0, 0.0, 800.0] is more than 100 rod lengths"),
+    ("t,s,x,z\n0,0.5,0,0\n", "data.csv: missing column(s) y"),
+])
+def test_bad_data_is_refused_by_row(tmp_path, rows, message):
+    spec = load_scene(scene(tmp_path))
+    (tmp_path / "data.csv").write_text(rows)
+    with pytest.raises(F.FitError, match=message.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[")):
+        F.load_measurements(tmp_path / "data.csv", spec)
+
+
+def test_bad_npz_and_parameter_names_are_refused(tmp_path):
+    spec = load_scene(scene(tmp_path))
+    np.savez(tmp_path / "d.npz", t=np.array([0.0, 0.2, 0.1]), s=np.array([0.5]), pos=np.zeros((3, 1, 3)))
+    with pytest.raises(F.FitError, match=r"t is not increasing at t\[2\]"):
+        F.load_measurements(tmp_path / "d.npz", spec)
+    pos = np.full((2, 2, 3), np.nan)
+    pos[1, 0] = [0.5, 0.0, 0.1]
+    np.savez(tmp_path / "ok.npz", t=np.array([0.0, 0.1]), s=np.array([0.5, 1.0]), pos=pos)
+    meas = F.load_measurements(tmp_path / "ok.npz", spec)
+    assert meas.t.tolist() == [0.1]  # NaN points are missing, not data
+    with pytest.raises(F.FitError, match="unknown parameter\\(s\\) 'stiffness'"):
+        F.fit(spec, meas, ["stiffness"])
+    with pytest.raises(F.FitError, match="needs --controls"):
+        F.fit(spec, meas, ["actuation_gain"])

@@ -1,0 +1,163 @@
+"""Derivatives of a rollout (sim.analysis.gradients, docs/physics.md §3.9): tangents against central differences of whole
+rollouts for every parameter in 2-D and 3-D, with a step-size study; the adjoint against the tangent mode; what
+is not covered is refused by name."""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from sim.analysis import gradients as G
+from sim.geometry.frames import update_frames
+from sim.scene.model import build_model
+from sim.scene.obstacles import SphereSpec
+from sim.step import Simulator
+from tests.helpers.rodspec import make_spec
+
+T, B = 5, 2
+DIRECTION = tuple(np.array([0.3, 0.0, 1.0]) / np.hypot(0.3, 1.0))  # leaning over: gravity bends it
+
+
+def simulator(mode: str, **kw) -> Simulator:
+    """A bent-over clamped rod of 8 nodes under gravity, damped, Newton converged tightly; ``kw`` as make_spec."""
+    args = dict(nodes=8, radius=0.05, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.3, tol=1e-13, dtol=1e-13,
+                max_iter=60, direction=DIRECTION, mode=mode)
+    return Simulator(build_model(make_spec(**{**args, **kw})), envs=B)
+
+
+def controls(sim, kb, tb):
+    out = []
+    for k in range(T):
+        c = sim.make_control()
+        c.kappa_bar += kb[k]
+        c.tau_bar += tb[k]
+        out.append(c)
+    return out
+
+
+def start(sim, dof0=None, vel0=None):
+    st = sim.reset()
+    if vel0 is not None:
+        st.dof_vel.reshape(B, -1)[:] = vel0
+    if dof0 is not None:  # the stored frames follow the DOFs by parallel transport (as a step carries them)
+        st.dof.reshape(B, -1)[:] = dof0
+        if sim.model.mode == "3d":
+            for e in range(B):
+                pos = dof0[e].reshape(-1, 4)[:, :3].copy()
+                E = pos.shape[0] - 1
+                t, d1, d2, le, beta = (np.empty((E, 3)), np.empty((E, 3)), np.empty((E, 3)), np.empty(E),
+                                       np.empty(E + 1))
+                update_frames(pos, st.edge_ref_d1[e].copy(), st.edge_tangent[e].copy(), st.node_ref_twist[e].copy(),
+                              t, d1, d2, le, beta)
+                st.edge_tangent[e], st.edge_ref_d1[e], st.node_ref_twist[e] = t, d1, beta
+    return st
+
+
+def final_dof(sim, kb, tb, **kw) -> np.ndarray:
+    st = start(sim, **kw)
+    for c in controls(sim, kb, tb):
+        sim.step(st, c)
+    return st.dof.reshape(B, -1).copy()
+
+
+@pytest.fixture(scope="module", params=["2d", "3d"])
+def case(request):
+    mode = request.param
+    rng = np.random.default_rng(0)
+    sim = simulator(mode)
+    N = sim.model.node_count
+    kb = rng.normal(0.0, 0.05, (T, B, N, 2))
+    tb = rng.normal(0.0, 0.05, (T, B, N))
+    if mode == "2d":
+        kb[..., 1] = 0.0
+        tb[:] = 0.0
+    tape = G.rollout(sim, start(sim), controls(sim, kb, tb))
+    return mode, sim, kb, tb, tape, rng
+
+
+def perturbations(mode, sim, kb, tb, tape, rng):
+    """name -> (tangent dict, function eps -> final DOFs of the rollout with the parameters moved by eps·tangent)."""
+    n = tape.dof.shape[2]
+    free = ~sim.kernel_rod.fixed.astype(bool)
+    dk = rng.normal(0.0, 1.0, kb.shape)
+    dt_ = rng.normal(0.0, 1.0, tb.shape)
+    if mode == "2d":
+        dk[..., 1] = 0.0
+    g = np.array([0.3, -0.2 if mode == "3d" else 0.0, 0.5])
+    v0 = rng.normal(0.0, 0.1, (B, n)) * free
+    x0 = rng.normal(0.0, 0.01, (B, n)) * free
+    one = np.ones(B)
+    out = {
+        # the scene ties G to E through ν: a change of E there is a change of both factors
+        "log_youngs_modulus": ({"log_youngs_modulus": one, "log_shear_modulus": one}, lambda eps: final_dof(
+            simulator(mode, E=1e6 * math.exp(eps)), kb, tb)),
+        "log_density": ({"log_density": one}, lambda eps: final_dof(
+            simulator(mode, density=1000.0 * math.exp(eps)), kb, tb)),
+        "damping": ({"damping": one}, lambda eps: final_dof(simulator(mode, damping=0.3 + eps), kb, tb)),
+        "gravity": ({"gravity": np.tile(g, (B, 1))}, lambda eps: final_dof(
+            simulator(mode, gravity=tuple(np.array([0.0, 0.0, -9.8]) + eps * g)), kb, tb)),
+        "kappa_bar": ({"kappa_bar": dk}, lambda eps: final_dof(sim, kb + eps * dk, tb)),
+        "vel0": ({"vel0": v0}, lambda eps: final_dof(sim, kb, tb, vel0=tape.vel[0] + eps * v0)),
+        "dof0": ({"dof0": x0}, lambda eps: final_dof(sim, kb, tb, dof0=tape.dof[0] + eps * x0)),
+    }
+    if mode == "3d":
+        out["tau_bar"] = ({"tau_bar": dt_}, lambda eps: final_dof(sim, kb, tb + eps * dt_))
+    return out
+
+
+def test_tangents_match_central_differences_of_the_rollout(case):
+    mode, sim, kb, tb, tape, rng = case
+    assert tape.unconverged == 0
+    for name, (tangent, moved) in perturbations(*case).items():
+        jvp = tape.jvp(tangent)["dof"][-1]
+        assert np.linalg.norm(jvp) > 1e-4, name  # the final state depends on every parameter here
+        errors = {}
+        for eps in (1e-4, 1e-5, 1e-6):  # step-size study: truncation error at large steps, rounding at small
+            fd = (moved(eps) - moved(-eps)) / (2.0 * eps)
+            errors[eps] = np.linalg.norm(fd - jvp) / np.linalg.norm(fd)
+        assert min(errors.values()) <= 1e-6, (name, errors)
+        assert np.all(np.isfinite(jvp))
+
+
+def test_adjoint_is_the_transpose_of_the_tangent_mode(case):
+    mode, sim, kb, tb, tape, rng = case
+    n = tape.dof.shape[2]
+    c_dof = rng.normal(0.0, 1.0, (T + 1, B, n))  # a loss over the whole trajectory
+    c_vel = rng.normal(0.0, 1.0, (B, n))  # and the final velocities
+    grads = tape.vjp({"dof": c_dof, "vel": c_vel})
+    for name, (tangent, _) in perturbations(*case).items():
+        out = tape.jvp(tangent)
+        rhs = np.sum(c_dof * out["dof"]) + np.sum(c_vel * out["vel"][-1])
+        lhs = sum(np.sum(grads[k] * v) for k, v in tangent.items())
+        assert lhs == pytest.approx(rhs, rel=1e-10), name
+
+
+def test_envs_of_a_batch_are_differentiated_alone(case):
+    """Env 1's derivatives do not depend on env 0's tangents (the envs are independent)."""
+    mode, sim, kb, tb, tape, rng = case
+    n = tape.dof.shape[2]
+    v = np.zeros((B, n))
+    v[0] = rng.normal(0.0, 0.1, n) * ~sim.kernel_rod.fixed.astype(bool)
+    out = tape.jvp({"vel0": v})
+    assert np.all(out["dof"][:, 1] == 0.0) and np.any(out["dof"][:, 0] != 0.0)
+
+
+def test_what_is_not_covered_is_refused_by_name():
+    sim = simulator("3d", integrator="midpoint")
+    with pytest.raises(G.GradientError, match="midpoint"):
+        G.rollout(sim, sim.reset(), [sim.make_control()])
+    spec = make_spec(nodes=8, direction=DIRECTION)
+    ball = SphereSpec(center=(0.5, 0.0, 0.5), radius=0.1, name="ball")
+    sim = Simulator(build_model(dataclasses.replace(spec, obstacles=(ball,))), envs=B)
+    with pytest.raises(G.GradientError, match="contact"):
+        G.rollout(sim, sim.reset(), [sim.make_control()])
+    sim = simulator("2d")
+    tape = G.rollout(sim, sim.reset(), [sim.make_control()])
+    with pytest.raises(G.GradientError, match="unknown parameter 'stiffness'"):
+        tape.jvp({"stiffness": np.ones(B)})
+    with pytest.raises(G.GradientError, match="shape"):
+        tape.jvp({"damping": np.ones(3)})
+    with pytest.raises(G.GradientError, match="non-finite"):
+        tape.vjp({"dof": np.full(tape.dof.shape[1:], np.nan)})

@@ -1,0 +1,87 @@
+"""The workbench's state without a page: the headless :class:`Workbench` (scene, simulator, teleop, history, pulls,
+pins), the policy, replay, comparison and grid-of-envs sessions, the fit job, the timeline's events, the folders a
+session reads and writes (:class:`Folders`) and the real-time stepping thread (:class:`SimThread`).
+
+Nothing here imports viser: every module can be driven and tested without a browser. :mod:`workbench.view` draws
+what these hold, :mod:`workbench.panels` edits it. Names load lazily on first use.
+"""
+from __future__ import annotations
+
+from sim.support.lazy import lazy_face
+
+_LAZY = {
+    "QUANTITIES": "workbench.session.coloring",
+    "colorbar_html": "workbench.session.coloring",
+    "colors": "workbench.session.coloring",
+    "node_values": "workbench.session.coloring",
+    "value_range": "workbench.session.coloring",
+    "Ghost": "workbench.session.compare",
+    "GhostView": "workbench.session.compare",
+    "policy_episode": "workbench.session.compare",
+    "quat_z_to": "workbench.session.compare",
+    "Workbench": "workbench.session.core",
+    "Event": "workbench.session.events",
+    "episode_events": "workbench.session.events",
+    "event_marks": "workbench.session.events",
+    "events_summary": "workbench.session.events",
+    "live_events": "workbench.session.events",
+    "neighbour_event": "workbench.session.events",
+    "FileAccessError": "workbench.session.files",
+    "Folders": "workbench.session.files",
+    "page_error": "workbench.session.files",
+    "DEFAULT_PARAMS": "workbench.session.fitting",
+    "FIT_CHOICES": "workbench.session.fitting",
+    "FitJob": "workbench.session.fitting",
+    "overlay_at": "workbench.session.fitting",
+    "Frame": "workbench.session.frame",
+    "quat_from_matrix": "workbench.session.frame",
+    "quat_from_rpy_deg": "workbench.session.frame",
+    "rod_edges": "workbench.session.frame",
+    "rpy_deg_from_quat": "workbench.session.frame",
+    "GridSession": "workbench.session.grid",
+    "MAX_ENVS": "workbench.session.grid",
+    "MESH_DIR": "workbench.session.obstacles",
+    "MESH_SUFFIXES": "workbench.session.obstacles",
+    "NEW_OBSTACLE_AT": "workbench.session.obstacles",
+    "ObstacleEdit": "workbench.session.obstacles",
+    "default_edit": "workbench.session.obstacles",
+    "free_position": "workbench.session.obstacles",
+    "mesh_catalogue": "workbench.session.obstacles",
+    "mesh_for_edit": "workbench.session.obstacles",
+    "rest_overlaps": "workbench.session.obstacles",
+    "spec_with": "workbench.session.obstacles",
+    "write_scene": "workbench.session.obstacles",
+    "MAX_PINS": "workbench.session.pins",
+    "PinSeries": "workbench.session.pins",
+    "node_readout": "workbench.session.pins",
+    "ray_nearest_node": "workbench.session.pins",
+    "readout_text": "workbench.session.pins",
+    "Plot": "workbench.session.plots",
+    "curvature_plot": "workbench.session.plots",
+    "layout": "workbench.session.plots",
+    "live_series": "workbench.session.plots",
+    "y_ticks": "workbench.session.plots",
+    "PRETRAINED": "workbench.session.policy_session",
+    "PolicySession": "workbench.session.policy_session",
+    "policy_task": "workbench.session.policy_session",
+    "shipped_policies": "workbench.session.policy_session",
+    "task_names": "workbench.session.policy_session",
+    "HAND_EVENTS": "workbench.session.pull",
+    "apply_gestures": "workbench.session.pull",
+    "point": "workbench.session.pull",
+    "SessionRecorder": "workbench.session.recorder",
+    "ReplaySession": "workbench.session.replay",
+    "list_recordings": "workbench.session.replay",
+    "read_episodes": "workbench.session.replay",
+    "live_curves": "workbench.session.rod_curves",
+    "replay_curves": "workbench.session.rod_curves",
+    "SimThread": "workbench.session.runner",
+    "ActionRefused": "workbench.session.simbridge",
+    "CONTROL_NODES": "workbench.session.teleop",
+    "KAPPA_LIMIT": "workbench.session.teleop",
+    "TWIST_LIMIT": "workbench.session.teleop",
+}
+
+__all__ = sorted(_LAZY)
+
+__getattr__, __dir__ = lazy_face(__name__, _LAZY)
