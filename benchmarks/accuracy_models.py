@@ -191,7 +191,7 @@ def capstan(seconds: float = 5.0) -> list[dict[str, Any]]:
             _row("capstan", f"{head}: top of the rope off the drum", math.hypot(top[0], top[2]) - rc, 2e-3, "m")]
 
 
-# --- the buckled column: tests/sim/test_static_stability.py -----------------------------------------------------
+# --- the buckled column: tests/sim/analysis/test_static_stability.py -----------------------------------------------------
 
 def buckled_column(N: int = 41) -> list[dict[str, Any]]:
     """A clamped column (r = 2 cm, E = 1e7, L = 1) under twice its Euler load P_cr = π² EI/(4 L'²), lateral

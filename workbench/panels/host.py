@@ -30,10 +30,10 @@ class PanelHost(Protocol):
     notice: tuple[str, float]  # a passing message for the status line and when it was said (time.monotonic())
     waiting_for_browser: bool
     compiling: str  # the kernel being compiled before the first step ("" when none)
-    controls: Any  # gui_controls.ControlsPanel
-    policy: Any  # gui_policy.PolicyPanel
-    replay: Any  # gui_replay.ReplayPanel
-    compare: Any  # gui_compare.ComparePanel
+    controls: Any  # workbench.panels.controls.ControlsPanel
+    policy: Any  # workbench.panels.policy.PolicyPanel
+    replay: Any  # workbench.panels.replay.ReplayPanel
+    compare: Any  # workbench.panels.compare.ComparePanel
 
     def request_render(self) -> None: ...
 
