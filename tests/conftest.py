@@ -2,7 +2,13 @@
 (the Makefile runs it first); tests only load them from the cache."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
+
+# The suite runs on two processes (make test), each with numba's OpenMP threads, on as many cores as a CI machine has:
+# threads that spin while they wait keep the other process's threads off the cores (a numba-parallel test took 21 s
+# beside a second one and 9 s with passive waiting). Set before numba or torch loads an OpenMP runtime.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import pytest
 
