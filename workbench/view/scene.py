@@ -331,24 +331,23 @@ class SceneView:
         """Every page's camera looks at ``tip``, keeping its offset from the look-at point.
 
         The page reports its camera on its own schedule while the server moves it, so the offset is read from one
-        report (position read on both sides of the look-at; a report arriving in between skips that page for this
-        frame) and both new values are sent together (:func:`place_camera`): a half-moved camera reported back would
-        change the kept offset for good."""
+        report (position read on both sides of the look-at, read again when a report arrived in between: a page
+        skipped here would stay off the tip of a paused frame, which is drawn once) and both new values are sent
+        together (:func:`place_camera`): a half-moved camera reported back would change the kept offset for good."""
         tip = np.asarray(tip, np.float64)
         if not np.all(np.isfinite(tip)):
             return
         for client in self.server.get_clients().values():
-            cam = client.camera
             try:
-                pos = np.array(cam.position, np.float64)
-                look = np.array(cam.look_at, np.float64)
-                if not np.array_equal(pos, np.asarray(cam.position)):
-                    continue  # a report arrived between the two reads
-                if float(np.abs(tip - look).max()) <= 1e-6:
-                    continue
-                place_camera(client, tip + (pos - look), tip)
+                view = _one_report(client.camera)
             except (AssertionError, ValueError):  # the page has not reported its camera yet
                 continue
+            if view is None:
+                continue  # reports kept arriving (the page is being dragged): its next frame places it
+            pos, look = view
+            if float(np.abs(tip - look).max()) <= 1e-6:
+                continue
+            place_camera(client, tip + (pos - look), tip)
 
     def set_rod_scene(self, rest_nodes, control_nodes, radius: float, rod_offsets=None) -> None:
         """Rest shape and control points of the live rod (``view_rod.scene_info``); ``rod_offsets``: where each
@@ -488,3 +487,14 @@ class SceneView:
         if self.selected != index or self._gizmo is None:
             raise KeyError(f"obstacle {index} is not selected (selected: {self.selected})")
         return self._gizmo
+
+
+def _one_report(cam, tries: int = 8) -> tuple[np.ndarray, np.ndarray] | None:
+    """(position, look-at) of one camera report of a page: the position read on both sides of the look-at agrees;
+    None when reports kept arriving in between ``tries`` times."""
+    for _ in range(tries):
+        pos = np.array(cam.position, np.float64)
+        look = np.array(cam.look_at, np.float64)
+        if np.array_equal(pos, np.asarray(cam.position)):
+            return pos, look
+    return None

@@ -66,9 +66,12 @@ def test_follow_tip(wb_page):
             _pause(app)
             tip = _tip(app)
             # the page reports position and look-at of one camera state; read both until they are of the same one
-            wait_for(lambda tip=tip: np.allclose(cam.look_at, tip, atol=1e-6)
-                     and np.allclose(np.asarray(cam.position) - np.asarray(cam.look_at), offset0, atol=1e-6),
-                     what=f"look-at on the tip {tip}, at the offset {offset0}")
+            # (1 mm: the page's orbit controls may settle a camera set from the server by a hair)
+            wait_for(lambda tip=tip: np.allclose(cam.look_at, tip, atol=1e-3)
+                     and np.allclose(np.asarray(cam.position) - np.asarray(cam.look_at), offset0, atol=1e-3),
+                     what=lambda tip=tip: f"look-at on the tip {tip}, at the offset {offset0}: the page's look-at is "
+                                          f"{np.asarray(cam.look_at)}, its offset "
+                                          f"{np.asarray(cam.position) - np.asarray(cam.look_at)}")
 
             def orange_centre() -> bool:  # the page really looks at the tip: the rod's end is in the middle
                 p = _centre(canvas_png(page))
@@ -83,8 +86,8 @@ def test_follow_tip(wb_page):
         f = wb.frame_index
         wait_for(lambda: wb.frame_index > f + 40, timeout=60, what="the tip to move again")
         _pause(app)
-        assert np.linalg.norm(_tip(app) - look) > 1e-3
-        np.testing.assert_allclose(cam.look_at, look, atol=1e-9)  # the camera stayed
+        assert np.linalg.norm(_tip(app) - look) > 0.05
+        np.testing.assert_allclose(cam.look_at, look, atol=1e-3)  # the camera stayed (as the page may settle it)
     finally:
         view.overlays.follow_tip = False
         view.overlays.color_by = "curvature"
