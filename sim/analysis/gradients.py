@@ -39,8 +39,8 @@ import dataclasses
 import numpy as np
 
 from sim.contact.world import spec_contact_data
-from sim.kernels.data import KL_2D, KL_3D
-from sim.kernels.linearise import linearise_step
+from sim.kernels.data import KL_2D, KL_3D, ControlArrays, StateArrays
+from sim.kernels.linearise import Linearisation, RodFactors, Wanted, linearise_step
 
 __all__ = ["GradientError", "Tape", "rollout", "PARAMETERS"]
 
@@ -152,9 +152,12 @@ class Tape:
         sc = np.zeros((B, n, 3) if want_sc else (1, 1, 3))
         rod, rod_e, rod_g, rod_m = self._rods(k)
         c = np.ascontiguousarray
-        linearise_step(c(self.dof[k]), c(self.vel[k]), c(self.ref_d1[k]), c(self.tangent[k]), c(self.ref_twist[k]),
-                       c(self.dof[k + 1]), c(self.kappa_bar[k]), c(self.tau_bar[k]), h, rod, rod_e, rod_g, rod_m,
-                       sim.kernel_params, self._cd, want_kb, want_tb, want_sc, ab, kbc, tbc, sc)
+        start = StateArrays(dof=c(self.dof[k]), vel=c(self.vel[k]), ref_d1=c(self.ref_d1[k]),
+                            tangent=c(self.tangent[k]), ref_twist=c(self.ref_twist[k]), time=np.zeros(B),
+                            failed=np.zeros(B, np.bool_))
+        linearise_step(start, c(self.dof[k + 1]), ControlArrays(c(self.kappa_bar[k]), c(self.tau_bar[k])), h,
+                       RodFactors(rod, rod_e, rod_g, rod_m), sim.kernel_params, self._cd,
+                       Wanted(want_kb, want_tb, want_sc), Linearisation(ab, kbc, tbc, sc))
         Jf = _dense(ab, n, kl)  # ∂f/∂x' with no DOF constrained
         fixed = sim.kernel_rod.fixed.astype(bool)
         J = Jf.copy()  # constrained DOFs: identity rows and columns (their residual is 0 and they do not move)

@@ -10,6 +10,8 @@ workspace per env: an analysis path, not the step's.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit, prange
 
@@ -19,7 +21,51 @@ from sim.kernels.newton import assemble
 from sim.kernels.workspace import alloc_workspace, copy_into
 from sim.numba_options import OPT_ALLOC
 
-__all__ = ["linearise_step"]
+__all__ = ["RodFactors", "Wanted", "Linearisation", "linearise_step"]
+
+
+class RodFactors(NamedTuple):
+    """The rod record and three copies with one factor doubled, for the columns of the residual's dependence on
+    that factor: the stretching and bending stiffness (``stiffer``), the twisting stiffness (``twist_stiffer``) and
+    the mass (``heavier``)."""
+
+    rod: object
+    stiffer: object
+    twist_stiffer: object
+    heavier: object
+
+
+class Wanted(NamedTuple):
+    """Which columns besides the band :func:`linearise_step` computes."""
+
+    kappa_bar: bool
+    tau_bar: bool
+    factors: bool
+
+
+class Linearisation(NamedTuple):
+    """What :func:`linearise_step` writes, per env (leading axis B): ``band`` (B, n + kl, 2 kl + 1) of ∂f/∂x';
+    ``kappa_bar`` (B, n, N, 2) ∂f/∂κ̄; ``tau_bar`` (B, n, N) ∂f/∂τ̄; ``factors`` (B, n, 3) the columns of the
+    doubled stiffness, twisting stiffness and mass. An array whose columns are not wanted may be a placeholder."""
+
+    band: np.ndarray
+    kappa_bar: np.ndarray
+    tau_bar: np.ndarray
+    factors: np.ndarray
+
+
+def linearise_step(start, solution, ctrl, h: float, rods: RodFactors, prm_arr, cd, wanted: Wanted,
+                   out: Linearisation) -> None:
+    """For every env of one recorded step — its start ``start`` (a :class:`sim.kernels.data.StateArrays`), its
+    solution ``solution`` (B, n) and the natural curvature and twist it ran with ``ctrl`` (a
+    :class:`sim.kernels.data.ControlArrays`) — write into ``out`` the band of ∂f/∂x' at the solution and the
+    ``wanted`` columns; the factors' columns come from ``rods`` (damping's column is m (x' − x)/h: the caller's).
+    ``rods.rod``'s fixed flags must be all 0 (the caller constrains afterwards). The parallel kernel under it takes
+    the records' arrays one by one (numba 0.68's parallel lowering fails on these records inside a prange kernel)."""
+    _linearise_envs(start.dof, start.vel, start.ref_d1, start.tangent, start.ref_twist, solution, ctrl.kappa_bar,
+                    ctrl.tau_bar, h, rods.rod, rods.stiffer, rods.twist_stiffer, rods.heavier, prm_arr, cd,
+                    wanted.kappa_bar, wanted.tau_bar, wanted.factors, out.band, out.kappa_bar, out.tau_bar,
+                    out.factors)
 
 
 @njit(**OPT_ALLOC)
@@ -31,8 +77,8 @@ def _residual(e, x, kb, tb, h, rod, prm, cs, w, out):
 
 
 @njit(parallel=True, **OPT_ALLOC)
-def linearise_step(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g, rod_m, prm_arr, cd,
-                   want_kb, want_tb, want_scalars, ab_out, kb_out, tb_out, sc_out):
+def _linearise_envs(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g, rod_m, prm_arr, cd,
+                    want_kb, want_tb, want_scalars, ab_out, kb_out, tb_out, sc_out):
     """For every env e of one recorded step: ab_out[e] (n + kl, 2 kl + 1) the band of ∂f/∂x' at x1s[e];
     kb_out[e] (n, N, 2) ∂f/∂κ̄, tb_out[e] (n, N) ∂f/∂τ̄ (if wanted); sc_out[e] (n, 3) the columns of the
     factors on stiffness (rod_e), twisting stiffness (rod_g) and mass (rod_m), each doubled, if wanted (damping's
