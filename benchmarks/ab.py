@@ -2,7 +2,9 @@
 
 Each case is one `rodlab bench ...` command (JSON output) run in checkout A, then in checkout B, then A
 again, and so on (``--runs`` times each, interleaved so slow drifts of the machine hit both sides alike).
-The figure of a case is the median over its runs; the ratio is median(B) / median(A).
+The figure of a case is the median over its runs; the ratio is median(B) / median(A). Each row also gives the
+ratio of the fastest runs and each side's spread (slowest / fastest run): on a shared host whose spread is wider
+than the difference looked for, the fastest runs are the better comparison.
 
     git worktree add --detach /tmp/rodlab-old <commit>      # the code to compare against
     python -m benchmarks.ab --a /tmp/rodlab-old --b . --runs 3 --out /tmp/ab.json
@@ -86,11 +88,15 @@ def main(argv: list[str] | None = None) -> int:
         vb = [float(r[key]) for r in raw["b"][tuple(args)]]
         ma, mb = statistics.median(va), statistics.median(vb)
         rows.append({"case": name, "command": "rodlab " + " ".join(args), "key": key, "a_ms": va, "b_ms": vb,
-                     "a_median_ms": ma, "b_median_ms": mb, "ratio_b_over_a": mb / ma})
+                     "a_median_ms": ma, "b_median_ms": mb, "ratio_b_over_a": mb / ma,
+                     # a busy host only adds time: the fastest runs compare the code where the medians are noisy
+                     "a_min_ms": min(va), "b_min_ms": min(vb), "ratio_of_fastest": min(vb) / min(va),
+                     "a_spread": max(va) / min(va), "b_spread": max(vb) / min(vb)})
     width = max(len(r["case"]) for r in rows)
-    print(f"{'case':<{width}}  {'A median':>9}  {'B median':>9}  {'B/A':>6}")
+    print(f"{'case':<{width}}  {'A median':>9}  {'B median':>9}  {'B/A':>6}  {'fastest B/A':>11}  {'spread A, B':>12}")
     for r in rows:
-        print(f"{r['case']:<{width}}  {r['a_median_ms']:9.2f}  {r['b_median_ms']:9.2f}  {r['ratio_b_over_a']:6.3f}")
+        print(f"{r['case']:<{width}}  {r['a_median_ms']:9.2f}  {r['b_median_ms']:9.2f}  {r['ratio_b_over_a']:6.3f}  "
+              f"{r['ratio_of_fastest']:11.3f}  {r['a_spread']:5.2f}, {r['b_spread']:4.2f}")
     if a.out:
         write_json(a.out.parent, a.out.name, {"a": str(trees["a"]), "b": str(trees["b"]), "runs": a.runs,
                                               "cases": rows})

@@ -38,3 +38,5 @@ def test_medians_ratio_and_interleaving(tmp_path, monkeypatch):
     row = json.loads(out.read_text())["cases"][0]
     assert row["a_median_ms"] == 20.0 and row["b_median_ms"] == 7.0
     assert row["ratio_b_over_a"] == pytest.approx(0.35)
+    assert row["a_min_ms"] == 10.0 and row["b_min_ms"] == 5.0 and row["ratio_of_fastest"] == pytest.approx(0.5)
+    assert row["a_spread"] == pytest.approx(3.0) and row["b_spread"] == pytest.approx(1.8)
