@@ -536,7 +536,7 @@ class Recorder:
 
     @staticmethod
     def _send_events(rec, idx, ep: _Episode, cols: dict[str, tuple[list[int], list[float]]]) -> None:
-        """The episode's events (``events.py``) as text at ``events``, found from the scalars just sent."""
+        """The episode's events (``policies.recording.events``) as text at ``events``, found from the scalars just sent."""
         nf = len(ep.pos)
         dense = {}
         for key, (fr, vals) in cols.items():

@@ -39,7 +39,7 @@ Inside every recording (all positions in metres, world frame, z up):
                                     ``reward_terms/<term>``, ``tip_error``, ``energy/<kind>``,
                                     ``solver/newton_iters``, ``solver/residual``,
                                     ``solver/converged``, ``solver/wall_time``, ...)
-``events``                          TextLog at the frames of the episode's events (``events.py``:
+``events``                          TextLog at the frames of the episode's events (``policies.recording.events``:
                                     episode start/end, first contact, failed and unconverged steps,
                                     reward spikes, pulls, take-overs), found from the scalars
 ==================================  ===========================================================

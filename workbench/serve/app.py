@@ -4,7 +4,7 @@
     ...
     app.stop()
 
-The core holds all logic; this module only builds the page (panels in ``gui_*.py``), runs the
+The core holds all logic; this module only builds the page (its tabs: :mod:`workbench.panels`), runs the
 sim thread (``session.runner.SimThread``) and redraws the scene (``view.scene.SceneView``).
 """
 from __future__ import annotations

@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from workbench.session.frame import quat_z_to, rod_edges, several_rods
+from sim.geometry import quat_z_to
+from workbench.session.frame import rod_edges, several_rods
 from workbench.session.policy_session import PolicySession
 
 GHOST_COLOR = np.array([30, 90, 255], dtype=np.uint8)

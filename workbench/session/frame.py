@@ -9,8 +9,7 @@ import dataclasses
 
 import numpy as np
 
-from sim.geometry import curvature_binormal, quat_to_matrix, quat_z_to  # noqa: F401  (re-exported)
-from sim.geometry import matrix_to_quat as quat_from_matrix  # noqa: F401  (re-exported)
+from sim.geometry import curvature_binormal, quat_to_matrix
 
 
 @dataclasses.dataclass

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.geometry import quat_z_to
 from workbench.session.obstacles import ObstacleEdit, edits_from_spec
 from workbench.session.policy_session import act, load_for
 from workbench.session.pull import Pull, control_force, grab, held_point, point
-from workbench.session.replay import quat_z_to
 
 MAX_ENVS = 36
 

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from sim import build_model
-from sim.geometry import quat_to_matrix
+from sim.geometry import matrix_to_quat, quat_to_matrix, quat_z_to
 from sim.scene import (
     BoxSpec,
     CapsuleSpec,
@@ -27,7 +27,6 @@ from sim.scene import (
     rod_obstacle_overlaps,
 )
 from sim.support.assets import asset_path
-from workbench.session.frame import quat_from_matrix, quat_z_to
 
 ObstacleKind = Literal["sphere", "capsule", "cylinder", "box", "mesh", "plane"]
 KINDS: tuple[str, ...] = ("sphere", "capsule", "cylinder", "box", "mesh", "plane")
@@ -82,7 +81,7 @@ def mesh_catalogue() -> list[str]:
 
 
 #: [m] where a new obstacle goes (moved clear of the rod and the others, :func:`free_position`): beside the arm's
-#: middle, in the start view of the arm (``view_scene.fit_camera``)
+#: middle, in the start view of the arm (``workbench.view.scene.fit_camera``)
 NEW_OBSTACLE_AT = (0.4, 0.0, 0.6)
 
 
@@ -189,7 +188,7 @@ def _rotm(wxyz) -> np.ndarray:
 
 
 def _quat(R: np.ndarray) -> np.ndarray:
-    return quat_from_matrix(R)
+    return matrix_to_quat(R)
 
 
 def _z_to(d) -> np.ndarray:

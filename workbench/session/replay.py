@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.session.frame import Frame, curvature_magnitude, edge_strain, quat_z_to, several_rods
+from sim.geometry import quat_z_to
+from workbench.session.frame import Frame, curvature_magnitude, edge_strain, several_rods
 from workbench.session.obstacles import ObstacleEdit
 
 # scalar name in the recording -> name shown in the workbench plots / status

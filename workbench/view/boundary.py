@@ -24,8 +24,8 @@ from typing import Callable
 import numpy as np
 import trimesh
 
+from sim.geometry import quat_z_to
 from sim.scene import global_node, node_index
-from workbench.session import quat_z_to
 
 KIND_NAMES = ("clamped", "pinned", "partial")
 KIND_COLORS = np.array([[35, 35, 42], [0, 150, 170], [245, 245, 245]], dtype=np.uint8)  # by KIND_NAMES

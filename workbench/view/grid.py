@@ -11,8 +11,8 @@ import numpy as np
 import trimesh
 import viser
 
-from sim.geometry import quat_to_matrix
-from workbench.session import mesh_for_edit, quat_z_to
+from sim.geometry import quat_to_matrix, quat_z_to
+from workbench.session import mesh_for_edit
 from workbench.view.boundary import Boundary, BoundaryView, boundary_of
 from workbench.view.scene import HAND_COLOR, ROD_COLOR, Overlays, arrow_vectors, place_camera
 

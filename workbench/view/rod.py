@@ -16,7 +16,8 @@ from typing import Callable
 import numpy as np
 import trimesh
 
-from workbench.session import Frame, quat_from_matrix, quat_z_to, rod_edges
+from sim.geometry import matrix_to_quat, quat_z_to
+from workbench.session import Frame, rod_edges
 from workbench.view.tube import SIDES, glb_bytes, rods_mesh, tube_mesh
 
 SWAP_DELAY = 0.08  # [s] a tube sent this long ago is shown even if no newer frame comes
@@ -313,7 +314,7 @@ class RodView:
             t = t / max(float(np.linalg.norm(t)), 1e-300)
             R = np.stack([np.asarray(m1[-1], np.float64), np.asarray(fr.m2[-1], np.float64), t], axis=-1)
             self.tip_frame.position = tuple(x[-1])
-            self.tip_frame.wxyz = tuple(quat_from_matrix(R))
+            self.tip_frame.wxyz = tuple(matrix_to_quat(R))
         if self.tip_frame.visible != show:
             self.tip_frame.visible = show
 

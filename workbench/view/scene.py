@@ -14,6 +14,7 @@ import numpy as np
 import trimesh
 import viser
 
+from sim.geometry import matrix_to_quat
 from workbench.session import (
     MAX_PINS,
     Frame,
@@ -22,7 +23,6 @@ from workbench.session import (
     mesh_for_edit,
     node_readout,
     node_values,
-    quat_from_matrix,
     readout_text,
     rod_edges,
     value_range,
@@ -68,7 +68,7 @@ def material_frame_poses(x: np.ndarray, m1: np.ndarray, m2: np.ndarray, rod_offs
     e = x[k + 1] - x[k]
     t = e / np.maximum(np.linalg.norm(e, axis=1), 1e-12)[:, None]
     R = np.stack([np.asarray(m1, np.float64)[k], np.asarray(m2, np.float64)[k], t], axis=-1)
-    return 0.5 * (x[k] + x[k + 1]), quat_from_matrix(R)
+    return 0.5 * (x[k] + x[k + 1]), matrix_to_quat(R)
 
 
 GROUND_SIZE = 4.0  # [m] side of the floor grid
@@ -115,7 +115,7 @@ class Overlays:
     arrows: str = "log"  # contact arrow length: "log", "auto" (largest force = ARROW_MAX) or "linear"
     control_points: bool = True  # mark the nodes where the natural curvature is commanded
     rest_shape: bool = True  # faint tube of the rest configuration
-    trail: bool = True  # the tip's path over the last ``view_rod.TRAIL_SECONDS``
+    trail: bool = True  # the tip's path over the last ``workbench.view.rod.TRAIL_SECONDS``
     tip_frame: bool = True  # the tip's material frame (m1, m2, t) (shown with the IK target's frame)
     follow_tip: bool = False  # the camera's look-at follows the tip (its offset kept)
     boundary: bool = True  # fixed nodes, fixed twists and point loads (``workbench.view.boundary``)
@@ -350,12 +350,12 @@ class SceneView:
             place_camera(client, tip + (pos - look), tip)
 
     def set_rod_scene(self, rest_nodes, control_nodes, radius: float, rod_offsets=None) -> None:
-        """Rest shape and control points of the live rod (``view_rod.scene_info``); ``rod_offsets``: where each
+        """Rest shape and control points of the live rod (``workbench.view.rod.scene_info``); ``rod_offsets``: where each
         rod starts when the scene has several (``sim.Model.rod_node_offsets``)."""
         self.rod.set_scene(rest_nodes, control_nodes, radius, rod_offsets)
 
     def set_boundary(self, b: Boundary | None) -> None:
-        """Fixed nodes, fixed twists and point loads of the live scene (``view_boundary.boundary_of``)."""
+        """Fixed nodes, fixed twists and point loads of the live scene (``workbench.view.boundary.boundary_of``)."""
         self.boundary.set_boundary(b)
 
     def show_live(self, shown: bool) -> None:

@@ -179,7 +179,7 @@ def test_tip_frame_beside_the_ik_target_frame(wb_page):
             app.render_hooks.remove(seen)
         fr, position, wxyz = next(e for e in drawn[n:] if at_its_tip(e))
         assert fr.target_wxyz is not None
-        from workbench.session.frame import quat_to_matrix
+        from sim.geometry import quat_to_matrix
 
         R = quat_to_matrix(wxyz)
         np.testing.assert_allclose(R[:, 0], fr.m1[-1], atol=1e-6)

@@ -4,8 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sim.geometry import matrix_to_quat as quat_from_matrix
+from sim.geometry import quat_z_to
 from workbench.session.core import Workbench
-from workbench.session.frame import curvature_magnitude, quat_from_matrix, quat_z_to
+from workbench.session.frame import curvature_magnitude
 from workbench.session.history import History, Snapshot, held_bytes
 
 

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from policies.recording import export as X
+from sim.geometry import quat_to_matrix
 from tools.browser import WAIT_MS
-from workbench.session.frame import joint_edges, quat_to_matrix, rod_edges
+from workbench.session.frame import joint_edges, rod_edges
 from workbench.view.tube import SIDES, vertex_count
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from sim import FixSpec, LoadSpec, build_model, load_scene
-from workbench.session.frame import quat_to_matrix
+from sim.geometry import quat_to_matrix
 from workbench.view import boundary as vb
 from workbench.view.boundary import BoundaryView, boundary_of
 from workbench.view.scene import ARROW_MAX, arrow_vectors

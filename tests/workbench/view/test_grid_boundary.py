@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from workbench.session.frame import quat_to_matrix
+from sim.geometry import quat_to_matrix
 from workbench.session.grid import GridSession
 from workbench.view.boundary import boundary_of
 from workbench.view.grid import GridView

@@ -195,7 +195,7 @@ def test_trail_keeps_two_seconds_and_clears_when_time_goes_back():
 
 
 def test_tip_frame_is_the_last_edges_material_frame():
-    from workbench.session.frame import quat_to_matrix
+    from sim.geometry import quat_to_matrix
     from workbench.view.rod import RodView
 
     rod = RodView(_Server(), N)
@@ -249,7 +249,7 @@ def test_rpy_round_trip(rpy):
 
 def test_rpy_convention_is_z_y_x():
     """R = Rz(yaw) Ry(pitch) Rx(roll): a yaw of 90° turns +x into +y; a pitch of 90° turns +x into -z."""
-    from workbench.session.frame import quat_to_matrix
+    from sim.geometry import quat_to_matrix
 
     np.testing.assert_allclose(quat_to_matrix(quat_from_rpy_deg((0, 0, 90))) @ [1, 0, 0], [0, 1, 0], atol=1e-12)
     np.testing.assert_allclose(quat_to_matrix(quat_from_rpy_deg((0, 90, 0))) @ [1, 0, 0], [0, 0, -1], atol=1e-12)
