@@ -87,6 +87,9 @@ class ControlsPanel:
             self.tip_frame = gui.add_checkbox("Tip frame", initial_value=True,
                                               hint="the tip's material frame (m1 red, m2 green, tangent blue); in "
                                                    "the IK task beside the target's frame")
+            self.shadows = gui.add_checkbox("Shadows", initial_value=app.view.shadows,
+                                            hint="shadows on the floor; turn them off when the page is slow (software "
+                                                 "WebGL, where they are most of the cost of a frame)")
             self.boundary = gui.add_checkbox("Fixes and loads", initial_value=True,
                                              hint="boxes on the fixed nodes (black: clamped, teal: pinned, every "
                                                   "axis fixed; white: some axes fixed), rings on edges whose twist "
@@ -192,6 +195,10 @@ class ControlsPanel:
         def _(_e) -> None:
             app.view.overlays.frames = self.frames.value
             app.request_render()
+
+        @self.shadows.on_update
+        def _(_e) -> None:
+            app.view.set_shadows(self.shadows.value)
 
         @self.contacts.on_update
         def _(_e) -> None:

@@ -58,13 +58,15 @@ class WorkbenchApp:
         host/port: where to serve (port 0 = any free port; read ``app.port``). Every request is checked
             (``workbench.serve.handshake``: loopback Host, same Origin, a token on a non-loopback bind).
         env_map: viser's HDRI lighting (off in tests: SwiftShader stalls on it).
+        shadows: shadows on the floor at start (the Display tab toggles them; off in tests: with software WebGL
+            they are most of the page's cost of a frame).
         speed: initial real-time factor (``float('inf')`` = as fast as possible).
         recordings_dir / scenes_dir / data_dir / max_upload_mb: the folders the page may use (``workbench.session.files``).
         wait_for_browser: stay paused at frame 0 until the first page connects (:meth:`start`).
     """
 
     def __init__(self, wb: Workbench, *, host: str = "127.0.0.1", port: int = 8080,
-                 env_map: bool = True, speed: float = 1.0, recordings_dir: str | Path | None = None,
+                 env_map: bool = True, shadows: bool = True, speed: float = 1.0, recordings_dir: str | Path | None = None,
                  scenes_dir: str | Path | None = None, max_upload_mb: float = 50.0, wait_for_browser: bool = True,
                  data_dir: str | Path | None = None):
         self.wb = wb
@@ -93,7 +95,7 @@ class WorkbenchApp:
             self.stop_server_and_cleanup()
             raise RuntimeError("viser changed: the workbench's callbacks could not be guarded")
         self.server.gui.configure_theme(control_width="large", show_share_button=False)
-        self.view = SceneView(self.server, wb.live.n_nodes, env_map=env_map)
+        self.view = SceneView(self.server, wb.live.n_nodes, env_map=env_map, shadows=shadows)
         self._draw_lock = threading.Lock()  # one frame drawn at a time (:meth:`_render`)
         self.render_hooks: list = []  # called with each drawn frame after the view (ghost of a compared episode)
         self.status_note = ""  # a line appended to the status (video progress)

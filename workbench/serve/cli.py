@@ -53,6 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
                          "working directory)")
     ap.add_argument("--max-upload-mb", type=float, default=50.0, help="largest mesh upload accepted [MB] (default 50)")
     ap.add_argument("--no-env-map", action="store_true", help="no HDRI lighting (faster in software GL)")
+    ap.add_argument("--no-shadows", action="store_true",
+                    help="no shadows on the floor at start (much faster in software GL; the Display tab toggles them)")
     ap.add_argument("--seconds", type=float, default=None, help="quit after this many seconds (tests)")
     return ap
 
@@ -76,7 +78,8 @@ def workbench_main(argv: list[str] | None = None) -> int:
         return 2
 
     try:
-        app = WorkbenchApp(wb, host=args.host, port=args.port, env_map=not args.no_env_map, speed=args.speed,
+        app = WorkbenchApp(wb, host=args.host, port=args.port, env_map=not args.no_env_map,
+                           shadows=not args.no_shadows, speed=args.speed,
                            scenes_dir=args.scenes_dir, recordings_dir=args.recordings_dir,
                            max_upload_mb=args.max_upload_mb, data_dir=args.data_dir)
     except (BindError, FileAccessError) as exc:

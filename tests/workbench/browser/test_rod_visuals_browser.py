@@ -127,6 +127,12 @@ def test_display_toggles(wb_page):
         wait_for(lambda h=handle: not h.visible, what=f"{label} hidden")
         page.get_by_label(label).click()
         wait_for(lambda a=attr: getattr(view.overlays, a), what=f"{label} on")
+    # shadows: off in the tests' app (make_app), turned on and off again from the page
+    assert not view.shadows
+    page.get_by_label("Shadows").click()
+    wait_for(lambda: view.shadows, what="shadows on")
+    page.get_by_label("Shadows").click()
+    wait_for(lambda: not view.shadows, what="shadows off")
     # the trail: the tip's last 2 s while it moves, cleared by a reset
     app.wb.set_teleop_value(2, 1, 1.5)
     app.wb.set_playing(True)

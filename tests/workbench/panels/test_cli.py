@@ -30,7 +30,7 @@ def test_serves_the_page_on_localhost():
     port = free_port()
     # SIGINT as a terminal gives it: a shell without job control starts background commands with SIGINT ignored,
     # which the child would inherit (and Python then installs no KeyboardInterrupt handler).
-    proc = subprocess.Popen([sys.executable, "-m", "rodlab_cli", "workbench", "--port", str(port), "--no-env-map"],
+    proc = subprocess.Popen([sys.executable, "-m", "rodlab_cli", "workbench", "--port", str(port), "--no-env-map", "--no-shadows"],
                             cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
@@ -71,7 +71,7 @@ def test_task_option_starts_a_policy_session():
     from workbench.serve.app import WorkbenchApp
     from workbench.session.core import Workbench
 
-    app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False)
+    app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, shadows=False)
     try:
         app.policy.start_task("follow_target")
         assert app.wb.mode == "policy" and app.wb.policy.task == "follow_target"
@@ -84,6 +84,6 @@ def test_task_option_starts_a_policy_session():
 
 def test_task_option_prints_the_tasks_scene(capsys):
     """``--task T`` names T's scene at start-up, not the teleop scene opened underneath it (default.toml)."""
-    assert workbench_main(["--task", "follow_target_2d", "--port", "0", "--no-env-map", "--seconds", "0"]) == 0
+    assert workbench_main(["--task", "follow_target_2d", "--port", "0", "--no-env-map", "--no-shadows", "--seconds", "0"]) == 0
     line = next(x for x in capsys.readouterr().out.splitlines() if "http://" in x)
     assert "task follow_target_2d, scene arm_2d.toml" in line and "default.toml" not in line, line

@@ -43,7 +43,7 @@ def app(tmp_path_factory):
     from workbench.serve.app import WorkbenchApp
     from workbench.session.core import Workbench
 
-    a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, scenes_dir=tmp_path_factory.mktemp("scenes"))
+    a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, shadows=False, scenes_dir=tmp_path_factory.mktemp("scenes"))
     yield a
     a.stop()
 
@@ -89,7 +89,7 @@ def test_non_loopback_bind_needs_the_token():
     from workbench.serve.app import WorkbenchApp
     from workbench.session.core import Workbench
 
-    a = WorkbenchApp(Workbench.builtin(), host="0.0.0.0", port=0, env_map=False)
+    a = WorkbenchApp(Workbench.builtin(), host="0.0.0.0", port=0, env_map=False, shadows=False)
     try:
         p, token = a.port, a.guard.token
         assert token and len(token) >= 24 and f"?token={token}" in a.url
@@ -109,7 +109,7 @@ def test_unbindable_host_fails_fast_with_a_clear_message(host, capsys):
     with pytest.raises(BindError, match="cannot serve on --host"):
         check_bindable(host, 8080)
     rc = {}
-    t = threading.Thread(target=lambda: rc.setdefault("rc", workbench_main(["--host", host, "--no-env-map"])),
+    t = threading.Thread(target=lambda: rc.setdefault("rc", workbench_main(["--host", host, "--no-env-map", "--no-shadows"])),
                          daemon=True)
     t.start()
     t.join(120)  # a hang (the old behaviour) would leave the thread running
@@ -126,7 +126,7 @@ def _first_url(proc: subprocess.Popen) -> str:
 
 def test_start_up_prints_the_full_url_first():
     cmd = [sys.executable, "-c", "import rodlab_cli, sys; sys.exit(rodlab_cli.main(sys.argv[1:]))",
-           "workbench", "--port", "0", "--seconds", "6", "--no-env-map"]
+           "workbench", "--port", "0", "--seconds", "6", "--no-env-map", "--no-shadows"]
     with subprocess.Popen(cmd + ["--host", "0.0.0.0"], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                           text=True) as proc:
         url = _first_url(proc)

@@ -30,7 +30,7 @@ def app(tmp_path):
     # tests/workbench/session/test_core.py), filling over minutes at the session's frame rate: kept small here, it is full
     # within the warm-up and what the soak watches is growth beyond the designed bounds
     wb.history.max_bytes = HISTORY_BYTES
-    a = WorkbenchApp(wb, port=0, env_map=False, wait_for_browser=False,
+    a = WorkbenchApp(wb, port=0, env_map=False, shadows=False, wait_for_browser=False,
                      scenes_dir=tmp_path / "scenes", recordings_dir=tmp_path / "recordings").start()
     yield a
     wait_for(lambda: soak.idle(a), what="the page actions still running")  # none left running at exit
