@@ -5,6 +5,7 @@ contacts, targets, obstacles with transform gizmos, ground grid, camera presets 
 """
 from __future__ import annotations
 
+import collections
 import dataclasses
 import functools
 import threading
@@ -198,6 +199,7 @@ class SceneView:
         self.selected: int | None = None
         self.color_range: tuple[str, float, float] = ("none", 0.0, 1.0)  # what the rod's colours mean now
         self.last_frame: Frame | None = None  # the frame shown (each is shown whole, with its tube: render)
+        self._following: dict[int, _Following] = {}  # per page (client id), while the camera follows the tip
 
     # ------------------------------------------------------------------ per frame
     def toggle_pin(self, node: int) -> None:
@@ -328,18 +330,21 @@ class SceneView:
                 self.target_frame.visible = False
         if ov.follow_tip:
             self.follow(fr.tip)
+        elif self._following:
+            self.unfollow()
 
     def follow(self, tip) -> None:
         """Every page's camera looks at ``tip``, keeping its offset from the look-at point.
 
-        The page reports its camera on its own schedule while the server moves it, so the offset is read from one
-        report (position read on both sides of the look-at, read again when a report arrived in between: a page
-        skipped here would stay off the tip of a paused frame, which is drawn once) and both new values are sent
-        together (:func:`place_camera`): a half-moved camera reported back would change the kept offset for good."""
+        The offset is read from the page's camera when following starts, and again only when the user has moved that
+        camera: a report matching none of the cameras this view placed. A report mixing the position of one placed
+        camera with the look-at of another (the page reports on its own schedule while the server moves it) leaves the
+        kept offset as it is; read back, it would shift the offset by the tip's motion between the two. The position
+        and look-at of a new camera are sent together (:func:`place_camera`)."""
         tip = np.asarray(tip, np.float64)
         if not np.all(np.isfinite(tip)):
             return
-        for client in self.server.get_clients().values():
+        for cid, client in self.server.get_clients().items():
             try:
                 view = _one_report(client.camera)
             except (AssertionError, ValueError):  # the page has not reported its camera yet
@@ -347,9 +352,19 @@ class SceneView:
             if view is None:
                 continue  # reports kept arriving (the page is being dragged): its next frame places it
             pos, look = view
-            if float(np.abs(tip - look).max()) <= 1e-6:
+            kept = self._following.get(cid)
+            if kept is None or _moved_by_user(pos, look, kept.placed):
+                kept = self._following[cid] = _Following(pos - look, collections.deque([(pos, look)],
+                                                                                      maxlen=PLACED_KEPT))
+            new_pos = tip + kept.offset
+            if float(np.abs(tip - look).max()) <= 1e-6 and float(np.abs(new_pos - pos).max()) <= 1e-6:
                 continue
-            place_camera(client, tip + (pos - look), tip)
+            kept.placed.append((new_pos, tip))
+            place_camera(client, new_pos, tip)
+
+    def unfollow(self) -> None:
+        """Following stopped: the next :meth:`follow` reads each page's camera afresh."""
+        self._following.clear()
 
     def set_rod_scene(self, rest_nodes, control_nodes, radius: float, rod_offsets=None) -> None:
         """Rest shape and control points of the live rod (``workbench.view.rod.scene_info``); ``rod_offsets``: where each
@@ -495,6 +510,24 @@ class SceneView:
         if self.selected != index or self._gizmo is None:
             raise KeyError(f"obstacle {index} is not selected (selected: {self.selected})")
         return self._gizmo
+
+
+PLACED_KEPT = 32  # cameras placed by :meth:`SceneView.follow` that a page's report may still mix (per page)
+PLACED_TOL = 1e-4  # [m] a reported position or look-at within this of a placed one is that one
+
+
+@dataclasses.dataclass
+class _Following:
+    offset: np.ndarray  # camera position - look-at, kept while following
+    placed: collections.deque  # the last (position, look-at) pairs sent to the page
+
+
+def _moved_by_user(pos: np.ndarray, look: np.ndarray, placed) -> bool:
+    """True when a page's reported camera is none of the placed ones, nor a mix of two of them (position of one,
+    look-at of another): the user moved it."""
+    def near(a, b) -> bool:
+        return float(np.abs(a - b).max()) <= PLACED_TOL
+    return not (any(near(pos, p) for p, _ in placed) and any(near(look, q) for _, q in placed))
 
 
 def _one_report(cam, tries: int = 8) -> tuple[np.ndarray, np.ndarray] | None:

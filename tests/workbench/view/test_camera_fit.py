@@ -67,3 +67,49 @@ def test_the_view_fits_the_drawn_scene_with_its_obstacles(tmp_path):
         assert tuple(app.server.initial_camera.position) == pytest.approx(pos)  # pages opened later start there
     finally:
         app.stop()
+
+
+class _Camera:
+    def __init__(self, position, look_at):
+        self.position, self.look_at = tuple(position), tuple(look_at)
+
+
+class _Page:
+    """A page's camera as the server sees it: what the page last reported."""
+
+    def __init__(self, position, look_at):
+        self.camera = _Camera(position, look_at)
+
+
+def test_follow_keeps_its_offset_through_mixed_reports_and_takes_the_users(monkeypatch):
+    """Following the tip keeps the camera's offset from the look-at: a report that mixes the position of one placed
+    camera with the look-at of a later one (the page reports on its own schedule) does not change it; a camera the user
+    moved gives the new offset; after following stops, the camera is read afresh."""
+    import types
+
+    from workbench.view.scene import SceneView
+
+    page = _Page((1.0, 0.0, 1.0), (0.0, 0.0, 0.0))
+    sent = []
+
+    class _Server:
+        def get_clients(self):
+            return {7: page}
+
+    view = types.SimpleNamespace(server=_Server(), _following={})
+    monkeypatch.setattr("workbench.view.scene.place_camera",
+                        lambda client, pos, look: sent.append((np.asarray(pos), np.asarray(look))))
+    follow = SceneView.follow.__get__(view)
+    follow((0.0, 0.0, 0.5))
+    np.testing.assert_allclose(sent[-1][0], (1.0, 0.0, 1.5))
+    page.camera = _Camera((1.0, 0.0, 1.0), (0.0, 0.0, 0.5))  # old position, new look-at
+    follow((0.0, 0.0, 0.6))
+    np.testing.assert_allclose(sent[-1][0], (1.0, 0.0, 1.6))  # the offset kept (not (1, 0, 0.5))
+    page.camera = _Camera((0.0, 1.0, 1.6), (0.0, 0.0, 0.6))  # the user orbited about the tip
+    follow((0.0, 0.0, 0.7))
+    np.testing.assert_allclose(sent[-1][0], (0.0, 1.0, 1.7))
+    np.testing.assert_allclose(sent[-1][1], (0.0, 0.0, 0.7))
+    SceneView.unfollow(view)
+    page.camera = _Camera((2.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    follow((0.0, 0.0, 0.0))
+    assert len(sent) == 3  # already looking at the tip from its own offset: nothing placed
