@@ -29,6 +29,7 @@ def test_run_fit_and_apply_from_the_page(wb_page, tmp_path):
     app.files.data = folder
     try:
         wb.load_scene(path)
+        wb.set_playing(False)  # the fit needs no live motion (and runs sooner without it)
         app.refresh_rod_scene()
         app.fit.refresh_list()
         expand_folder(page, "Fit", "Run fit")

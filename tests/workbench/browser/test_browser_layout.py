@@ -22,6 +22,7 @@ def _assert_in_view(client, pts) -> None:
 
 def test_tabs_with_status_always_visible(wb_page):
     app, page = wb_page
+    app.wb.set_playing(False)  # the page alone is tested: a still rod draws no frames
     for name in TABS:
         page.get_by_role("tab", name=name, exact=True).click()
         expect(page.get_by_role("tab", name=name, exact=True)).to_have_attribute("aria-selected", "true")
@@ -31,6 +32,7 @@ def test_tabs_with_status_always_visible(wb_page):
 
 def test_every_control_has_a_hint_and_units(wb_page):
     app, page = wb_page
+    app.wb.set_playing(False)  # the page alone is tested: a still rod draws no frames
     handles = [app.controls.speed, app.controls.force_scale, app.controls.color_by, app.controls.mode,
                app.policy.task, app.policy.policy, app.policy.rewind, app.replay.timeline, app.replay.speed,
                app.obstacles.kind, app.obstacles.selected, *(s for row in app.controls.sliders for s in row)]

@@ -21,6 +21,7 @@ def _row_inputs(page, label: str):
 def test_select_by_click_dropdown_and_typed_pose(wb_page):
     app, page = wb_page
     wb, ob, view = app.wb, app.obstacles, app.view
+    wb.set_playing(False)  # obstacles are placed, picked and typed on a still rod (a moving one draws many frames)
     expand_folder(page, "Obstacles", "Add obstacle")
     page.get_by_role("button", name="Add obstacle").click()
     wait_for(lambda: len(wb.obstacles) == 1 and len(view.obstacle_nodes) == 1, what="first obstacle")

@@ -53,6 +53,7 @@ def test_fields_and_gizmo_at_start(default_app):
     app, page = default_app
     wb, view = app.wb, app.view
     assert [e.name for e in wb.obstacles][:2] == ["bar", "ball"]
+    wb.set_playing(False)  # the fields and the gizmo on a still rod (a moving one draws many frames)
     expand_folder(page, "Obstacles", "Add obstacle")
     # nothing selected yet: no gizmo, and the fields cannot show (or edit) an obstacle that is not selected
     expect(page.get_by_label("Selected")).to_have_value("(none)")

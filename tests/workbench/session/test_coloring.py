@@ -66,6 +66,7 @@ def test_colour_bar_follows_quantity_and_range(wb_page):
         return lo, hi
 
     wait_for(lambda: bar_range()[1] > 0.05, timeout=30, what="curvature range from the bent rod")
+    wb.set_playing(False)  # the bent rod's paused frame is drawn again with each choice below
     assert bar_range()[0] == 0.0
     for quantity, text in (("κ1", "κ1 [rad]"), ("twist", "twist [rad]")):
         page.get_by_label("Colour by").click()
