@@ -68,6 +68,8 @@ def wb_page(shared):
     app.controls.reach.value = False
     app.controls.show_reach(False)
     wb.set_teleop_mode("absolute")
+    app.view.overlays.control_points = True  # the view's defaults, whatever a failed test left
+    app.controls.color_by.value = "curvature"
     wb.reset()
     wb.set_playing(True)
     app.sync_obstacle_view()

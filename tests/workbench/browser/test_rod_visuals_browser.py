@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from tools.browser import canvas_png, expand_folder, newest_client, project, retry_until, wait_for
+from workbench.view import place_camera
 
 pytestmark = pytest.mark.browser
 
@@ -60,8 +61,9 @@ def _look_at_rod(app, x: np.ndarray):
     right = np.cross(look - pos, [0.0, 0.0, 1.0])
     shift = right / np.linalg.norm(right) * 0.45 * (1.6 * span + 0.4)  # the rod left of centre, clear of the panel
     pos, look = pos + shift, look + shift
-    cam.position, cam.look_at = tuple(pos), tuple(look)
-    wait_for(lambda: np.allclose(cam.position, pos, atol=1e-3), what="camera moved")
+    place_camera(newest_client(app), tuple(pos), tuple(look))
+    wait_for(lambda: np.allclose(cam.position, pos, atol=1e-3) and np.allclose(cam.look_at, look, atol=1e-3),
+             what="camera moved")
     return cam
 
 
@@ -93,14 +95,19 @@ def test_tube_colours_and_no_missing_frames(wb_page):
         return r >= 0.7 and b >= 0.7  # (highlights and the tip frame's axes may cover a ring or two)
 
     wait_for(shows_colours, timeout=30, interval=0.5, what="red and blue parts of the tube in the page")
-    # streaming: a new mesh every frame, the tube is in every screenshot (two GLB nodes take turns)
-    app.wb.set_playing(True)
-    app.controls.set_quiet(app.controls.playing, True)
-    probe = red[len(red) // 2]
-    for _ in range(6):
-        img = _rgb(canvas_png(page))
-        assert _reddish(_patch(img, uv[probe], r=3)), "the tube was missing from a frame"
-    assert sum(h.visible for h in view.rod.tube.nodes) == 1
+    # streaming: a new mesh every frame, the tube is in every screenshot (two GLB nodes take turns), with the shadows
+    # of the page's default settings (without them a frame may lack the tube after the Plots were drawn: open)
+    view.set_shadows(True)
+    try:
+        app.wb.set_playing(True)
+        app.controls.set_quiet(app.controls.playing, True)
+        probe = red[len(red) // 2]
+        for _ in range(6):
+            img = _rgb(canvas_png(page))
+            assert _reddish(_patch(img, uv[probe], r=3)), "the tube was missing from a frame"
+        assert sum(h.visible for h in view.rod.tube.nodes) == 1
+    finally:
+        view.set_shadows(False)
     view.overlays.control_points = True
     app.controls.color_by.value = "curvature"
 
