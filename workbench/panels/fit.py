@@ -195,7 +195,6 @@ class FitPanel:
             self.loss.data = (k, r)
         if job.result is not None and self._drawn is not job:
             self._drawn = job
-            self.result.content = job.table()
             tr = job.result.track
             if tr is not None and tr.t.size > 1:
                 self.time.max = float(tr.t[-1])
@@ -203,6 +202,7 @@ class FitPanel:
                 self.time.value = 0.0
                 self.app.checks.accept(self.time)
             self.draw()
+            self.result.content = job.table()  # last: a result shown is a result drawn
 
     def draw(self) -> None:
         """The fitted rod, the measured points and their residuals at the Fit time (removed when not shown)."""
