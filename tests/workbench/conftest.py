@@ -41,7 +41,7 @@ def make_app(wb=None, **kw):
     from workbench.session.core import Workbench
 
     wb = wb if wb is not None else Workbench.builtin()
-    return WorkbenchApp(wb, port=0, env_map=False, shadows=False, **kw).start()
+    return WorkbenchApp(wb, port=0, env_map=False, **kw).start()
 
 
 @pytest.fixture(scope="session")

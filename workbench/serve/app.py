@@ -58,7 +58,7 @@ class WorkbenchApp:
         host/port: where to serve (port 0 = any free port; read ``app.port``). Every request is checked
             (``workbench.serve.handshake``: loopback Host, same Origin, a token on a non-loopback bind).
         env_map: viser's HDRI lighting (off in tests: SwiftShader stalls on it).
-        shadows: shadows on the floor at start (the Display tab toggles them; off in tests: with software WebGL
+        shadows: shadows on the floor at start (the Display tab toggles them; with software WebGL
             they are most of the page's cost of a frame).
         speed: initial real-time factor (``float('inf')`` = as fast as possible).
         recordings_dir / scenes_dir / data_dir / max_upload_mb: the folders the page may use (``workbench.session.files``).

@@ -28,7 +28,7 @@ def test_status_says_compiling_kernels(browser, tmp_path, monkeypatch):
         return 0.0
 
     monkeypatch.setattr("sim.compile_kernels", slow_warmup)
-    app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, shadows=False, recordings_dir=tmp_path / "rec",
+    app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, recordings_dir=tmp_path / "rec",
                        scenes_dir=tmp_path / "scenes").start()
     try:
         page = open_page(browser, app, width=960, height=640)

@@ -21,7 +21,7 @@ def app(tmp_path):
     from workbench.serve.app import WorkbenchApp
     from workbench.session.core import Workbench
 
-    a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, shadows=False, wait_for_browser=False,
+    a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, wait_for_browser=False,
                      scenes_dir=tmp_path / "scenes", recordings_dir=tmp_path / "recordings").start()
     yield a
     a.stop()

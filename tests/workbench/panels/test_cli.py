@@ -71,7 +71,7 @@ def test_task_option_starts_a_policy_session():
     from workbench.serve.app import WorkbenchApp
     from workbench.session.core import Workbench
 
-    app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, shadows=False)
+    app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False)
     try:
         app.policy.start_task("follow_target")
         assert app.wb.mode == "policy" and app.wb.policy.task == "follow_target"

@@ -123,7 +123,7 @@ def test_fit_tab_fits_draws_and_applies_as_a_new_scene(data, tmp_path):
 
     path, folder = data
     scenes = tmp_path / "scenes"
-    app = WorkbenchApp(Workbench.from_path(path), port=0, env_map=False, shadows=False, wait_for_browser=False,
+    app = WorkbenchApp(Workbench.from_path(path), port=0, env_map=False, wait_for_browser=False,
                        scenes_dir=scenes, recordings_dir=tmp_path / "rec", data_dir=folder).start()
     try:
         panel = app.fit

@@ -43,7 +43,7 @@ def app(tmp_path_factory):
     from workbench.serve.app import WorkbenchApp
     from workbench.session.core import Workbench
 
-    a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, shadows=False, scenes_dir=tmp_path_factory.mktemp("scenes"))
+    a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, scenes_dir=tmp_path_factory.mktemp("scenes"))
     yield a
     a.stop()
 
@@ -89,7 +89,7 @@ def test_non_loopback_bind_needs_the_token():
     from workbench.serve.app import WorkbenchApp
     from workbench.session.core import Workbench
 
-    a = WorkbenchApp(Workbench.builtin(), host="0.0.0.0", port=0, env_map=False, shadows=False)
+    a = WorkbenchApp(Workbench.builtin(), host="0.0.0.0", port=0, env_map=False)
     try:
         p, token = a.port, a.guard.token
         assert token and len(token) >= 24 and f"?token={token}" in a.url

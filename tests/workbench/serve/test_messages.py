@@ -56,7 +56,7 @@ def app(tmp_path_factory):
     from workbench.serve.app import WorkbenchApp
     from workbench.session.core import Workbench
 
-    a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, shadows=False, scenes_dir=tmp_path_factory.mktemp("scenes"),
+    a = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, scenes_dir=tmp_path_factory.mktemp("scenes"),
                      recordings_dir=tmp_path_factory.mktemp("recordings"))
     yield a
     a.stop()

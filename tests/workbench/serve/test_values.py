@@ -31,7 +31,7 @@ def _start_app(tmp_path_factory):
     from workbench.serve.app import WorkbenchApp
     from workbench.session.core import Workbench
 
-    return WorkbenchApp(Workbench.builtin(), port=0, env_map=False, shadows=False, wait_for_browser=False,
+    return WorkbenchApp(Workbench.builtin(), port=0, env_map=False, wait_for_browser=False,
                         scenes_dir=tmp_path_factory.mktemp("scenes"),
                         recordings_dir=tmp_path_factory.mktemp("recordings")).start()
 

@@ -31,7 +31,7 @@ def env(tmp_path_factory):
     root = tmp_path_factory.mktemp("wb")
     (root / "scenes").mkdir()
     (root / "recordings").mkdir()
-    app = WorkbenchApp(Workbench.from_path(DEFAULT), port=0, env_map=False, shadows=False, scenes_dir=root / "scenes",
+    app = WorkbenchApp(Workbench.from_path(DEFAULT), port=0, env_map=False, scenes_dir=root / "scenes",
                        recordings_dir=root / "recordings", max_upload_mb=1).start()
     client = HostileClient(app)
     yield app, client, root
@@ -240,7 +240,7 @@ def test_small_upload_goes_to_the_per_launch_folder_which_is_removed_on_exit(tmp
     from workbench.session.core import Workbench
     from workbench.session.obstacles import MESH_DIR
 
-    app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, shadows=False, scenes_dir=tmp_path / "s")
+    app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, scenes_dir=tmp_path / "s")
     up = app.files.uploads
     try:
         dest = app.obstacles.receive_upload("torus.stl", (MESH_DIR / "torus.stl").read_bytes())

@@ -71,7 +71,7 @@ def test_replayed_frame_draws_two_tubes_and_no_frame_on_the_joint(recorded, serv
     wb, path = recorded
     s = ReplaySession.open(path)
     s.seek(s.length - 1)
-    view = SceneView(server, 42, env_map=False, shadows=False)
+    view = SceneView(server, 42, env_map=False)
     try:
         view.overlays.frames = True
         for fr in (s.frame(), wb.live.frame()):  # replayed, then live
@@ -121,7 +121,7 @@ def test_an_old_recording_replays_as_one_rod(server):
     n = len(fr.node_pos)
     assert fr.rod_offsets is None and X.pack_episode(s.ep)["rod_offsets"] == [0, n]
     assert len(Ghost(s.ep).edges()) == n - 1
-    view = SceneView(server, n, env_map=False, shadows=False)
+    view = SceneView(server, n, env_map=False)
     try:
         view.overlays.frames = True
         view.render(fr, boundary=False)

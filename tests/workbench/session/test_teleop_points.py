@@ -35,7 +35,7 @@ def test_a_rod_of_any_length_opens_and_its_sliders_bend_it_where_they_say(tmp_pa
     from workbench.serve.app import WorkbenchApp
     from workbench.session.core import Workbench
 
-    app = WorkbenchApp(Workbench.from_path(_scene(tmp_path, nodes)), port=0, env_map=False, shadows=False, wait_for_browser=False,
+    app = WorkbenchApp(Workbench.from_path(_scene(tmp_path, nodes)), port=0, env_map=False, wait_for_browser=False,
                        scenes_dir=tmp_path / "scenes", recordings_dir=tmp_path / "rec").start()
     try:
         cp = control_points(nodes)
@@ -74,7 +74,7 @@ def test_choosing_another_rod_names_its_control_points(tmp_path):
            "rod": [dict(rod, name="a", nodes=21, start=[0, 0, 0]), dict(rod, name="b", nodes=9, start=[0, 0.5, 0])]}
     path = tmp_path / "two.toml"
     dump_scene(parse_scene(doc), path)
-    app = WorkbenchApp(Workbench.from_path(path), port=0, env_map=False, shadows=False, wait_for_browser=False,
+    app = WorkbenchApp(Workbench.from_path(path), port=0, env_map=False, wait_for_browser=False,
                        scenes_dir=tmp_path / "scenes", recordings_dir=tmp_path / "rec").start()
     try:
         first = [f"κ1 at node {c} [rad]" for c in control_points(21)]

@@ -220,7 +220,7 @@ def test_scene_view_draws_them_for_live_frames_only():
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
         model = _model("strip_tip_load.toml")
-        view = SceneView(server, model.node_count, env_map=False, shadows=False)
+        view = SceneView(server, model.node_count, env_map=False)
         assert view.boundary.nodes == []
         view.set_boundary(boundary_of(model))
         x = np.asarray(model.rest_node_pos, np.float64)

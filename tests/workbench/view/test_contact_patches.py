@@ -43,7 +43,7 @@ def test_two_rods_at_rest_read_one_label_per_touch(tmp_path):
     from workbench.session.core import Workbench
 
     scene = Path(__file__).resolve().parents[3] / "assets" / "scenes" / "two_rods.toml"
-    app = WorkbenchApp(Workbench.from_path(scene), port=0, env_map=False, shadows=False, wait_for_browser=False,
+    app = WorkbenchApp(Workbench.from_path(scene), port=0, env_map=False, wait_for_browser=False,
                        recordings_dir=tmp_path / "r", scenes_dir=tmp_path / "s")
     try:
         wb = app.wb

@@ -265,7 +265,7 @@ def test_target_and_its_frame_hide_when_a_frame_has_no_target():
 
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
-        view = SceneView(server, N, env_map=False, shadows=False)
+        view = SceneView(server, N, env_map=False)
         x = straight()
         view.render(Frame(node_pos=x, rod_radius=R, targets=np.array([[0.3, 0.0, 0.5]]),
                           target_wxyz=np.array([1.0, 0.0, 0.0, 0.0])))
@@ -322,7 +322,7 @@ def test_each_frame_is_shown_whole_with_its_tube():
 
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
-        view = SceneView(server, N, env_map=False, shadows=False)
+        view = SceneView(server, N, env_map=False)
         view.set_rod_scene(straight(), (2, 6, 10, 14, 18), R)
         for name in ("trail", "tip_frame", "control_points"):
             setattr(view.overlays, name, True)
