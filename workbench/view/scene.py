@@ -152,7 +152,6 @@ class SceneView:
         sc.set_up_direction("+z")
         if not env_map:
             sc.configure_environment_map(hdri=None)
-        self.shadows = True
         self.set_shadows(shadows)
         server.initial_camera.position, server.initial_camera.look_at = fit_camera("iso", [[0, 0, 0], [0, 0, 1.0]])
         self.camera: tuple[str, tuple, tuple] = ("iso", *fit_camera("iso", [[0, 0, 0], [0, 0, 1.0]]))  # the last preset
@@ -344,7 +343,10 @@ class SceneView:
         tip = np.asarray(tip, np.float64)
         if not np.all(np.isfinite(tip)):
             return
-        for cid, client in self.server.get_clients().items():
+        clients = self.server.get_clients()
+        for gone in self._following.keys() - clients.keys():  # pages closed while following
+            del self._following[gone]
+        for cid, client in clients.items():
             try:
                 view = _one_report(client.camera)
             except (AssertionError, ValueError):  # the page has not reported its camera yet
@@ -391,8 +393,7 @@ class SceneView:
                     self._gizmo.visible = self.live_shown
 
     def set_shadows(self, on: bool) -> None:
-        """Shadows of the default lights on the floor. With software WebGL they are most of the cost of a frame (a
-        playing rod: about 16 page frames in 3 s with them, 45 without, on 2 cores)."""
+        """Shadows of the default lights on the floor (with software WebGL, most of the cost of a page's frame)."""
         self.shadows = bool(on)
         self.server.scene.configure_default_lights(True, cast_shadow=self.shadows)
 

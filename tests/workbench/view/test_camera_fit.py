@@ -113,3 +113,7 @@ def test_follow_keeps_its_offset_through_mixed_reports_and_takes_the_users(monke
     page.camera = _Camera((2.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     follow((0.0, 0.0, 0.0))
     assert len(sent) == 3  # already looking at the tip from its own offset: nothing placed
+    page_gone = {}
+    view.server.get_clients = lambda: page_gone  # the page closed while following: its camera is forgotten
+    follow((0.0, 0.0, 0.1))
+    assert view._following == {}
