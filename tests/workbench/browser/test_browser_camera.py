@@ -7,6 +7,7 @@ import io
 import numpy as np
 import pytest
 
+from tests.helpers.workbench import pause_drawn
 from tools.browser import canvas_png, expand_folder, newest_client, wait_for
 
 pytestmark = pytest.mark.browser
@@ -22,15 +23,6 @@ def _centre(png: bytes) -> np.ndarray:
 
 def _tip(app) -> np.ndarray:
     return np.asarray(app.view.last_frame.node_pos[-1], np.float64)
-
-
-def _pause(app) -> None:
-    wb = app.wb
-    wb.set_playing(False)
-    app.controls.set_quiet(app.controls.playing, False)
-    app.request_render()
-    wait_for(lambda: app.view.last_frame.time == pytest.approx(float(np.asarray(wb.live.state.time)[0])),
-             what="the paused frame drawn")
 
 
 def _offset_at_rest(cam) -> np.ndarray:
@@ -63,7 +55,7 @@ def test_follow_tip(wb_page):
             wb.set_teleop_value(k, 0, value)
             f = wb.frame_index
             wait_for(lambda f=f: wb.frame_index > f + 40, timeout=60, what="the tip to move")
-            _pause(app)
+            pause_drawn(app)
             tip = _tip(app)
             # the page reports position and look-at of one camera state; read both until they are of the same one
             # (1 mm: the page's orbit controls may settle a camera set from the server by a hair)
@@ -85,7 +77,7 @@ def test_follow_tip(wb_page):
         wb.set_teleop_value(2, 0, -1.0)
         f = wb.frame_index
         wait_for(lambda: wb.frame_index > f + 40, timeout=60, what="the tip to move again")
-        _pause(app)
+        pause_drawn(app)
         assert np.linalg.norm(_tip(app) - look) > 0.05
         np.testing.assert_allclose(cam.look_at, look, atol=1e-3)  # the camera stayed (as the page may settle it)
     finally:

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import expect
 
+from tests.helpers.workbench import pause_drawn, set_live_playing
 from tools.browser import WAIT_MS, expand_folder, newest_client, project, retry_until, wait_for
 from workbench.view.scene import place_camera
 
@@ -94,10 +95,7 @@ def test_clicking_the_rod_pins_a_readout_that_follows_the_node(wb_page):
              what="the readout drawn")
     # the readout is the drawn frame's: its curvature is the simulator's at that node (paused, so that no newer frame
     # moves the label between the two reads)
-    wb.set_playing(False)
-    app.request_render()
-    wait_for(lambda: view.last_frame.time == pytest.approx(float(np.asarray(wb.live.state.time)[0])),
-             what="the paused frame drawn")
+    pause_drawn(app)
     fr = view.last_frame
     st = wb.live.state
     from sim.geometry.curvature import material_curvature
@@ -110,7 +108,7 @@ def test_clicking_the_rod_pins_a_readout_that_follows_the_node(wb_page):
     if np.allclose(st.node_pos[0], fr.node_pos, atol=1e-12):  # the arm at rest: the frame is the state's
         assert r["κ1"] == pytest.approx(material_curvature(np.asarray(st.node_pos[0]), m1, m2)[node, 0], abs=1e-12)
     assert abs(r["κ1"]) > 0.01
-    wb.set_playing(True)
+    set_live_playing(app, True)
     # between two beads the click lands on the rod's grip: a second pin at the node nearest the pointer
     other = 12
     assert all(abs(other - c) >= 2 for c in wb.teleop.control_nodes())
