@@ -53,8 +53,12 @@ def test_plot_height_draws_every_plot_taller(wb_page):
     wait_for(lambda: plots.aspect == pytest.approx(0.8), what="the taller plots chosen")
     wait_for(lambda: plots.handles and all(h.aspect == pytest.approx(0.8) for h in list(plots.handles.values())),
              what="every plot taller")
-    box = page.locator(".uplot").first.bounding_box()
-    assert box is not None and box["height"] > 0.9 * box["width"]  # drawn taller than wide in the page
+
+    def drawn_taller() -> bool:  # in the page, once it has drawn the plots anew (they are hidden while it does)
+        box = page.locator(".uplot").first.bounding_box()
+        return box is not None and box["height"] > 0.9 * box["width"]
+
+    wait_for(drawn_taller, what="the plots drawn taller than wide in the page")
     page.get_by_label("Plot height").click()
     page.get_by_role("option", name="compact", exact=True).click()
     wait_for(lambda: all(h.aspect == pytest.approx(2.2) for h in list(plots.handles.values())),

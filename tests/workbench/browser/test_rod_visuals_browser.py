@@ -97,12 +97,16 @@ def test_tube_colours_and_no_missing_frames(wb_page):
     wait_for(shows_colours, timeout=30, interval=0.5, what="red and blue parts of the tube in the page")
     # streaming: a new mesh every frame, the tube is in every screenshot (two GLB nodes take turns); with shadows (the
     # page's default) — without them a frame can lack the tube after the Plots tab has drawn (a known defect)
+    view.set_shadows(True)
     app.wb.set_playing(True)
     app.controls.set_quiet(app.controls.playing, True)
     probe = red[len(red) // 2]
-    for _ in range(6):
-        img = _rgb(canvas_png(page))
-        assert _reddish(_patch(img, uv[probe], r=3)), "the tube was missing from a frame"
+    try:
+        for _ in range(6):
+            img = _rgb(canvas_png(page))
+            assert _reddish(_patch(img, uv[probe], r=3)), "the tube was missing from a frame"
+    finally:
+        view.set_shadows(False)
     assert sum(h.visible for h in view.rod.tube.nodes) == 1
     view.overlays.control_points = True
     app.controls.color_by.value = "curvature"
@@ -130,12 +134,12 @@ def test_display_toggles(wb_page):
         wait_for(lambda h=handle: not h.visible, what=f"{label} hidden")
         page.get_by_label(label).click()
         wait_for(lambda a=attr: getattr(view.overlays, a), what=f"{label} on")
-    # shadows: on by default, turned off and on again from the page
-    assert view.shadows
-    page.get_by_label("Shadows").click()
-    wait_for(lambda: not view.shadows, what="shadows off")
+    # shadows (off in the tests' pages: tests.helpers.workbench.PAGE_FPS) turned on and off again from the page
+    assert not view.shadows
     page.get_by_label("Shadows").click()
     wait_for(lambda: view.shadows, what="shadows on")
+    page.get_by_label("Shadows").click()
+    wait_for(lambda: not view.shadows, what="shadows off")
     # the trail: the tip's last 2 s while it moves, cleared by a reset
     app.wb.set_teleop_value(2, 1, 1.5)
     app.wb.set_playing(True)
