@@ -3,35 +3,28 @@ workbench and `rodlab train --init-from`). A full SB3 checkpoint loads only with
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import zipfile
 
 import pytest
 
 from policies.learning.sac import PolicyLoadError, load_policy, read_policy_meta
-from tests.helpers.paths import REPO
+from tests.helpers.cli import rodlab
 from tests.helpers.payloads import rodlab_zip, sb3_zip
 
 
-def _rodlab_eval(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", "import rodlab_cli, sys; sys.exit(rodlab_cli.main(sys.argv[1:]))",
-                           "eval", *args], cwd=REPO, capture_output=True, text=True, timeout=600)
-
-
-def test_rodlab_eval_never_unpickles_an_sb3_zip(tmp_path):
+def test_rodlab_eval_never_unpickles_an_sb3_zip(tmp_path, capsys):
     marker = tmp_path / "PWNED"
     bad = sb3_zip(tmp_path / "model.zip", marker)
-    out = _rodlab_eval(str(bad), "--task", "follow_target", "--episodes", "1")
+    out = rodlab(capsys, "eval", str(bad), "--task", "follow_target", "--episodes", "1")
     assert not marker.exists(), "the pickle payload in the SB3 zip ran"
     assert out.returncode == 2, out.stderr
     assert "--trust-pickle" in out.stderr and "Traceback" not in out.stderr
 
 
-def test_rodlab_eval_never_unpickles_policy_pt(tmp_path):
+def test_rodlab_eval_never_unpickles_policy_pt(tmp_path, capsys):
     marker = tmp_path / "PWNED"
     bad = rodlab_zip(tmp_path / "policy.zip", marker, task="Pendulum-v1")
-    out = _rodlab_eval(str(bad), "--episodes", "1")
+    out = rodlab(capsys, "eval", str(bad), "--episodes", "1")
     assert not marker.exists()
     assert out.returncode == 2 and "Traceback" not in out.stderr
     assert "policy.pt is not a plain tensor file" in out.stderr

@@ -7,8 +7,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import subprocess
-import sys
 import threading
 from pathlib import Path
 
@@ -18,7 +16,7 @@ import pytest
 from policies.learning.evaluation import evaluate
 from policies.learning.sac import PolicyLoadError, load_policy, read_policy_meta
 from policies.learning.training import Args, TrainError, train
-from tests.helpers.paths import REPO
+from tests.helpers.cli import rodlab
 from tests.helpers.training import train_args
 
 
@@ -112,9 +110,7 @@ def test_cli_reports_bad_input_without_traceback(tmp_path, capsys):
     assert "rodlab eval:" in err and "not found" in err and "Traceback" not in err
     bad = tmp_path / "bad.zip"
     bad.write_text("garbage")
-    out = subprocess.run([sys.executable, "-c", "import rodlab_cli, sys; sys.exit(rodlab_cli.main(sys.argv[1:]))",
-                          "eval", str(bad), "--task", "Pendulum-v1"], cwd=REPO, capture_output=True, text=True,
-                         timeout=600)
+    out = rodlab(capsys, "eval", str(bad), "--task", "Pendulum-v1")
     assert out.returncode == 2
     assert "Traceback" not in out.stderr and "not a readable policy zip" in out.stderr
 

@@ -16,6 +16,7 @@ import pytest
 from sim.analysis import calibration as F
 from sim.scene.spec import dump_scene, load_scene
 from sim.scene.validate import BOUNDS
+from tests.helpers.cli import rodlab
 from tests.helpers.fit import NOISE_M, synthetic, write_csv
 from tests.helpers.rodspec import make_spec
 
@@ -93,15 +94,15 @@ def test_ctrl_c_keeps_the_best_so_far(tmp_path):
     assert res.rms_m <= start.rms_m
 
 
-def test_cli_writes_a_new_scene_a_report_and_json(tmp_path):
+def test_cli_writes_a_new_scene_a_report_and_json(tmp_path, capsys):
     path = scene(tmp_path)
     spec = load_scene(path)
     meas, _ = synthetic(spec, ["youngs_modulus"], [math.log(1.3)], seconds=1.0)
     data = write_csv(tmp_path / "data.csv", meas)
     out = tmp_path / "fitted.toml"
-    cmd = [sys.executable, "-m", "rodlab_cli", "fit", str(path), str(data), "--params", "youngs_modulus",
-           "--out", str(out), "--report", str(tmp_path / "report"), "--holdout", "0.25", "--json"]
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    cmd = ["fit", str(path), str(data), "--params", "youngs_modulus", "--out", str(out), "--report",
+           str(tmp_path / "report"), "--holdout", "0.25", "--json"]
+    p = rodlab(capsys, *cmd)
     assert p.returncode == 0, p.stderr
     doc = json.loads(p.stdout.strip().splitlines()[-1])
     assert doc["params"]["youngs_modulus"] == pytest.approx(1.3e6, rel=0.02)
@@ -115,8 +116,7 @@ def test_cli_writes_a_new_scene_a_report_and_json(tmp_path):
     assert {ln.rsplit(",", 1)[1] for ln in lines[1:]} == {"fit", "holdout"}
     # never over an existing file (the input scene included)
     for target in (out, path):
-        p = subprocess.run(cmd[:6] + ["--params", "damping", "--out", str(target)], capture_output=True, text=True,
-                           timeout=600)
+        p = rodlab(capsys, *cmd[:3], "--params", "damping", "--out", str(target))
         assert p.returncode == 2 and "always written to a new file" in p.stderr and "Traceback" not in p.stderr
 
 

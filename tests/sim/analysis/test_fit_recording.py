@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +15,7 @@ from sim.analysis import calibration as F
 from sim.scene.model import build_model
 from sim.scene.spec import dump_scene, load_scene
 from sim.step import Simulator
+from tests.helpers.cli import rodlab
 from tests.helpers.rodspec import make_spec
 
 DIRECTION = tuple(np.array([1.0, 0.0, 0.3]) / np.hypot(1.0, 0.3))
@@ -83,11 +82,10 @@ def test_a_recording_reads_as_the_arrays_of_an_npz(recorded):
 
 
 @pytest.mark.parametrize("episode, param, truth", [(0, "youngs_modulus", 1.3e6), (1, "damping", 0.5)])
-def test_rodlab_fit_recovers_a_recorded_parameter(recorded, tmp_path, episode, param, truth):
+def test_rodlab_fit_recovers_a_recorded_parameter(recorded, tmp_path, capsys, episode, param, truth):
     path, rrd = recorded
-    cmd = [sys.executable, "-m", "rodlab_cli", "fit", str(path), str(rrd), "--params", param, "--episode",
-           str(episode), "--out", str(tmp_path / "fitted.toml"), "--report", str(tmp_path / "report"), "--json"]
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    p = rodlab(capsys, "fit", str(path), str(rrd), "--params", param, "--episode", str(episode), "--out",
+               str(tmp_path / "fitted.toml"), "--report", str(tmp_path / "report"), "--json")
     assert p.returncode == 0, p.stderr
     doc = json.loads(p.stdout.strip().splitlines()[-1])
     start = {"youngs_modulus": 1e6, "damping": 0.2}[param]

@@ -3,6 +3,7 @@ drive it); a non-loopback bind needs the per-launch token; an unbindable --host 
 from __future__ import annotations
 
 import re
+import signal
 import socket
 import subprocess
 import sys
@@ -126,7 +127,7 @@ def _first_url(proc: subprocess.Popen) -> str:
 
 def test_start_up_prints_the_full_url_first():
     cmd = [sys.executable, "-c", "import rodlab_cli, sys; sys.exit(rodlab_cli.main(sys.argv[1:]))",
-           "workbench", "--port", "0", "--seconds", "6", "--no-env-map", "--no-shadows"]
+           "workbench", "--port", "0", "--no-env-map", "--no-shadows"]
     with subprocess.Popen(cmd + ["--host", "0.0.0.0"], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                           text=True) as proc:
         url = _first_url(proc)
@@ -137,6 +138,7 @@ def test_start_up_prints_the_full_url_first():
         with pytest.raises(urllib.error.HTTPError) as exc:
             urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=600)
         assert exc.value.code == 403
+        proc.send_signal(signal.SIGINT)  # Ctrl-C: the server stops and the command ends normally
         err = proc.communicate(timeout=600)[1]
     assert proc.returncode == 0 and "WARNING" in err and "0.0.0.0" in err
 
