@@ -20,7 +20,7 @@ def _no_work(*a, **k):
 
 @pytest.mark.parametrize("kind", ["read-only", "file-as-parent", "directory"])
 def test_eval_record_unwritable_refused_before_the_evaluation(tmp_path, capsys, monkeypatch, kind):
-    monkeypatch.setattr("policies.learning.evaluation.evaluate", _no_work)
+    monkeypatch.setattr("policies.learning.evaluate", _no_work)  # the name the command reads
     assert eval_main(["random", "--task", "follow_target", "--episodes", "1",
                       "--record", _bad(tmp_path, kind, "x.rrd")]) == 2
     err = capsys.readouterr().err
@@ -29,7 +29,7 @@ def test_eval_record_unwritable_refused_before_the_evaluation(tmp_path, capsys, 
 
 @pytest.mark.parametrize("kind", ["read-only", "file-as-parent"])
 def test_train_run_dir_unwritable_refused_before_training(tmp_path, capsys, monkeypatch, kind):
-    monkeypatch.setattr("policies.learning.training.train", _no_work)
+    monkeypatch.setattr("policies.learning.train", _no_work)  # the name the command reads
     run_dir = _bad(tmp_path, kind, "run")
     assert train_main(["follow_target", "--steps", "10", "--run-dir", run_dir]) == 2
     err = capsys.readouterr().err
@@ -37,7 +37,7 @@ def test_train_run_dir_unwritable_refused_before_training(tmp_path, capsys, monk
 
 
 def test_train_run_dir_that_is_a_file_is_refused(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr("policies.learning.training.train", _no_work)
+    monkeypatch.setattr("policies.learning.train", _no_work)  # the name the command reads
     f = tmp_path / "run"
     f.write_text("x")
     assert train_main(["follow_target", "--steps", "10", "--run-dir", str(f)]) == 2

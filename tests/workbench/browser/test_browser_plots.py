@@ -6,6 +6,7 @@ import io
 
 import numpy as np
 import pytest
+from playwright.sync_api import Error as PlaywrightError
 
 from tools.browser import WAIT_MS, expand_folder, slider_thumb, wait_for
 from workbench.session.plots import COLORS
@@ -71,14 +72,20 @@ def test_replay_plots_every_series_with_timeline_cursor(wb_page):
     for title, names in want.items():
         c = charts[title]
         assert c["ymin"] is not None and c["ymax"] is not None and c["ymin"] < c["ymax"], title
-        canvas = page.locator(".uplot").filter(has_text=title).locator("canvas").first
-        png = canvas.screenshot(timeout=WAIT_MS)
-        for j, name in enumerate(names):
+        for name in names:
             i = c["labels"].index(name)
             finite = [v for v in c["data"][i] if v is not None]
             assert len(finite) >= 39, (title, name)
-            # the line is drawn: at least ~ a plot width of pixels in the series colour
-            assert _color_pixels(png, COLORS[j]) > 100, (title, name)
+
+        def lines_drawn(title=title, names=names) -> bool:  # ~ a plot width of pixels in each series' colour
+            canvas = page.locator(".uplot").filter(has_text=title).locator("canvas").first
+            try:
+                png = canvas.screenshot(timeout=WAIT_MS)
+            except PlaywrightError:  # the page replaced the plot's element meanwhile (a newer message): look again
+                return False
+            return all(_color_pixels(png, COLORS[j]) > 100 for j in range(len(names)))
+
+        wait_for(lines_drawn, what=f"the lines of {title!r} drawn")
     # the timeline cursor follows the timeline slider
     def cursor_x() -> float | None:
         c = _charts(page)["tip error [m]"]
