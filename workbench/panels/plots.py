@@ -8,7 +8,6 @@ rod, commanded against actual per component (``workbench.session.rod_curves``), 
 """
 from __future__ import annotations
 
-import threading
 import time
 
 import numpy as np
@@ -51,9 +50,6 @@ class PlotsPanel:
         self.shown: list[Plot] = []  # what the page shows now (tests read it)
         self.pin_series = PinSeries()  # the pinned nodes' values over the live history
         self.aspect = PLOT_ASPECTS["compact"]
-        # the stepping thread (update_status) and the page's callbacks (a replay's timeline, the plot height) both
-        # draw: one at a time (viser refuses a tab entered by two threads at once, and the handles are shared)
-        self._lock = threading.RLock()
         with self.folder:
             self.height = app.server.gui.add_dropdown(
                 "Plot height", tuple(PLOT_ASPECTS), initial_value="compact",
@@ -67,17 +63,12 @@ class PlotsPanel:
 
     def set_aspect(self, aspect: float) -> None:
         """Draw every plot ``aspect`` times as wide as tall (the plots shown now and those made later)."""
-        with self._lock:
-            self.aspect = float(aspect)
-            for h in list(self.handles.values()):
-                h.aspect = self.aspect
+        self.aspect = float(aspect)
+        for h in list(self.handles.values()):
+            h.aspect = self.aspect
 
     # ------------------------------------------------------------------ drawing
     def show(self, plots: list[Plot]) -> None:
-        with self._lock:
-            self._show(plots)
-
-    def _show(self, plots: list[Plot]) -> None:
         keys = [p.key for p in plots]
         for k in list(self.handles):
             if k not in keys:
@@ -139,17 +130,15 @@ class PlotsPanel:
     # ------------------------------------------------------------------ sources
     def show_replay(self, session, *, force: bool = False) -> None:
         """Every scalar of the open episode, cursor at the timeline position."""
-        with self._lock:
-            key = (id(session), session.episode_index, session.index)
-            if not force and key == self._replay_key:
-                return
-            self._replay_key = key
-            ep = session.ep
-            t = np.asarray(ep.sim_time, dtype=np.float64)
-            vals = {name: np.asarray(v, dtype=np.float64) for name, v in ep.scalars.items()}
-            curv = curvature_plot(replay_curves(ep, session.index)) if session.length else None
-            cursor = float(t[session.index]) if len(t) else None
-            self.show(([curv] if curv is not None else []) + layout(t, vals, cursor=cursor))
+        key = (id(session), session.episode_index, session.index)
+        if not force and key == self._replay_key:
+            return
+        self._replay_key = key
+        ep = session.ep
+        t = np.asarray(ep.sim_time, dtype=np.float64)
+        vals = {name: np.asarray(v, dtype=np.float64) for name, v in ep.scalars.items()}
+        curv = curvature_plot(replay_curves(ep, session.index)) if session.length else None
+        self.show(([curv] if curv is not None else []) + layout(t, vals, cursor=float(t[session.index]) if len(t) else None))
 
     def update_live(self) -> None:
         wb = self.app.wb
@@ -168,9 +157,8 @@ class PlotsPanel:
 
     def update_status(self) -> None:
         wb = self.app.wb
-        with self._lock:
-            if wb.mode == "replay" and wb.replay is not None:
-                self.show_replay(wb.replay)
-            else:
-                self._replay_key = None
-                self.update_live()
+        if wb.mode == "replay" and wb.replay is not None:
+            self.show_replay(wb.replay)
+        else:
+            self._replay_key = None
+            self.update_live()
