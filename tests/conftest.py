@@ -33,17 +33,6 @@ def process_group(nodeid: str) -> str:
     return path
 
 
-# The groups that take longest, started first (a process takes the next group when it has finished one): the browser
-# group, the soak (one test of minutes), then the learning tests that train; the others follow in collection order.
-LONG_FIRST = ("tests/workbench", "tests/workbench/serve/test_soak.py", "tests/policies/learning/test_sweep.py",
-              "tests/policies/learning/test_train_speed.py", "tests/policies/learning/test_precision_presets.py")
-
-
-def pytest_collection_modifyitems(config, items):
-    rank = {group: i for i, group in enumerate(LONG_FIRST)}
-    items.sort(key=lambda item: rank.get(process_group(item.nodeid), len(rank)))  # stable: each group keeps its order
-
-
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
     from xdist.scheduler import LoadScopeScheduling
@@ -52,5 +41,4 @@ def pytest_xdist_make_scheduler(config, log):
         def _split_scope(self, nodeid: str) -> str:
             return process_group(nodeid)
 
-    config.option.loadscopereorder = False  # the groups in the order above, not by their number of tests
     return ByGroup(config, log)

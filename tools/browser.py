@@ -33,39 +33,8 @@ def chromium_path() -> str:
                           "`make system-deps` (apt-get install -y chromium) (never `playwright install`)")
 
 
-def launch(playwright, *, antialias: bool = True):
-    """Headless system Chromium. ``antialias=False`` draws WebGL without multisampling (software WebGL spends about a
-    third of a frame on it: the tests' pages)."""
-    args = CHROMIUM_ARGS + ([] if antialias else ["--webgl-antialiasing-mode=none"])
-    return playwright.chromium.launch(executable_path=chromium_path(), headless=True, args=args)
-
-
-# Caps the page's animation frames (three.js draws once per frame): installed before the page's scripts, it runs the
-# callbacks queued since the last frame together, at most FPS times a second (a slow display's pace).
-_FRAME_CAP_JS = """(() => {
-  const raf = window.requestAnimationFrame.bind(window);
-  const period = 1000 / %r;
-  let queued = new Map(), next = 0, scheduled = false, last = -Infinity;
-  function run(t) {
-    scheduled = false;
-    last = performance.now();
-    const callbacks = queued;
-    queued = new Map();
-    for (const cb of callbacks.values()) {
-      try { cb(t); } catch (e) { setTimeout(() => { throw e; }); }
-    }
-  }
-  window.requestAnimationFrame = (cb) => {
-    next += 1;
-    queued.set(next, cb);
-    if (!scheduled) {
-      scheduled = true;
-      setTimeout(() => raf(run), Math.max(0, last + period - performance.now()));
-    }
-    return next;
-  };
-  window.cancelAnimationFrame = (id) => { queued.delete(id); };
-})();"""
+def launch(playwright):
+    return playwright.chromium.launch(executable_path=chromium_path(), headless=True, args=CHROMIUM_ARGS)
 
 
 # Waits end on a condition (the page's state, the server's counters), never on elapsed time. The bound only stops
@@ -111,13 +80,9 @@ def retry_until(action: Callable[[], None], pred: Callable[[], bool], *, attempt
             raise TimeoutError(f"timed out after {WAIT_BOUND_S:.0f} s repeating the gesture for {told or pred}")
 
 
-def open_page(browser, app, *, width: int = 1280, height: int = 800, max_fps: float | None = None):
-    """Open the workbench page and wait until the GUI and the camera are known server-side. ``max_fps`` caps the
-    page's animation frames (the tests' pages: software WebGL redraws a playing scene as often as it can, taking the
-    cores the server and the other tests need)."""
+def open_page(browser, app, *, width: int = 1280, height: int = 800):
+    """Open the workbench page and wait until the GUI and the camera are known server-side."""
     page = browser.new_page(viewport={"width": width, "height": height})
-    if max_fps is not None:
-        page.add_init_script(_FRAME_CAP_JS % float(max_fps))
     page.set_default_timeout(WAIT_MS)
     before = set(app.server.get_clients())
     page.goto(app.url)

@@ -31,7 +31,7 @@ def browser():
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as p:
-        b = launch(p, antialias=False)  # the tests' pages (tests.helpers.workbench.open_test_page)
+        b = launch(p)
         yield b
         b.close()
 
@@ -41,17 +41,16 @@ def make_app(wb=None, **kw):
     from workbench.session.core import Workbench
 
     wb = wb if wb is not None else Workbench.builtin()
-    kw.setdefault("shadows", False)  # the tests' pages (tests.helpers.workbench.PAGE_FPS)
     return WorkbenchApp(wb, port=0, env_map=False, **kw).start()
 
 
 @pytest.fixture(scope="session")
 def shared(browser, tmp_path_factory):
     """(app, page) shared by the browser tests."""
-    from tests.helpers.workbench import open_test_page
+    from tools.browser import open_page
 
     app = make_app(recordings_dir=tmp_path_factory.mktemp("recordings"), scenes_dir=tmp_path_factory.mktemp("scenes"))
-    page = open_test_page(browser, app)
+    page = open_page(browser, app, width=960, height=640)
     yield app, page
     page.close()
     app.stop()

@@ -8,8 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.helpers.workbench import open_test_page
-from tools.browser import expand_folder, wait_for
+from tools.browser import expand_folder, open_page, wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -28,7 +27,7 @@ def strip_app(tmp_path):
     from workbench.serve.app import WorkbenchApp
     from workbench.session.core import Workbench
 
-    app = WorkbenchApp(Workbench.from_path(SCENE), port=0, env_map=False, shadows=False, recordings_dir=tmp_path / "rec",
+    app = WorkbenchApp(Workbench.from_path(SCENE), port=0, env_map=False, recordings_dir=tmp_path / "rec",
                        scenes_dir=tmp_path / "scenes").start()
     try:
         yield app
@@ -42,7 +41,7 @@ def _page_glyphs(page) -> dict:
 
 def test_fixes_and_loads_in_the_page(browser, strip_app):
     app, wb, view = strip_app, strip_app.wb, strip_app.view
-    page = open_test_page(browser, app)
+    page = open_page(browser, app, width=960, height=640)
     try:
         wait_for(lambda: set(GLYPHS) <= set(_page_glyphs(page)), timeout=30, what="the glyphs in the page's scene")
         got = _page_glyphs(page)

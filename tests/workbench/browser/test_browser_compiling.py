@@ -8,8 +8,7 @@ import threading
 
 import pytest
 
-from tests.helpers.workbench import open_test_page
-from tools.browser import wait_for
+from tools.browser import open_page, wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -29,10 +28,10 @@ def test_status_says_compiling_kernels(browser, tmp_path, monkeypatch):
         return 0.0
 
     monkeypatch.setattr("sim.compile_kernels", slow_warmup)
-    app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, shadows=False, recordings_dir=tmp_path / "rec",
+    app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, recordings_dir=tmp_path / "rec",
                        scenes_dir=tmp_path / "scenes").start()
     try:
-        page = open_test_page(browser, app)
+        page = open_page(browser, app, width=960, height=640)
         try:
             wait_for(lambda: not app.waiting_for_browser, what="the page connected")
             status = page.get_by_text("compiling kernels: the 3D step kernel", exact=False)

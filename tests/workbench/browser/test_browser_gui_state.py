@@ -9,8 +9,7 @@ from __future__ import annotations
 import pytest
 from playwright.sync_api import expect
 
-from tests.helpers.workbench import open_test_page
-from tools.browser import expand_folder, slider_thumb, wait_for
+from tools.browser import expand_folder, open_page, slider_thumb, wait_for
 
 pytestmark = pytest.mark.browser
 
@@ -21,7 +20,7 @@ def task_app(tmp_path):
     from workbench.serve.app import WorkbenchApp
     from workbench.session.core import Workbench
 
-    app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, shadows=False, recordings_dir=tmp_path / "rec",
+    app = WorkbenchApp(Workbench.builtin(), port=0, env_map=False, recordings_dir=tmp_path / "rec",
                        scenes_dir=tmp_path / "scenes")
     try:
         app.policy.start_task("ik4d")  # what workbench_main does for --task, before start()
@@ -36,7 +35,7 @@ def test_task_option_shown_in_page_and_paused_until_browser(browser, task_app):
     # nothing connected yet: paused at frame 0 (the sim thread runs but does not step)
     assert app.waiting_for_browser and not wb.playing
     assert app.thread._thread.is_alive() and wb.frame_index == 0
-    page = open_test_page(browser, app)
+    page = open_page(browser, app, width=960, height=640)
     try:
         wait_for(lambda: wb.playing and wb.frame_index > 2, timeout=120, what="session to start with the page")
         assert not app.waiting_for_browser

@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import expect
 
-from tests.helpers.workbench import open_test_page
-from tools.browser import expand_folder, newest_client, project, wait_for
+from tools.browser import expand_folder, newest_client, open_page, project, wait_for
 from workbench.session.obstacles import bounding_radius, surface_distance
 
 pytestmark = pytest.mark.browser
@@ -28,9 +27,9 @@ def default_app(browser, tmp_path):
     from workbench.serve.app import WorkbenchApp
     from workbench.session.core import Workbench
 
-    app = WorkbenchApp(Workbench.from_path(DEFAULT), port=0, env_map=False, shadows=False, recordings_dir=tmp_path / "rec",
+    app = WorkbenchApp(Workbench.from_path(DEFAULT), port=0, env_map=False, recordings_dir=tmp_path / "rec",
                        scenes_dir=tmp_path / "scenes").start()
-    page = open_test_page(browser, app)
+    page = open_page(browser, app, width=960, height=640)
     try:
         yield app, page
     finally:

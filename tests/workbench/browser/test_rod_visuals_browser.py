@@ -70,15 +70,6 @@ def _look_at_rod(app, x: np.ndarray):
 def test_tube_colours_and_no_missing_frames(wb_page):
     app, page = wb_page
     view = app.view
-    # with shadows, the page's default: without them a frame of the tube can be missing (a known defect, below)
-    view.set_shadows(True)
-    try:
-        _tube_colours_and_no_missing_frames(app, page, view)
-    finally:
-        view.set_shadows(False)
-
-
-def _tube_colours_and_no_missing_frames(app, page, view) -> None:
     expand_folder(page, "Display", "top")
     page.get_by_label("Colour by").click()
     page.get_by_role("option", name="κ1", exact=True).click()
@@ -139,12 +130,12 @@ def test_display_toggles(wb_page):
         wait_for(lambda h=handle: not h.visible, what=f"{label} hidden")
         page.get_by_label(label).click()
         wait_for(lambda a=attr: getattr(view.overlays, a), what=f"{label} on")
-    # shadows (off in the tests' pages: tests.helpers.workbench.PAGE_FPS) turned on and off again from the page
-    assert not view.shadows
-    page.get_by_label("Shadows").click()
-    wait_for(lambda: view.shadows, what="shadows on")
+    # shadows: on by default, turned off and on again from the page
+    assert view.shadows
     page.get_by_label("Shadows").click()
     wait_for(lambda: not view.shadows, what="shadows off")
+    page.get_by_label("Shadows").click()
+    wait_for(lambda: view.shadows, what="shadows on")
     # the trail: the tip's last 2 s while it moves, cleared by a reset
     app.wb.set_teleop_value(2, 1, 1.5)
     app.wb.set_playing(True)
