@@ -1,10 +1,12 @@
 """The models added for issue #36 against closed forms and reference values: a stepped (non-uniform) cantilever,
 friction under the tasks' Newton budget (a rod on an incline, a rope over a drum), the buckled column reached by
-``to_stable``, resistive-force drag, an end moment and a line load, a rotating clamp and the internal loads.
+``to_stable``, resistive-force drag, an end moment and a line load, the clamp at a node, a rotating clamp and the
+internal loads.
 
 Each case is the set-up of its verification test (tests/sim/test_nonuniform.py, contact/test_friction_newton.py,
-test_static_stability.py, test_drag.py, test_loads.py, test_rotating_clamp.py, test_internal_loads.py), copied
-here; the script prints one line per figure (the error and the test's bound) and writes them as JSON.
+test_static_stability.py, test_drag.py, test_loads.py, test_exact_clamp.py, test_rotating_clamp.py,
+test_internal_loads.py), copied here; the script prints one line per figure (the error and the test's bound) and
+writes them as JSON.
 
     .venv/bin/python -m benchmarks.accuracy_models --out docs/bench/accuracy_models.json
 """
@@ -24,6 +26,7 @@ from scipy.optimize import brentq
 from scipy.special import ellipk
 
 from benchmarks.common import machine_info, write_json
+from benchmarks.references import heavy_elastica
 from sim import Simulator, build_model, parse_scene
 from sim.analysis import solve_static
 from sim.geometry import matrix_from_rotvec
@@ -292,6 +295,40 @@ def end_moment(Ns=(21, 41)) -> list[dict[str, Any]]:
     return rows
 
 
+def node_clamp(Ns=(11, 21, 41, 81)) -> list[dict[str, Any]]:
+    """A cantilever (L = 1, E = 1e7) built in at node 1 (``clamp = "node"``, docs/physics.md §3.6): the relative
+    error of a small tip force's deflection (r = 2 cm) against F L_f³/(3 EI) and the tip's distance from the
+    extensible elastica's under P L_f²/EI = 3 (r = 2 mm, as the test, whose reference is inextensible: axial strain
+    3e-6), both from node 1 over the free length L_f = L − l̄; second order in the edge length
+    (tests/sim/test_exact_clamp.py)."""
+    E = 1e7
+    small, large = [], []
+    for N in Ns:
+        Lf = 1.0 - 1.0 / (N - 1)
+        for r, errs in ((0.02, small), (0.002, large)):
+            EI = E * np.pi * r ** 4 / 4
+            P = 1e-3 if errs is small else 3.0 * EI / Lf ** 2
+            spec = dataclasses.replace(_spec(nodes=N, radius=r, E=E, dtol=1e-14, max_iter=100, clamp="node"),
+                                       loads=(LoadSpec(node=-1, force=(0.0, 0.0, -P)),))
+            _, st, _ = _relaxed(spec)
+            tip = st.node_pos[0, -1] - st.node_pos[0, 1]
+            if errs is small:
+                ref = P * Lf ** 3 / (3 * EI)
+                errs.append((-tip[2] - ref) / ref)
+            else:
+                ref = heavy_elastica(length=Lf, EI=EI, w=0.0, P=P, EA=E * np.pi * r * r)
+                errs.append(float(np.hypot(tip[0] - ref.x[-1], tip[2] - ref.z[-1])))
+    rows = []
+    for name, errs, unit, bound in (("tip force F L_f³/3EI: relative error", small, "", 2e-3),
+                                    ("elastica tip (P L_f²/EI = 3): distance", large, "m", 5e-4)):
+        rows += [_row("node_clamp", f"clamp at node 1, N = {N}: {name}", e, bound if N == Ns[-1] else None, unit,
+                      nodes=N) for N, e in zip(Ns, errs)]
+        rows += [_row("node_clamp", f"clamp at node 1, {name.split(':')[0]}: error ratio N = {a} / {b}",
+                      ea / eb, [3.48, 4.59] if name.startswith("tip") else [3.25, 100.0])
+                 for a, b, ea, eb in zip(Ns[:-1], Ns[1:], errs[:-1], errs[1:])]
+    return rows
+
+
 def line_load(N: int = 21) -> list[dict[str, Any]]:
     """A cantilever (L = 1, r = 2 cm, E = 1e7) under a uniform line load q = 1e-3 N/m (−z): the tip deflection
     against q L'⁴/(8 EI), relative."""
@@ -368,6 +405,7 @@ CASES: dict[str, tuple[Callable[[], list], Callable[[], list]]] = {
     "cross_flow": (cross_flow, cross_flow),
     "end_moment": (end_moment, end_moment),
     "line_load": (line_load, line_load),
+    "node_clamp": (node_clamp, lambda: node_clamp((21, 41))),
     "rotating_clamp": (rotating_clamp, rotating_clamp),
     "internal_loads": (internal_loads, internal_loads),
 }

@@ -204,9 +204,13 @@ def _rod_arrays(rod) -> dict:
         mass[:-1] += 0.5 * me
         mass[1:] += 0.5 * me
     d1, t = initial_reference_frames(x)
+    node_EI1, node_EI2, node_GJ = _node_stiffness(EI1, lbar), _node_stiffness(EI2, lbar), _node_stiffness(GJ, lbar)
+    if rod.clamp == "node":  # built in exactly at node 1 (docs/physics.md §3.6): only the free half of its cell bends
+        vor[1] = 0.5 * lbar[1]
+        node_EI1[1], node_EI2[1], node_GJ[1] = EI1[1], EI2[1], GJ[1]
     return dict(
         x=x, lbar=lbar, vor=vor, r=r, EA=E * A, EI1=EI1, EI2=EI2, GJ=GJ, mass=mass, theta=rod.density * Jp * lbar,
-        node_EI1=_node_stiffness(EI1, lbar), node_EI2=_node_stiffness(EI2, lbar), node_GJ=_node_stiffness(GJ, lbar),
+        node_EI1=node_EI1, node_EI2=node_EI2, node_GJ=node_GJ,
         d1=d1, t=t,
         kbar=material_curvature(x, d1, np.cross(t, d1)),  # rest shape: material = reference frame (θ = 0)
         planar=_planar_axes(d1[0], t[0]))
@@ -228,7 +232,8 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
 
     ``locked_edges``: extra edges j whose nodes x_j, x_{j+1} and twist angle θ^j are constrained (kept at the
     values the State holds; set ``state.dof[:, j, 3]`` to impose a twist angle). Used e.g. by the pure-twist
-    check; ``rod.clamp = "first_edge"`` locks edge 0 the same way (each rod's first edge in a scene of several).
+    check; ``rod.clamp = "first_edge"`` or ``"node"`` locks edge 0 the same way (each rod's first edge in a scene of
+    several).
 
     Several rods (docs/physics.md §1.7) are one chain of nodes in file order; the edge between the last node of
     one rod and the first of the next is a joint edge (``edge_link`` False) that carries no material: no
@@ -263,7 +268,7 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
         if not 0 <= j < N - 1:
             raise ValueError(f"locked_edges: edge index {j} out of range [0, {N - 2}]")
     for rod, off in zip(spec.rods, offsets[:-1]):
-        if rod.clamp == "first_edge":
+        if rod.clamp in ("first_edge", "node"):
             locked.add(int(off))
     # in-plane component for 2-D (docs/physics.md §1.6), of the first rod (rod_planar: each rod's)
     pc, ps = parts[0]["planar"]

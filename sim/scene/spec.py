@@ -10,8 +10,8 @@ Keys (SI units)::
            candidates and only when an update raised the residual), newton_dtol [m/s] (displacement
            test, default 1e-2), divergence_guard [-] (default 10; 0 = off; docs/physics.md §6.3)
     [rod]  nodes, length [m], radius [m], density [kg/m^3], youngs_modulus [Pa], poisson_ratio [-],
-           start [m] (3-vector), direction (3-vector, normalised here), clamp ("first_edge"|"none",
-           default "first_edge"), cross_section ("circle"|"rectangle"|"ellipse", default "circle":
+           start [m] (3-vector), direction (3-vector, normalised here), clamp ("first_edge"|"node"|"none",
+           default "first_edge"; "node": built in exactly at node 1, docs/physics.md §3.6), cross_section ("circle"|"rectangle"|"ellipse", default "circle":
            radius; "rectangle": width [m] (along m1) and height [m] (along m2); "ellipse": semi_axes [m]
            [a, b] (a along m1); sim/scene/section.py), rest_points [m] (list of [x, y, z]: a non-straight rest
            shape instead of nodes/length/start/direction); radius (circle) and youngs_modulus also take a
@@ -52,7 +52,7 @@ from sim.scene.tomlio import (
     take_str,
     take_vec3,
 )
-from sim.scene.validate import check_scene, unit_vector
+from sim.scene.validate import CLAMPS, check_scene, unit_vector
 from sim.support.atomicio import write_text
 
 __all__ = ["SceneError", "SimSpec", "RodSpec", "SceneSpec", "load_scene", "parse_scene", "dump_scene",
@@ -61,7 +61,7 @@ __all__ = ["SceneError", "SimSpec", "RodSpec", "SceneSpec", "load_scene", "parse
 Mode = Literal["3d", "2d"]
 Integrator = Literal["backward_euler", "midpoint"]
 LineSearch = Literal["none", "backtrack", "auto"]
-Clamp = Literal["first_edge", "none"]
+Clamp = Literal["first_edge", "node", "none"]
 
 
 @dataclass(frozen=True)
@@ -306,7 +306,7 @@ def _parse_rod(r: dict, name: str, rp: str, sim: SimSpec, where: str, path: str 
         density=take_float(r, "density", rp, path, positive=True),
         youngs_modulus=youngs,
         poisson_ratio=nu,
-        clamp=take_str(r, "clamp", rp, path, "first_edge", choices=("first_edge", "none")),  # type: ignore
+        clamp=take_str(r, "clamp", rp, path, "first_edge", choices=CLAMPS),  # type: ignore
         prestretch=take_float(r, "prestretch", rp, path, 0.0),
         name=name,
         **sec,

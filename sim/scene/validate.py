@@ -21,6 +21,8 @@ from sim.scene.boundary import check_boundary
 from sim.scene.section import SECTIONS, section_of
 from sim.scene.tomlio import SceneError
 
+CLAMPS = ("first_edge", "node", "none")  # [rod] clamp (sim/scene/spec.py; docs/physics.md §3.6)
+
 __all__ = ["BOUNDS", "check_scene", "check_step_inputs", "quarantine_nonfinite", "env_mask", "unit_vector",
            "bounds_table"]
 
@@ -210,7 +212,7 @@ def _check_rod(c: _Checker, r: Any, mode: str, rp: str) -> None:
         c.fail(rp + "poisson_ratio", f"must be in (-1, 0.5], got {nu!r}")
     c.vec(rp + "start", r.start, "rod.start")
     c.unit(rp + "direction", r.direction)
-    c.choice(rp + "clamp", r.clamp, ("first_edge", "none"))
+    c.choice(rp + "clamp", r.clamp, CLAMPS)
     c.num(rp + "prestretch", getattr(r, "prestretch", 0.0), "rod.prestretch")
     # derived quantities (docs/physics.md §1.5): all must be positive normal floats
     seg = length / (n - 1)

@@ -59,6 +59,14 @@ def test_end_moment_and_line_load_match_beam_theory():
     assert abs(q) < 2e-2
 
 
+def test_node_clamp_is_second_order():
+    """tests/sim/test_exact_clamp.py: the small force's error quarters per doubling of N (order 1.8–2.2), the large
+    load's tip at least by 2^1.7, both small at the finest N."""
+    small, small_ratio, large, large_ratio = (_values(am.node_clamp((21, 41)))[i] for i in (1, 2, 4, 5))
+    assert abs(small) < 2e-3 and 2 ** 1.8 < small_ratio < 2 ** 2.2
+    assert large < 1e-3 and large_ratio > 2 ** 1.7
+
+
 def test_rotating_clamp_and_internal_loads():
     """tests/sim/test_rotating_clamp.py: nodes to 1e-14 m, frame to 1e-12; test_internal_loads.py: axial force
     to 1e-9, bending moment to 1e-3."""
@@ -78,6 +86,6 @@ def test_cli_quick_writes_every_row_within_its_bound(tmp_path, capsys):
     rows = data["rows"]
     assert {r["case"] for r in rows} == {"stepped_cantilever", "incline_2_iterations", "incline_3_iterations",
                                          "capstan", "buckled_column", "sedimentation", "cross_flow", "end_moment",
-                                         "line_load", "rotating_clamp", "internal_loads"}
+                                         "line_load", "node_clamp", "rotating_clamp", "internal_loads"}
     assert all(r["within"] for r in rows) and "OUTSIDE" not in printed
     assert printed.count("\n") == len(rows) + 1
