@@ -22,7 +22,9 @@ Keys (SI units)::
               fixed axes, default 0), twist_rate [rad/s] (of the fixed twist edges, default 0),
               angular_velocity [rad/s] (3-vector: the fixed nodes and edges turn rigidly at ω about ``center``,
               a rotating clamp; needs axes "xyz" and no velocity; in 2-D ω along y), center [m] (3-vector, default:
-              the first fixed node's initial position), start [s], stop [s] (the window of the prescribed motion)
+              the first fixed node's initial position), start [s], stop [s] (the window of the prescribed motion),
+              built_in (bool, default false: the rod is built in exactly where an edge the fix holds whole meets
+              the free rod, as ``[rod] clamp = "node"``; docs/physics.md §3.6)
 
 Node and edge indices count within their rod; :func:`global_node` / :func:`global_edge` map them onto the
 scene's chain of nodes (the rods' nodes concatenated in file order, docs/physics.md §1.7).
@@ -49,6 +51,7 @@ from sim.scene.tomlio import (
     SceneError,
     check_unknown,
     format_value,
+    take_bool,
     take_float,
     take_int,
     take_str,
@@ -59,7 +62,7 @@ __all__ = ["LoadSpec", "LineLoadSpec", "DragSpec", "parse_drag", "dump_drag", "F
            "parse_line_loads", "dump_line_loads",
            "frame_load_arrays", "frame_load_forces", "parse_fixes", "dump_loads", "dump_fixes", "check_boundary",
            "ROD_NAME", "node_index", "load_arrays", "motion_arrays", "fixed_dofs", "window_fraction", "rod_layout",
-           "rod_span", "global_node", "global_edge"]
+           "rod_span", "global_node", "global_edge", "held_edges"]
 
 ROD_NAME = "rod"  # the name of the single [rod] table (and the default rod name), the ``rod`` key of loads and fixes
 
@@ -143,6 +146,7 @@ class FixSpec:
     rod: str | None = None
     angular_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     center: tuple[float, float, float] | None = None
+    built_in: bool = False
 
 
 @dataclass(frozen=True)
@@ -161,7 +165,7 @@ _LOAD_KEYS = {"rod", "node", "force", "moment", "frame", "torque", "start", "sto
 _LINE_LOAD_KEYS = {"rod", "force_per_length", "start", "stop"}
 _DRAG_KEYS = {"normal", "tangential", "flow"}
 _FIX_KEYS = {"rod", "nodes", "axes", "twist_edges", "velocity", "twist_rate", "start", "stop", "angular_velocity",
-             "center"}
+             "center", "built_in"}
 
 
 def _int_list(t: Mapping[str, Any], name: str, prefix: str, path: str | None) -> tuple[int, ...]:
@@ -243,17 +247,20 @@ def parse_fixes(tables: Any, path: str | None) -> tuple[FixSpec, ...]:
                            start=take_float(t, "start", p, path, 0.0), stop=_stop(t, p, path),
                            rod=_rod_key(t, p, path),
                            angular_velocity=take_vec3(t, "angular_velocity", p, path, (0.0, 0.0, 0.0)),
-                           center=take_vec3(t, "center", p, path, (0.0, 0.0, 0.0)) if "center" in t else None))
+                           center=take_vec3(t, "center", p, path, (0.0, 0.0, 0.0)) if "center" in t else None,
+                           built_in=take_bool(t, "built_in", p, path, False)))
     return tuple(out)
 
 
-def _dump(items: Sequence[Any], kind: str, keys: tuple[str, ...]) -> list[str]:
+def _dump(items: Sequence[Any], kind: str, keys: tuple[str, ...], flags: tuple[str, ...] = ()) -> list[str]:
+    """The TOML lines of ``items`` as ``[[kind]]`` tables: ``keys`` (None left out), then the bool ``flags`` that
+    are set."""
     lines: list[str] = []
     for it in items:
         lines += ["", f"[[{kind}]]"]
-        for k in keys:
+        for k in keys + flags:
             v = getattr(it, k)
-            if v is None:
+            if v is None or (k in flags and not v):
                 continue
             lines.append(f"{k} = {format_value(list(v) if isinstance(v, tuple) else v)}")
     return lines[1:]
@@ -269,7 +276,7 @@ def dump_line_loads(loads: Sequence[LineLoadSpec]) -> list[str]:
 
 def dump_fixes(fixes: Sequence[FixSpec]) -> list[str]:
     return _dump(fixes, "fix", ("rod", "nodes", "axes", "twist_edges", "velocity", "twist_rate", "angular_velocity",
-                                "center", "start", "stop"))
+                                "center", "start", "stop"), flags=("built_in",))
 
 
 def node_index(i: int, count: int) -> int:
@@ -420,6 +427,23 @@ def check_boundary(c: Any, spec: Any) -> None:
                 if j % (N - 1) not in ends or j % (N - 1) + 1 not in ends:
                     c.fail(p + "twist_edges", f"edge {j} turns with the fix: both its nodes ({j % (N - 1)}, "
                                               f"{j % (N - 1) + 1}) must be among the fix's nodes")
+        if not isinstance(fx.built_in, bool):
+            c.fail(p + "built_in", f"expected true or false, got {fx.built_in!r}")
+        if fx.built_in and not held_edges(fx, N, planar):
+            c.fail(p + "built_in", "the rod is built in at the end of an edge the fix holds whole: it needs two "
+                                   "neighbouring nodes in all axes" + ("" if planar else " and that edge in "
+                                   "twist_edges") + f" (nodes = {list(fx.nodes)}, axes = {fx.axes!r}, "
+                                   f"twist_edges = {list(fx.twist_edges)})")
+
+
+def held_edges(fx: FixSpec, count: int, planar: bool) -> list[int]:
+    """The edges (indices within the fix's rod of ``count`` nodes) that ``fx`` holds whole: both nodes in all axes
+    (x and z in 2-D) and, in 3-D, the edge's twist."""
+    if not (set("xz") if planar else set("xyz")) <= set(fx.axes):
+        return []
+    nodes = {node_index(int(i), count) for i in fx.nodes}
+    twist = {node_index(int(j), count - 1) for j in fx.twist_edges}
+    return [j for j in range(count - 1) if j in nodes and j + 1 in nodes and (planar or j in twist)]
 
 
 def _axis_dofs(axes: str, planar: bool) -> list[tuple[int, int]]:

@@ -20,8 +20,10 @@ from sim.scene.boundary import (
     RotatingFix,
     fixed_dofs,
     frame_load_arrays,
+    held_edges,
     load_arrays,
     motion_arrays,
+    rod_span,
     rotating_fixes,
 )
 from sim.scene.section import section_of
@@ -204,16 +206,40 @@ def _rod_arrays(rod) -> dict:
         mass[:-1] += 0.5 * me
         mass[1:] += 0.5 * me
     d1, t = initial_reference_frames(x)
-    node_EI1, node_EI2, node_GJ = _node_stiffness(EI1, lbar), _node_stiffness(EI2, lbar), _node_stiffness(GJ, lbar)
-    if rod.clamp == "node":  # built in exactly at node 1 (docs/physics.md §3.6): only the free half of its cell bends
-        vor[1] = 0.5 * lbar[1]
-        node_EI1[1], node_EI2[1], node_GJ[1] = EI1[1], EI2[1], GJ[1]
     return dict(
         x=x, lbar=lbar, vor=vor, r=r, EA=E * A, EI1=EI1, EI2=EI2, GJ=GJ, mass=mass, theta=rod.density * Jp * lbar,
-        node_EI1=node_EI1, node_EI2=node_EI2, node_GJ=node_GJ,
+        node_EI1=_node_stiffness(EI1, lbar), node_EI2=_node_stiffness(EI2, lbar), node_GJ=_node_stiffness(GJ, lbar),
         d1=d1, t=t,
         kbar=material_curvature(x, d1, np.cross(t, d1)),  # rest shape: material = reference frame (θ = 0)
         planar=_planar_axes(d1[0], t[0]))
+
+
+def _built_in_edges(spec: SceneSpec, offsets: np.ndarray) -> list[int]:
+    """The chain's edges at whose free ends the rod is built in exactly (docs/physics.md §3.6): the first edge of each
+    rod with ``clamp = "node"`` and the edges held whole by a ``[[fix]]`` with ``built_in``."""
+    edges = [int(off) for rod, off in zip(spec.rods, offsets[:-1]) if rod.clamp == "node"]
+    planar = spec.sim.mode == "2d"
+    for fx in spec.fixes:
+        if fx.built_in:
+            off, n = rod_span(spec, fx.rod)
+            edges += [off + j for j in held_edges(fx, n, planar)]
+    return edges
+
+
+def _build_in(edges: list[int], fixed: np.ndarray, link: np.ndarray, lbar: np.ndarray, vor: np.ndarray,
+              node_k: tuple[np.ndarray, ...], edge_k: tuple[np.ndarray, ...]) -> None:
+    """Build the rod in at the free ends of the held ``edges`` (in place): a node between a held edge and a free
+    material edge bends and twists over the free half of its cell only, with that edge's stiffnesses (``node_k``
+    the (N,) node stiffnesses, ``edge_k`` the chain's (N-1,) edge stiffnesses in the same order)."""
+    N = vor.shape[0]
+    whole = fixed[:, :3].all(axis=1) if fixed.shape[1] == 4 else fixed.all(axis=1)
+    held = whole[:-1] & whole[1:] & (fixed[:-1, 3] if fixed.shape[1] == 4 else True)
+    for j in edges:
+        for k, o in ((j, j - 1), (j + 1, j + 1)):
+            if 0 < k < N - 1 and link[j] and link[o] and not held[o]:
+                vor[k] = 0.5 * lbar[o]
+                for nk, ek in zip(node_k, edge_k):
+                    nk[k] = ek[o]
 
 
 def _chain(parts: list[dict], key: str, joint) -> np.ndarray:
@@ -296,6 +322,12 @@ def build_model(spec: SceneSpec, *, locked_edges: Sequence[int] = ()) -> Model:
             fixed[j + 1, :] = True
         grav = mass[:, None] * g[None, [0, 2]]
     fixed_dofs(spec, fixed)
+    built_in = _built_in_edges(spec, offsets)
+    if built_in:
+        vor = vor.copy()
+        node_EI1, node_EI2, node_GJ = node_EI1.copy(), node_EI2.copy(), node_GJ.copy()
+        _build_in(built_in, fixed, link, lbar, vor, (node_EI1, node_EI2, node_GJ),
+                  tuple(_chain(parts, key, lambda a, b: 0.0) for key in ("EI1", "EI2", "GJ")))
     lf, lw = load_arrays(spec, N, ndn, vor)
     fl = frame_load_arrays(spec)
     mr, mw = motion_arrays(spec, N, ndn)

@@ -2,7 +2,8 @@
 clamp, the rod built in exactly at node 1 with edge 0's tangent and material frame. Beam theory and the elastica of
 the free length ``L − l̄`` (node 1 to the tip) are reached at second order in the edge length, where the first-edge
 clamp reaches the textbook length at first order; the twist is exact; the plane and 3-D agree; the scene key parses,
-round-trips and is checked."""
+round-trips and is checked. A ``[[fix]]`` with ``built_in`` builds the rod in the same way wherever it holds an edge
+whole (a beam built in at both ends)."""
 from __future__ import annotations
 
 import dataclasses
@@ -14,7 +15,7 @@ import pytest
 from sim import Simulator, build_model
 from sim.analysis.static import solve_static
 from sim.scene import parse_scene
-from sim.scene.boundary import LoadSpec
+from sim.scene.boundary import FixSpec, LoadSpec
 from sim.scene.spec import scene_to_toml
 from sim.scene.tomlio import SceneError
 from tests.helpers.rodspec import make_spec, small_scene_toml
@@ -132,3 +133,63 @@ def test_scene_key_parses_round_trips_and_is_checked():
     assert again.rod.clamp == "node"
     with pytest.raises(SceneError, match=r"rod\.clamp.*first_edge.*node.*none"):
         parse_scene(tomllib.loads(small_scene_toml('clamp = "nodes"')))
+
+
+def _fixed_beam(N, mode="3d"):
+    """A beam of length 1 built in at nodes 1 and N − 2 by two ``[[fix]]`` tables with ``built_in`` (the end edges
+    held whole), a small force on its middle node."""
+    twist = (lambda j: (j,)) if mode == "3d" else (lambda j: ())
+    spec = make_spec(nodes=N, length=1.0, radius=R, E=E, dt=1e-2, dtol=1e-14, max_iter=100, clamp="none", mode=mode)
+    return dataclasses.replace(spec, loads=(LoadSpec(node=N // 2, force=(0.0, 0.0, -1e-3)),),
+                               fixes=(FixSpec(nodes=(0, 1), twist_edges=twist(0), built_in=True),
+                                      FixSpec(nodes=(-2, -1), twist_edges=twist(-1), built_in=True)))
+
+
+@pytest.mark.parametrize("mode", ["3d", "2d"])
+def test_beam_built_in_at_both_ends_by_fixes(mode):
+    """Both ends built in by ``[[fix]]`` tables (nodes 1 and N − 2): the middle deflection under a central force
+    tends to F L_f³/(192 EI) over the free length L_f = L − 2 l̄ at second order."""
+    F, errs = 1e-3, []
+    for N in (11, 21, 41):
+        spec = _fixed_beam(N, mode)
+        sim = Simulator(build_model(spec), envs=1)
+        state = sim.reset()
+        assert solve_static(spec, state, sim.make_control(), xtol=1e-13, check_stability=False).converged.all()
+        p = state.node_pos[0]
+        expect = F * (1.0 - 2.0 / (N - 1)) ** 3 / (192 * EI)
+        errs.append(abs(-(p[N // 2, 2] - p[1, 2]) - expect) / expect)
+        assert p[-2, 2] == p[1, 2] == 0.0
+    assert errs[-1] < 1e-2, errs                                   # 12.5 %, 2.5 %, 0.55 %
+    assert all(1.8 < o < 2.5 for o in _order(errs)), errs          # orders 2.34, 2.16 (2.07, 2.04 at N = 81, 161)
+
+
+def test_built_in_fix_is_the_node_clamp():
+    """``[[fix]] nodes = [0, 1], twist_edges = [0], built_in = true`` on an unclamped rod is ``clamp = "node"``: the
+    same model arrays, the same rest state under a load; without ``built_in`` it is the first-edge clamp's."""
+    base = make_spec(nodes=9, E=1e6, clamp="none")
+    by_fix = build_model(dataclasses.replace(base, fixes=(FixSpec(nodes=(0, 1), twist_edges=(0,), built_in=True),)))
+    by_clamp = build_model(dataclasses.replace(base, rod=dataclasses.replace(base.rod, clamp="node")))
+    plain = build_model(dataclasses.replace(base, fixes=(FixSpec(nodes=(0, 1), twist_edges=(0,)),)))
+    first_edge = build_model(dataclasses.replace(base, rod=dataclasses.replace(base.rod, clamp="first_edge")))
+    for name in ("voronoi_length", "node_EI1", "node_EI2", "node_GJ", "dof_fixed", "node_mass"):
+        np.testing.assert_array_equal(getattr(by_fix, name), getattr(by_clamp, name), err_msg=name)
+        np.testing.assert_array_equal(getattr(plain, name), getattr(first_edge, name), err_msg=name)
+    assert by_fix.voronoi_length[1] == 0.5 * plain.voronoi_length[1]
+
+
+def test_built_in_fix_is_checked_and_round_trips():
+    def scene(fix_lines):
+        return small_scene_toml('clamp = "none"') + "[[fix]]\n" + fix_lines + "\n"
+
+    spec = parse_scene(tomllib.loads(scene("nodes = [-2, -1]\ntwist_edges = [-1]\nbuilt_in = true")))
+    assert spec.fixes[0].built_in
+    text = scene_to_toml(spec)
+    assert "built_in = true" in text and parse_scene(tomllib.loads(text)).fixes == spec.fixes
+    plain = parse_scene(tomllib.loads(scene("nodes = [0]")))
+    assert "built_in" not in scene_to_toml(plain)
+    for bad, why in (("nodes = [0, 1]\naxes = \"xz\"\ntwist_edges = [0]\nbuilt_in = true", "all axes"),
+                     ("nodes = [0, 2]\ntwist_edges = [0]\nbuilt_in = true", "two neighbouring nodes"),
+                     ("nodes = [0, 1]\nbuilt_in = true", "twist_edges"),
+                     ("nodes = [0, 1]\ntwist_edges = [0]\nbuilt_in = 1", "built_in")):
+        with pytest.raises(SceneError, match=r"fix\[0\]\.built_in.*" + why if why != "built_in" else "built_in"):
+            parse_scene(tomllib.loads(scene(bad)))
