@@ -20,7 +20,8 @@ from sim.scene.model import planar_nodes
 
 __all__ = ["LineSearch", "Params", "PARAMS_DTYPE", "RodData", "StateArrays", "ControlArrays", "StepOutput",
            "ContactReport", "OK", "NON_FINITE", "RESIDUAL_GROWTH", "BAD_PIVOT", "UNCONVERGED", "STRAIN",
-           "MIDPOINT_GAINED", "KL_3D", "KL_2D", "MIDPOINT_ENERGY_TOL", "RETRY_LEVELS", "MAX_STRAIN"]
+           "MIDPOINT_GAINED", "KL_3D", "KL_2D", "MIDPOINT_ENERGY_TOL", "MIDPOINT_ENERGY_FLOOR", "RETRY_LEVELS",
+           "MAX_STRAIN"]
 
 # (sub)step status codes of sim.kernels.newton
 OK, NON_FINITE, RESIDUAL_GROWTH, BAD_PIVOT, UNCONVERGED, STRAIN, MIDPOINT_GAINED = range(7)
@@ -30,8 +31,17 @@ KL_2D = 5  # half bandwidth of the 2-D Jacobian (a bend element spans 6 DOFs)
 
 # an implicit-midpoint (sub)step whose energy rises by more than this fraction is redone by backward Euler
 MIDPOINT_ENERGY_TOL = 1e-3
+# ... and by more than this many times the rod's bending scale EI/L [J] (the energy of bending the longest rod by a
+# radian): a gain below it is the rounding of energies near 0, not the midpoint rule's instability
+MIDPOINT_ENERGY_FLOOR = 1e-12
 RETRY_LEVELS = 5  # retry levels of the step (level k: 2^k sub-steps; docs/physics.md §6)
 MAX_STRAIN = 0.9  # a (sub)step that leaves an edge strained beyond this |ε| fails
+
+
+def _bending_scale(m: Any) -> float:
+    """EI/L [J] of the stiffest bending of the longest rod of model ``m``: the energy of bending it by a radian."""
+    length = max(float(r.length) for r in m.spec.rods)
+    return max(float(m.EI1_max), float(m.EI2_max)) / length
 
 
 class LineSearch(IntEnum):
@@ -69,6 +79,7 @@ class Params:
     max_penetration: float
     divergence_guard: float
     midpoint_energy_tol: float
+    midpoint_energy_floor: float
     drag_normal: float
     drag_tangential: float
     flow_x: float
@@ -102,7 +113,8 @@ class Params:
             contact_k=c.stiffness, contact_delta=c.delta, friction=c.friction, friction_nu=c.friction_velocity_tol,
             contact_margin=c.margin, planar_sign=m.planar_sign, plane_y=m.plane_y, max_strain=MAX_STRAIN,
             max_penetration=4.0 * c.delta if mp is None else float(mp), divergence_guard=m.divergence_guard,
-            midpoint_energy_tol=MIDPOINT_ENERGY_TOL, newton_max_iter=int(m.newton_max_iter),
+            midpoint_energy_tol=MIDPOINT_ENERGY_TOL, midpoint_energy_floor=MIDPOINT_ENERGY_FLOOR * _bending_scale(m),
+            newton_max_iter=int(m.newton_max_iter),
             drag_normal=drag.normal if drag is not None else 0.0,
             drag_tangential=drag.tangential if drag is not None else 0.0,
             flow_x=float(flow[0]), flow_y=float(flow[1]), flow_z=float(flow[2]),

@@ -83,12 +83,13 @@ def newton_dtol(prm, cs, e):
 
 
 @njit(inline="always", **OPT)
-def midpoint_gained_energy(e0, s0, e1, s1, tol):
+def midpoint_gained_energy(e0, s0, e1, s1, tol, floor):
     """Whether an implicit-midpoint (sub)step gained energy beyond ``tol``: total energy e1 at its end exceeds
     e0 at its start by more than tol · max(s0, s1) (s: the energy without the gravity potential, whose zero is
-    arbitrary). Within a step κ̄, τ̄ and the constraints are fixed and damping/friction only dissipate, so a
-    gain is the midpoint rule's own nonlinear instability; the sub-step is then redone by backward Euler."""
-    return e1 - e0 > tol * max(s0, s1)
+    arbitrary) and by more than ``floor`` [J] (below it a gain is the rounding of energies near 0). Within a step
+    κ̄, τ̄ and the constraints are fixed and damping/friction only dissipate, so a gain is the midpoint rule's own
+    nonlinear instability; the sub-step is then redone by backward Euler."""
+    return e1 - e0 > max(tol * max(s0, s1), floor)
 
 
 # ------------------------------------------------------------------------------------- the mode's element functions
@@ -439,7 +440,7 @@ def substep_with(e, h, kb, tb, rod, prm, cs, w, want_pen0, midpoint):
         positions(planar, x0, pos0, py)
         e0, s0 = mech_energy(e, x0, u, w.sub_d1, w.sub_t, w.sub_beta, kb, tb, rod, prm, cs, w, pos0, pos0, h)
         e1, s1 = mech_energy(e, x, dx, w.d1, w.t, w.beta, kb, tb, rod, prm, cs, w, pos, pos0, h)
-        if midpoint_gained_energy(e0, s0, e1, s1, prm.midpoint_energy_tol):
+        if midpoint_gained_energy(e0, s0, e1, s1, prm.midpoint_energy_tol, prm.midpoint_energy_floor):
             return MIDPOINT_GAINED, it, conv, r, r0, 0.0, pen0
     # commit
     if not planar:
