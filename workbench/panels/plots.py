@@ -39,6 +39,10 @@ def _x_range(p: Plot) -> tuple[float, float]:
 
 
 class PlotsPanel:
+    """The Plots tab. Only the stepping thread draws it (``update_status``, from the app's redraw): the page's
+    callbacks (a replay's timeline, the plot height) ask for a redraw instead, since viser lets one thread at a time
+    enter the tab and the handles here are shared."""
+
     def __init__(self, app: PanelHost, container=None):
         self.app = app
         self.folder = container if container is not None else app.tabs["Plots"]
@@ -47,9 +51,10 @@ class PlotsPanel:
         self._range: dict[str, tuple[float, float]] = {}
         self._xrange: dict[str, tuple[float, float]] = {}
         self._replay_key: tuple | None = None
+        self._replay_asked = 0  # bumped by request_replay(force=True): the next redraw draws the episode afresh
+        self._aspect_shown = self.aspect = PLOT_ASPECTS["compact"]
         self.shown: list[Plot] = []  # what the page shows now (tests read it)
         self.pin_series = PinSeries()  # the pinned nodes' values over the live history
-        self.aspect = PLOT_ASPECTS["compact"]
         with self.folder:
             self.height = app.server.gui.add_dropdown(
                 "Plot height", tuple(PLOT_ASPECTS), initial_value="compact",
@@ -62,13 +67,24 @@ class PlotsPanel:
                 self.set_aspect(PLOT_ASPECTS[self.height.value])
 
     def set_aspect(self, aspect: float) -> None:
-        """Draw every plot ``aspect`` times as wide as tall (the plots shown now and those made later)."""
+        """Draw every plot ``aspect`` times as wide as tall (the plots shown now, at the next redraw, and those made
+        later)."""
         self.aspect = float(aspect)
-        for h in list(self.handles.values()):
-            h.aspect = self.aspect
+        self.app.request_render()
+
+    def request_replay(self, *, force: bool = False) -> None:
+        """Show the open episode at its timeline position at the next redraw (``force``: drawn afresh even if the
+        episode and position look unchanged, e.g. a recording opened again)."""
+        if force:
+            self._replay_asked += 1
+        self.app.request_render()
 
     # ------------------------------------------------------------------ drawing
     def show(self, plots: list[Plot]) -> None:
+        if self._aspect_shown != self.aspect:
+            self._aspect_shown = aspect = self.aspect
+            for h in self.handles.values():
+                h.aspect = aspect
         keys = [p.key for p in plots]
         for k in list(self.handles):
             if k not in keys:
@@ -130,7 +146,7 @@ class PlotsPanel:
     # ------------------------------------------------------------------ sources
     def show_replay(self, session, *, force: bool = False) -> None:
         """Every scalar of the open episode, cursor at the timeline position."""
-        key = (id(session), session.episode_index, session.index)
+        key = (self._replay_asked, id(session), session.episode_index, session.index)
         if not force and key == self._replay_key:
             return
         self._replay_key = key

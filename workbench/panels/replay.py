@@ -182,9 +182,10 @@ class ReplayPanel:
         return out
 
     def _plot(self, force: bool = False) -> None:
-        plots, s = getattr(self.app, "plots", None), self.app.wb.replay
-        if plots is not None and s is not None:
-            plots.show_replay(s, force=force)
+        """The Plots tab follows the replay at the next redraw (the stepping thread draws it)."""
+        plots = getattr(self.app, "plots", None)
+        if plots is not None and self.app.wb.replay is not None:
+            plots.request_replay(force=force)
 
     def update_status(self) -> None:
         wb = self.app.wb

@@ -119,3 +119,51 @@ def test_a_replay_that_plays_to_its_end_unticks_the_play_box(tmp_path):
         wait_for(lambda: app.replay.play.value is False, what="the Play box unticked at the end")
     finally:
         app.stop()
+
+
+def test_the_page_callbacks_leave_the_plots_to_the_stepping_thread(tmp_path):
+    """The replay's timeline and the plot height, set from another thread as the page's callbacks set them, only ask
+    for a redraw: every plot is drawn by the stepping thread (viser lets one thread at a time enter the Plots tab, and
+    the plot handles are shared), and the plots follow both: the cursor at the last frame, every plot as tall as
+    chosen."""
+    import threading
+
+    from tests.workbench.conftest import make_app
+    from tools.browser import wait_for
+    from workbench.panels.plots import PLOT_ASPECTS
+
+    _wb, path, _tips = record_session(tmp_path, n=12)
+    app = make_app(wait_for_browser=False, recordings_dir=path.parent, scenes_dir=tmp_path / "scenes")
+    try:
+        wait_for(lambda: not app.compiling, what="the kernels loaded")
+        drawn_by: set[str] = set()
+        show = app.plots.show
+
+        def spy(plots):
+            drawn_by.add(threading.current_thread().name)
+            show(plots)
+
+        app.plots.show = spy
+        rs = app.replay.open(path.name)
+        t_last = float(rs.ep.sim_time[-1])
+
+        def page():
+            for k in range(rs.length):
+                app.replay.timeline.value = k
+            app.plots.height.value = "taller"
+
+        callbacks = threading.Thread(target=page, name="page-callbacks")
+        callbacks.start()
+        callbacks.join()
+
+        def at_last_frame() -> bool:
+            lines = [(p.data[0], p.data[list(p.labels).index("timeline")]) for p in app.plots.shown
+                     if "timeline" in p.labels]
+            return bool(lines) and all(np.all(x[np.isfinite(line)] == t_last) for x, line in lines)
+
+        wait_for(at_last_frame, what="the plots' cursor at the replay's last frame")
+        wait_for(lambda: app.plots.handles and all(h.aspect == PLOT_ASPECTS["taller"]
+                                                   for h in app.plots.handles.values()), what="the taller plots")
+        assert drawn_by == {"rodlab-sim"}, drawn_by  # workbench.session.runner.SimThread's
+    finally:
+        app.stop()
