@@ -4,13 +4,16 @@ Each control step it asks :func:`sim.analysis.inverse.reach` for the control poi
 on the current target at equilibrium (warm-started from its previous answer, a few Gauss–Newton iterations per
 control step, the task's bound on |K|), and moves the accumulated curvature toward it as fast as the task's action
 allows: a = clip((K* − K) / s_κ, −1, 1). It reads the current K and the target from the observation, and the scene,
-control points and smoothing from the task, so it acts through the same converter as a policy. It ignores dynamics
-(the target's motion, the arm's inertia) and orientation: a baseline, not an optimum.
+control points and smoothing from the task, so it acts through the same converter as a policy. A task that observes a
+target orientation and commands twist (4D IK) gets the tip frame too: the twist T* found with the curvature,
+a = clip((T* − T) / s_τ, −1, 1). It ignores dynamics (the target's motion, the arm's inertia): a baseline, not an
+optimum.
 """
 from __future__ import annotations
 
 import numpy as np
 from sim.analysis import reach
+from sim.geometry import from_xyzw, quat_to_matrix
 
 from .control import smoothing_basis
 
@@ -40,6 +43,8 @@ class InverseStaticsController:
             self.slices[name] = slice(off, off + int(size))
             off += int(size)
         self.iterations = int(iterations)
+        # the tip frame too where the task asks for one and commands twist (4D IK)
+        self.oriented = cfg.has_twist and "target_quat" in self.slices and "curr_twist_bar" in self.slices
         self._warm = None
 
     @classmethod
@@ -59,11 +64,18 @@ class InverseStaticsController:
         if self.planar:
             tgt = np.stack([tgt[:, 0], np.full(B, self.plane_y), tgt[:, 1]], axis=1)
         warm = self._warm if self._warm is not None and self._warm.coefficients.shape[0] == B else None
+        frames = None
+        if self.oriented:
+            frames = quat_to_matrix(from_xyzw(obs[:, self.slices["target_quat"]]))
         res = reach(self.spec, tgt, basis=self.basis, bound=self.cfg.kappa_limit, max_iterations=self.iterations,
-                    warm=warm)
+                    warm=warm, orientations=frames, twist_bound=self.cfg.twist_limit)
         self._warm = res
         a = np.clip((res.coefficients - K) / max(self.cfg.kappa_scale, 1e-12), -1.0, 1.0)
         act = a.reshape(B, -1)
-        if self.cfg.has_twist:  # no twist command: hold the natural twist
+        if self.oriented:
+            T = obs[:, self.slices["curr_twist_bar"]]
+            at = np.clip((res.twist_coefficients - T) / max(self.cfg.twist_scale, 1e-12), -1.0, 1.0)
+            act = np.concatenate([act, at], axis=1)
+        elif self.cfg.has_twist:  # no twist command: hold the natural twist
             act = np.concatenate([act, np.zeros((B, self.cfg.n_points))], axis=1)
         return act.astype(np.float32), None
