@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks.common import machine_info, write_json
-from sim.analysis import calibration as F
+from sim.analysis import Commands, Measurements, command_schedule, fit
 from sim.scene import RodSpec, SceneSpec, SimSpec
 
 COMMAND = "python -m benchmarks.fit_elastica"
@@ -40,11 +40,11 @@ ACTUATED = {5: ((0.06, 0.5, 0.0), (0.04, 0.8, 1.0)), 10: ((0.05, 0.7, 2.0), (0.0
 GOAL = 0.01  # held-out RMS ≤ 1 % of the rod's length
 
 
-def commands(case: str, seconds: float) -> F.Commands:
+def commands(case: str, seconds: float) -> Commands:
     """The commanded natural curvature of ``case`` as rows (time, node, κ1, κ2, twist), one per node and time."""
     if case == "release":
         nodes = np.arange(1, N - 1)
-        return F.Commands(np.tile([0.0, RELEASE_AT], nodes.size), np.repeat(nodes, 2),
+        return Commands(np.tile([0.0, RELEASE_AT], nodes.size), np.repeat(nodes, 2),
                           np.tile([[KAPPA, 0.0], [0.0, 0.0]], (nodes.size, 1)), np.zeros(2 * nodes.size))
     t = np.arange(0.0, seconds - 1e-9, 1.0 / HZ)
     rows_t, rows_n, rows_k = [], [], []
@@ -53,11 +53,11 @@ def commands(case: str, seconds: float) -> F.Commands:
         rows_t.append(t)
         rows_n.append(np.full(t.size, node))
         rows_k.append(k)
-    return F.Commands(np.concatenate(rows_t), np.concatenate(rows_n), np.concatenate(rows_k),
+    return Commands(np.concatenate(rows_t), np.concatenate(rows_n), np.concatenate(rows_k),
                       np.zeros(t.size * len(ACTUATED)))
 
 
-def elastica_measurements(cmds: F.Commands, seconds: float) -> tuple[F.Measurements, float]:
+def elastica_measurements(cmds: Commands, seconds: float) -> tuple[Measurements, float]:
     """The markers of the PyElastica arm driven by ``cmds`` (each row held from its time), and its wall time [s]."""
     from policies.elastica.rods import ElasticaRods
     from policies.elastica.rods import RodSpec as ElasticaRod
@@ -65,7 +65,7 @@ def elastica_measurements(cmds: F.Commands, seconds: float) -> tuple[F.Measureme
     rods = ElasticaRods(ElasticaRod(n_nodes=N, length=LENGTH, radius=RADIUS, density=DENSITY, youngs=YOUNGS,
                                     damping=("uniform", GAMMA)), dt=2e-4)
     t = np.arange(0.0, seconds + 1e-9, 1.0 / HZ)
-    kap, _ = F.command_schedule(cmds, t.size, 1.0 / HZ, N)  # the rows in force at each sample time
+    kap, _ = command_schedule(cmds, t.size, 1.0 / HZ, N)  # the rows in force at each sample time
     steps = int(round(1.0 / (HZ * rods.dt)))
     pos = np.empty((t.size, len(MARKERS), 3))
     t0 = time.perf_counter()
@@ -77,7 +77,7 @@ def elastica_measurements(cmds: F.Commands, seconds: float) -> tuple[F.Measureme
     if rods.has_nan():
         raise RuntimeError("the PyElastica arm blew up")
     s = np.asarray(MARKERS, float) * LENGTH / (N - 1)
-    meas = F.Measurements(np.repeat(t, len(MARKERS)), np.tile(s, t.size), np.zeros(pos.shape[0] * pos.shape[1], int),
+    meas = Measurements(np.repeat(t, len(MARKERS)), np.tile(s, t.size), np.zeros(pos.shape[0] * pos.shape[1], int),
                           pos.reshape(-1, 3))
     return meas, wall
 
@@ -96,7 +96,7 @@ def run_case(case: str, *, seconds: float = 4.0, dt: float = 1.0 / 120.0) -> dic
     meas, el_wall = elastica_measurements(cmds, seconds)
     params = ["youngs_modulus", "damping"] + (["actuation_gain"] if case == "actuated" else [])
     t0 = time.perf_counter()
-    res = F.fit(rodlab_scene(dt), meas, params, cmds=cmds, holdout=HOLDOUT)
+    res = fit(rodlab_scene(dt), meas, params, cmds=cmds, holdout=HOLDOUT)
     wall = time.perf_counter() - t0
     tip = meas.pos.reshape(-1, len(MARKERS), 3)[:, -1]
     return {"case": case, "seconds_of_motion": seconds, "dt": dt, "params": res.params,

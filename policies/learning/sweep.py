@@ -13,7 +13,8 @@
   a 2-core machine one trial runs at a time and the others queue). With ``--address`` the sweep joins that
   Ray cluster (``ray.init(address=...)``; default 2 CPUs per trial); OUT must then be on a file system shared by
   the nodes, and the nodes need this repository installed. A trial is a Ray task that starts the training in a
-  child process (numba and torch threads = CPUs of the trial) and waits for it.
+  child process (numba and torch threads = CPUs of the trial) and waits for it. Local trials run at the niceness of
+  the sweep command (``nice rodlab sweep ...`` lowers them), not at the 15 Ray gives its workers by default.
 * **Resume.** Re-running the same command continues every unfinished trial from its checkpoint (finished trials,
   those with ``trial_done.json``, are not re-run). A trial is finished when it reached ``--steps`` env steps or
   used its ``--time-limit`` minutes of training wall-clock (summed over resumes); re-running with a larger
@@ -250,6 +251,8 @@ def run_trial_process(run_dir: Path) -> int:
     with open(run_dir / "trial.lock", "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # waits for an earlier process of this trial (still checkpointing)
         (run_dir / "trial.pid").write_text(str(os.getpid()))
+        print(f"rodlab sweep: trial process {os.getpid()}, niceness {os.nice(0)}, "
+              f"{os.environ.get('NUMBA_NUM_THREADS', '?')} threads", flush=True)
         st = read_state(run_dir)
         limit = float(spec.get("time_limit_minutes") or 0.0)
         used_min = (float(st["wall_s"]) / 60.0) if st else 0.0
@@ -413,8 +416,10 @@ def run_sweep(trials: list[Trial], out: Path, *, address: str | None, cpus_per_t
         concurrency = max(1, int(ray.cluster_resources().get("CPU", cpus_per_trial)) // cpus_per_trial)
     else:
         ncpu = os.cpu_count() or 1
+        # Ray runs its workers at niceness 15 by default: a trial's training would then get almost no CPU beside
+        # any other busy process of the machine; 0 keeps the trials at the niceness of the sweep command itself
         ray.init(num_cpus=ncpu, include_dashboard=False, log_to_driver=False,
-                 object_store_memory=128 * 1024 * 1024)
+                 object_store_memory=128 * 1024 * 1024, _system_config={"worker_niceness": 0})
         concurrency = max(1, ncpu // cpus_per_trial)
     if callable(term_handler):
         signal.signal(signal.SIGTERM, term_handler)

@@ -7,12 +7,14 @@ from __future__ import annotations
 from sim.support.lazy import lazy_face
 
 _LAZY = {
+    "Commands": "sim.analysis.calibration",
     "FIT_PARAMETERS": "sim.analysis.calibration",
     "FitError": "sim.analysis.calibration",
     "FitResult": "sim.analysis.calibration",
     "FitTrack": "sim.analysis.calibration",
     "Measurements": "sim.analysis.calibration",
     "Problem": "sim.analysis.calibration",
+    "command_schedule": "sim.analysis.calibration",
     "fit": "sim.analysis.calibration",
     "fit_command": "sim.analysis.calibration",
     "load_controls": "sim.analysis.calibration",

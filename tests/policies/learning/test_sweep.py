@@ -93,6 +93,8 @@ def test_two_trial_local_sweep_end_to_end(tmp_path):
         assert (run / "trial_done.json").is_file() and (run / "policy.zip").is_file()
         cfg = json.loads((run / "config.json").read_text())["args"]
         assert cfg["seed"] == seed and cfg["net_arch"] == [32, 32] and cfg["num_envs"] == 4
+        # the trial runs at the sweep's own niceness (Ray's workers default to 15: starved beside any busy process)
+        assert f"niceness {os.nice(0)}, 1 threads" in (run / "train.log").read_text(), log
     assert json.loads((out / "sweep.json").read_text())["trials"][1]["seed"] == 1
     # re-running a finished sweep runs nothing
     mtime = (out / "follow_target__s0" / "policy.zip").stat().st_mtime_ns
