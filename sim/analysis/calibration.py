@@ -14,11 +14,13 @@ until the node's next row; absent = the rest controls. In 2-D, kappa1 is the in-
 
 Parameters (``--params``, comma separated): ``youngs_modulus``, ``shear_modulus`` (moves ν), ``density`` (each a
 factor on every rod, fitted in log space), ``damping`` [1/s], ``gravity`` (the vector; its in-plane components in
-2-D), and the actuation map from commanded to actual natural curvature, actual = gain · commanded + offset, per
-commanded node: ``actuation_gain`` (also on the twist) and ``actuation_offset`` (κ1 and κ2). The scene parameters
-are bounded by the ranges sim.scene.validate.BOUNDS allows the values they set (every rod and edge; ν in (-1, 0.5] for the
-shear modulus), so a fit never returns a scene that does not load; one that ends on a bound is said (``at_bound``).
-The actuation map is unbounded.
+2-D), and the actuation map from commanded to actual natural curvature, actual = gain · lagged + offset, per
+commanded node: ``actuation_gain`` (also on the twist), ``actuation_offset`` (κ1 and κ2) and ``actuation_lag`` [s],
+one time constant τ of every commanded node's actuator (τ ḟ = commanded − f, backward Euler at the scene's dt, f = 0
+before the first command; τ = 0: f = commanded, no lag). The scene parameters are bounded by the ranges
+sim.scene.validate.BOUNDS allows the values they set (every rod and edge; ν in (-1, 0.5] for the shear modulus), so a
+fit never returns a scene that does not load; one that ends on a bound is said (``at_bound``). Gain and offset are
+unbounded, the lag is in [0, ACTUATION_LAG_MAX_S].
 
 The fit is trust-region least squares on the position residuals with the Jacobian from the tangent mode of
 :mod:`sim.analysis.gradients` (docs/physics.md §3.9). The result: the fitted scene as a new TOML (never over an existing file),
@@ -55,9 +57,10 @@ __all__ = ["FIT_PARAMETERS", "FitError", "Measurements", "Commands", "FitResult"
            "RESIDUAL_COLUMNS", "fit_command"]
 
 FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "damping", "gravity", "actuation_gain",
-                  "actuation_offset")
+                  "actuation_offset", "actuation_lag")
 _LOG = ("youngs_modulus", "shear_modulus", "density")  # positive, fitted as ln of a factor on the scene's value
 MAX_TIME_S = 3600.0  # longest motion a fit simulates
+ACTUATION_LAG_MAX_S = 10.0  # longest actuator time constant a fit considers
 UNIT_FACTOR = 100.0  # a measured point farther than this many rod lengths from the rod's start is in wrong units
 
 
@@ -278,6 +281,26 @@ def command_schedule(cmds: Commands | None, steps: int, dt: float, N: int) -> tu
     return kap, tw
 
 
+def lag_schedule(commanded: np.ndarray, tau: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """The first-order lag of a command schedule (T, ...) with time constant ``tau`` [s] and its derivative with
+    respect to ``tau``: τ ḟ = c − f by backward Euler at ``dt``, f_k = f_{k−1} + α (c_k − f_{k−1}), α = dt/(τ + dt),
+    from f = 0 (the command before any row); ``tau`` = 0 gives the commands themselves."""
+    if not tau >= 0.0:
+        raise FitError(f"actuation_lag must be ≥ 0 s, got {tau!r}")
+    alpha = dt / (tau + dt)
+    dalpha = -dt / (tau + dt) ** 2
+    f = np.empty_like(commanded, dtype=float)
+    df = np.empty_like(f)
+    f_prev = np.zeros(commanded.shape[1:])
+    d_prev = np.zeros(commanded.shape[1:])
+    for k in range(commanded.shape[0]):
+        gap = commanded[k] - f_prev
+        d_prev = (1.0 - alpha) * d_prev + dalpha * gap
+        f_prev = f_prev + alpha * gap
+        f[k], df[k] = f_prev, d_prev
+    return f, df
+
+
 def node_arclength(spec, model=None) -> tuple[np.ndarray, np.ndarray]:
     """(s (N,), rod (N,)) of every node of the scene: its arclength [m] from its rod's first node along the rest
     shape (the ``s`` of measurements) and the index of its rod. A measurement at a node's s is that node."""
@@ -335,12 +358,16 @@ def _unknown_bounds(spec, u: "Unknown") -> tuple[float, float]:
     if u.name == "gravity":
         lo_v, hi_v, _ = BOUNDS["sim.gravity"]
         return lo_v, hi_v
+    if u.name == "actuation_lag":
+        return 0.0, ACTUATION_LAG_MAX_S
     return -np.inf, np.inf
 
 
 def _bound_text(u: "Unknown") -> str:
     key = {"youngs_modulus": "rod.youngs_modulus", "density": "rod.density", "damping": "sim.damping",
            "gravity": "sim.gravity"}.get(u.name)
+    if u.name == "actuation_lag":
+        return f"actuation_lag in [0, {ACTUATION_LAG_MAX_S:g}] s"
     if key is None:
         return "poisson_ratio in (-1, 0.5]" if u.name == "shear_modulus" else "unbounded"
     lo, hi, unit = BOUNDS[key]
@@ -365,8 +392,8 @@ class Problem:
         self.dt = model.dt
         self.steps = max(1, int(math.ceil(float(meas.t.max()) / self.dt - 1e-9)))
         if (cmds is None) and any(p.startswith("actuation_") for p in params):
-            raise FitError("the actuation map (actuation_gain, actuation_offset) needs --controls: the commanded "
-                           "curvature it maps")
+            raise FitError("the actuation map (actuation_gain, actuation_offset, actuation_lag) needs --controls: "
+                           "the commanded curvature it maps")
         if "shear_modulus" in params and self.planar:
             raise FitError("shear_modulus: a 2-D scene has no twist, so the data cannot tell the shear modulus")
         self.rest_kb, self.rest_tb = Simulator(model, 1)._rest_control_arrays()
@@ -386,6 +413,8 @@ class Problem:
                 comps = (0,) if self.planar else (0, 1)
                 out += [Unknown(p, 2 * int(n) + c, f"actuation_offset[{int(n)}].kappa{c + 1}")
                         for n in self.cmds.nodes for c in comps]
+            elif p == "actuation_lag":
+                out.append(Unknown(p, 0, "actuation_lag"))
             else:
                 out.append(Unknown(p, 0, p))
         return out
@@ -461,8 +490,19 @@ class Problem:
                                   damping=_clip(float(vals.get("damping", spec.sim.damping)), c_lo, c_hi))
         return dataclasses.replace(spec, sim=sim, rods=tuple(rods))
 
+    def _lag(self, z: np.ndarray) -> float:
+        return next((max(float(zi), 0.0) for u, zi in zip(self.unknowns, z) if u.name == "actuation_lag"), 0.0)
+
+    def lagged(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The commands as the actuators follow them (:func:`lag_schedule` with the lag at ``z``): κ (T, N, 2),
+        twist (T, N) and their derivatives with respect to the lag."""
+        tau = self._lag(z)
+        fk, dk = lag_schedule(self.cmd_kb, tau, self.dt)
+        ft, dt_ = lag_schedule(self.cmd_tb, tau, self.dt)
+        return fk, ft, dk, dt_
+
     def controls_at(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(κ̄ (T, N, 2), τ̄ (T, N)) the rod is driven with: rest values, and gain · commanded + offset at the
+        """(κ̄ (T, N, 2), τ̄ (T, N)) the rod is driven with: rest values, and gain · lagged command + offset at the
         commanded nodes."""
         T = self.steps
         kb = np.broadcast_to(self.rest_kb, (T,) + self.rest_kb.shape).copy()
@@ -471,10 +511,11 @@ class Problem:
             return kb, tb
         gains = {u.index: zi for u, zi in zip(self.unknowns, z) if u.name == "actuation_gain"}
         offs = {u.index: zi for u, zi in zip(self.unknowns, z) if u.name == "actuation_offset"}
+        fk, ft, _, _ = self.lagged(z)
         for n in self.cmds.nodes:
             g = gains.get(int(n), 1.0)
-            kb[:, n] = g * self.cmd_kb[:, n] + np.array([offs.get(2 * int(n), 0.0), offs.get(2 * int(n) + 1, 0.0)])
-            tb[:, n] = g * self.cmd_tb[:, n]
+            kb[:, n] = g * fk[:, n] + np.array([offs.get(2 * int(n), 0.0), offs.get(2 * int(n) + 1, 0.0)])
+            tb[:, n] = g * ft[:, n]
         if self.planar:
             kb[..., 1] = 0.0
         return kb, tb
@@ -550,9 +591,17 @@ class Problem:
             return {"gravity": g}
         kb = np.zeros((T, 1, N, 2))
         tb = np.zeros((T, 1, N))
-        if u.name == "actuation_gain":
-            kb[:, 0, u.index] = self.cmd_kb[:, u.index]
-            tb[:, 0, u.index] = self.cmd_tb[:, u.index]
+        if u.name in ("actuation_gain", "actuation_lag"):
+            fk, ft, dk, dt_ = self.lagged(z)
+            if u.name == "actuation_gain":
+                kb[:, 0, u.index] = fk[:, u.index]
+                tb[:, 0, u.index] = ft[:, u.index]
+            else:  # every commanded node: its gain times the lagged command's derivative
+                gains = {v.index: zi for v, zi in zip(self.unknowns, z) if v.name == "actuation_gain"}
+                for n in self.cmds.nodes:
+                    g = gains.get(int(n), 1.0)
+                    kb[:, 0, n] = g * dk[:, n]
+                    tb[:, 0, n] = g * dt_[:, n]
             if self.planar:
                 kb[..., 1] = 0.0
                 tb[:] = 0.0
@@ -571,7 +620,7 @@ class Problem:
                 out[u.label] = rod.youngs_modulus / (2.0 * (1.0 + rod.poisson_ratio))
             elif u.name == "density":
                 out[u.label] = rod.density
-            elif u.name in ("damping", "gravity"):
+            elif u.name in ("damping", "gravity", "actuation_lag"):
                 out[u.label] = _clip(float(zi), *_unknown_bounds(self.spec, u))
             else:
                 out[u.label] = float(zi)

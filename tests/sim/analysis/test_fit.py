@@ -68,6 +68,67 @@ def test_the_actuation_map_is_recovered_from_commanded_curvature(tmp_path):
     np.testing.assert_allclose(got[2:], z_true[2:], atol=0.002)
 
 
+def _controls(tmp_path, spec):
+    path = tmp_path / "controls.csv"
+    path.write_text("t,node,kappa1,kappa2,twist\n0,3,0.2,0,0\n0.5,3,-0.15,0,0\n0,6,0.3,0,0\n0.8,6,-0.2,0,0\n")
+    from sim.scene.model import build_model
+    return F.load_controls(path, build_model(spec))
+
+
+def test_lag_schedule_is_the_backward_euler_first_order_lag_and_its_exact_derivative():
+    dt, tau = 0.02, 0.15
+    c = np.zeros((200, 2))
+    c[10:] = [1.0, -0.5]  # a step command at t = 0.2 s
+    f, df = F.lag_schedule(c, tau, dt)
+    k = np.arange(10, 200)
+    np.testing.assert_allclose(f[k, 0], 1.0 - (tau / (tau + dt)) ** (k - 9), rtol=1e-12)  # the closed form
+    t = (k - 9) * dt  # against the continuous lag 1 − e^{−t/τ}: backward Euler, first order in dt
+    assert np.max(np.abs(f[k, 0] - (1.0 - np.exp(-t / tau)))) < 0.6 * dt / tau
+    np.testing.assert_allclose(f[:, 1], -0.5 * f[:, 0], rtol=1e-12)
+    eps = 1e-6
+    fd = (F.lag_schedule(c, tau + eps, dt)[0] - F.lag_schedule(c, tau - eps, dt)[0]) / (2 * eps)
+    np.testing.assert_allclose(df, fd, rtol=1e-7, atol=1e-10)
+    f0, df0 = F.lag_schedule(c, 0.0, dt)  # no lag: the commands themselves
+    np.testing.assert_array_equal(f0, c)
+    with pytest.raises(F.FitError, match="actuation_lag must be ≥ 0"):
+        F.lag_schedule(c, -0.1, dt)
+
+
+@pytest.mark.parametrize("mode", ["2d", "3d"])
+def test_the_lag_column_of_the_fit_jacobian_matches_finite_differences(tmp_path, mode):
+    spec = load_scene(scene(tmp_path, mode))
+    cmds = _controls(tmp_path, spec)
+    params = ["actuation_gain", "actuation_lag"]
+    meas, prob = synthetic(spec, params, [0.8, 1.2, 0.1], cmds=cmds, seconds=1.0)
+    z = np.array([0.9, 1.1, 0.07])
+    J = prob.jacobian(prob.rollout(z), z)
+    for q, h in ((1, 1e-6), (2, 1e-6)):  # gain of node 6, lag
+        dz = np.zeros(3)
+        dz[q] = h
+        fd = (prob.residuals(prob.rollout(z + dz)) - prob.residuals(prob.rollout(z - dz))) / (2 * h)
+        scale = np.max(np.abs(fd))
+        assert scale > 1e-3, q  # the points move
+        assert np.max(np.abs(J[:, q] - fd)) < 1e-5 * scale, (q, np.max(np.abs(J[:, q] - fd)) / scale)
+
+
+def test_the_actuators_lag_is_recovered_with_the_gains(tmp_path):
+    """The 2-D arm's actuators follow the commands with a 0.12 s lag: fitted with the gains from no lag."""
+    spec = load_scene(scene(tmp_path, "2d"))
+    cmds = _controls(tmp_path, spec)
+    params = ["actuation_gain", "actuation_lag"]
+    z_true = [0.8, 1.2, 0.12]
+    meas, prob = synthetic(spec, params, z_true, cmds=cmds)
+    assert [u.label for u in prob.unknowns] == ["actuation_gain[3]", "actuation_gain[6]", "actuation_lag"]
+    res = F.fit(spec, meas, params, cmds=cmds)
+    assert res.params["actuation_lag"] == pytest.approx(0.12, rel=0.05), res.params
+    np.testing.assert_allclose([res.params["actuation_gain[3]"], res.params["actuation_gain[6]"]], z_true[:2],
+                               rtol=0.02)
+    assert abs(res.params["actuation_lag"] - 0.12) < 4 * res.stderr["actuation_lag"] + 1e-9
+    assert res.rms_m == pytest.approx(NOISE_M, rel=0.15) and res.at_bound == []
+    no_lag = F.fit(spec, meas, ["actuation_gain"], cmds=cmds)  # the lag the data show cannot be left out
+    assert no_lag.rms_m > 2 * res.rms_m
+
+
 def test_parameters_the_data_cannot_separate_are_said(tmp_path):
     """Gravity, inertia and damping all scale with the mass: motion sets only E/ρ."""
     spec = load_scene(scene(tmp_path))
