@@ -14,13 +14,15 @@ until the node's next row; absent = the rest controls. In 2-D, kappa1 is the in-
 
 Parameters (``--params``, comma separated): ``youngs_modulus``, ``shear_modulus`` (moves ν), ``density`` (each a
 factor on every rod, fitted in log space), ``damping`` [1/s], ``gravity`` (the vector; its in-plane components in
-2-D), and the actuation map from commanded to actual natural curvature, actual = gain · lagged + offset, per
-commanded node: ``actuation_gain`` (also on the twist), ``actuation_offset`` (κ1 and κ2) and ``actuation_lag`` [s],
-one time constant τ of every commanded node's actuator (τ ḟ = commanded − f, backward Euler at the scene's dt, f = 0
-before the first command; τ = 0: f = commanded, no lag). The scene parameters are bounded by the ranges
-sim.scene.validate.BOUNDS allows the values they set (every rod and edge; ν in (-1, 0.5] for the shear modulus), so a
-fit never returns a scene that does not load; one that ends on a bound is said (``at_bound``). Gain and offset are
-unbounded, the lag is in [0, ACTUATION_LAG_MAX_S].
+2-D), and the actuation map from commanded to actual natural curvature, actual = gain · followed + offset, per
+commanded node: ``actuation_gain`` (also on the twist), ``actuation_offset`` (κ1 and κ2), ``actuation_play`` (the
+half-width w of a backlash, in the commands' units: hysteresis) and ``actuation_lag`` [s] (a time constant τ), one
+play and one lag for every commanded node's actuator: followed = the lag of the play of the command
+(:func:`play_schedule`, :func:`lag_schedule`; w = 0 and τ = 0 are the command itself). The scene parameters are
+bounded by the ranges sim.scene.validate.BOUNDS allows the values they set (every rod and edge; ν in (-1, 0.5] for
+the shear modulus), so a fit never returns a scene that does not load; one that ends on a bound is said
+(``at_bound``). Gain and offset are unbounded, the lag is in [0, ACTUATION_LAG_MAX_S], the play in [0, the largest
+command].
 
 The fit is trust-region least squares on the position residuals with the Jacobian from the tangent mode of
 :mod:`sim.analysis.gradients` (docs/physics.md §3.9). The result: the fitted scene as a new TOML (never over an existing file),
@@ -57,7 +59,7 @@ __all__ = ["FIT_PARAMETERS", "FitError", "Measurements", "Commands", "FitResult"
            "RESIDUAL_COLUMNS", "fit_command"]
 
 FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "damping", "gravity", "actuation_gain",
-                  "actuation_offset", "actuation_lag")
+                  "actuation_offset", "actuation_play", "actuation_lag")
 _LOG = ("youngs_modulus", "shear_modulus", "density")  # positive, fitted as ln of a factor on the scene's value
 MAX_TIME_S = 3600.0  # longest motion a fit simulates
 ACTUATION_LAG_MAX_S = 10.0  # longest actuator time constant a fit considers
@@ -301,6 +303,27 @@ def lag_schedule(commanded: np.ndarray, tau: float, dt: float) -> tuple[np.ndarr
     return f, df
 
 
+def play_schedule(commanded: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
+    """The play (backlash) operator on a command schedule (T, ...) with half-width ``width``, per component, and its
+    derivative with respect to ``width``: the output stays put while the command moves within ±w of it and is
+    dragged along at distance w beyond, y_k = min(c_k + w, max(c_k − w, y_{k−1})), from y = 0 (the command before
+    any row). A command that reverses comes back 2w before the output moves: the loop of a hysteresis. ``width`` = 0
+    gives the commands themselves."""
+    if not width >= 0.0:
+        raise FitError(f"actuation_play must be ≥ 0, got {width!r}")
+    y = np.empty_like(commanded, dtype=float)
+    dy = np.empty_like(y)
+    y_prev = np.zeros(commanded.shape[1:])
+    d_prev = np.zeros(commanded.shape[1:])
+    for k in range(commanded.shape[0]):
+        lo, hi = commanded[k] - width, commanded[k] + width
+        below, above = y_prev < lo, y_prev > hi  # dragged along at −w or +w; else held (its derivative too)
+        y_prev = np.where(below, lo, np.where(above, hi, y_prev))
+        d_prev = np.where(below, -1.0, np.where(above, 1.0, d_prev))
+        y[k], dy[k] = y_prev, d_prev
+    return y, dy
+
+
 def node_arclength(spec, model=None) -> tuple[np.ndarray, np.ndarray]:
     """(s (N,), rod (N,)) of every node of the scene: its arclength [m] from its rod's first node along the rest
     shape (the ``s`` of measurements) and the index of its rod. A measurement at a node's s is that node."""
@@ -341,7 +364,7 @@ def _rod_values(r, name: str) -> list[float]:
     return v
 
 
-def _unknown_bounds(spec, u: "Unknown") -> tuple[float, float]:
+def _unknown_bounds(spec, u: "Unknown", play_limit: float = np.inf) -> tuple[float, float]:
     """(lowest, highest) of the unknown ``u`` (its z: a log factor, a rate, a component) from sim.scene.validate.BOUNDS."""
     if u.name in ("youngs_modulus", "density"):
         lo_v, hi_v, _ = BOUNDS[f"rod.{u.name}"]
@@ -360,6 +383,8 @@ def _unknown_bounds(spec, u: "Unknown") -> tuple[float, float]:
         return lo_v, hi_v
     if u.name == "actuation_lag":
         return 0.0, ACTUATION_LAG_MAX_S
+    if u.name == "actuation_play":  # wider than every command, the output never moves
+        return 0.0, play_limit
     return -np.inf, np.inf
 
 
@@ -368,6 +393,8 @@ def _bound_text(u: "Unknown") -> str:
            "gravity": "sim.gravity"}.get(u.name)
     if u.name == "actuation_lag":
         return f"actuation_lag in [0, {ACTUATION_LAG_MAX_S:g}] s"
+    if u.name == "actuation_play":
+        return "actuation_play in [0, the largest command]"
     if key is None:
         return "poisson_ratio in (-1, 0.5]" if u.name == "shear_modulus" else "unbounded"
     lo, hi, unit = BOUNDS[key]
@@ -392,12 +419,16 @@ class Problem:
         self.dt = model.dt
         self.steps = max(1, int(math.ceil(float(meas.t.max()) / self.dt - 1e-9)))
         if (cmds is None) and any(p.startswith("actuation_") for p in params):
-            raise FitError("the actuation map (actuation_gain, actuation_offset, actuation_lag) needs --controls: "
-                           "the commanded curvature it maps")
+            raise FitError("the actuation map (actuation_gain, actuation_offset, actuation_play, actuation_lag) needs "
+                           "--controls: the commanded curvature it maps")
         if "shear_modulus" in params and self.planar:
             raise FitError("shear_modulus: a 2-D scene has no twist, so the data cannot tell the shear modulus")
         self.rest_kb, self.rest_tb = Simulator(model, 1)._rest_control_arrays()
         self.cmd_kb, self.cmd_tb = command_schedule(cmds, self.steps, self.dt, model.node_count)
+        used = (self.cmd_kb[..., 0],) if self.planar else (self.cmd_kb, self.cmd_tb)  # 2-D: κ1 only
+        self.play_limit = float(max(np.max(np.abs(c), initial=0.0) for c in used))
+        if "actuation_play" in params and not self.play_limit > 0.0:
+            raise FitError("actuation_play: every command is 0 over the measured time, so the data cannot tell a play")
         self.unknowns = self._unknowns(params)
         self._weights()
 
@@ -413,8 +444,8 @@ class Problem:
                 comps = (0,) if self.planar else (0, 1)
                 out += [Unknown(p, 2 * int(n) + c, f"actuation_offset[{int(n)}].kappa{c + 1}")
                         for n in self.cmds.nodes for c in comps]
-            elif p == "actuation_lag":
-                out.append(Unknown(p, 0, "actuation_lag"))
+            elif p in ("actuation_play", "actuation_lag"):
+                out.append(Unknown(p, 0, p))
             else:
                 out.append(Unknown(p, 0, p))
         return out
@@ -490,16 +521,22 @@ class Problem:
                                   damping=_clip(float(vals.get("damping", spec.sim.damping)), c_lo, c_hi))
         return dataclasses.replace(spec, sim=sim, rods=tuple(rods))
 
-    def _lag(self, z: np.ndarray) -> float:
-        return next((max(float(zi), 0.0) for u, zi in zip(self.unknowns, z) if u.name == "actuation_lag"), 0.0)
+    def _value(self, z: np.ndarray, name: str) -> float:
+        return next((max(float(zi), 0.0) for u, zi in zip(self.unknowns, z) if u.name == name), 0.0)
 
-    def lagged(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The commands as the actuators follow them (:func:`lag_schedule` with the lag at ``z``): κ (T, N, 2),
-        twist (T, N) and their derivatives with respect to the lag."""
-        tau = self._lag(z)
-        fk, dk = lag_schedule(self.cmd_kb, tau, self.dt)
-        ft, dt_ = lag_schedule(self.cmd_tb, tau, self.dt)
-        return fk, ft, dk, dt_
+    def followed(self, z: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], dict]:
+        """The commands as the actuators follow them, the lag of the play of each (:func:`play_schedule`,
+        :func:`lag_schedule` with the values at ``z``): (κ (T, N, 2), twist (T, N)), and their derivatives with
+        respect to ``actuation_play`` and ``actuation_lag`` (each a pair like the first)."""
+        w, tau = self._value(z, "actuation_play"), self._value(z, "actuation_lag")
+        out, dplay, dlag = [], [], []
+        for c in (self.cmd_kb, self.cmd_tb):
+            p, dp = play_schedule(c, w)
+            f, df = lag_schedule(p, tau, self.dt)
+            out.append(f)
+            dlag.append(df)
+            dplay.append(lag_schedule(dp, tau, self.dt)[0])  # the lag is linear in its input, from 0
+        return (out[0], out[1]), {"actuation_play": tuple(dplay), "actuation_lag": tuple(dlag)}
 
     def controls_at(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(κ̄ (T, N, 2), τ̄ (T, N)) the rod is driven with: rest values, and gain · lagged command + offset at the
@@ -511,7 +548,7 @@ class Problem:
             return kb, tb
         gains = {u.index: zi for u, zi in zip(self.unknowns, z) if u.name == "actuation_gain"}
         offs = {u.index: zi for u, zi in zip(self.unknowns, z) if u.name == "actuation_offset"}
-        fk, ft, _, _ = self.lagged(z)
+        (fk, ft), _ = self.followed(z)
         for n in self.cmds.nodes:
             g = gains.get(int(n), 1.0)
             kb[:, n] = g * fk[:, n] + np.array([offs.get(2 * int(n), 0.0), offs.get(2 * int(n) + 1, 0.0)])
@@ -541,7 +578,7 @@ class Problem:
         invalid scene. Log factors bounded in log space; the actuation map is unbounded."""
         lo, hi = [], []
         for u in self.unknowns:
-            a, b = _unknown_bounds(self.spec, u)
+            a, b = _unknown_bounds(self.spec, u, self.play_limit)
             if not a < b:
                 raise FitError(f"{u.label}: the scene's values already span the whole valid range "
                                f"({_bound_text(u)}): nothing is left to fit")
@@ -591,12 +628,13 @@ class Problem:
             return {"gravity": g}
         kb = np.zeros((T, 1, N, 2))
         tb = np.zeros((T, 1, N))
-        if u.name in ("actuation_gain", "actuation_lag"):
-            fk, ft, dk, dt_ = self.lagged(z)
+        if u.name in ("actuation_gain", "actuation_play", "actuation_lag"):
+            (fk, ft), derivs = self.followed(z)
             if u.name == "actuation_gain":
                 kb[:, 0, u.index] = fk[:, u.index]
                 tb[:, 0, u.index] = ft[:, u.index]
-            else:  # every commanded node: its gain times the lagged command's derivative
+            else:  # every commanded node: its gain times the followed command's derivative
+                dk, dt_ = derivs[u.name]
                 gains = {v.index: zi for v, zi in zip(self.unknowns, z) if v.name == "actuation_gain"}
                 for n in self.cmds.nodes:
                     g = gains.get(int(n), 1.0)
@@ -620,8 +658,8 @@ class Problem:
                 out[u.label] = rod.youngs_modulus / (2.0 * (1.0 + rod.poisson_ratio))
             elif u.name == "density":
                 out[u.label] = rod.density
-            elif u.name in ("damping", "gravity", "actuation_lag"):
-                out[u.label] = _clip(float(zi), *_unknown_bounds(self.spec, u))
+            elif u.name in ("damping", "gravity", "actuation_lag", "actuation_play"):
+                out[u.label] = _clip(float(zi), *_unknown_bounds(self.spec, u, self.play_limit))
             else:
                 out[u.label] = float(zi)
         return out

@@ -94,16 +94,49 @@ def test_lag_schedule_is_the_backward_euler_first_order_lag_and_its_exact_deriva
         F.lag_schedule(c, -0.1, dt)
 
 
+def test_play_schedule_is_a_backlash_and_its_derivative_is_exact_between_switches():
+    c = 0.3 * np.sin(np.linspace(0.0, 4.0 * np.pi, 400))[:, None] * np.array([1.0, -2.0])
+    w = 0.05
+    y, dy = F.play_schedule(c, w)
+    assert np.all(np.abs(y - c) <= w + 1e-15)  # never more than w behind the command
+    moving = np.abs(np.diff(y[:, 0])) > 0
+    dragged = np.isclose(np.abs(y[1:, 0] - c[1:, 0]), w)
+    assert np.all(dragged[moving]) and not np.all(moving)  # it moves only when dragged, and holds at reversals
+    up = np.diff(c[:, 0]) > 0  # hysteresis: below the command on the way up, above on the way down
+    np.testing.assert_allclose(y[1:, 0][up & dragged], c[1:, 0][up & dragged] - w)
+    np.testing.assert_allclose(y[1:, 0][~up & dragged], c[1:, 0][~up & dragged] + w)
+    eps = 1e-7
+    fd = (F.play_schedule(c, w + eps)[0] - F.play_schedule(c, w - eps)[0]) / (2 * eps)
+    np.testing.assert_allclose(dy, fd, atol=1e-7)
+    assert set(np.unique(dy)) <= {-1.0, 0.0, 1.0}
+    np.testing.assert_array_equal(F.play_schedule(c, 0.0)[0], c)  # no play: the commands themselves
+    with pytest.raises(F.FitError, match="actuation_play must be ≥ 0"):
+        F.play_schedule(c, -0.1)
+
+
+def _swept_controls(tmp_path, spec):
+    """Nodes 3 and 6 swept back and forth (steps of a slow sine of changing amplitude): the play shows."""
+    path = tmp_path / "swept.csv"
+    rows = ["t,node,kappa1,kappa2,twist"]
+    for node, amp, f in ((3, 0.25, 1.1), (6, 0.3, 0.8)):
+        for t in np.arange(0.0, 2.0, 0.05):
+            k = amp * (0.6 + 0.4 * np.cos(1.3 * t)) * np.sin(2 * np.pi * f * t)
+            rows.append(f"{t:.3f},{node},{k:.6f},{0.5 * k:.6f},0")
+    path.write_text("\n".join(rows) + "\n")
+    from sim.scene.model import build_model
+    return F.load_controls(path, build_model(spec))
+
+
 @pytest.mark.parametrize("mode", ["2d", "3d"])
-def test_the_lag_column_of_the_fit_jacobian_matches_finite_differences(tmp_path, mode):
+def test_the_play_and_lag_columns_of_the_fit_jacobian_match_finite_differences(tmp_path, mode):
     spec = load_scene(scene(tmp_path, mode))
-    cmds = _controls(tmp_path, spec)
-    params = ["actuation_gain", "actuation_lag"]
-    meas, prob = synthetic(spec, params, [0.8, 1.2, 0.1], cmds=cmds, seconds=1.0)
-    z = np.array([0.9, 1.1, 0.07])
+    cmds = _swept_controls(tmp_path, spec)
+    params = ["actuation_gain", "actuation_play", "actuation_lag"]
+    meas, prob = synthetic(spec, params, [0.8, 1.2, 0.04, 0.1], cmds=cmds, seconds=1.0)
+    z = np.array([0.9, 1.1, 0.03, 0.07])
     J = prob.jacobian(prob.rollout(z), z)
-    for q, h in ((1, 1e-6), (2, 1e-6)):  # gain of node 6, lag
-        dz = np.zeros(3)
+    for q, h in ((1, 1e-6), (2, 1e-7), (3, 1e-6)):  # gain of node 6, play, lag
+        dz = np.zeros(4)
         dz[q] = h
         fd = (prob.residuals(prob.rollout(z + dz)) - prob.residuals(prob.rollout(z - dz))) / (2 * h)
         scale = np.max(np.abs(fd))
@@ -127,6 +160,24 @@ def test_the_actuators_lag_is_recovered_with_the_gains(tmp_path):
     assert res.rms_m == pytest.approx(NOISE_M, rel=0.15) and res.at_bound == []
     no_lag = F.fit(spec, meas, ["actuation_gain"], cmds=cmds)  # the lag the data show cannot be left out
     assert no_lag.rms_m > 2 * res.rms_m
+
+
+def test_the_actuators_play_is_recovered_with_their_lag_and_gains(tmp_path):
+    """The 2-D arm's actuators have a backlash of ±0.04 and a 0.1 s lag: fitted from no play and no lag."""
+    spec = load_scene(scene(tmp_path, "2d"))
+    cmds = _swept_controls(tmp_path, spec)
+    params = ["actuation_gain", "actuation_play", "actuation_lag"]
+    z_true = [0.8, 1.2, 0.04, 0.1]
+    meas, prob = synthetic(spec, params, z_true, cmds=cmds, seconds=2.0)
+    assert prob.bounds()[1][2] == np.max(np.abs(prob.cmd_kb[..., 0]))  # the play at most the largest command
+    res = F.fit(spec, meas, params, cmds=cmds)
+    got = [res.params[u.label] for u in prob.unknowns]
+    np.testing.assert_allclose(got, z_true, rtol=0.05)
+    assert res.rms_m == pytest.approx(NOISE_M, rel=0.15) and res.at_bound == [] and res.confounded == []
+    assert res.stderr["actuation_play"] < 0.005 and abs(got[2] - 0.04) < 3 * res.stderr["actuation_play"]
+    # the hysteresis left out: the lag takes it up (0.157 s) and the residual grows (1.06 against 0.97 mm)
+    without = F.fit(spec, meas, ["actuation_gain", "actuation_lag"], cmds=cmds)
+    assert without.rms_m > 1.05 * res.rms_m and without.params["actuation_lag"] > 0.13
 
 
 def test_parameters_the_data_cannot_separate_are_said(tmp_path):
