@@ -15,10 +15,14 @@ transposed, the adjoint (reverse) mode :meth:`Tape.vjp`.
 * J: exact in 2-D. In 3-D the Newton Jacobian leaves out how the transported frames turn with the new positions;
   its θ columns are kept and its position columns replaced by central differences of the residual (~1e-9).
 
+* Obstacle contact without friction: its residual E'(g) ∇g depends on the new positions alone, so it enters J
+  (the band, with each env's candidates over its step's motion) and no other column; the ownership rule and the
+  candidate list are piecewise constant, so the derivative is that of the contact set the solution has.
+
 The derivatives are of the backward-Euler map the Newton iterate satisfies; a step that ended unconverged
 (``accept_unconverged``) is differentiated as if it had converged (:attr:`Tape.unconverged` counts them). Not
-covered yet (a clear :class:`GradientError`): contact, implicit midpoint, prescribed motion, viscous drag, steps
-that took the retry ladder (sub-steps).
+covered yet (a clear :class:`GradientError`): friction, contact between edges (self- and rod–rod), implicit
+midpoint, prescribed motion, viscous drag, steps that took the retry ladder (sub-steps).
 
 Parameters (keys of the tangent / gradient dicts):
 
@@ -38,7 +42,7 @@ import dataclasses
 
 import numpy as np
 
-from sim.contact.world import spec_contact_data
+from sim.contact.world import ObstacleWorld, contact_data, contact_scratch, spec_contact_data
 from sim.kernels.data import KL_2D, KL_3D, ControlArrays, StateArrays
 from sim.kernels.linearise import Linearisation, RodFactors, Wanted, linearise_step
 
@@ -101,6 +105,7 @@ class Tape:
     tau_bar: np.ndarray  # (T, B, N)
     grav: np.ndarray  # (T, B, n) the external forces (gravity and loads) of each step
     unconverged: int = 0
+    contact: object = None  # the obstacles' contact data of the rollout (its own work space), None without contact
     _lin: dict = dataclasses.field(default_factory=dict, repr=False)
 
     @property
@@ -122,6 +127,8 @@ class Tape:
 
     @property
     def _cd(self):
+        if self.contact is not None:
+            return self.contact
         if "cd" not in self._lin:
             m = self.sim.model
             self._lin["cd"] = spec_contact_data(m.obstacles, 1, m.node_count, m.edge_radius, candidates=0)
@@ -370,11 +377,15 @@ def _cotangent(v, T, B, n) -> np.ndarray:
 def rollout(sim, state, controls) -> Tape:
     """Run ``sim`` from ``state`` (advanced in place) for T steps under ``controls`` (a sequence of T
     :class:`sim.Control`, one per step) and record what :class:`Tape` needs to differentiate it. Raises
-    :class:`GradientError` for what the derivatives do not cover (contact, implicit midpoint, prescribed motion,
-    a step that failed or took the retry ladder)."""
-    if sim.has_contact:
-        raise GradientError("derivatives through contact are not available yet: disable [contact] or remove the "
-                            "obstacles and self-contact of this scene")
+    :class:`GradientError` for what the derivatives do not cover (friction, contact between edges, implicit
+    midpoint, prescribed motion, a step that failed or took the retry ladder)."""
+    prm = sim.kernel_params[0]
+    if bool(prm["rod_pairs"]):
+        raise GradientError("derivatives through contact between edges (self_contact, rod_contact) are not "
+                            "available yet: turn them off in [contact] (obstacle contact without friction is)")
+    if int(prm["n_obstacles"]) > 0 and bool(prm["friction_on"]):
+        raise GradientError("derivatives through friction are not available yet: set [contact] friction = 0 and "
+                            "no obstacle friction (obstacle contact without friction is)")
     if bool(sim.kernel_params[0]["midpoint"]):
         raise GradientError("derivatives of the implicit midpoint rule are not available: use "
                             "integrator = \"backward_euler\"")
@@ -390,6 +401,7 @@ def rollout(sim, state, controls) -> Tape:
     if not controls:
         raise GradientError("rollout needs at least one control (one per step)")
     B = sim.envs
+    contact = _contact_snapshot(sim, state) if int(prm["n_obstacles"]) > 0 else None
     snap = lambda: (state.dof.reshape(B, -1).copy(), state.dof_vel.reshape(B, -1).copy(),  # noqa: E731
                     state.edge_ref_d1.copy(), state.edge_tangent.copy(), state.node_ref_twist.copy())
     frames = [snap()]
@@ -414,4 +426,15 @@ def rollout(sim, state, controls) -> Tape:
         frames.append(snap())
     dof, vel, d1, t, beta = (np.stack(a) for a in zip(*frames))
     return Tape(sim=sim, dof=dof, vel=vel, ref_d1=d1, tangent=t, ref_twist=beta, kappa_bar=np.stack(kbs),
-                tau_bar=np.stack(tbs), grav=np.stack(gravs), unconverged=unconverged)
+                tau_bar=np.stack(tbs), grav=np.stack(gravs), unconverged=unconverged, contact=contact)
+
+
+def _contact_snapshot(sim, state):
+    """The contact data of ``state``'s obstacles (poses, radii, active flags as they are now: a step does not move
+    them) with a world and work space of its own, so that later steps of ``sim`` do not change it."""
+    m = sim.model
+    B = sim.envs
+    world = ObstacleWorld(m.obstacles, B).update(state)
+    held = dataclasses.make_dataclass("_Held", ["obstacle_radius", "obstacle_active"])(
+        np.array(state.obstacle_radius, copy=True), np.array(state.obstacle_active, copy=True))
+    return contact_data(m.obstacles, world, held, contact_scratch(B, m.node_count, m.obstacles.count, m.edge_radius))

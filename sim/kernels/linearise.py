@@ -5,8 +5,10 @@ Per env: the full band of ∂f/∂x' at the step's solution with no DOF constrai
 central differences of the residual, grouped so that one pair of residual evaluations gives 2·kl + 1 columns at once
 (columns 2·kl + 1 apart touch disjoint rows of the band); the columns of the residual's dependence on the natural
 curvature and twist of every node (affine: a unit change, nodes three apart in one evaluation: their elements share
-no row) and on the stiffness and mass factors (a second rod record with the factor doubled). A
-workspace per env: an analysis path, not the step's.
+no row) and on the stiffness and mass factors (a second rod record with the factor doubled). With
+obstacle contact, the candidates of each env over its step's motion (start to solution) are listed first, so its
+residual and band carry the contact the step's solution felt. A workspace per env: an analysis path, not the
+step's.
 """
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ from numba import njit, prange
 
 from sim.contact import stages as contact
 from sim.kernels.data import KL_2D, KL_3D
-from sim.kernels.newton import assemble
+from sim.kernels.newton import assemble, positions
 from sim.kernels.workspace import alloc_workspace, copy_into
 from sim.numba_options import OPT_ALLOC
 
@@ -102,6 +104,10 @@ def _linearise_envs(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g, 
         x1 = x1s[e]
         kb = kbs[e]
         tb = tbs[e]
+        if contact.present(prm):  # the candidates over the step's motion (frictionless obstacle contact only)
+            positions(planar, x0s[e], w.pos0, prm.plane_y)
+            positions(planar, x1, w.pos, prm.plane_y)
+            contact.broadphase(e, prm, rod, cs, w.pos0, w.pos)
         copy_into(w.x, x1)
         assemble(planar, e, w.x, h, kb, tb, rod, prm, cs, w, True, False)
         ab = ab_out[e]

@@ -12,7 +12,7 @@ import pytest
 from sim.analysis import gradients as G
 from sim.geometry.frames import update_frames
 from sim.scene.model import build_model
-from sim.scene.obstacles import SphereSpec
+from sim.scene.obstacles import BoxSpec, CapsuleSpec, ContactSpec, CylinderSpec, PlaneSpec, SphereSpec
 from sim.step import Simulator
 from tests.helpers.rodspec import make_spec
 
@@ -77,8 +77,9 @@ def case(request):
     return mode, sim, kb, tb, tape, rng
 
 
-def perturbations(mode, sim, kb, tb, tape, rng):
-    """name -> (tangent dict, function eps -> final DOFs of the rollout with the parameters moved by eps·tangent)."""
+def perturbations(mode, sim, kb, tb, tape, rng, make=simulator):
+    """name -> (tangent dict, function eps -> final DOFs of the rollout with the parameters moved by eps·tangent);
+    ``make(mode, **kw)`` builds the simulator with changed scene values."""
     n = tape.dof.shape[2]
     free = ~sim.kernel_rod.fixed.astype(bool)
     dk = rng.normal(0.0, 1.0, kb.shape)
@@ -92,12 +93,12 @@ def perturbations(mode, sim, kb, tb, tape, rng):
     out = {
         # the scene ties G to E through ν: a change of E there is a change of both factors
         "log_youngs_modulus": ({"log_youngs_modulus": one, "log_shear_modulus": one}, lambda eps: final_dof(
-            simulator(mode, E=1e6 * math.exp(eps)), kb, tb)),
+            make(mode, E=1e6 * math.exp(eps)), kb, tb)),
         "log_density": ({"log_density": one}, lambda eps: final_dof(
-            simulator(mode, density=1000.0 * math.exp(eps)), kb, tb)),
-        "damping": ({"damping": one}, lambda eps: final_dof(simulator(mode, damping=0.3 + eps), kb, tb)),
+            make(mode, density=1000.0 * math.exp(eps)), kb, tb)),
+        "damping": ({"damping": one}, lambda eps: final_dof(make(mode, damping=0.3 + eps), kb, tb)),
         "gravity": ({"gravity": np.tile(g, (B, 1))}, lambda eps: final_dof(
-            simulator(mode, gravity=tuple(np.array([0.0, 0.0, -9.8]) + eps * g)), kb, tb)),
+            make(mode, gravity=tuple(np.array([0.0, 0.0, -9.8]) + eps * g)), kb, tb)),
         "kappa_bar": ({"kappa_bar": dk}, lambda eps: final_dof(sim, kb + eps * dk, tb)),
         "vel0": ({"vel0": v0}, lambda eps: final_dof(sim, kb, tb, vel0=tape.vel[0] + eps * v0)),
         "dof0": ({"dof0": x0}, lambda eps: final_dof(sim, kb, tb, dof0=tape.dof[0] + eps * x0)),
@@ -107,10 +108,8 @@ def perturbations(mode, sim, kb, tb, tape, rng):
     return out
 
 
-def test_tangents_match_central_differences_of_the_rollout(case):
-    mode, sim, kb, tb, tape, rng = case
-    assert tape.unconverged == 0
-    for name, (tangent, moved) in perturbations(*case).items():
+def _check_tangents(tape, perturbed):
+    for name, (tangent, moved) in perturbed.items():
         jvp = tape.jvp(tangent)["dof"][-1]
         assert np.linalg.norm(jvp) > 1e-4, name  # the final state depends on every parameter here
         errors = {}
@@ -119,6 +118,75 @@ def test_tangents_match_central_differences_of_the_rollout(case):
             errors[eps] = np.linalg.norm(fd - jvp) / np.linalg.norm(fd)
         assert min(errors.values()) <= 1e-6, (name, errors)
         assert np.all(np.isfinite(jvp))
+
+
+def test_tangents_match_central_differences_of_the_rollout(case):
+    mode, sim, kb, tb, tape, rng = case
+    assert tape.unconverged == 0
+    _check_tangents(tape, perturbations(*case))
+
+
+GAP = 0.002  # between the rod's surface and the obstacle at the start: within the contact's delta (5 mm)
+
+
+def _obstacle(kind: str):
+    """An obstacle just beside the top of the leaning rod, on the side gravity bends it toward."""
+    tip = np.array(DIRECTION)
+    if kind == "plane":
+        return PlaneSpec(point=tuple(tip + [0.05 + GAP, 0.0, 0.0]), normal=(-1.0, 0.0, 0.0))
+    if kind == "sphere":
+        return SphereSpec(center=tuple(tip + [0.2 + 0.05 + GAP, 0.0, -0.05]), radius=0.2)
+    if kind in ("capsule", "cylinder"):  # across the rod's plane (the cylinder: a triangle mesh prism)
+        c = tip + [0.1 + 0.05 + GAP, 0.0, -0.05]
+        spec = CapsuleSpec if kind == "capsule" else CylinderSpec
+        return spec(start=tuple(c - [0.0, 0.3, 0.0]), end=tuple(c + [0.0, 0.3, 0.0]), radius=0.1)
+    return BoxSpec(position=tuple(tip + [0.1 + 0.05 + GAP, 0.0, 0.0]), half_extents=(0.1, 0.3, 0.3))  # a face
+
+
+def contact_simulator(mode: str, kind: str, **kw) -> Simulator:
+    """:func:`simulator` with a frictionless obstacle of ``kind`` it presses against."""
+    spec = make_spec(**{**dict(nodes=8, radius=0.05, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.3, tol=1e-13,
+                               dtol=1e-13, max_iter=60, direction=DIRECTION, mode=mode), **kw})
+    spec = dataclasses.replace(spec, obstacles=(_obstacle(kind),),
+                               contact=ContactSpec(stiffness=1e4, delta=5e-3, friction=0.0))
+    return Simulator(build_model(spec), envs=B)
+
+
+@pytest.mark.parametrize("kind", ["plane", "sphere", "capsule", "cylinder", "box"])
+@pytest.mark.parametrize("mode", ["2d", "3d"])
+def test_tangents_through_frictionless_obstacle_contact_match_central_differences(mode, kind):
+    """The leaning rod pressed against an obstacle over the last steps: the contact's stiffness enters every
+    derivative (without it they differ by far more than the tolerance)."""
+    rng = np.random.default_rng(1)
+    sim = contact_simulator(mode, kind)
+    N = sim.model.node_count
+    kb = rng.normal(0.0, 0.05, (T, B, N, 2))
+    tb = rng.normal(0.0, 0.05, (T, B, N)) if mode == "3d" else np.zeros((T, B, N))
+    if mode == "2d":
+        kb[..., 1] = 0.0
+    st = start(sim)
+    touched = []
+    ctrls = controls(sim, kb, tb)
+    tape = G.rollout(sim, st, ctrls)
+    assert tape.unconverged == 0 and tape.contact is not None
+    st2 = start(sim)
+    for c in ctrls:
+        touched.append(sim.step(st2, c).contact_count.copy())
+    assert np.all(np.array(touched)[-2:] > 0), touched  # in contact over the last steps, every env
+    perturbed = perturbations(mode, sim, kb, tb, tape, rng, make=lambda m, **kw: contact_simulator(m, kind, **kw))
+    _check_tangents(tape, {k: perturbed[k] for k in ("dof0", "kappa_bar", "log_youngs_modulus", "gravity")})
+    n = tape.dof.shape[2]  # the adjoint through the contact is the tangent mode's transpose
+    c_dof = rng.normal(0.0, 1.0, (T + 1, B, n))
+    grads = tape.vjp({"dof": c_dof})
+    for name in ("dof0", "kappa_bar", "gravity"):
+        tangent = perturbed[name][0]
+        lhs = sum(np.sum(grads[k] * v) for k, v in tangent.items())
+        assert lhs == pytest.approx(np.sum(c_dof * tape.jvp(tangent)["dof"]), rel=1e-10), name
+    free = simulator(mode)  # the same rollout without the obstacle: different derivatives
+    g = np.tile([0.3, 0.0, 0.5], (B, 1))
+    jc = tape.jvp({"gravity": g})["dof"][-1]
+    jf = G.rollout(free, start(free), controls(free, kb, tb)).jvp({"gravity": g})["dof"][-1]
+    assert np.linalg.norm(jc - jf) > 1e-3 * np.linalg.norm(jf)
 
 
 def test_adjoint_is_the_transpose_of_the_tangent_mode(case):
@@ -150,8 +218,13 @@ def test_what_is_not_covered_is_refused_by_name():
         G.rollout(sim, sim.reset(), [sim.make_control()])
     spec = make_spec(nodes=8, direction=DIRECTION)
     ball = SphereSpec(center=(0.5, 0.0, 0.5), radius=0.1, name="ball")
-    sim = Simulator(build_model(dataclasses.replace(spec, obstacles=(ball,))), envs=B)
-    with pytest.raises(G.GradientError, match="contact"):
+    rough = dataclasses.replace(spec, obstacles=(ball,), contact=ContactSpec(friction=0.3))
+    sim = Simulator(build_model(rough), envs=B)
+    with pytest.raises(G.GradientError, match="friction"):
+        G.rollout(sim, sim.reset(), [sim.make_control()])
+    pairs = dataclasses.replace(spec, contact=ContactSpec(self_contact=True))
+    sim = Simulator(build_model(pairs), envs=B)
+    with pytest.raises(G.GradientError, match="contact between edges"):
         G.rollout(sim, sim.reset(), [sim.make_control()])
     sim = simulator("2d")
     tape = G.rollout(sim, sim.reset(), [sim.make_control()])
