@@ -15,14 +15,17 @@ transposed, the adjoint (reverse) mode :meth:`Tape.vjp`.
 * J: exact in 2-D. In 3-D the Newton Jacobian leaves out how the transported frames turn with the new positions;
   its θ columns are kept and its position columns replaced by central differences of the residual (~1e-9).
 
-* Obstacle contact without friction: its residual E'(g) ∇g depends on the new positions alone, so it enters J
-  (the band, with each env's candidates over its step's motion) and no other column; the ownership rule and the
-  candidate list are piecewise constant, so the derivative is that of the contact set the solution has.
+* Obstacle contact: its normal residual E'(g) ∇g depends on the new positions alone, so it enters J (the band,
+  with each env's candidates over its step's motion); friction also depends on the start positions through the
+  slip velocity (x' − x)/h, so with friction ∂f/∂x is a band of its own (central differences of the residual in
+  the start positions) and J's position columns come from differences too (the Newton Jacobian leaves out how the
+  lagged normal and closest point turn). The ownership rule and the candidate list are piecewise constant, so the
+  derivative is that of the contact set the solution has.
 
 The derivatives are of the backward-Euler map the Newton iterate satisfies; a step that ended unconverged
 (``accept_unconverged``) is differentiated as if it had converged (:attr:`Tape.unconverged` counts them). Not
-covered yet (a clear :class:`GradientError`): friction, contact between edges (self- and rod–rod), implicit
-midpoint, prescribed motion, viscous drag, steps that took the retry ladder (sub-steps).
+covered yet (a clear :class:`GradientError`): contact between edges (self- and rod–rod), implicit midpoint,
+prescribed motion, viscous drag, steps that took the retry ladder (sub-steps).
 
 Parameters (keys of the tangent / gradient dicts):
 
@@ -67,13 +70,16 @@ def _dense(ab: np.ndarray, n: int, kl: int) -> np.ndarray:
 
 
 _SCALARS = ("log_youngs_modulus", "log_shear_modulus", "log_density", "damping")
+# Friction's direction turns over a slip of |v_t| h (≈ 0.2 mm at 1 cm/s and dt = 0.02 s): central differences of
+# step ε err by ≈ (ε / (|v_t| h))² / 6, so with friction the differences step 1e-7 (not 1e-6) of the coordinates
+FRICTION_FD_STEP = 1e-7
 _CACHE_BYTES = 256 * 2**20  # linearisations kept for further passes while they fit in this
 
 
 @dataclasses.dataclass
 class _Lin:
     """All envs' step linearised at its solution: J (B, n, n) (constrained DOFs: identity); the start-state columns
-    Fx, Fu (n,) (diagonal); frame maps G (B, n, E) (∂f/∂φ), a, b (B, E, n) (φ' = φ + a δx + b δx'); parameter
+    Fx (n,) (diagonal; with friction a matrix (B, n, n)), Fu (n,) (diagonal); frame maps G (B, n, E) (∂f/∂φ), a, b (B, E, n) (φ' = φ + a δx + b δx'); parameter
     columns P (name -> (B, n, k))."""
 
     J: np.ndarray
@@ -157,6 +163,9 @@ class Tape:
         kbc = np.zeros((B, n, N, 2) if want_kb or want_tb else (1, 1, 1, 2))
         tbc = np.zeros((B, n, N) if want_tb else (1, 1, 1))
         sc = np.zeros((B, n, 3) if want_sc else (1, 1, 3))
+        prm = sim.kernel_params[0]
+        want_start = int(prm["n_obstacles"]) > 0 and bool(prm["friction_on"])  # friction: ∂f/∂x is not diagonal
+        st_band = np.zeros((B, n + kl, 2 * kl + 1) if want_start else (1, 1, 1))
         rod, rod_e, rod_g, rod_m = self._rods(k)
         c = np.ascontiguousarray
         start = StateArrays(dof=c(self.dof[k]), vel=c(self.vel[k]), ref_d1=c(self.ref_d1[k]),
@@ -164,7 +173,9 @@ class Tape:
                             failed=np.zeros(B, np.bool_))
         linearise_step(start, c(self.dof[k + 1]), ControlArrays(c(self.kappa_bar[k]), c(self.tau_bar[k])), h,
                        RodFactors(rod, rod_e, rod_g, rod_m), sim.kernel_params, self._cd,
-                       Wanted(want_kb, want_tb, want_sc), Linearisation(ab, kbc, tbc, sc))
+                       Wanted(want_kb, want_tb, want_sc, want_start, FRICTION_FD_STEP if want_start else 1e-6),
+                       Linearisation(ab, kbc, tbc, sc, st_band))
+        pos_dof = np.ones(n, bool) if planar else (np.arange(n) % 4 != 3)
         Jf = _dense(ab, n, kl)  # ∂f/∂x' with no DOF constrained
         fixed = sim.kernel_rod.fixed.astype(bool)
         J = Jf.copy()  # constrained DOFs: identity rows and columns (their residual is 0 and they do not move)
@@ -173,10 +184,15 @@ class Tape:
         J[:, fixed, fixed] = 1.0
         mass = sim.kernel_rod.mass
         damp = float(sim.kernel_params[0]["damping"])
-        pos_dof = np.ones(n, bool) if planar else (np.arange(n) % 4 != 3)
         Fx = -(mass / h**2 + np.where(pos_dof, damp * mass / h, 0.0))
         Fu = -mass / h
         Fx[fixed], Fu[fixed] = 0.0, 0.0
+        if want_start:  # the start positions' columns by differences, the twist angles' inertia on the diagonal
+            S = _dense(st_band, n, kl)
+            S[:, fixed, :] = 0.0
+            S[:, :, fixed] = 0.0
+            S[:, np.arange(n), np.arange(n)] += np.where(pos_dof, 0.0, Fx)[None, :]
+            Fx = S
         P: dict = {}
         if want_kb:
             P["kappa_bar"] = kbc.reshape(B, n, 2 * N) * ~fixed[None, :, None]
@@ -249,7 +265,7 @@ class Tape:
         ddof[:, 0], dvel[:, 0] = dx.transpose(2, 0, 1), du.transpose(2, 0, 1)
         for k in range(T):
             lin = self._linear(k, names)
-            rhs = lin.Fx[None, :, None] * dx + lin.Fu[None, :, None] * du
+            rhs = (lin.Fx @ dx if lin.Fx.ndim == 3 else lin.Fx[None, :, None] * dx) + lin.Fu[None, :, None] * du
             if not planar:
                 rhs += lin.G @ (phi + lin.a @ dx)
             for q, t in enumerate(tans):
@@ -304,7 +320,7 @@ class Tape:
                     out[nm][k] = g
                 else:
                     out[nm] += g[:, 0]
-            gx_prev = -lin.Fx * lam - gu / h + cx[k]
+            gx_prev = (-np.einsum("bnm,bn->bm", lin.Fx, lam) if lin.Fx.ndim == 3 else -lin.Fx * lam) - gu / h + cx[k]
             gu_prev = -lin.Fu * lam + cu[k]
             if not planar:
                 Gl = -np.einsum("bne,bn->be", lin.G, lam)
@@ -377,15 +393,12 @@ def _cotangent(v, T, B, n) -> np.ndarray:
 def rollout(sim, state, controls) -> Tape:
     """Run ``sim`` from ``state`` (advanced in place) for T steps under ``controls`` (a sequence of T
     :class:`sim.Control`, one per step) and record what :class:`Tape` needs to differentiate it. Raises
-    :class:`GradientError` for what the derivatives do not cover (friction, contact between edges, implicit
-    midpoint, prescribed motion, a step that failed or took the retry ladder)."""
+    :class:`GradientError` for what the derivatives do not cover (contact between edges, implicit midpoint,
+    prescribed motion, a step that failed or took the retry ladder)."""
     prm = sim.kernel_params[0]
     if bool(prm["rod_pairs"]):
         raise GradientError("derivatives through contact between edges (self_contact, rod_contact) are not "
-                            "available yet: turn them off in [contact] (obstacle contact without friction is)")
-    if int(prm["n_obstacles"]) > 0 and bool(prm["friction_on"]):
-        raise GradientError("derivatives through friction are not available yet: set [contact] friction = 0 and "
-                            "no obstacle friction (obstacle contact without friction is)")
+                            "available yet: turn them off in [contact] (obstacle contact, with friction, is)")
     if bool(sim.kernel_params[0]["midpoint"]):
         raise GradientError("derivatives of the implicit midpoint rule are not available: use "
                             "integrator = \"backward_euler\"")

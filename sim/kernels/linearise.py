@@ -38,22 +38,28 @@ class RodFactors(NamedTuple):
 
 
 class Wanted(NamedTuple):
-    """Which columns besides the band :func:`linearise_step` computes."""
+    """Which columns besides the band :func:`linearise_step` computes; ``start``: the band of the residual's
+    dependence on the step's start positions (friction's slip velocity; the band of ∂f/∂x' then comes from
+    differences too: the Newton Jacobian leaves out how the lagged normal turns)."""
 
     kappa_bar: bool
     tau_bar: bool
     factors: bool
+    start: bool = False
+    fd_step: float = 1e-6  # the differences' step, relative to the largest coordinate (at least 1 m)
 
 
 class Linearisation(NamedTuple):
     """What :func:`linearise_step` writes, per env (leading axis B): ``band`` (B, n + kl, 2 kl + 1) of ∂f/∂x';
     ``kappa_bar`` (B, n, N, 2) ∂f/∂κ̄; ``tau_bar`` (B, n, N) ∂f/∂τ̄; ``factors`` (B, n, 3) the columns of the
-    doubled stiffness, twisting stiffness and mass. An array whose columns are not wanted may be a placeholder."""
+    doubled stiffness, twisting stiffness and mass; ``start`` (B, n + kl, 2 kl + 1) the band of ∂f/∂x of the
+    start's position DOFs (its other columns 0). An array whose columns are not wanted may be a placeholder."""
 
     band: np.ndarray
     kappa_bar: np.ndarray
     tau_bar: np.ndarray
     factors: np.ndarray
+    start: np.ndarray
 
 
 def linearise_step(start, solution, ctrl, h: float, rods: RodFactors, prm_arr, cd, wanted: Wanted,
@@ -66,8 +72,43 @@ def linearise_step(start, solution, ctrl, h: float, rods: RodFactors, prm_arr, c
     the records' arrays one by one (numba 0.68's parallel lowering fails on these records inside a prange kernel)."""
     _linearise_envs(start.dof, start.vel, start.ref_d1, start.tangent, start.ref_twist, solution, ctrl.kappa_bar,
                     ctrl.tau_bar, h, rods.rod, rods.stiffer, rods.twist_stiffer, rods.heavier, prm_arr, cd,
-                    wanted.kappa_bar, wanted.tau_bar, wanted.factors, out.band, out.kappa_bar, out.tau_bar,
-                    out.factors)
+                    wanted.kappa_bar, wanted.tau_bar, wanted.factors, wanted.start, wanted.fd_step, out.band,
+                    out.kappa_bar, out.tau_bar, out.factors, out.start)
+
+
+@njit(**OPT_ALLOC)
+def _position_columns(e, x1, kb, tb, h, rod, prm, cs, w, of_start, step, band, xp, fp, fm):
+    """The position columns of ∂f/∂x' (``of_start`` False) or of ∂f/∂x (the step's start, True) into ``band`` by
+    central differences of the residual, 2 kl + 1 columns per pair of evaluations (columns that far apart touch
+    disjoint rows of the band)."""
+    planar = prm.planar
+    kl = KL_2D if planar else KL_3D
+    n = x1.shape[0]
+    base = w.sub_x.copy() if of_start else x1
+    scale = 1.0
+    for c in range(n):
+        if planar or c % 4 != 3:
+            scale = max(scale, abs(base[c]))
+    eps = step * scale
+    stride = 2 * kl + 1
+    for color in range(stride):
+        for sign in (1.0, -1.0):
+            copy_into(xp, base)
+            for c in range(color, n, stride):
+                if planar or c % 4 != 3:
+                    xp[c] += sign * eps
+            if of_start:
+                copy_into(w.sub_x, xp)
+                _residual(e, x1, kb, tb, h, rod, prm, cs, w, fp if sign > 0 else fm)
+            else:
+                _residual(e, xp, kb, tb, h, rod, prm, cs, w, fp if sign > 0 else fm)
+        for c in range(color, n, stride):
+            if not (planar or c % 4 != 3):
+                continue
+            for r in range(max(0, c - kl), min(n, c + kl + 1)):
+                band[r, kl + c - r] = (fp[r] - fm[r]) / (2.0 * eps)
+    if of_start:
+        copy_into(w.sub_x, base)
 
 
 @njit(**OPT_ALLOC)
@@ -80,16 +121,17 @@ def _residual(e, x, kb, tb, h, rod, prm, cs, w, out):
 
 @njit(parallel=True, **OPT_ALLOC)
 def _linearise_envs(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g, rod_m, prm_arr, cd,
-                    want_kb, want_tb, want_scalars, ab_out, kb_out, tb_out, sc_out):
+                    want_kb, want_tb, want_scalars, want_start, fd_step, ab_out, kb_out, tb_out, sc_out, start_out):
     """For every env e of one recorded step: ab_out[e] (n + kl, 2 kl + 1) the band of ∂f/∂x' at x1s[e];
     kb_out[e] (n, N, 2) ∂f/∂κ̄, tb_out[e] (n, N) ∂f/∂τ̄ (if wanted); sc_out[e] (n, 3) the columns of the
     factors on stiffness (rod_e), twisting stiffness (rod_g) and mass (rod_m), each doubled, if wanted (damping's
-    column is m (x' − x)/h: the caller's). ``rod``'s fixed flags must be all 0 (the caller constrains afterwards)."""
+    column is m (x' − x)/h: the caller's); with ``want_start`` start_out[e] the band of ∂f/∂x (start positions)
+    and the band's position columns by differences in 2-D too. ``rod``'s fixed flags must be all 0 (the caller
+    constrains afterwards)."""
     B = x1s.shape[0]
     n = x1s.shape[1]
     N = bs.shape[1]
     planar = prm_arr[0].planar
-    kl = KL_2D if planar else KL_3D
     dpn = 2 if planar else 4
     for ep in prange(B):
         e = np.int64(ep)  # a signed index: the kernels take min(e, rows - 1) (an unsigned one would turn it float)
@@ -104,7 +146,7 @@ def _linearise_envs(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g, 
         x1 = x1s[e]
         kb = kbs[e]
         tb = tbs[e]
-        if contact.present(prm):  # the candidates over the step's motion (frictionless obstacle contact only)
+        if contact.present(prm):  # the candidates over the step's motion (obstacle contact)
             positions(planar, x0s[e], w.pos0, prm.plane_y)
             positions(planar, x1, w.pos, prm.plane_y)
             contact.broadphase(e, prm, rod, cs, w.pos0, w.pos)
@@ -117,29 +159,10 @@ def _linearise_envs(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g, 
         fp = f0.copy()
         fm = f0.copy()
         xp = x1.copy()
-        if not planar:  # position columns by central differences, 2 kl + 1 columns per pair of evaluations
-            scale = 1.0
-            for k in range(N):
-                for a in range(3):
-                    scale = max(scale, abs(x1[4 * k + a]))
-            eps = 1e-6 * scale
-            stride = 2 * kl + 1
-            for color in range(stride):
-                copy_into(xp, x1)
-                for c in range(color, n, stride):
-                    if c % 4 != 3:
-                        xp[c] += eps
-                _residual(e, xp, kb, tb, h, rod, prm, cs, w, fp)
-                copy_into(xp, x1)
-                for c in range(color, n, stride):
-                    if c % 4 != 3:
-                        xp[c] -= eps
-                _residual(e, xp, kb, tb, h, rod, prm, cs, w, fm)
-                for c in range(color, n, stride):
-                    if c % 4 == 3:
-                        continue
-                    for r in range(max(0, c - kl), min(n, c + kl + 1)):
-                        ab[r, kl + c - r] = (fp[r] - fm[r]) / (2.0 * eps)
+        if want_start or not planar:  # position columns by central differences
+            _position_columns(e, x1, kb, tb, h, rod, prm, cs, w, False, fd_step, ab, xp, fp, fm)
+        if want_start:
+            _position_columns(e, x1, kb, tb, h, rod, prm, cs, w, True, fd_step, start_out[e], xp, fp, fm)
         if want_kb or want_tb:
             kb1 = kb.copy()
             tb1 = tb.copy()

@@ -143,22 +143,31 @@ def _obstacle(kind: str):
     return BoxSpec(position=tuple(tip + [0.1 + 0.05 + GAP, 0.0, 0.0]), half_extents=(0.1, 0.3, 0.3))  # a face
 
 
-def contact_simulator(mode: str, kind: str, **kw) -> Simulator:
-    """:func:`simulator` with a frictionless obstacle of ``kind`` it presses against."""
+def contact_simulator(mode: str, kind: str, mu: float = 0.0, nu: float = 1e-2, **kw) -> Simulator:
+    """:func:`simulator` with an obstacle of ``kind`` it presses against, friction ``mu`` with velocity tolerance
+    ``nu``."""
     spec = make_spec(**{**dict(nodes=8, radius=0.05, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.3, tol=1e-13,
                                dtol=1e-13, max_iter=60, direction=DIRECTION, mode=mode), **kw})
     spec = dataclasses.replace(spec, obstacles=(_obstacle(kind),),
-                               contact=ContactSpec(stiffness=1e4, delta=5e-3, friction=0.0))
+                               contact=ContactSpec(stiffness=1e4, delta=5e-3, friction=mu,
+                                                   friction_velocity_tol=nu))
     return Simulator(build_model(spec), envs=B)
 
 
-@pytest.mark.parametrize("kind", ["plane", "sphere", "capsule", "cylinder", "box"])
-@pytest.mark.parametrize("mode", ["2d", "3d"])
-def test_tangents_through_frictionless_obstacle_contact_match_central_differences(mode, kind):
-    """The leaning rod pressed against an obstacle over the last steps: the contact's stiffness enters every
-    derivative (without it they differ by far more than the tolerance)."""
+FRICTION = {"frictionless": (0.0, 1e-2), "sliding": (0.3, 1e-3), "sticking": (0.5, 1.0)}  # μ, ν [m/s]
+CONTACT_CASES = [(mode, kind, regime) for mode in ("2d", "3d")
+                 for kind in ("plane", "sphere", "capsule", "cylinder", "box") for regime in FRICTION
+                 if not (mode == "2d" and regime == "sliding")]  # 2-D: these slides take the retry ladder
+
+
+@pytest.mark.parametrize("mode,kind,regime", CONTACT_CASES)
+def test_tangents_through_obstacle_contact_match_central_differences(mode, kind, regime):
+    """The leaning rod pressed against an obstacle over the last steps, without friction, sliding along it (the
+    friction force at μ N: slip beyond the law's velocity tolerance ν) and on the law's sticking branch (below
+    μ N): the contact enters every derivative (without it they differ by far more than the tolerance)."""
+    mu, nu = FRICTION[regime]
     rng = np.random.default_rng(1)
-    sim = contact_simulator(mode, kind)
+    sim = contact_simulator(mode, kind, mu, nu)
     N = sim.model.node_count
     kb = rng.normal(0.0, 0.05, (T, B, N, 2))
     tb = rng.normal(0.0, 0.05, (T, B, N)) if mode == "3d" else np.zeros((T, B, N))
@@ -171,9 +180,17 @@ def test_tangents_through_frictionless_obstacle_contact_match_central_difference
     assert tape.unconverged == 0 and tape.contact is not None
     st2 = start(sim)
     for c in ctrls:
-        touched.append(sim.step(st2, c).contact_count.copy())
+        last = sim.step(st2, c)
+        touched.append(last.contact_count.copy())
     assert np.all(np.array(touched)[-2:] > 0), touched  # in contact over the last steps, every env
-    perturbed = perturbations(mode, sim, kb, tb, tape, rng, make=lambda m, **kw: contact_simulator(m, kind, **kw))
+    if mu > 0.0:  # the friction law's branch: |friction| = μ N sliding, below it sticking
+        for e in range(B):
+            k = int(last.contact_count[e])
+            ratio = (np.linalg.norm(last.contact_friction_force[e, :k], axis=-1).sum()
+                     / (mu * last.contact_normal_force[e, :k].sum()))
+            assert (ratio > 0.999) if regime == "sliding" else (0.01 < ratio < 0.95), (e, ratio)
+    perturbed = perturbations(mode, sim, kb, tb, tape, rng,
+                              make=lambda m, **kw: contact_simulator(m, kind, mu, nu, **kw))
     _check_tangents(tape, {k: perturbed[k] for k in ("dof0", "kappa_bar", "log_youngs_modulus", "gravity")})
     n = tape.dof.shape[2]  # the adjoint through the contact is the tangent mode's transpose
     c_dof = rng.normal(0.0, 1.0, (T + 1, B, n))
@@ -217,11 +234,6 @@ def test_what_is_not_covered_is_refused_by_name():
     with pytest.raises(G.GradientError, match="midpoint"):
         G.rollout(sim, sim.reset(), [sim.make_control()])
     spec = make_spec(nodes=8, direction=DIRECTION)
-    ball = SphereSpec(center=(0.5, 0.0, 0.5), radius=0.1, name="ball")
-    rough = dataclasses.replace(spec, obstacles=(ball,), contact=ContactSpec(friction=0.3))
-    sim = Simulator(build_model(rough), envs=B)
-    with pytest.raises(G.GradientError, match="friction"):
-        G.rollout(sim, sim.reset(), [sim.make_control()])
     pairs = dataclasses.replace(spec, contact=ContactSpec(self_contact=True))
     sim = Simulator(build_model(pairs), envs=B)
     with pytest.raises(G.GradientError, match="contact between edges"):
