@@ -38,6 +38,12 @@ Parameters (keys of the tangent / gradient dicts):
     log_density         (B,)          ln of a factor on every mass (and weight)
     damping             (B,)          the viscous damping rate [1/s]
     gravity             (B, 3)        the gravity vector [m/s²]
+    log_contact_stiffness (B,)        ln of a factor on the [contact] stiffness (obstacle contact)
+    friction            (B,)          the [contact] friction μ (of the obstacles without a μ of their own)
+
+The residual is linear in the contact stiffness (E ∝ k, and friction ∝ λ) and in μ, so their columns are
+differences of two residual evaluations (the stiffness doubled; μ + 1), at the contact set of the step's solution;
+without obstacle contact they are 0.
 """
 from __future__ import annotations
 
@@ -48,11 +54,13 @@ import numpy as np
 from sim.contact.world import ObstacleWorld, contact_data, contact_scratch, spec_contact_data
 from sim.kernels.data import KL_2D, KL_3D, ControlArrays, StateArrays
 from sim.kernels.linearise import Linearisation, RodFactors, Wanted, linearise_step
+from sim.kernels.probe import assemble_at
 
 __all__ = ["GradientError", "Tape", "rollout", "PARAMETERS"]
 
 PARAMETERS = ("dof0", "vel0", "kappa_bar", "tau_bar", "log_youngs_modulus", "log_shear_modulus", "log_density",
-              "damping", "gravity")
+              "damping", "gravity", "log_contact_stiffness", "friction")
+_CONTACT_FIELDS = ("log_contact_stiffness", "friction")
 
 
 class GradientError(ValueError):
@@ -201,6 +209,9 @@ class Tape:
         for j, nm in enumerate(_SCALARS[:3]):
             if want_sc and nm in names:
                 P[nm] = sc[:, :, j:j + 1] * ~fixed[None, :, None]
+        for nm in _CONTACT_FIELDS:
+            if nm in names:  # after linearise_step: the contact data hold this step's candidates
+                P[nm] = self._contact_column(k, nm, rod) * ~fixed[None, :, None]
         if "damping" in names:  # the damping force c m (x' − x)/h on positions
             P["damping"] = ((mass * pos_dof * ~fixed)[None, :] * (self.dof[k + 1] - self.dof[k]) / h)[:, :, None]
         if planar:
@@ -215,6 +226,35 @@ class Tape:
         a = _turn_map(kvec, self.dof[k], t0, link)
         b = _turn_map(kvec, self.dof[k + 1], t1, link)
         return _Lin(J, Fx, Fu, G, a, b, P)
+
+    def _contact_column(self, k: int, name: str, rod) -> np.ndarray:
+        """(B, n, 1) ∂f/∂p of step k for the contact stiffness's log factor or the [contact] μ: the residual is
+        linear in either, so the column is f(2k) − f(k), or f(μ + 1) − f(μ) (friction acting, also from μ = 0), at
+        the solution, evaluated with the candidates the step's linearisation listed in the contact data."""
+        sim = self.sim
+        B, n = self.dof.shape[1], self.dof.shape[2]
+        out = np.zeros((B, n, 1))
+        if self.contact is None:
+            return out
+        prm0 = sim.kernel_params
+        prm1 = prm0.copy()
+        if name == "log_contact_stiffness":
+            prm1[0]["contact_k"] = 2.0 * float(prm0[0]["contact_k"])
+        else:
+            prm1[0]["friction"] = float(prm0[0]["friction"]) + 1.0
+            prm1[0]["friction_on"] = True
+        kl = KL_2D if sim.model.mode == "2d" else KL_3D
+        f0, f1 = np.zeros(n), np.zeros(n)
+        ab = np.zeros((n + kl, 2 * kl + 1))
+        c = np.ascontiguousarray
+        for e in range(B):
+            args = (c(self.dof[k + 1, e]), c(self.dof[k, e]), c(self.vel[k, e]), c(self.ref_d1[k, e]),
+                    c(self.tangent[k, e]), c(self.ref_twist[k, e]), sim.model.dt, c(self.kappa_bar[k, e]),
+                    c(self.tau_bar[k, e]), rod)
+            assemble_at(e, *args, prm0, self.contact, f0, ab)
+            assemble_at(e, *args, prm1, self.contact, f1, ab)
+            out[e, :, 0] = f1 - f0
+        return out
 
     def _gravity_columns(self) -> np.ndarray:
         """(n, 3) ∂f/∂g (the same for every env and step)."""
@@ -354,7 +394,7 @@ def _turn_map(kvec: np.ndarray, x: np.ndarray, t: np.ndarray, link: np.ndarray) 
 def _param_shape(name, T, B, n, N):
     return {"dof0": (B, n), "vel0": (B, n), "kappa_bar": (T, B, N, 2), "tau_bar": (T, B, N),
             "log_youngs_modulus": (B,), "log_shear_modulus": (B,), "log_density": (B,), "damping": (B,),
-            "gravity": (B, 3)}[name]
+            "gravity": (B, 3), "log_contact_stiffness": (B,), "friction": (B,)}[name]
 
 
 def _checked(tangents: dict, tape: Tape) -> dict:

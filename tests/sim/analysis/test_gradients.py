@@ -108,12 +108,12 @@ def perturbations(mode, sim, kb, tb, tape, rng, make=simulator):
     return out
 
 
-def _check_tangents(tape, perturbed):
+def _check_tangents(tape, perturbed, steps=(1e-4, 1e-5, 1e-6), smallest=1e-4):
     for name, (tangent, moved) in perturbed.items():
         jvp = tape.jvp(tangent)["dof"][-1]
-        assert np.linalg.norm(jvp) > 1e-4, name  # the final state depends on every parameter here
+        assert np.linalg.norm(jvp) > smallest, name  # the final state depends on every parameter here
         errors = {}
-        for eps in (1e-4, 1e-5, 1e-6):  # step-size study: truncation error at large steps, rounding at small
+        for eps in steps:  # step-size study: truncation error at large steps, rounding at small
             fd = (moved(eps) - moved(-eps)) / (2.0 * eps)
             errors[eps] = np.linalg.norm(fd - jvp) / np.linalg.norm(fd)
         assert min(errors.values()) <= 1e-6, (name, errors)
@@ -143,13 +143,13 @@ def _obstacle(kind: str):
     return BoxSpec(position=tuple(tip + [0.1 + 0.05 + GAP, 0.0, 0.0]), half_extents=(0.1, 0.3, 0.3))  # a face
 
 
-def contact_simulator(mode: str, kind: str, mu: float = 0.0, nu: float = 1e-2, **kw) -> Simulator:
-    """:func:`simulator` with an obstacle of ``kind`` it presses against, friction ``mu`` with velocity tolerance
-    ``nu``."""
+def contact_simulator(mode: str, kind: str, mu: float = 0.0, nu: float = 1e-2, k: float = 1e4, **kw) -> Simulator:
+    """:func:`simulator` with an obstacle of ``kind`` it presses against (contact stiffness ``k``), friction ``mu``
+    with velocity tolerance ``nu``."""
     spec = make_spec(**{**dict(nodes=8, radius=0.05, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.3, tol=1e-13,
                                dtol=1e-13, max_iter=60, direction=DIRECTION, mode=mode), **kw})
     spec = dataclasses.replace(spec, obstacles=(_obstacle(kind),),
-                               contact=ContactSpec(stiffness=1e4, delta=5e-3, friction=mu,
+                               contact=ContactSpec(stiffness=k, delta=5e-3, friction=mu,
                                                    friction_velocity_tol=nu))
     return Simulator(build_model(spec), envs=B)
 
@@ -191,12 +191,21 @@ def test_tangents_through_obstacle_contact_match_central_differences(mode, kind,
             assert (ratio > 0.999) if regime == "sliding" else (0.01 < ratio < 0.95), (e, ratio)
     perturbed = perturbations(mode, sim, kb, tb, tape, rng,
                               make=lambda m, **kw: contact_simulator(m, kind, mu, nu, **kw))
-    _check_tangents(tape, {k: perturbed[k] for k in ("dof0", "kappa_bar", "log_youngs_modulus", "gravity")})
+    checked = {k: perturbed[k] for k in ("dof0", "kappa_bar", "log_youngs_modulus", "gravity")}
+    _check_tangents(tape, checked)
+    # the contact's own parameters move the rod less (1e-5 to 1e-3 of these): larger steps in the study
+    contact_params = {"log_contact_stiffness": ({"log_contact_stiffness": np.ones(B)}, lambda eps: final_dof(
+        contact_simulator(mode, kind, mu, nu, k=1e4 * math.exp(eps)), kb, tb))}
+    if mu > 0.0:
+        contact_params["friction"] = ({"friction": np.ones(B)}, lambda eps: final_dof(
+            contact_simulator(mode, kind, mu + eps, nu), kb, tb))
+    _check_tangents(tape, contact_params, steps=(1e-3, 1e-4, 1e-5), smallest=1e-6)
+    checked.update(contact_params)
     n = tape.dof.shape[2]  # the adjoint through the contact is the tangent mode's transpose
     c_dof = rng.normal(0.0, 1.0, (T + 1, B, n))
     grads = tape.vjp({"dof": c_dof})
-    for name in ("dof0", "kappa_bar", "gravity"):
-        tangent = perturbed[name][0]
+    for name in checked:
+        tangent = checked[name][0]
         lhs = sum(np.sum(grads[k] * v) for k, v in tangent.items())
         assert lhs == pytest.approx(np.sum(c_dof * tape.jvp(tangent)["dof"]), rel=1e-10), name
     free = simulator(mode)  # the same rollout without the obstacle: different derivatives
@@ -212,6 +221,7 @@ def test_adjoint_is_the_transpose_of_the_tangent_mode(case):
     c_dof = rng.normal(0.0, 1.0, (T + 1, B, n))  # a loss over the whole trajectory
     c_vel = rng.normal(0.0, 1.0, (B, n))  # and the final velocities
     grads = tape.vjp({"dof": c_dof, "vel": c_vel})
+    assert not grads["log_contact_stiffness"].any() and not grads["friction"].any()  # no contact here
     for name, (tangent, _) in perturbations(*case).items():
         out = tape.jvp(tangent)
         rhs = np.sum(c_dof * out["dof"]) + np.sum(c_vel * out["vel"][-1])
