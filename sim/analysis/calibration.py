@@ -14,7 +14,8 @@ until the node's next row; absent = the rest controls. In 2-D, kappa1 is the in-
 
 Parameters (``--params``, comma separated): ``youngs_modulus``, ``shear_modulus`` (moves ν), ``density`` (each a
 factor on every rod, fitted in log space), ``damping`` [1/s], ``gravity`` (the vector; its in-plane components in
-2-D), and the actuation map from commanded to actual natural curvature, actual = gain · followed + offset, per
+2-D), the obstacle contact's ``contact_stiffness`` (a factor, in log space) and ``friction`` (the [contact] μ:
+obstacles without a μ of their own), and the actuation map from commanded to actual natural curvature, actual = gain · followed + offset, per
 commanded node: ``actuation_gain`` (also on the twist), ``actuation_offset`` (κ1 and κ2), ``actuation_play`` (the
 half-width w of a backlash, in the commands' units: hysteresis) and ``actuation_lag`` [s] (a time constant τ), one
 play and one lag for every commanded node's actuator: followed = the lag of the play of the command
@@ -58,9 +59,10 @@ __all__ = ["FIT_PARAMETERS", "FitError", "Measurements", "Commands", "FitResult"
            "measurements_from_arrays", "node_arclength", "load_controls", "fit", "write_report", "PLOTS",
            "RESIDUAL_COLUMNS", "fit_command"]
 
-FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "damping", "gravity", "actuation_gain",
+FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "damping", "gravity", "contact_stiffness", "friction",
+                  "actuation_gain",
                   "actuation_offset", "actuation_play", "actuation_lag")
-_LOG = ("youngs_modulus", "shear_modulus", "density")  # positive, fitted as ln of a factor on the scene's value
+_LOG = ("youngs_modulus", "shear_modulus", "density", "contact_stiffness")  # fitted as ln of a factor on the scene's value
 MAX_TIME_S = 3600.0  # longest motion a fit simulates
 ACTUATION_LAG_MAX_S = 10.0  # longest actuator time constant a fit considers
 UNIT_FACTOR = 100.0  # a measured point farther than this many rod lengths from the rod's start is in wrong units
@@ -381,6 +383,12 @@ def _unknown_bounds(spec, u: "Unknown", play_limit: float = np.inf) -> tuple[flo
     if u.name == "gravity":
         lo_v, hi_v, _ = BOUNDS["sim.gravity"]
         return lo_v, hi_v
+    if u.name == "contact_stiffness":
+        lo_v, hi_v, _ = BOUNDS["contact.stiffness"]
+        return math.log(lo_v / spec.contact.stiffness), math.log(hi_v / spec.contact.stiffness)
+    if u.name == "friction":
+        lo_v, hi_v, _ = BOUNDS["contact.friction"]
+        return lo_v, hi_v
     if u.name == "actuation_lag":
         return 0.0, ACTUATION_LAG_MAX_S
     if u.name == "actuation_play":  # wider than every command, the output never moves
@@ -390,7 +398,7 @@ def _unknown_bounds(spec, u: "Unknown", play_limit: float = np.inf) -> tuple[flo
 
 def _bound_text(u: "Unknown") -> str:
     key = {"youngs_modulus": "rod.youngs_modulus", "density": "rod.density", "damping": "sim.damping",
-           "gravity": "sim.gravity"}.get(u.name)
+           "gravity": "sim.gravity", "contact_stiffness": "contact.stiffness", "friction": "contact.friction"}.get(u.name)
     if u.name == "actuation_lag":
         return f"actuation_lag in [0, {ACTUATION_LAG_MAX_S:g}] s"
     if u.name == "actuation_play":
@@ -423,6 +431,10 @@ class Problem:
                            "--controls: the commanded curvature it maps")
         if "shear_modulus" in params and self.planar:
             raise FitError("shear_modulus: a 2-D scene has no twist, so the data cannot tell the shear modulus")
+        touching = [p for p in params if p in ("contact_stiffness", "friction")]
+        if touching and not (model.obstacles.count > 0 and spec.contact.enabled):
+            raise FitError(f"{touching[0]}: the scene has no obstacle contact (no [[obstacle]], or [contact] "
+                           "enabled = false)")
         self.rest_kb, self.rest_tb = Simulator(model, 1)._rest_control_arrays()
         self.cmd_kb, self.cmd_tb = command_schedule(cmds, self.steps, self.dt, model.node_count)
         used = (self.cmd_kb[..., 0],) if self.planar else (self.cmd_kb, self.cmd_tb)  # 2-D: κ1 only
@@ -519,7 +531,14 @@ class Problem:
         c_lo, c_hi, _ = BOUNDS["sim.damping"]
         sim = dataclasses.replace(spec.sim, gravity=tuple(g),
                                   damping=_clip(float(vals.get("damping", spec.sim.damping)), c_lo, c_hi))
-        return dataclasses.replace(spec, sim=sim, rods=tuple(rods))
+        contact = spec.contact
+        if "contact_stiffness" in vals or "friction" in vals:
+            k_lo, k_hi, _ = BOUNDS["contact.stiffness"]
+            m_lo, m_hi, _ = BOUNDS["contact.friction"]
+            contact = dataclasses.replace(
+                contact, stiffness=_clip(contact.stiffness * math.exp(vals.get("contact_stiffness", 0.0)), k_lo, k_hi),
+                friction=_clip(float(vals.get("friction", contact.friction)), m_lo, m_hi))
+        return dataclasses.replace(spec, sim=sim, rods=tuple(rods), contact=contact)
 
     def _value(self, z: np.ndarray, name: str) -> float:
         return next((max(float(zi), 0.0) for u, zi in zip(self.unknowns, z) if u.name == name), 0.0)
@@ -564,6 +583,8 @@ class Problem:
                 z.append(0.0)
             elif u.name == "damping":
                 z.append(float(self.spec.sim.damping))
+            elif u.name == "friction":
+                z.append(float(self.spec.contact.friction))
             elif u.name == "gravity":
                 z.append(float(self.spec.sim.gravity[u.index]))
             elif u.name == "actuation_gain":
@@ -622,6 +643,10 @@ class Problem:
             return {"log_density": np.ones(1)}
         if u.name == "damping":
             return {"damping": np.ones(1)}
+        if u.name == "contact_stiffness":
+            return {"log_contact_stiffness": np.ones(1)}
+        if u.name == "friction":
+            return {"friction": np.ones(1)}
         if u.name == "gravity":
             g = np.zeros((1, 3))
             g[0, u.index] = 1.0
@@ -658,6 +683,10 @@ class Problem:
                 out[u.label] = rod.youngs_modulus / (2.0 * (1.0 + rod.poisson_ratio))
             elif u.name == "density":
                 out[u.label] = rod.density
+            elif u.name == "contact_stiffness":
+                out[u.label] = self.spec_at(z).contact.stiffness
+            elif u.name == "friction":
+                out[u.label] = self.spec_at(z).contact.friction
             elif u.name in ("damping", "gravity", "actuation_lag", "actuation_play"):
                 out[u.label] = _clip(float(zi), *_unknown_bounds(self.spec, u, self.play_limit))
             else:

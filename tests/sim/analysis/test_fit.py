@@ -4,6 +4,7 @@ cannot separate said, held-out error, Ctrl-C keeping the best so far, bounds fro
 folder (plots, held-out residuals), and bad input refused by name."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import subprocess
@@ -178,6 +179,39 @@ def test_the_actuators_play_is_recovered_with_their_lag_and_gains(tmp_path):
     # the hysteresis left out: the lag takes it up (0.157 s) and the residual grows (1.06 against 0.97 mm)
     without = F.fit(spec, meas, ["actuation_gain", "actuation_lag"], cmds=cmds)
     assert without.rms_m > 1.05 * res.rms_m and without.params["actuation_lag"] > 0.13
+
+
+def _sliding_rod(mu: float, mode: str = "3d"):
+    """A free rod laid along a 30° incline (a plane obstacle) with friction μ: it slides down, slowed by friction."""
+    from sim.scene.obstacles import ContactSpec, PlaneSpec
+    a = math.radians(30.0)
+    normal = (-math.sin(a), 0.0, math.cos(a))
+    spec = make_spec(nodes=9, length=1.0, radius=0.01, dt=0.01, gravity=(0.0, 0.0, -9.8), max_iter=60, tol=1e-10,
+                     dtol=1e-10, direction=(math.cos(a), 0.0, math.sin(a)), start=tuple(0.0105 * np.array(normal)),
+                     clamp="none", mode=mode)
+    return dataclasses.replace(spec, obstacles=(PlaneSpec(point=(0.0, 0.0, 0.0), normal=normal),),
+                               contact=ContactSpec(stiffness=1e4, delta=1e-3, friction=mu))
+
+
+@pytest.mark.parametrize("mode", ["2d", "3d"])
+def test_the_friction_coefficient_is_recovered_from_a_rod_sliding_down_an_incline(mode):
+    """The slide's deceleration sets μ (g (sin α − μ cos α) along the slope): fitted from half the true value, with
+    the exact derivatives through the frictional contact."""
+    truth = _sliding_rod(0.4, mode)
+    meas, _ = synthetic(truth, ["friction"], [0.4], seconds=0.8)
+    res = F.fit(_sliding_rod(0.2, mode), meas, ["friction"])
+    assert res.params["friction"] == pytest.approx(0.4, abs=0.01), res.params
+    assert abs(res.params["friction"] - 0.4) < 4 * res.stderr["friction"] + 1e-9
+    assert res.rms_m == pytest.approx(NOISE_M, rel=0.15) and res.unconverged_steps == 0
+    assert res.spec.contact.friction == res.params["friction"]
+
+
+def test_contact_parameters_need_contact(tmp_path):
+    spec = load_scene(scene(tmp_path))
+    meas, _ = synthetic(spec, ["damping"], [0.5], seconds=0.2)
+    for name in ("friction", "contact_stiffness"):
+        with pytest.raises(F.FitError, match=f"{name}: the scene has no obstacle contact"):
+            F.fit(spec, meas, [name])
 
 
 def test_parameters_the_data_cannot_separate_are_said(tmp_path):
