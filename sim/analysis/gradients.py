@@ -78,8 +78,9 @@ def _dense(ab: np.ndarray, n: int, kl: int) -> np.ndarray:
 
 
 _SCALARS = ("log_youngs_modulus", "log_shear_modulus", "log_density", "damping")
-# Friction's direction turns over a slip of |v_t| h (≈ 0.2 mm at 1 cm/s and dt = 0.02 s): central differences of
-# step ε err by ≈ (ε / (|v_t| h))² / 6, so with friction the differences step 1e-7 (not 1e-6) of the coordinates
+# Friction's law turns over a slip of |v_t| h (0.2 mm at 1 cm/s and dt = 0.02 s) and its sticking branch over
+# ν h / 7.5 (3 µm at ν = 1e-3 m/s): central differences of step ε err by ≈ (ε / that)² / 6, so with friction they
+# step 1e-7 (not 1e-6) of the coordinates and are extrapolated from ε and ε/2 (Richardson: the ε² term cancels)
 FRICTION_FD_STEP = 1e-7
 _CACHE_BYTES = 256 * 2**20  # linearisations kept for further passes while they fit in this
 

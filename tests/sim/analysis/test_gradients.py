@@ -145,9 +145,9 @@ def _obstacle(kind: str):
 
 def contact_simulator(mode: str, kind: str, mu: float = 0.0, nu: float = 1e-2, k: float = 1e4, **kw) -> Simulator:
     """:func:`simulator` with an obstacle of ``kind`` it presses against (contact stiffness ``k``), friction ``mu``
-    with velocity tolerance ``nu``."""
+    with velocity tolerance ``nu``, and the default line search (friction's Newton needs it: docs/physics.md §4.6)."""
     spec = make_spec(**{**dict(nodes=8, radius=0.05, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.3, tol=1e-13,
-                               dtol=1e-13, max_iter=60, direction=DIRECTION, mode=mode), **kw})
+                               dtol=1e-13, max_iter=60, direction=DIRECTION, mode=mode, line_search="auto"), **kw})
     spec = dataclasses.replace(spec, obstacles=(_obstacle(kind),),
                                contact=ContactSpec(stiffness=k, delta=5e-3, friction=mu,
                                                    friction_velocity_tol=nu))
@@ -156,8 +156,7 @@ def contact_simulator(mode: str, kind: str, mu: float = 0.0, nu: float = 1e-2, k
 
 FRICTION = {"frictionless": (0.0, 1e-2), "sliding": (0.3, 1e-3), "sticking": (0.5, 1.0)}  # μ, ν [m/s]
 CONTACT_CASES = [(mode, kind, regime) for mode in ("2d", "3d")
-                 for kind in ("plane", "sphere", "capsule", "cylinder", "box") for regime in FRICTION
-                 if not (mode == "2d" and regime == "sliding")]  # 2-D: these slides take the retry ladder
+                 for kind in ("plane", "sphere", "capsule", "cylinder", "box") for regime in FRICTION]
 
 
 @pytest.mark.parametrize("mode,kind,regime", CONTACT_CASES)
@@ -179,16 +178,16 @@ def test_tangents_through_obstacle_contact_match_central_differences(mode, kind,
     tape = G.rollout(sim, st, ctrls)
     assert tape.unconverged == 0 and tape.contact is not None
     st2 = start(sim)
+    ratio = []  # |friction| / μ N of each env in touch, each step: 1 sliding, below it sticking
     for c in ctrls:
         last = sim.step(st2, c)
         touched.append(last.contact_count.copy())
+        ratio += [np.linalg.norm(last.contact_friction_force[e, :k], axis=-1).sum()
+                  / (max(mu, 1e-300) * last.contact_normal_force[e, :k].sum())
+                  for e, k in enumerate(last.contact_count) if k > 0]
     assert np.all(np.array(touched)[-2:] > 0), touched  # in contact over the last steps, every env
-    if mu > 0.0:  # the friction law's branch: |friction| = μ N sliding, below it sticking
-        for e in range(B):
-            k = int(last.contact_count[e])
-            ratio = (np.linalg.norm(last.contact_friction_force[e, :k], axis=-1).sum()
-                     / (mu * last.contact_normal_force[e, :k].sum()))
-            assert (ratio > 0.999) if regime == "sliding" else (0.01 < ratio < 0.95), (e, ratio)
+    if mu > 0.0:  # the friction law's branch: sliding on some step, sticking throughout
+        assert (max(ratio) > 0.999) if regime == "sliding" else (0.01 < max(ratio) < 0.95), ratio
     perturbed = perturbations(mode, sim, kb, tb, tape, rng,
                               make=lambda m, **kw: contact_simulator(m, kind, mu, nu, **kw))
     checked = {k: perturbed[k] for k in ("dof0", "kappa_bar", "log_youngs_modulus", "gravity")}
