@@ -548,6 +548,9 @@ class Problem:
         :func:`lag_schedule` with the values at ``z``): (κ (T, N, 2), twist (T, N)), and their derivatives with
         respect to ``actuation_play`` and ``actuation_lag`` (each a pair like the first)."""
         w, tau = self._value(z, "actuation_play"), self._value(z, "actuation_lag")
+        memo = getattr(self, "_followed", None)  # one Jacobian asks once per unknown at the same z
+        if memo is not None and memo[0] == (w, tau):
+            return memo[1]
         out, dplay, dlag = [], [], []
         for c in (self.cmd_kb, self.cmd_tb):
             p, dp = play_schedule(c, w)
@@ -555,7 +558,9 @@ class Problem:
             out.append(f)
             dlag.append(df)
             dplay.append(lag_schedule(dp, tau, self.dt)[0])  # the lag is linear in its input, from 0
-        return (out[0], out[1]), {"actuation_play": tuple(dplay), "actuation_lag": tuple(dlag)}
+        result = (out[0], out[1]), {"actuation_play": tuple(dplay), "actuation_lag": tuple(dlag)}
+        self._followed = ((w, tau), result)
+        return result
 
     def controls_at(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(κ̄ (T, N, 2), τ̄ (T, N)) the rod is driven with: rest values, and gain · lagged command + offset at the
@@ -674,7 +679,8 @@ class Problem:
 
     def values(self, z: np.ndarray) -> dict[str, float]:
         """The unknowns in the scene's units (log factors turned into the fitted values of the first rod)."""
-        rod = self.spec_at(z).rods[0]  # the values the fitted scene holds (clipped into BOUNDS at a bound)
+        spec = self.spec_at(z)  # the values the fitted scene holds (clipped into BOUNDS at a bound)
+        rod = spec.rods[0]
         out = {}
         for u, zi in zip(self.unknowns, z):
             if u.name == "youngs_modulus":
@@ -684,9 +690,9 @@ class Problem:
             elif u.name == "density":
                 out[u.label] = rod.density
             elif u.name == "contact_stiffness":
-                out[u.label] = self.spec_at(z).contact.stiffness
+                out[u.label] = spec.contact.stiffness
             elif u.name == "friction":
-                out[u.label] = self.spec_at(z).contact.friction
+                out[u.label] = spec.contact.friction
             elif u.name in ("damping", "gravity", "actuation_lag", "actuation_play"):
                 out[u.label] = _clip(float(zi), *_unknown_bounds(self.spec, u, self.play_limit))
             else:

@@ -88,8 +88,8 @@ _CACHE_BYTES = 256 * 2**20  # linearisations kept for further passes while they 
 @dataclasses.dataclass
 class _Lin:
     """All envs' step linearised at its solution: J (B, n, n) (constrained DOFs: identity); the start-state columns
-    Fx (n,) (diagonal; with friction a matrix (B, n, n)), Fu (n,) (diagonal); frame maps G (B, n, E) (∂f/∂φ), a, b (B, E, n) (φ' = φ + a δx + b δx'); parameter
-    columns P (name -> (B, n, k))."""
+    Fx (n,) (diagonal; with friction a matrix (B, n, n)), Fu (n,) (diagonal); frame maps G (B, n, E) (∂f/∂φ), a, b
+    (B, E, n) (φ' = φ + a δx + b δx'); parameter columns P (name -> (B, n, k))."""
 
     J: np.ndarray
     Fx: np.ndarray
@@ -98,6 +98,14 @@ class _Lin:
     a: np.ndarray | None
     b: np.ndarray | None
     P: dict
+
+    def start_term(self, dx: np.ndarray) -> np.ndarray:
+        """Fx δx for every env: dx (B, n, Q)."""
+        return self.Fx @ dx if self.Fx.ndim == 3 else self.Fx[None, :, None] * dx
+
+    def start_adjoint(self, lam: np.ndarray) -> np.ndarray:
+        """Fxᵀ λ for every env: lam (B, n)."""
+        return np.einsum("bnm,bn->bm", self.Fx, lam) if self.Fx.ndim == 3 else self.Fx * lam
 
     def solve(self, rhs: np.ndarray, *, transpose: bool = False) -> np.ndarray:
         """J⁻¹ rhs or J⁻ᵀ rhs for every env: rhs (B, n, P)."""
@@ -192,7 +200,7 @@ class Tape:
         J[:, :, fixed] = 0.0
         J[:, fixed, fixed] = 1.0
         mass = sim.kernel_rod.mass
-        damp = float(sim.kernel_params[0]["damping"])
+        damp = float(prm["damping"])
         Fx = -(mass / h**2 + np.where(pos_dof, damp * mass / h, 0.0))
         Fu = -mass / h
         Fx[fixed], Fu[fixed] = 0.0, 0.0
@@ -306,7 +314,7 @@ class Tape:
         ddof[:, 0], dvel[:, 0] = dx.transpose(2, 0, 1), du.transpose(2, 0, 1)
         for k in range(T):
             lin = self._linear(k, names)
-            rhs = (lin.Fx @ dx if lin.Fx.ndim == 3 else lin.Fx[None, :, None] * dx) + lin.Fu[None, :, None] * du
+            rhs = lin.start_term(dx) + lin.Fu[None, :, None] * du
             if not planar:
                 rhs += lin.G @ (phi + lin.a @ dx)
             for q, t in enumerate(tans):
@@ -361,7 +369,7 @@ class Tape:
                     out[nm][k] = g
                 else:
                     out[nm] += g[:, 0]
-            gx_prev = (-np.einsum("bnm,bn->bm", lin.Fx, lam) if lin.Fx.ndim == 3 else -lin.Fx * lam) - gu / h + cx[k]
+            gx_prev = -lin.start_adjoint(lam) - gu / h + cx[k]
             gu_prev = -lin.Fu * lam + cu[k]
             if not planar:
                 Gl = -np.einsum("bne,bn->be", lin.G, lam)
@@ -440,12 +448,12 @@ def rollout(sim, state, controls) -> Tape:
     if bool(prm["rod_pairs"]):
         raise GradientError("derivatives through contact between edges (self_contact, rod_contact) are not "
                             "available yet: turn them off in [contact] (obstacle contact, with friction, is)")
-    if bool(sim.kernel_params[0]["midpoint"]):
+    if bool(prm["midpoint"]):
         raise GradientError("derivatives of the implicit midpoint rule are not available: use "
                             "integrator = \"backward_euler\"")
     if sim._motion:
         raise GradientError("derivatives with prescribed motion ([[fix]] with a rate) are not available yet")
-    if bool(sim.kernel_params[0]["drag_on"]):
+    if bool(prm["drag_on"]):
         raise GradientError("derivatives with viscous drag ([drag], whose directions follow the rod's tangent) are "
                             "not available yet")
     if sim._frame_loads is not None:
