@@ -20,11 +20,13 @@ T, B = 5, 2
 DIRECTION = tuple(np.array([0.3, 0.0, 1.0]) / np.hypot(0.3, 1.0))  # leaning over: gravity bends it
 
 
+ROD = dict(nodes=8, radius=0.05, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.3, tol=1e-13, dtol=1e-13, max_iter=60,
+           direction=DIRECTION)  # a bent-over clamped rod under gravity, damped, Newton converged tightly
+
+
 def simulator(mode: str, **kw) -> Simulator:
-    """A bent-over clamped rod of 8 nodes under gravity, damped, Newton converged tightly; ``kw`` as make_spec."""
-    args = dict(nodes=8, radius=0.05, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.3, tol=1e-13, dtol=1e-13,
-                max_iter=60, direction=DIRECTION, mode=mode)
-    return Simulator(build_model(make_spec(**{**args, **kw})), envs=B)
+    """The :data:`ROD` of 8 nodes; ``kw`` as make_spec."""
+    return Simulator(build_model(make_spec(**{**ROD, "mode": mode, **kw})), envs=B)
 
 
 def controls(sim, kb, tb):
@@ -146,8 +148,7 @@ def _obstacle(kind: str):
 def contact_simulator(mode: str, kind: str, mu: float = 0.0, nu: float = 1e-2, k: float = 1e4, **kw) -> Simulator:
     """:func:`simulator` with an obstacle of ``kind`` it presses against (contact stiffness ``k``), friction ``mu``
     with velocity tolerance ``nu``, and the default line search (friction's Newton needs it: docs/physics.md §4.6)."""
-    spec = make_spec(**{**dict(nodes=8, radius=0.05, dt=0.02, gravity=(0.0, 0.0, -9.8), damping=0.3, tol=1e-13,
-                               dtol=1e-13, max_iter=60, direction=DIRECTION, mode=mode, line_search="auto"), **kw})
+    spec = make_spec(**{**ROD, "mode": mode, "line_search": "auto", **kw})
     spec = dataclasses.replace(spec, obstacles=(_obstacle(kind),),
                                contact=ContactSpec(stiffness=k, delta=5e-3, friction=mu,
                                                    friction_velocity_tol=nu))
