@@ -6,6 +6,7 @@ bound to a non-loopback address; a warning follows on stderr)."""
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import time
 from pathlib import Path
@@ -100,11 +101,42 @@ def workbench_main(argv: list[str] | None = None) -> int:
               "token in the address above can drive this session (prefer --host 127.0.0.1 and an SSH tunnel)",
               file=sys.stderr, flush=True)
     t_end = None if args.seconds is None else time.monotonic() + args.seconds
-    try:
-        while t_end is None or time.monotonic() < t_end:
-            time.sleep(0.2)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        app.stop()
+    with QuitOnSignal() as asked:
+        try:
+            while not asked and (t_end is None or time.monotonic() < t_end):
+                time.sleep(0.2)
+        except KeyboardInterrupt:  # a second Ctrl-C while stopping
+            pass
+        finally:
+            app.stop()
     return 0
+
+
+class QuitOnSignal:
+    """Ctrl-C (SIGINT) and SIGTERM set a flag the main loop polls, instead of raising KeyboardInterrupt wherever the
+    main thread happens to be: while the stepping thread compiles the kernels (a first start), the main thread spends
+    much of its time collecting the compiler's garbage, and an exception raised inside a finaliser there is
+    swallowed, so the Ctrl-C was lost and the workbench ran on. A second signal raises as usual."""
+
+    def __init__(self):
+        self.signum: int | None = None
+        self._old: dict = {}
+
+    def __bool__(self) -> bool:
+        return self.signum is not None
+
+    def _handle(self, signum, _frame) -> None:
+        first = self.signum is None
+        self.signum = signum
+        signal.signal(signal.SIGINT, signal.default_int_handler)  # the next Ctrl-C interrupts the stop itself
+        if not first:
+            raise KeyboardInterrupt
+
+    def __enter__(self) -> "QuitOnSignal":
+        for s in (signal.SIGINT, signal.SIGTERM):
+            self._old[s] = signal.signal(s, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for s, h in self._old.items():
+            signal.signal(s, h)
