@@ -12,8 +12,9 @@ transposed, the adjoint (reverse) mode :meth:`Tape.vjp`.
   reference director about its tangent is the same as turning the material frame, i.e. adding to θ). The state
   carried through the steps is (x, u, φ): φ the angle by which each edge's reference director is turned. Time-
   parallel transport adds φ' = φ + k·(δt + δt') per edge, k = (t' × t)/(1 + t·t') (the holonomy of the transport).
-* J: exact in 2-D. In 3-D the Newton Jacobian leaves out how the transported frames turn with the new positions;
-  its θ columns are kept and its position columns replaced by central differences of the residual (~1e-9).
+* J: exact in 2-D. In 3-D the Newton Jacobian leaves out how the transported frames and the reference twist turn
+  with the new positions; its θ columns are kept and each bend–twist element's position block is replaced by
+  central differences of that element's force (~1e-10). J and Jᵀ stay banded and are solved by banded LU.
 
 * Obstacle contact: its normal residual E'(g) ∇g depends on the new positions alone, so it enters J (the band,
   with each env's candidates over its step's motion); friction also depends on the start positions through the
@@ -53,7 +54,7 @@ import numpy as np
 
 from sim.contact.world import ObstacleWorld, contact_data, contact_scratch, spec_contact_data
 from sim.kernels.data import KL_2D, KL_3D, ControlArrays, StateArrays
-from sim.kernels.linearise import Linearisation, RodFactors, Wanted, linearise_step
+from sim.kernels.linearise import Linearisation, RodFactors, Wanted, factor_bands, linearise_step, solve_bands
 from sim.kernels.probe import assemble_at
 
 __all__ = ["GradientError", "Tape", "rollout", "PARAMETERS"]
@@ -87,17 +88,22 @@ _CACHE_BYTES = 256 * 2**20  # linearisations kept for further passes while they 
 
 @dataclasses.dataclass
 class _Lin:
-    """All envs' step linearised at its solution: J (B, n, n) (constrained DOFs: identity); the start-state columns
-    Fx (n,) (diagonal; with friction a matrix (B, n, n)), Fu (n,) (diagonal); frame maps G (B, n, E) (∂f/∂φ), a, b
-    (B, E, n) (φ' = φ + a δx + b δx'); parameter columns P (name -> (B, n, k))."""
+    """All envs' step ``step`` linearised at its solution: J as padded bands (B, n + kl, 2 kl + 1) (the storage of
+    :mod:`sim.kernels.banded`; constrained DOFs: identity rows and columns); the start-state columns Fx (n,)
+    (diagonal; with friction a matrix (B, n, n)), Fu (n,) (diagonal); frame maps G (B, n, E) (∂f/∂φ), a, b
+    (B, E, n) (φ' = φ + a δx + b δx'); parameter columns P (name -> (B, n, k)). J and Jᵀ are factored (banded LU)
+    on their first solve and the factors kept."""
 
+    step: int
     J: np.ndarray
+    kl: int
     Fx: np.ndarray
     Fu: np.ndarray
     G: np.ndarray | None
     a: np.ndarray | None
     b: np.ndarray | None
     P: dict
+    _lu: dict = dataclasses.field(default_factory=dict, repr=False)
 
     def start_term(self, dx: np.ndarray) -> np.ndarray:
         """Fx δx for every env: dx (B, n, Q)."""
@@ -109,8 +115,24 @@ class _Lin:
 
     def solve(self, rhs: np.ndarray, *, transpose: bool = False) -> np.ndarray:
         """J⁻¹ rhs or J⁻ᵀ rhs for every env: rhs (B, n, P)."""
-        J = self.J.transpose(0, 2, 1) if transpose else self.J
-        return np.linalg.solve(J, rhs)
+        lu = self._lu.get(transpose)
+        if lu is None:
+            lu = np.empty_like(self.J)
+            status = np.zeros(self.J.shape[0], np.int64)
+            factor_bands(self.J, self.kl, transpose, lu, status)
+            bad = np.flatnonzero(status)
+            if bad.size:
+                raise GradientError(f"step {self.step}: env {int(bad[0])}'s Jacobian is singular (pivot "
+                                    f"{int(status[bad[0]]) - 1}); its derivative is not defined")
+            self._lu[transpose] = lu
+        out = np.empty(rhs.shape)
+        solve_bands(lu, self.kl, np.ascontiguousarray(rhs, dtype=np.float64), out)
+        return out
+
+    @property
+    def nbytes(self) -> int:
+        arrays = [self.J, self.Fx, self.G, self.a, self.b, *self.P.values(), *self._lu.values()]
+        return sum(a.nbytes for a in arrays if a is not None)
 
 
 @dataclasses.dataclass
@@ -161,8 +183,8 @@ class Tape:
         lin = self._lin.get(k)
         if lin is None or any(nm not in lin.P for nm in names if nm != "gravity"):
             lin = self._linearise(k, names)
-            B, n = self.dof.shape[1], self.dof.shape[2]
-            if len(self._lin) * B * n * n * 8 < _CACHE_BYTES:
+            kept = sum(v.nbytes for key, v in self._lin.items() if isinstance(key, int))
+            if kept + 3 * lin.nbytes < _CACHE_BYTES:  # room for it and its two factors
                 self._lin[k] = lin
         return lin
 
@@ -193,13 +215,19 @@ class Tape:
                        Wanted(want_kb, want_tb, want_sc, want_start, FRICTION_FD_STEP if want_start else 1e-6),
                        Linearisation(ab, kbc, tbc, sc, st_band))
         pos_dof = np.ones(n, bool) if planar else (np.arange(n) % 4 != 3)
-        Jf = _dense(ab, n, kl)  # ∂f/∂x' with no DOF constrained
         fixed = sim.kernel_rod.fixed.astype(bool)
-        J = Jf.copy()  # constrained DOFs: identity rows and columns (their residual is 0 and they do not move)
-        J[:, fixed, :] = 0.0
-        J[:, :, fixed] = 0.0
-        J[:, fixed, fixed] = 1.0
         mass = sim.kernel_rod.mass
+        G = None
+        if not planar:  # ∂f/∂θ's columns before the constraints: the elastic part is ∂f/∂φ
+            th = 4 * np.arange(E) + 3
+            G = np.zeros((B, n, E))
+            for d in range(2 * kl + 1):
+                r = th + kl - d  # band entry (r, d) is J[r, r + d − kl]: column th where r = th + kl − d
+                ok = (r >= 0) & (r < n)
+                G[:, r[ok], np.arange(E)[ok]] = ab[:, r[ok], d]
+            G[:, th, np.arange(E)] -= (mass[th] / h**2)[None, :]
+            G[:, fixed, :] = 0.0
+        _constrain(ab, fixed, kl)  # constrained DOFs: identity rows and columns (residual 0, they do not move)
         damp = float(prm["damping"])
         Fx = -(mass / h**2 + np.where(pos_dof, damp * mass / h, 0.0))
         Fu = -mass / h
@@ -224,17 +252,13 @@ class Tape:
         if "damping" in names:  # the damping force c m (x' − x)/h on positions
             P["damping"] = ((mass * pos_dof * ~fixed)[None, :] * (self.dof[k + 1] - self.dof[k]) / h)[:, :, None]
         if planar:
-            return _Lin(J, Fx, Fu, None, None, None, P)
-        th = 4 * np.arange(E) + 3
-        G = Jf[:, :, th].copy()
-        G[:, th, np.arange(E)] -= (mass[th] / h**2)[None, :]  # ∂f/∂φ: the elastic part of ∂f/∂θ
-        G[:, fixed, :] = 0.0
+            return _Lin(k, ab, kl, Fx, Fu, None, None, None, P)
         link = sim.kernel_rod.link.astype(bool)
         t0, t1 = self.tangent[k], self.tangent[k + 1]
         kvec = np.cross(t1, t0) / (1.0 + np.einsum("bij,bij->bi", t0, t1))[..., None]
         a = _turn_map(kvec, self.dof[k], t0, link)
         b = _turn_map(kvec, self.dof[k + 1], t1, link)
-        return _Lin(J, Fx, Fu, G, a, b, P)
+        return _Lin(k, ab, kl, Fx, Fu, G, a, b, P)
 
     def _contact_column(self, k: int, name: str, rod) -> np.ndarray:
         """(B, n, 1) ∂f/∂p of step k for the contact stiffness's log factor or the [contact] μ: the residual is
@@ -381,6 +405,18 @@ class Tape:
         if "vel0" in out:
             out["vel0"][:] = gu
         return out
+
+
+def _constrain(ab: np.ndarray, fixed: np.ndarray, kl: int) -> None:
+    """Make the constrained DOFs' rows and columns of the padded bands ``ab`` (B, n + kl, 2 kl + 1) identity."""
+    n = ab.shape[1] - kl
+    d = np.arange(2 * kl + 1)
+    for k in np.flatnonzero(fixed):
+        ab[:, k, :] = 0.0
+        r = k + kl - d  # the rows whose band entry d lies in column k
+        ok = (r >= 0) & (r < n)
+        ab[:, r[ok], d[ok]] = 0.0
+        ab[:, k, kl] = 1.0
 
 
 def _turn_map(kvec: np.ndarray, x: np.ndarray, t: np.ndarray, link: np.ndarray) -> np.ndarray:

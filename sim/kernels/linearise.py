@@ -1,29 +1,40 @@
 """The linearisation of recorded steps for their derivatives (sim.analysis.gradients; docs/physics.md §3.9), all envs of a step
 in one parallel call.
 
-Per env: the full band of ∂f/∂x' at the step's solution with no DOF constrained; in 3-D its position columns by
-central differences of the residual, grouped so that one pair of residual evaluations gives 2·kl + 1 columns at once
-(columns 2·kl + 1 apart touch disjoint rows of the band); the columns of the residual's dependence on the natural
-curvature and twist of every node (affine: a unit change, nodes three apart in one evaluation: their elements share
-no row) and on the stiffness and mass factors (a second rod record with the factor doubled). With
+Per env: the full band of ∂f/∂x' at the step's solution with no DOF constrained. In 3-D the Newton Jacobian of the
+bend–twist elements leaves out how the time-parallel transported frames and the reference twist turn with the new
+positions, so each element's block in its 9 position columns is replaced by central differences of that element's
+force alone (its frames transported afresh from the step start, as the step does): 18 evaluations of one element
+per element, not of the whole residual. The natural curvature and twist enter each element's force affinely, so
+their columns are the element's own curvature and twist gradients times −EI/l, −GJ/l (exact). With friction
+(``Wanted.start``) the position columns come from central differences of the whole residual instead, grouped so that
+one pair of residual evaluations gives 2·kl + 1 columns at once (columns 2·kl + 1 apart touch disjoint rows of the
+band): the lagged normal and closest point turn with them too. In 2-D the band is exact and the curvature columns are
+residual differences (a unit change, nodes three apart in one evaluation: their elements share no row). The stiffness
+and mass factors' columns: a second rod record with the factor doubled. With
 obstacle contact, the candidates of each env over its step's motion (start to solution) are listed first, so its
 residual and band carry the contact the step's solution felt. A workspace per env: an analysis path, not the
 step's.
 """
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 
 from sim.contact import stages as contact
+from sim.energies.bend_twist import bend_twist_core
+from sim.geometry.frames import transport
+from sim.geometry.vec3 import vcross, vdot, vmul, vnorm, vsub
+from sim.kernels.banded import band_lu_apply, band_lu_factor
 from sim.kernels.data import KL_2D, KL_3D
 from sim.kernels.newton import assemble, positions
 from sim.kernels.workspace import alloc_workspace, copy_into
 from sim.numba_options import OPT_ALLOC
 
-__all__ = ["RodFactors", "Wanted", "Linearisation", "linearise_step"]
+__all__ = ["RodFactors", "Wanted", "Linearisation", "linearise_step", "factor_bands", "solve_bands"]
 
 
 class RodFactors(NamedTuple):
@@ -71,8 +82,8 @@ def linearise_step(start, solution, ctrl, h: float, rods: RodFactors, prm_arr, c
     ``rods.rod``'s fixed flags must be all 0 (the caller constrains afterwards). The parallel kernel under it takes
     the records' arrays one by one (numba 0.68's parallel lowering fails on these records inside a prange kernel)."""
     _linearise_envs(start.dof, start.vel, start.ref_d1, start.tangent, start.ref_twist, solution, ctrl.kappa_bar,
-                    ctrl.tau_bar, h, rods.rod, rods.stiffer, rods.twist_stiffer, rods.heavier, prm_arr, cd,
-                    wanted.kappa_bar, wanted.tau_bar, wanted.factors, wanted.start, wanted.fd_step, out.band,
+                    ctrl.tau_bar, h, get_num_threads(), rods.rod, rods.stiffer, rods.twist_stiffer, rods.heavier,
+                    prm_arr, cd, wanted.kappa_bar, wanted.tau_bar, wanted.factors, wanted.start, wanted.fd_step, out.band,
                     out.kappa_bar, out.tau_bar, out.factors, out.start)
 
 
@@ -114,6 +125,105 @@ def _position_columns(e, x1, kb, tb, h, rod, prm, cs, w, of_start, step, richard
         copy_into(w.sub_x, base)
 
 
+@njit(inline="always", **OPT_ALLOC)
+def _edge_frame(w, j, a, b):
+    """Tangent and reference director of edge j from a to b (3-tuples), transported from the step start (w.sub_d1,
+    w.sub_t) as :func:`sim.geometry.frames.update_frames` does."""
+    e = vsub(b, a)
+    t = vmul(1.0 / vnorm(e), e)
+    return t, transport((w.sub_d1[j, 0], w.sub_d1[j, 1], w.sub_d1[j, 2]), (w.sub_t[j, 0], w.sub_t[j, 1], w.sub_t[j, 2]),
+                        t)
+
+
+@njit(**OPT_ALLOC)
+def _element_force(xm, xi, xp, te, d1e, tf, d1f, i, trig, x1, kb, tb, rod, w, with_hess):
+    """The bend–twist element of interior node i at positions xm, xi, xp with its edges' tangents and transported
+    reference directors (te, d1e), (tf, d1f) (:func:`_edge_frame`), its reference twist updated from w.sub_beta as
+    :func:`sim.geometry.frames.reference_twist` does, and trig = (cos, sin) of its edges' twist angles: the force
+    into w.g11 (its curvature and twist gradients in w.wk[0:3]), the Hessian into w.H11 if ``with_hess``."""
+    u = transport(d1e, te, tf)
+    dlt = math.atan2(vdot(tf, vcross(u, d1f)), vdot(u, d1f)) - w.sub_beta[i]
+    dlt -= 2.0 * math.pi * math.floor((dlt + math.pi) / (2.0 * math.pi))
+    beta = w.sub_beta[i] + dlt
+    d2e = vcross(te, d1e)
+    d2f = vcross(tf, d1f)
+    ce, se, cf, sf = trig
+    m1e = (ce * d1e[0] + se * d2e[0], ce * d1e[1] + se * d2e[1], ce * d1e[2] + se * d2e[2])
+    m2e = (ce * d2e[0] - se * d1e[0], ce * d2e[1] - se * d1e[1], ce * d2e[2] - se * d1e[2])
+    m1f = (cf * d1f[0] + sf * d2f[0], cf * d1f[1] + sf * d2f[1], cf * d1f[2] + sf * d2f[2])
+    m2f = (cf * d2f[0] - sf * d1f[0], cf * d2f[1] - sf * d1f[1], cf * d2f[2] - sf * d1f[2])
+    bend_twist_core(xm, xi, xp, m1e, m2e, m1f, m2f, x1[4 * i + 3] - x1[4 * i - 1] + beta, kb[i, 0], kb[i, 1], tb[i],
+                    rod.EI1[i], rod.EI2[i], rod.GJ[i], rod.vor_len[i], w.g11, w.H11, w.wk, with_hess, False)
+
+
+@njit(**OPT_ALLOC)
+def _bend_twist_columns(x1, kb, tb, rod, w, step, positions_too, want_kb, want_tb, band, kb_out, tb_out):
+    """Per interior node of a 3-D rod, from its bend–twist element alone: with ``positions_too`` the element's
+    Newton block in its 9 position columns of ``band`` replaced by central differences of its force (step ε relative
+    to the largest coordinate, at least 1 m; a coordinate of an end node moves one edge's frame, the middle node's
+    both); the columns of ∂f/∂κ̄ (``kb_out`` (n, N, 2)) and ∂f/∂τ̄ (``tb_out`` (n, N)) if wanted (exact: the force is
+    affine in both)."""
+    kl = KL_3D
+    n = x1.shape[0]
+    N = w.sub_beta.shape[0]
+    link = rod.link
+    scale = 1.0
+    for c in range(n):
+        if c % 4 != 3:
+            scale = max(scale, abs(x1[c]))
+    eps = step * scale
+    g, H, wk = w.g11, w.H11, w.wk
+    for i in range(1, N - 1):
+        if link[i - 1] == 0 or link[i] == 0:
+            continue
+        o = 4 * (i - 1)
+        xm = (x1[o], x1[o + 1], x1[o + 2])
+        xi = (x1[o + 4], x1[o + 5], x1[o + 6])
+        xp = (x1[o + 8], x1[o + 9], x1[o + 10])
+        trig = (math.cos(x1[o + 3]), math.sin(x1[o + 3]), math.cos(x1[o + 7]), math.sin(x1[o + 7]))
+        te0, d1e0 = _edge_frame(w, i - 1, xm, xi)
+        tf0, d1f0 = _edge_frame(w, i, xi, xp)
+        _element_force(xm, xi, xp, te0, d1e0, tf0, d1f0, i, trig, x1, kb, tb, rod, w, positions_too)
+        s1 = rod.EI1[i] / rod.vor_len[i]
+        s2 = rod.EI2[i] / rod.vor_len[i]
+        s3 = rod.GJ[i] / rod.vor_len[i]
+        for a in range(11):
+            if want_kb:
+                kb_out[o + a, i, 0] = -s1 * wk[0, a]
+                kb_out[o + a, i, 1] = -s2 * wk[1, a]
+            if want_tb:
+                tb_out[o + a, i] = -s3 * wk[2, a]
+        if not positions_too:
+            continue
+        for b in range(11):
+            if b % 4 == 3:
+                continue
+            for a in range(11):
+                band[o + a, kl + b - a] -= H[a, b]
+        for b in range(11):
+            if b % 4 == 3:
+                continue
+            node = b // 4
+            comp = b % 4
+            for sign in (1.0, -1.0):
+                d = sign * eps
+                pm = (xm[0] + d if node == 0 and comp == 0 else xm[0], xm[1] + d if node == 0 and comp == 1 else xm[1],
+                      xm[2] + d if node == 0 and comp == 2 else xm[2])
+                pi = (xi[0] + d if node == 1 and comp == 0 else xi[0], xi[1] + d if node == 1 and comp == 1 else xi[1],
+                      xi[2] + d if node == 1 and comp == 2 else xi[2])
+                pp = (xp[0] + d if node == 2 and comp == 0 else xp[0], xp[1] + d if node == 2 and comp == 1 else xp[1],
+                      xp[2] + d if node == 2 and comp == 2 else xp[2])
+                te, d1e = (te0, d1e0) if node == 2 else _edge_frame(w, i - 1, pm, pi)
+                tf, d1f = (tf0, d1f0) if node == 0 else _edge_frame(w, i, pi, pp)
+                _element_force(pm, pi, pp, te, d1e, tf, d1f, i, trig, x1, kb, tb, rod, w, False)
+                if sign > 0:
+                    for a in range(11):
+                        H[a, 0] = g[a]  # H is free now (its block was taken): the + evaluation's force
+                else:
+                    for a in range(11):
+                        band[o + a, kl + b - a] += (H[a, 0] - g[a]) / (2.0 * eps)
+
+
 @njit(**OPT_ALLOC)
 def _residual(e, x, kb, tb, h, rod, prm, cs, w, out):
     """out = f(x) of env e from the start state already in w.sub_*."""
@@ -123,7 +233,7 @@ def _residual(e, x, kb, tb, h, rod, prm, cs, w, out):
 
 
 @njit(parallel=True, **OPT_ALLOC)
-def _linearise_envs(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g, rod_m, prm_arr, cd,
+def _linearise_envs(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, threads, rod, rod_e, rod_g, rod_m, prm_arr, cd,
                     want_kb, want_tb, want_scalars, want_start, fd_step, ab_out, kb_out, tb_out, sc_out, start_out):
     """For every env e of one recorded step: ab_out[e] (n + kl, 2 kl + 1) the band of ∂f/∂x' at x1s[e];
     kb_out[e] (n, N, 2) ∂f/∂κ̄, tb_out[e] (n, N) ∂f/∂τ̄ (if wanted); sc_out[e] (n, 3) the columns of the
@@ -135,69 +245,106 @@ def _linearise_envs(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g, 
     n = x1s.shape[1]
     N = bs.shape[1]
     planar = prm_arr[0].planar
-    dpn = 2 if planar else 4
-    for ep in prange(B):
-        e = np.int64(ep)  # a signed index: the kernels take min(e, rows - 1) (an unsigned one would turn it float)
+    chunks = max(1, min(B, threads))  # a workspace per chunk of envs (one chunk per thread), not per env
+    for cp in prange(chunks):
+        chunk = np.int64(cp)  # signed: the kernels take min(e, rows − 1) (an unsigned index would turn it float)
         prm = prm_arr[0]  # the parameters record, by reference (read inside the parallel loop, as the step does)
         w = alloc_workspace(N, planar, rod.pairs.shape[0])
         cs = contact.alloc(cd, N, rod.pairs.shape[0])
-        copy_into(w.sub_x, x0s[e])
-        copy_into(w.sub_v, u0s[e])
-        copy_into(w.sub_d1, d1s[e])
-        copy_into(w.sub_t, ts[e])
-        copy_into(w.sub_beta, bs[e])
-        x1 = x1s[e]
-        kb = kbs[e]
-        tb = tbs[e]
-        if contact.present(prm):  # the candidates over the step's motion (obstacle contact)
-            positions(planar, x0s[e], w.pos0, prm.plane_y)
-            positions(planar, x1, w.pos, prm.plane_y)
-            contact.broadphase(e, prm, rod, cs, w.pos0, w.pos)
-        copy_into(w.x, x1)
-        assemble(planar, e, w.x, h, kb, tb, rod, prm, cs, w, True, False)
-        ab = ab_out[e]
-        copy_into(ab, w.ab)
-        f0 = w.xt.copy()
-        _residual(e, x1, kb, tb, h, rod, prm, cs, w, f0)
-        fp = f0.copy()
-        fm = f0.copy()
-        xp = x1.copy()
-        if want_start or not planar:  # position columns by central differences
-            _position_columns(e, x1, kb, tb, h, rod, prm, cs, w, False, fd_step, want_start, ab, xp, fp, fm)
-        if want_start:
-            _position_columns(e, x1, kb, tb, h, rod, prm, cs, w, True, fd_step, True, start_out[e], xp, fp, fm)
-        if want_kb or want_tb:
-            kb1 = kb.copy()
-            tb1 = tb.copy()
-            ncomp = 1 if planar else 2
-            for color in range(3):
-                for comp in range(ncomp + (1 if want_tb and not planar else 0)):
-                    if comp < ncomp and not want_kb:
-                        continue
-                    copy_into(kb1, kb)
-                    copy_into(tb1, tb)
-                    for i in range(1 + color, N - 1, 3):
-                        if comp < ncomp:
-                            kb1[i, comp] += 1.0
-                        else:
-                            tb1[i] += 1.0
-                    _residual(e, x1, kb1, tb1, h, rod, prm, cs, w, fp)
-                    for i in range(1 + color, N - 1, 3):
-                        lo = dpn * (i - 1)
-                        hi = min(n, dpn * (i + 2))
-                        for r in range(lo, hi):
-                            d = fp[r] - f0[r]
-                            if comp < ncomp:
-                                kb_out[e, r, i, comp] = d
-                            else:
-                                tb_out[e, r, i] = d
-        if want_scalars:
-            _residual(e, x1, kb, tb, h, rod_e, prm, cs, w, fp)
-            for r in range(n):
-                sc_out[e, r, 0] = fp[r] - f0[r]
-            _residual(e, x1, kb, tb, h, rod_g, prm, cs, w, fp)
-            for r in range(n):
-                sc_out[e, r, 1] = fp[r] - f0[r]
-            _residual(e, x1, kb, tb, h, rod_m, prm, cs, w, fp)
-            for r in range(n):
-                sc_out[e, r, 2] = fp[r] - f0[r]
+        f0 = np.empty(n)
+        fp = np.empty(n)
+        fm = np.empty(n)
+        xp = np.empty(n)
+        kb1 = np.empty((N, 2))
+        for e in range(chunk * B // chunks, (chunk + 1) * B // chunks):
+            _linearise_env(e, x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g, rod_m, prm, cd, cs, w,
+                           want_kb, want_tb, want_scalars, want_start, fd_step, ab_out, kb_out, tb_out, sc_out,
+                           start_out, f0, fp, fm, xp, kb1)
+
+
+@njit(**OPT_ALLOC)
+def _linearise_env(e, x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g, rod_m, prm, cd, cs, w, want_kb,
+                   want_tb, want_scalars, want_start, fd_step, ab_out, kb_out, tb_out, sc_out, start_out, f0, fp, fm,
+                   xp, kb1):
+    """Env e of :func:`_linearise_envs` with the work space of its chunk."""
+    n = x1s.shape[1]
+    N = bs.shape[1]
+    planar = prm.planar
+    copy_into(w.sub_x, x0s[e])
+    copy_into(w.sub_v, u0s[e])
+    copy_into(w.sub_d1, d1s[e])
+    copy_into(w.sub_t, ts[e])
+    copy_into(w.sub_beta, bs[e])
+    x1 = x1s[e]
+    kb = kbs[e]
+    tb = tbs[e]
+    if contact.present(prm):  # the candidates over the step's motion (obstacle contact)
+        positions(planar, x0s[e], w.pos0, prm.plane_y)
+        positions(planar, x1, w.pos, prm.plane_y)
+        contact.broadphase(e, prm, rod, cs, w.pos0, w.pos)
+    copy_into(w.x, x1)
+    assemble(planar, e, w.x, h, kb, tb, rod, prm, cs, w, True, False)
+    ab = ab_out[e]
+    copy_into(ab, w.ab)
+    copy_into(f0, w.f)  # the residual at the solution
+    if want_start:  # friction: position columns by central differences of the whole residual
+        _position_columns(e, x1, kb, tb, h, rod, prm, cs, w, False, fd_step, True, ab, xp, fp, fm)
+        _position_columns(e, x1, kb, tb, h, rod, prm, cs, w, True, fd_step, True, start_out[e], xp, fp, fm)
+    if not planar:
+        _bend_twist_columns(x1, kb, tb, rod, w, fd_step, not want_start, want_kb, want_tb, ab,
+                            kb_out[min(e, kb_out.shape[0] - 1)], tb_out[min(e, tb_out.shape[0] - 1)])
+    elif want_kb:  # 2-D: a unit change of κ̄ at nodes three apart per evaluation (their elements share no row)
+        for color in range(3):
+            copy_into(kb1, kb)
+            for i in range(1 + color, N - 1, 3):
+                kb1[i, 0] += 1.0
+            _residual(e, x1, kb1, tb, h, rod, prm, cs, w, fp)
+            for i in range(1 + color, N - 1, 3):
+                for r in range(2 * (i - 1), min(n, 2 * (i + 2))):
+                    kb_out[e, r, i, 0] = fp[r] - f0[r]
+    if want_scalars:
+        _residual(e, x1, kb, tb, h, rod_e, prm, cs, w, fp)
+        for r in range(n):
+            sc_out[e, r, 0] = fp[r] - f0[r]
+        _residual(e, x1, kb, tb, h, rod_g, prm, cs, w, fp)
+        for r in range(n):
+            sc_out[e, r, 1] = fp[r] - f0[r]
+        _residual(e, x1, kb, tb, h, rod_m, prm, cs, w, fp)
+        for r in range(n):
+            sc_out[e, r, 2] = fp[r] - f0[r]
+
+
+@njit(parallel=True, **OPT_ALLOC)
+def factor_bands(ab, kl, transpose, lu, status):
+    """LU (no pivoting, :func:`sim.kernels.banded.band_lu_factor`) of every env's padded band ``ab`` (B, n + kl,
+    2 kl + 1), or of its transpose, into ``lu`` (same shape); ``status`` (B,) 0 or 1 + the first bad pivot."""
+    B = ab.shape[0]
+    n = ab.shape[1] - kl
+    for e in prange(B):
+        if transpose:  # (Aᵀ)[r, c] = A[c, r]: band entry (r, kl + c − r) from (c, kl + r − c)
+            for r in range(n + kl):
+                for d in range(2 * kl + 1):
+                    c = r + d - kl
+                    lu[e, r, d] = ab[e, c, 2 * kl - d] if (r < n and 0 <= c < n) else (1.0 if (r >= n and d == kl)
+                                                                                       else 0.0)
+        else:
+            for r in range(n + kl):
+                for d in range(2 * kl + 1):
+                    lu[e, r, d] = ab[e, r, d]
+        status[e] = band_lu_factor(lu[e], n, kl)
+
+
+@njit(parallel=True, **OPT_ALLOC)
+def solve_bands(lu, kl, rhs, out):
+    """out[e] = A_e⁻¹ rhs[e] for every env from the factors :func:`factor_bands` left in ``lu``; rhs, out (B, n, Q)."""
+    B, n, Q = rhs.shape
+    for e in prange(B):
+        b = np.empty(n + kl)
+        for q in range(Q):
+            for i in range(n):
+                b[i] = rhs[e, i, q]
+            for i in range(n, n + kl):
+                b[i] = 0.0
+            band_lu_apply(lu[e], n, kl, b)
+            for i in range(n):
+                out[e, i, q] = b[i]
