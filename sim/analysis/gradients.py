@@ -26,7 +26,8 @@ transposed, the adjoint (reverse) mode :meth:`Tape.vjp`.
 The derivatives are of the backward-Euler map the Newton iterate satisfies; a step that ended unconverged
 (``accept_unconverged``) is differentiated as if it had converged (:attr:`Tape.unconverged` counts them). Not
 covered yet (a clear :class:`GradientError`): contact between edges (self- and rod–rod), implicit midpoint,
-prescribed motion, viscous drag, steps that took the retry ladder (sub-steps).
+prescribed motion, steps that took the retry ladder (sub-steps). Viscous drag is covered: it depends on the step's
+start through the velocity and the tangent it lags, so with drag ∂f/∂x is a band, by differences as with friction.
 
 Parameters (keys of the tangent / gradient dicts):
 
@@ -203,7 +204,8 @@ class Tape:
         tbc = np.zeros((B, n, N) if want_tb else (1, 1, 1))
         sc = np.zeros((B, n, 3) if want_sc else (1, 1, 3))
         prm = sim.kernel_params[0]
-        want_start = int(prm["n_obstacles"]) > 0 and bool(prm["friction_on"])  # friction: ∂f/∂x is not diagonal
+        # friction (slip velocity) and drag (velocity, and the tangent lagged at the start): ∂f/∂x is not diagonal
+        want_start = (int(prm["n_obstacles"]) > 0 and bool(prm["friction_on"])) or bool(prm["drag_on"])
         st_band = np.zeros((B, n + kl, 2 * kl + 1) if want_start else (1, 1, 1))
         rod, rod_e, rod_g, rod_m = self._rods(k)
         c = np.ascontiguousarray
@@ -489,9 +491,6 @@ def rollout(sim, state, controls) -> Tape:
                             "integrator = \"backward_euler\"")
     if sim._motion:
         raise GradientError("derivatives with prescribed motion ([[fix]] with a rate) are not available yet")
-    if bool(prm["drag_on"]):
-        raise GradientError("derivatives with viscous drag ([drag], whose directions follow the rod's tangent) are "
-                            "not available yet")
     if sim._frame_loads is not None:
         raise GradientError("derivatives with moments or material-frame loads ([[load]] moment / frame = "
                             "\"material\", which depend on the configuration) are not available yet")

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from sim import Simulator, build_model, parse_scene
-from sim.analysis.gradients import GradientError, rollout
 from sim.analysis.static import solve_static
 from sim.scene.boundary import DragSpec, LineLoadSpec
 from sim.scene.spec import SceneError, scene_to_toml
@@ -130,9 +129,3 @@ def test_drag_table_round_trip_and_checks():
     planar = dict(doc, sim=dict(doc["sim"], mode="2d"), drag=dict(normal=1.0, flow=[0.0, 0.1, 0.0]))
     with pytest.raises(SceneError, match="x-z plane"):
         parse_scene(planar)
-
-
-def test_drag_has_no_derivatives_yet():
-    sim, st, ctrl = _free_rod((1.0, 0.0, 0.0))
-    with pytest.raises(GradientError, match="viscous drag"):
-        rollout(sim, st, [ctrl])
