@@ -26,7 +26,9 @@ transposed, the adjoint (reverse) mode :meth:`Tape.vjp`.
 The derivatives are of the backward-Euler map the Newton iterate satisfies; a step that ended unconverged
 (``accept_unconverged``) is differentiated as if it had converged (:attr:`Tape.unconverged` counts them). Not
 covered yet (a clear :class:`GradientError`): contact between edges (self- and rod–rod), implicit midpoint,
-prescribed motion, steps that took the retry ladder (sub-steps). Viscous drag is covered: it depends on the step's
+turning clamps, steps that took the retry ladder (sub-steps). Prescribed motion at a velocity or twist rate is covered:
+the moved DOFs are constants of each step (held, their tangent 0), and each step is linearised from the DOFs it
+started from, the moved ones already at their step-end values. Viscous drag is covered: it depends on the step's
 start through the velocity and the tangent it lags, so with drag ∂f/∂x is a band, by differences as with friction.
 
 Parameters (keys of the tangent / gradient dicts):
@@ -151,12 +153,18 @@ class Tape:
     tau_bar: np.ndarray  # (T, B, N)
     grav: np.ndarray  # (T, B, n) the external forces (gravity and loads) of each step
     unconverged: int = 0
+    moved: np.ndarray | None = None  # (T, B, n) the DOFs each step started from, prescribed motion applied; None: dof
     contact: object = None  # the obstacles' contact data of the rollout (its own work space), None without contact
     _lin: dict = dataclasses.field(default_factory=dict, repr=False)
 
     @property
     def steps(self) -> int:
         return self.kappa_bar.shape[0]
+
+    def _start(self, k: int) -> np.ndarray:
+        """(B, n) the DOFs step k started from: the state before it, with the prescribed DOFs already moved to their
+        values at the step's end (the step moves them first and holds them there)."""
+        return self.dof[k] if self.moved is None else self.moved[k]
 
     # ------------------------------------------------------------------ linearisation of one step (all envs)
     def _rods(self, k: int):
@@ -209,7 +217,7 @@ class Tape:
         st_band = np.zeros((B, n + kl, 2 * kl + 1) if want_start else (1, 1, 1))
         rod, rod_e, rod_g, rod_m = self._rods(k)
         c = np.ascontiguousarray
-        start = StateArrays(dof=c(self.dof[k]), vel=c(self.vel[k]), ref_d1=c(self.ref_d1[k]),
+        start = StateArrays(dof=c(self._start(k)), vel=c(self.vel[k]), ref_d1=c(self.ref_d1[k]),
                             tangent=c(self.tangent[k]), ref_twist=c(self.ref_twist[k]), time=np.zeros(B),
                             failed=np.zeros(B, np.bool_))
         linearise_step(start, c(self.dof[k + 1]), ControlArrays(c(self.kappa_bar[k]), c(self.tau_bar[k])), h,
@@ -283,7 +291,7 @@ class Tape:
         ab = np.zeros((n + kl, 2 * kl + 1))
         c = np.ascontiguousarray
         for e in range(B):
-            args = (c(self.dof[k + 1, e]), c(self.dof[k, e]), c(self.vel[k, e]), c(self.ref_d1[k, e]),
+            args = (c(self.dof[k + 1, e]), c(self._start(k)[e]), c(self.vel[k, e]), c(self.ref_d1[k, e]),
                     c(self.tangent[k, e]), c(self.ref_twist[k, e]), sim.model.dt, c(self.kappa_bar[k, e]),
                     c(self.tau_bar[k, e]), rod)
             assemble_at(e, *args, prm0, self.contact, f0, ab)
@@ -481,7 +489,7 @@ def rollout(sim, state, controls) -> Tape:
     """Run ``sim`` from ``state`` (advanced in place) for T steps under ``controls`` (a sequence of T
     :class:`sim.Control`, one per step) and record what :class:`Tape` needs to differentiate it. Raises
     :class:`GradientError` for what the derivatives do not cover (contact between edges, implicit midpoint,
-    prescribed motion, a step that failed or took the retry ladder)."""
+    turning clamps, a step that failed or took the retry ladder)."""
     prm = sim.kernel_params[0]
     if bool(prm["rod_pairs"]):
         raise GradientError("derivatives through contact between edges (self_contact, rod_contact) are not "
@@ -489,8 +497,9 @@ def rollout(sim, state, controls) -> Tape:
     if bool(prm["midpoint"]):
         raise GradientError("derivatives of the implicit midpoint rule are not available: use "
                             "integrator = \"backward_euler\"")
-    if sim._motion:
-        raise GradientError("derivatives with prescribed motion ([[fix]] with a rate) are not available yet")
+    if sim.model.rotating_fixes:
+        raise GradientError("derivatives with prescribed motion that turns a clamp ([[fix]] with an "
+                            "angular_velocity) are not available yet (fixes moved at a velocity or twist rate are)")
     if sim._frame_loads is not None:
         raise GradientError("derivatives with moments or material-frame loads ([[load]] moment / frame = "
                             "\"material\", which depend on the configuration) are not available yet")
@@ -504,6 +513,8 @@ def rollout(sim, state, controls) -> Tape:
     frames = [snap()]
     kbs, tbs, gravs = [], [], []
     unconverged = 0
+    moving = sim._moving_dofs if sim._motion else None  # prescribed: moved before the step, held through it
+    moved = []
     for k, ctrl in enumerate(controls):
         force = getattr(ctrl, "force", None)  # node forces: held over the step, known inputs like gravity
         gravs.append(sim._external_forces(state.time, force) if sim._loads or force is not None else
@@ -520,10 +531,15 @@ def rollout(sim, state, controls) -> Tape:
             raise GradientError(f"step {k}: env {e} took the retry ladder ({int(st.substeps[e])} sub-steps); "
                                 "derivatives through sub-steps are not available yet (a smaller dt avoids them)")
         unconverged += int(np.count_nonzero(~st.converged))
+        if moving is not None:
+            start = frames[-1][0].copy()
+            start[:, moving] = state.dof.reshape(B, -1)[:, moving]
+            moved.append(start)
         frames.append(snap())
     dof, vel, d1, t, beta = (np.stack(a) for a in zip(*frames))
     return Tape(sim=sim, dof=dof, vel=vel, ref_d1=d1, tangent=t, ref_twist=beta, kappa_bar=np.stack(kbs),
-                tau_bar=np.stack(tbs), grav=np.stack(gravs), unconverged=unconverged, contact=contact)
+                tau_bar=np.stack(tbs), grav=np.stack(gravs), unconverged=unconverged,
+                moved=np.stack(moved) if moved else None, contact=contact)
 
 
 def _contact_snapshot(sim, state):

@@ -107,5 +107,5 @@ def test_round_trip_and_no_derivatives_yet():
     sim = Simulator(build_model(spec))
     assert sim.model.rotating_fixes[0].center.tolist() == [0.0, 0.0, 0.1]
     st, ctrl = sim.reset(), sim.make_control()
-    with pytest.raises(GradientError, match="prescribed motion"):
+    with pytest.raises(GradientError, match="turns a clamp"):
         rollout(sim, st, [ctrl] * 2)
