@@ -25,8 +25,11 @@ transposed, the adjoint (reverse) mode :meth:`Tape.vjp`.
 
 The derivatives are of the backward-Euler map the Newton iterate satisfies; a step that ended unconverged
 (``accept_unconverged``) is differentiated as if it had converged (:attr:`Tape.unconverged` counts them). Not
-covered yet (a clear :class:`GradientError`): contact between edges (self- and rod–rod), implicit midpoint,
-turning clamps, steps that took the retry ladder (sub-steps). Prescribed motion at a velocity or twist rate is covered:
+covered yet (a clear :class:`GradientError`): contact between edges (self- and rod–rod), turning clamps, steps
+that took the retry ladder (sub-steps). The implicit midpoint rule is covered: its step solves a backward-Euler
+residual over h/2 for the half-step point y = x½ and the end follows linearly, x' = 2 y − x, u' = 2 (y − x)/(h/2) − u
+(the end frames transported from the start to x'); a midpoint step that gained energy and was redone by backward
+Euler is differentiated as such, in its env alone. Prescribed motion at a velocity or twist rate is covered:
 the moved DOFs are constants of each step (held, their tangent 0), and each step is linearised from the DOFs it
 started from, the moved ones already at their step-end values. Viscous drag is covered: it depends on the step's
 start through the velocity and the tangent it lags, so with drag ∂f/∂x is a band, by differences as with friction.
@@ -89,11 +92,41 @@ FRICTION_FD_STEP = 1e-7
 _CACHE_BYTES = 256 * 2**20  # linearisations kept for further passes while they fit in this
 
 
+@dataclasses.dataclass(frozen=True)
+class _Rule:
+    """How each env's step end follows from the point its residual is solved for, y (``h_solve``: the step of that
+    residual): x' = alpha y + beta x, u' = gamma (y − x) − delta u (constrained DOFs: u' = 0). Backward Euler: y = x',
+    u' = (x' − x)/h. Implicit midpoint: y = x½ (a backward-Euler residual over h/2), x' = 2 x½ − x,
+    u' = 2 (x½ − x)/(h/2) − u. Each field (B,): a midpoint step that gained energy was redone by backward Euler in
+    its env alone."""
+
+    h_solve: np.ndarray
+    alpha: np.ndarray
+    beta: np.ndarray
+    gamma: np.ndarray
+    delta: np.ndarray
+
+    @classmethod
+    def of(cls, h: float, midpoint: np.ndarray) -> "_Rule":
+        """``midpoint`` (B,): the envs whose step was an implicit-midpoint step."""
+        mp = np.asarray(midpoint, dtype=bool)
+        return cls(np.where(mp, 0.5 * h, h), np.where(mp, 2.0, 1.0), np.where(mp, -1.0, 0.0),
+                   np.where(mp, 4.0 / h, 1.0 / h), np.where(mp, 1.0, 0.0))
+
+    @property
+    def any_midpoint(self) -> bool:
+        return bool(np.any(self.beta != 0.0))
+
+    def solved(self, x: np.ndarray, x1: np.ndarray) -> np.ndarray:
+        """The solved-for point y (B, n) from the step's start x and end x'."""
+        return (x1 - self.beta[:, None] * x) / self.alpha[:, None]
+
+
 @dataclasses.dataclass
 class _Lin:
     """All envs' step ``step`` linearised at its solution: J as padded bands (B, n + kl, 2 kl + 1) (the storage of
-    :mod:`sim.kernels.banded`; constrained DOFs: identity rows and columns); the start-state columns Fx (n,)
-    (diagonal; with friction a matrix (B, n, n)), Fu (n,) (diagonal); frame maps G (B, n, E) (∂f/∂φ), a, b
+    :mod:`sim.kernels.banded`; constrained DOFs: identity rows and columns); the start-state columns Fx (B, n)
+    (diagonal; with friction or drag a matrix (B, n, n)), Fu (B, n) (diagonal); frame maps G (B, n, E) (∂f/∂φ), a, b
     (B, E, n) (φ' = φ + a δx + b δx'); parameter columns P (name -> (B, n, k)). J and Jᵀ are factored (banded LU)
     on their first solve and the factors kept."""
 
@@ -106,11 +139,18 @@ class _Lin:
     a: np.ndarray | None
     b: np.ndarray | None
     P: dict
+    rule: "_Rule"
+    a_end: np.ndarray | None = None  # the end frames' maps when the rule solves for another point than the end
+    b_end: np.ndarray | None = None
     _lu: dict = dataclasses.field(default_factory=dict, repr=False)
+
+    def end_maps(self):
+        """(a, b) of the step's end frames: φ' = φ + a δx + b δx'."""
+        return (self.a, self.b) if self.a_end is None else (self.a_end, self.b_end)
 
     def start_term(self, dx: np.ndarray) -> np.ndarray:
         """Fx δx for every env: dx (B, n, Q)."""
-        return self.Fx @ dx if self.Fx.ndim == 3 else self.Fx[None, :, None] * dx
+        return self.Fx @ dx if self.Fx.ndim == 3 else self.Fx[:, :, None] * dx
 
     def start_adjoint(self, lam: np.ndarray) -> np.ndarray:
         """Fxᵀ λ for every env: lam (B, n)."""
@@ -134,7 +174,8 @@ class _Lin:
 
     @property
     def nbytes(self) -> int:
-        arrays = [self.J, self.Fx, self.G, self.a, self.b, *self.P.values(), *self._lu.values()]
+        arrays = [self.J, self.Fx, self.G, self.a, self.b, self.a_end, self.b_end, *self.P.values(),
+                  *self._lu.values()]
         return sum(a.nbytes for a in arrays if a is not None)
 
 
@@ -154,6 +195,7 @@ class Tape:
     grav: np.ndarray  # (T, B, n) the external forces (gravity and loads) of each step
     unconverged: int = 0
     moved: np.ndarray | None = None  # (T, B, n) the DOFs each step started from, prescribed motion applied; None: dof
+    fallback: np.ndarray | None = None  # (T, B) the midpoint steps redone by backward Euler
     contact: object = None  # the obstacles' contact data of the rollout (its own work space), None without contact
     _lin: dict = dataclasses.field(default_factory=dict, repr=False)
 
@@ -197,9 +239,23 @@ class Tape:
                 self._lin[k] = lin
         return lin
 
+    def rule(self, k: int) -> _Rule:
+        """The integration rule of each env's step k (implicit midpoint unless the scene's rule is backward Euler or
+        the step fell back to it)."""
+        B = self.dof.shape[1]
+        mp = bool(self.sim.kernel_params[0]["midpoint"])
+        fell = self.fallback[k] if self.fallback is not None else np.zeros(B, bool)
+        return _Rule.of(self.sim.model.dt, np.full(B, mp) & ~fell)
+
+    def _solved(self, k: int) -> np.ndarray:
+        """(B, n) the point step k's residual was solved for (its end; the midpoint rule: the half-step point)."""
+        return self.rule(k).solved(self._start(k), self.dof[k + 1])
+
     def _linearise(self, k: int, names: tuple[str, ...]) -> _Lin:
         sim, m = self.sim, self.sim.model
-        h = m.dt
+        rule = self.rule(k)
+        h = rule.h_solve  # (B,) the step of the residual solved (half the step for the midpoint rule)
+        hc = h[:, None]
         planar = m.mode == "2d"
         kl = KL_2D if planar else KL_3D
         B, n = self.dof.shape[1], self.dof.shape[2]
@@ -220,7 +276,8 @@ class Tape:
         start = StateArrays(dof=c(self._start(k)), vel=c(self.vel[k]), ref_d1=c(self.ref_d1[k]),
                             tangent=c(self.tangent[k]), ref_twist=c(self.ref_twist[k]), time=np.zeros(B),
                             failed=np.zeros(B, np.bool_))
-        linearise_step(start, c(self.dof[k + 1]), ControlArrays(c(self.kappa_bar[k]), c(self.tau_bar[k])), h,
+        y = self._solved(k)
+        linearise_step(start, c(y), ControlArrays(c(self.kappa_bar[k]), c(self.tau_bar[k])), h,
                        RodFactors(rod, rod_e, rod_g, rod_m), sim.kernel_params, self._cd,
                        Wanted(want_kb, want_tb, want_sc, want_start, FRICTION_FD_STEP if want_start else 1e-6),
                        Linearisation(ab, kbc, tbc, sc, st_band))
@@ -235,18 +292,18 @@ class Tape:
                 r = th + kl - d  # band entry (r, d) is J[r, r + d − kl]: column th where r = th + kl − d
                 ok = (r >= 0) & (r < n)
                 G[:, r[ok], np.arange(E)[ok]] = ab[:, r[ok], d]
-            G[:, th, np.arange(E)] -= (mass[th] / h**2)[None, :]
+            G[:, th, np.arange(E)] -= mass[th][None, :] / hc**2
             G[:, fixed, :] = 0.0
         _constrain(ab, fixed, kl)  # constrained DOFs: identity rows and columns (residual 0, they do not move)
         damp = float(prm["damping"])
-        Fx = -(mass / h**2 + np.where(pos_dof, damp * mass / h, 0.0))
-        Fu = -mass / h
-        Fx[fixed], Fu[fixed] = 0.0, 0.0
+        Fx = -(mass / hc**2 + np.where(pos_dof, damp * mass, 0.0) / hc)  # (B, n)
+        Fu = -mass / hc
+        Fx[:, fixed], Fu[:, fixed] = 0.0, 0.0
         if want_start:  # the start positions' columns by differences, the twist angles' inertia on the diagonal
             S = _dense(st_band, n, kl)
             S[:, fixed, :] = 0.0
             S[:, :, fixed] = 0.0
-            S[:, np.arange(n), np.arange(n)] += np.where(pos_dof, 0.0, Fx)[None, :]
+            S[:, np.arange(n), np.arange(n)] += np.where(pos_dof[None, :], 0.0, Fx)
             Fx = S
         P: dict = {}
         if want_kb:
@@ -259,16 +316,21 @@ class Tape:
         for nm in _CONTACT_FIELDS:
             if nm in names:  # after linearise_step: the contact data hold this step's candidates
                 P[nm] = self._contact_column(k, nm, rod) * ~fixed[None, :, None]
-        if "damping" in names:  # the damping force c m (x' − x)/h on positions
-            P["damping"] = ((mass * pos_dof * ~fixed)[None, :] * (self.dof[k + 1] - self.dof[k]) / h)[:, :, None]
+        if "damping" in names:  # the damping force c m (y − x)/h on positions
+            P["damping"] = ((mass * pos_dof * ~fixed)[None, :] * (y - self._start(k)) / hc)[:, :, None]
         if planar:
-            return _Lin(k, ab, kl, Fx, Fu, None, None, None, P)
+            return _Lin(k, ab, kl, Fx, Fu, None, None, None, P, rule)
         link = sim.kernel_rod.link.astype(bool)
         t0, t1 = self.tangent[k], self.tangent[k + 1]
         kvec = np.cross(t1, t0) / (1.0 + np.einsum("bij,bij->bi", t0, t1))[..., None]
         a = _turn_map(kvec, self.dof[k], t0, link)
         b = _turn_map(kvec, self.dof[k + 1], t1, link)
-        return _Lin(k, ab, kl, Fx, Fu, G, a, b, P)
+        if not rule.any_midpoint:
+            return _Lin(k, ab, kl, Fx, Fu, G, a, b, P, rule)
+        ty = _tangents(y, link, t1)  # the residual's frames are transported to y's tangents; the end's to x''s
+        ky = np.cross(ty, t0) / (1.0 + np.einsum("bij,bij->bi", t0, ty))[..., None]
+        return _Lin(k, ab, kl, Fx, Fu, G, _turn_map(ky, self.dof[k], t0, link), _turn_map(ky, y, ty, link), P, rule,
+                    a_end=a, b_end=b)
 
     def _contact_column(self, k: int, name: str, rod) -> np.ndarray:
         """(B, n, 1) ∂f/∂p of step k for the contact stiffness's log factor or the [contact] μ: the residual is
@@ -290,9 +352,11 @@ class Tape:
         f0, f1 = np.zeros(n), np.zeros(n)
         ab = np.zeros((n + kl, 2 * kl + 1))
         c = np.ascontiguousarray
+        y = self._solved(k)
+        h = self.rule(k).h_solve
         for e in range(B):
-            args = (c(self.dof[k + 1, e]), c(self._start(k)[e]), c(self.vel[k, e]), c(self.ref_d1[k, e]),
-                    c(self.tangent[k, e]), c(self.ref_twist[k, e]), sim.model.dt, c(self.kappa_bar[k, e]),
+            args = (c(y[e]), c(self._start(k)[e]), c(self.vel[k, e]), c(self.ref_d1[k, e]),
+                    c(self.tangent[k, e]), c(self.ref_twist[k, e]), float(h[e]), c(self.kappa_bar[k, e]),
                     c(self.tau_bar[k, e]), rod)
             assemble_at(e, *args, prm0, self.contact, f0, ab)
             assemble_at(e, *args, prm1, self.contact, f1, ab)
@@ -336,7 +400,7 @@ class Tape:
         T, B, n = self.steps, self.dof.shape[1], self.dof.shape[2]
         Q = len(tans)
         planar = self.sim.model.mode == "2d"
-        h = self.sim.model.dt
+        fixed = self.sim.kernel_rod.fixed.astype(bool)
         E = self.ref_d1.shape[2]
         ddof = np.zeros((Q, T + 1, B, n))
         dvel = np.zeros((Q, T + 1, B, n))
@@ -348,17 +412,21 @@ class Tape:
         ddof[:, 0], dvel[:, 0] = dx.transpose(2, 0, 1), du.transpose(2, 0, 1)
         for k in range(T):
             lin = self._linear(k, names)
-            rhs = lin.start_term(dx) + lin.Fu[None, :, None] * du
+            rhs = lin.start_term(dx) + lin.Fu[:, :, None] * du
             if not planar:
                 rhs += lin.G @ (phi + lin.a @ dx)
             for q, t in enumerate(tans):
                 for nm in names:
                     if nm in t:
                         rhs[:, :, q] += self._rhs_params(lin, nm, t[nm], k)
-            dx1 = -lin.solve(rhs)
-            du = (dx1 - dx) / h
+            dy = -lin.solve(rhs)  # the solved-for point (the end; the midpoint rule: the half-step point)
+            r = lin.rule
+            dx1 = r.alpha[:, None, None] * dy + r.beta[:, None, None] * dx
+            du = r.gamma[:, None, None] * (dy - dx) - r.delta[:, None, None] * du
+            du[np.ix_(r.delta != 0.0, fixed)] = 0.0  # the midpoint rule sets the constrained DOFs' velocities to 0
             if not planar:
-                phi = phi + lin.a @ dx + lin.b @ dx1
+                a_end, b_end = lin.end_maps()
+                phi = phi + a_end @ dx + b_end @ dx1
             dx = dx1
             ddof[:, k + 1], dvel[:, k + 1] = dx.transpose(2, 0, 1), du.transpose(2, 0, 1)
         if many:
@@ -377,7 +445,7 @@ class Tape:
             if nm not in PARAMETERS:
                 raise GradientError(f"unknown parameter {nm!r}; known: {', '.join(PARAMETERS)}")
         planar = self.sim.model.mode == "2d"
-        h = self.sim.model.dt
+        fixed = self.sim.kernel_rod.fixed.astype(bool)
         N = self.tau_bar.shape[2]
         E = self.ref_d1.shape[2]
         out = {nm: np.zeros(_param_shape(nm, T, B, n, N)) for nm in params}
@@ -387,11 +455,22 @@ class Tape:
         gphi = np.zeros((B, E))
         for k in range(T - 1, -1, -1):
             lin = self._linear(k, names)
-            # x_{k+1} enters u_{k+1} = (x_{k+1} − x_k)/h and φ_{k+1} = φ_k + a x_k + b x_{k+1}
-            gx1 = gx + gu / h
+            # the solved-for point y gives x_{k+1} = α y + β x_k, u_{k+1} = γ (y − x_k) − δ u_k and
+            # φ_{k+1} = φ_k + a_end x_k + b_end x_{k+1}
+            r = lin.rule
+            gu = gu.copy()
+            gu[np.ix_(r.delta != 0.0, fixed)] = 0.0  # the midpoint rule sets constrained DOFs' velocities to 0
+            gx_end = gx
             if not planar:
-                gx1 = gx1 + np.einsum("ben,be->bn", lin.b, gphi)
-            lam = lin.solve(gx1[:, :, None], transpose=True)[:, :, 0]  # x_{k+1} = −J⁻¹ rhs ⇒ ∂/∂rhs = −λ
+                a_end, b_end = lin.end_maps()
+                gx_end = gx + np.einsum("ben,be->bn", b_end, gphi)
+            al, be, ga, de = (v[:, None] for v in (r.alpha, r.beta, r.gamma, r.delta))
+            gy = al * gx_end + ga * gu
+            gx_prev = be * gx_end - ga * gu + cx[k]
+            gu_prev = -de * gu + cu[k]
+            if not planar:
+                gx_prev = gx_prev + np.einsum("ben,be->bn", a_end, gphi)
+            lam = lin.solve(gy[:, :, None], transpose=True)[:, :, 0]  # y = −J⁻¹ rhs ⇒ ∂/∂rhs = −λ
             for nm in names:
                 if nm == "gravity":
                     out[nm] += -(lam @ self._gravity_columns())
@@ -403,11 +482,11 @@ class Tape:
                     out[nm][k] = g
                 else:
                     out[nm] += g[:, 0]
-            gx_prev = -lin.start_adjoint(lam) - gu / h + cx[k]
-            gu_prev = -lin.Fu * lam + cu[k]
+            gx_prev = gx_prev - lin.start_adjoint(lam)
+            gu_prev = gu_prev - lin.Fu * lam
             if not planar:
                 Gl = -np.einsum("bne,bn->be", lin.G, lam)
-                gx_prev = gx_prev + np.einsum("ben,be->bn", lin.a, Gl + gphi)
+                gx_prev = gx_prev + np.einsum("ben,be->bn", lin.a, Gl)
                 gphi = gphi + Gl
             gx, gu = gx_prev, gu_prev
         if "dof0" in out:
@@ -427,6 +506,16 @@ def _constrain(ab: np.ndarray, fixed: np.ndarray, kl: int) -> None:
         ok = (r >= 0) & (r < n)
         ab[:, r[ok], d[ok]] = 0.0
         ab[:, k, kl] = 1.0
+
+
+def _tangents(x: np.ndarray, link: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """(B, E, 3) unit edge tangents of the 3-D DOFs x (B, n); a joint edge keeps ``held``'s (it keeps its frame)."""
+    B, E = held.shape[0], held.shape[1]
+    pos = x.reshape(B, E + 1, 4)[:, :, :3]
+    e = pos[:, 1:] - pos[:, :-1]
+    t = e / np.linalg.norm(e, axis=2, keepdims=True).clip(1e-300)
+    t[:, ~link] = held[:, ~link]
+    return t
 
 
 def _turn_map(kvec: np.ndarray, x: np.ndarray, t: np.ndarray, link: np.ndarray) -> np.ndarray:
@@ -488,15 +577,12 @@ def _cotangent(v, T, B, n) -> np.ndarray:
 def rollout(sim, state, controls) -> Tape:
     """Run ``sim`` from ``state`` (advanced in place) for T steps under ``controls`` (a sequence of T
     :class:`sim.Control`, one per step) and record what :class:`Tape` needs to differentiate it. Raises
-    :class:`GradientError` for what the derivatives do not cover (contact between edges, implicit midpoint,
-    turning clamps, a step that failed or took the retry ladder)."""
+    :class:`GradientError` for what the derivatives do not cover (contact between edges, turning clamps, a step
+    that failed or took the retry ladder)."""
     prm = sim.kernel_params[0]
     if bool(prm["rod_pairs"]):
         raise GradientError("derivatives through contact between edges (self_contact, rod_contact) are not "
                             "available yet: turn them off in [contact] (obstacle contact, with friction, is)")
-    if bool(prm["midpoint"]):
-        raise GradientError("derivatives of the implicit midpoint rule are not available: use "
-                            "integrator = \"backward_euler\"")
     if sim.model.rotating_fixes:
         raise GradientError("derivatives with prescribed motion that turns a clamp ([[fix]] with an "
                             "angular_velocity) are not available yet (fixes moved at a velocity or twist rate are)")
@@ -515,6 +601,7 @@ def rollout(sim, state, controls) -> Tape:
     unconverged = 0
     moving = sim._moving_dofs if sim._motion else None  # prescribed: moved before the step, held through it
     moved = []
+    fallbacks = []
     for k, ctrl in enumerate(controls):
         force = getattr(ctrl, "force", None)  # node forces: held over the step, known inputs like gravity
         gravs.append(sim._external_forces(state.time, force) if sim._loads or force is not None else
@@ -525,6 +612,7 @@ def rollout(sim, state, controls) -> Tape:
         bad = np.flatnonzero(st.failed)
         if bad.size:
             raise GradientError(f"step {k}: env {int(bad[0])} failed; a failed step has no derivative")
+        fallbacks.append(st.midpoint_fallbacks > 0)  # redone by backward Euler (a midpoint step that gained energy)
         sub = np.flatnonzero(st.substeps > 1)
         if sub.size:
             e = int(sub[0])
@@ -539,7 +627,7 @@ def rollout(sim, state, controls) -> Tape:
     dof, vel, d1, t, beta = (np.stack(a) for a in zip(*frames))
     return Tape(sim=sim, dof=dof, vel=vel, ref_d1=d1, tangent=t, ref_twist=beta, kappa_bar=np.stack(kbs),
                 tau_bar=np.stack(tbs), grav=np.stack(gravs), unconverged=unconverged,
-                moved=np.stack(moved) if moved else None, contact=contact)
+                moved=np.stack(moved) if moved else None, fallback=np.stack(fallbacks), contact=contact)
 
 
 def _contact_snapshot(sim, state):

@@ -73,16 +73,18 @@ class Linearisation(NamedTuple):
     start: np.ndarray
 
 
-def linearise_step(start, solution, ctrl, h: float, rods: RodFactors, prm_arr, cd, wanted: Wanted,
+def linearise_step(start, solution, ctrl, h, rods: RodFactors, prm_arr, cd, wanted: Wanted,
                    out: Linearisation) -> None:
     """For every env of one recorded step — its start ``start`` (a :class:`sim.kernels.data.StateArrays`), its
-    solution ``solution`` (B, n) and the natural curvature and twist it ran with ``ctrl`` (a
+    solution ``solution`` (B, n) of the residual of step ``h`` (a number, or one per env: (B,)) and the natural
+    curvature and twist it ran with ``ctrl`` (a
     :class:`sim.kernels.data.ControlArrays`) — write into ``out`` the band of ∂f/∂x' at the solution and the
     ``wanted`` columns; the factors' columns come from ``rods`` (damping's column is m (x' − x)/h: the caller's).
     ``rods.rod``'s fixed flags must be all 0 (the caller constrains afterwards). The parallel kernel under it takes
     the records' arrays one by one (numba 0.68's parallel lowering fails on these records inside a prange kernel)."""
+    hs = np.ascontiguousarray(np.broadcast_to(np.asarray(h, dtype=np.float64), (solution.shape[0],)))
     _linearise_envs(start.dof, start.vel, start.ref_d1, start.tangent, start.ref_twist, solution, ctrl.kappa_bar,
-                    ctrl.tau_bar, h, get_num_threads(), rods.rod, rods.stiffer, rods.twist_stiffer, rods.heavier,
+                    ctrl.tau_bar, hs, get_num_threads(), rods.rod, rods.stiffer, rods.twist_stiffer, rods.heavier,
                     prm_arr, cd, wanted.kappa_bar, wanted.tau_bar, wanted.factors, wanted.start, wanted.fd_step, out.band,
                     out.kappa_bar, out.tau_bar, out.factors, out.start)
 
@@ -233,7 +235,7 @@ def _residual(e, x, kb, tb, h, rod, prm, cs, w, out):
 
 
 @njit(parallel=True, **OPT_ALLOC)
-def _linearise_envs(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, threads, rod, rod_e, rod_g, rod_m, prm_arr, cd,
+def _linearise_envs(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, hs, threads, rod, rod_e, rod_g, rod_m, prm_arr, cd,
                     want_kb, want_tb, want_scalars, want_start, fd_step, ab_out, kb_out, tb_out, sc_out, start_out):
     """For every env e of one recorded step: ab_out[e] (n + kl, 2 kl + 1) the band of ∂f/∂x' at x1s[e];
     kb_out[e] (n, N, 2) ∂f/∂κ̄, tb_out[e] (n, N) ∂f/∂τ̄ (if wanted); sc_out[e] (n, 3) the columns of the
@@ -257,7 +259,7 @@ def _linearise_envs(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, threads, rod, rod_e
         xp = np.empty(n)
         kb1 = np.empty((N, 2))
         for e in range(chunk * B // chunks, (chunk + 1) * B // chunks):
-            _linearise_env(e, x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g, rod_m, prm, cd, cs, w,
+            _linearise_env(e, x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, hs[e], rod, rod_e, rod_g, rod_m, prm, cd, cs, w,
                            want_kb, want_tb, want_scalars, want_start, fd_step, ab_out, kb_out, tb_out, sc_out,
                            start_out, f0, fp, fm, xp, kb1)
 
