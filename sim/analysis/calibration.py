@@ -26,7 +26,8 @@ the shear modulus), so a fit never returns a scene that does not load; one that 
 command].
 
 The fit is trust-region least squares on the position residuals with the Jacobian from the tangent mode of
-:mod:`sim.analysis.gradients` (docs/physics.md §3.9). The result: the fitted scene as a new TOML (never over an existing file),
+:mod:`sim.analysis.gradients` (docs/physics.md §3.9), or (``--method lbfgs``, for many unknowns) L-BFGS-B on half the
+squared residuals with their gradient Jᵀr from one adjoint pass per evaluation. The result: the fitted scene as a new TOML (never over an existing file),
 values ± standard errors from the Gauss–Newton covariance, their correlation, the RMS residual (and on a held-out
 final part of the motion with ``--holdout``), with ``--report`` a folder with ``fit.json``, ``residuals.csv`` (every
 point, held-out ones marked) and plots: measured against fitted markers, the residual over time and along the rod,
@@ -55,7 +56,7 @@ from sim.support.atomicio import write_text, write_via_path
 from sim.support.paths import check_output_path
 from sim.support.progress import add_progress_flag, progress_bar, progress_wanted
 
-__all__ = ["FIT_PARAMETERS", "FitError", "Measurements", "Commands", "FitResult", "FitTrack", "load_measurements",
+__all__ = ["FIT_PARAMETERS", "FIT_METHODS", "FitError", "Measurements", "Commands", "FitResult", "FitTrack", "load_measurements",
            "measurements_from_arrays", "node_arclength", "load_controls", "fit", "write_report", "PLOTS",
            "RESIDUAL_COLUMNS", "fit_command"]
 
@@ -638,6 +639,25 @@ class Problem:
         cols = [(self.predict(self._node_pos(d[q], None)))[:, self._axes].reshape(-1) for q in range(len(tangents))]
         return np.stack(cols, axis=1)
 
+    def gradient(self, tape: G.Tape, z: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Jᵀ r (the gradient of ½‖r‖² with respect to the unknowns) by one adjoint pass, without J: the residuals'
+        cotangent spread onto the DOFs of the (step, node) pairs they interpolate, then each unknown's tangent
+        dotted with the parameters' gradients."""
+        rr = np.zeros((r.size // len(self._axes), 3))
+        rr[:, self._axes] = r.reshape(-1, len(self._axes))
+        pos = np.zeros((tape.dof.shape[0], self.model0.node_count, 3))
+        np.add.at(pos, (self._k, self._n), self._w[:, :, None] * rr[:, None, :])
+        c = np.zeros(tape.dof.shape[:1] + tape.dof.shape[2:])  # (T + 1, n)
+        if self.planar:
+            c[:, 0::2], c[:, 1::2] = pos[:, :, 0], pos[:, :, 2]
+        else:
+            for a in range(3):
+                c[:, a::4] = pos[:, :, a]
+        tangents = [self._tangent(u, z) for u in self.unknowns]
+        names = tuple(sorted({nm for t in tangents for nm in t}))
+        grads = tape.vjp({"dof": c[:, None, :]}, params=names)
+        return np.array([sum(float(np.sum(grads[nm] * v)) for nm, v in t.items()) for t in tangents])
+
     def _tangent(self, u: Unknown, z: np.ndarray) -> dict:
         T, N = self.steps, self.model0.node_count
         if u.name == "youngs_modulus":
@@ -759,13 +779,20 @@ class _Stopped(Exception):
     """``on_eval`` asked the fit to stop (it then ends as an interrupted one: the best parameters so far)."""
 
 
+FIT_METHODS = ("lm", "lbfgs")
+
+
 def fit(spec, meas: Measurements, params: list[str], *, cmds: Commands | None = None, holdout: float = 0.0,
-        max_iterations: int = 50, progress: bool = False, log=None, on_eval=None) -> FitResult:
+        max_iterations: int = 50, progress: bool = False, log=None, on_eval=None, method: str = "lm") -> FitResult:
     """Fit ``params`` of ``spec`` to ``meas`` (see the module docstring). ``on_eval(evaluation, rms_m, values)``, if
     given, is called after each residual evaluation (its count from 1, the RMS residual [m], the unknowns' values by
-    label); returning True stops the fit, which then ends like one interrupted by Ctrl-C (the best so far)."""
+    label); returning True stops the fit, which then ends like one interrupted by Ctrl-C (the best so far).
+    ``method``: "lm", trust-region least squares with J from the tangent mode (P tangents per evaluation), or
+    "lbfgs", L-BFGS-B on ½‖r‖² with its gradient Jᵀr from one adjoint pass (for many unknowns)."""
     import scipy.optimize
 
+    if method not in FIT_METHODS:
+        raise FitError(f"unknown method {method!r}; known: {', '.join(FIT_METHODS)}")
     if not 0.0 <= holdout < 1.0:
         raise FitError(f"--holdout must be in [0, 1), got {holdout!r}")
     t_cut = np.inf
@@ -817,9 +844,18 @@ def fit(spec, meas: Measurements, params: list[str], *, cmds: Commands | None = 
     interrupted = False
     nit = 0
     lo, hi = prob.bounds()
+    def loss_and_gradient(z):
+        r = fun(z)
+        return 0.5 * float(r @ r), prob.gradient(tape_at(z), z, r)
+
     try:
-        res = scipy.optimize.least_squares(fun, prob.z0(), jac=jac, bounds=(lo, hi), method="trf", x_scale="jac",
-                                           max_nfev=max_iterations, xtol=1e-10, ftol=1e-12, gtol=1e-12)
+        if method == "lm":
+            res = scipy.optimize.least_squares(fun, prob.z0(), jac=jac, bounds=(lo, hi), method="trf", x_scale="jac",
+                                               max_nfev=max_iterations, xtol=1e-10, ftol=1e-12, gtol=1e-12)
+        else:
+            res = scipy.optimize.minimize(loss_and_gradient, prob.z0(), jac=True, method="L-BFGS-B",
+                                          bounds=list(zip(lo, hi)),
+                                          options={"maxfun": max_iterations, "ftol": 1e-15, "gtol": 1e-12})
         nit = int(res.nfev)
     except (KeyboardInterrupt, _Stopped):
         interrupted = True
@@ -1136,6 +1172,9 @@ def fit_command(argv: list[str] | None = None, *, readers=None) -> int:
                                      "time and along the rod, correlation)")
     ap.add_argument("--holdout", type=float, default=0.0, help="fraction of the motion (the last part) held out")
     ap.add_argument("--max-iterations", type=int, default=50, help="most residual evaluations (default 50)")
+    ap.add_argument("--method", choices=FIT_METHODS, default="lm",
+                    help="lm: trust-region least squares with the tangent-mode Jacobian (default); lbfgs: L-BFGS-B "
+                         "with the gradient from one adjoint pass per evaluation (many unknowns)")
     ap.add_argument("--json", action="store_true", help="print one JSON object on the last line")
     add_progress_flag(ap)
     args = ap.parse_args(argv)
@@ -1167,7 +1206,7 @@ def _run(args, readers=None) -> int:
     meas = load_measurements(args.data, spec, readers=readers, episode=args.episode)
     cmds = load_controls(args.controls, build_model(spec)) if args.controls else None
     res = fit(spec, meas, params, cmds=cmds, holdout=args.holdout, max_iterations=args.max_iterations,
-              progress=progress_wanted(args.progress, json_output=args.json))
+              progress=progress_wanted(args.progress, json_output=args.json), method=args.method)
     dump_scene(res.spec, out)
     if args.report:
         write_report(args.report, res, scene=str(scene), data=str(args.data), fitted_scene=str(out))
