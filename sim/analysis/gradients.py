@@ -47,10 +47,16 @@ Parameters (keys of the tangent / gradient dicts):
     gravity             (B, 3)        the gravity vector [m/s²]
     log_contact_stiffness (B,)        ln of a factor on the [contact] stiffness (obstacle contact)
     friction            (B,)          the [contact] friction μ (of the obstacles without a μ of their own)
+    obstacle_position   (B, M, 3)     each obstacle's position [m] (its local origin in the world)
+    obstacle_rotation   (B, M, 3)     a small turn of each obstacle about its local origin, as a rotation vector in
+                                      world axes [rad] (orientation' = exp(ω) ∘ orientation)
 
 The residual is linear in the contact stiffness (E ∝ k, and friction ∝ λ) and in μ, so their columns are
 differences of two residual evaluations (the stiffness doubled; μ + 1), at the contact set of the step's solution;
-without obstacle contact they are 0.
+without obstacle contact they are 0. The obstacles' poses (constant through a rollout) enter the contact residual
+through their world arrays: their columns are central differences of the residual with the poses moved and the
+world arrays derived anew (:func:`sim.contact.world.world_arrays`), at the contact set of the step's solution (with
+friction at step 1e-7, extrapolated, as the start band).
 """
 from __future__ import annotations
 
@@ -58,7 +64,7 @@ import dataclasses
 
 import numpy as np
 
-from sim.contact.world import ObstacleWorld, contact_data, contact_scratch, spec_contact_data
+from sim.contact.world import ObstacleWorld, contact_data, contact_scratch, spec_contact_data, world_arrays
 from sim.kernels.data import KL_2D, KL_3D, ControlArrays, StateArrays
 from sim.kernels.linearise import Linearisation, RodFactors, Wanted, factor_bands, linearise_step, solve_bands
 from sim.kernels.probe import assemble_at
@@ -66,7 +72,8 @@ from sim.kernels.probe import assemble_at
 __all__ = ["GradientError", "Tape", "rollout", "PARAMETERS"]
 
 PARAMETERS = ("dof0", "vel0", "kappa_bar", "tau_bar", "log_youngs_modulus", "log_shear_modulus", "log_density",
-              "damping", "gravity", "log_contact_stiffness", "friction")
+              "damping", "gravity", "log_contact_stiffness", "friction", "obstacle_position", "obstacle_rotation")
+_POSE_FIELDS = ("obstacle_position", "obstacle_rotation")
 _CONTACT_FIELDS = ("log_contact_stiffness", "friction")
 
 
@@ -196,6 +203,7 @@ class Tape:
     unconverged: int = 0
     moved: np.ndarray | None = None  # (T, B, n) the DOFs each step started from, prescribed motion applied; None: dof
     fallback: np.ndarray | None = None  # (T, B) the midpoint steps redone by backward Euler
+    poses: dict | None = None  # the obstacles' pose arrays through the rollout (ObstacleWorld._POSE), with contact
     contact: object = None  # the obstacles' contact data of the rollout (its own work space), None without contact
     _lin: dict = dataclasses.field(default_factory=dict, repr=False)
 
@@ -316,6 +324,9 @@ class Tape:
         for nm in _CONTACT_FIELDS:
             if nm in names:  # after linearise_step: the contact data hold this step's candidates
                 P[nm] = self._contact_column(k, nm, rod) * ~fixed[None, :, None]
+        for nm in _POSE_FIELDS:
+            if nm in names:
+                P[nm] = self._pose_columns(k, nm, rod) * ~fixed[None, :, None]
         if "damping" in names:  # the damping force c m (y − x)/h on positions
             P["damping"] = ((mass * pos_dof * ~fixed)[None, :] * (y - self._start(k)) / hc)[:, :, None]
         if planar:
@@ -363,6 +374,63 @@ class Tape:
             out[e, :, 0] = f1 - f0
         return out
 
+    def _pose_columns(self, k: int, name: str, rod) -> np.ndarray:
+        """(B, n, 3 M) ∂f/∂p of step k for every obstacle's position or turn (column 3 j + axis): central differences
+        of the residual at the solution with the pose moved and its world arrays derived anew, with the candidates
+        the step's linearisation listed (with friction: step 1e-7, extrapolated from ε and ε/2)."""
+        sim = self.sim
+        B, n = self.dof.shape[1], self.dof.shape[2]
+        M = sim.model.obstacles.count
+        out = np.zeros((B, n, 3 * M))
+        if self.contact is None or M == 0:
+            return out
+        prm = sim.kernel_params
+        friction = bool(prm[0]["friction_on"])
+        step = FRICTION_FD_STEP if friction else 1e-6
+        if name == "obstacle_position":
+            step *= max(1.0, float(np.abs(self.poses["obstacle_position"]).max()))
+        kl = KL_2D if sim.model.mode == "2d" else KL_3D
+        y, x0, h = self._solved(k), self._start(k), self.rule(k).h_solve
+        f = np.zeros(n)
+        ab = np.zeros((n + kl, 2 * kl + 1))
+        c = np.ascontiguousarray
+
+        def residuals(cd) -> np.ndarray:
+            res = np.zeros((B, n))
+            for e in range(B):
+                assemble_at(e, c(y[e]), c(x0[e]), c(self.vel[k, e]), c(self.ref_d1[k, e]), c(self.tangent[k, e]),
+                            c(self.ref_twist[k, e]), float(h[e]), c(self.kappa_bar[k, e]), c(self.tau_bar[k, e]), rod,
+                            prm, cd, f, ab)
+                res[e] = f
+            return res
+
+        for j in range(M):
+            for axis in range(3):
+                diffs = []
+                for eps in ((step, 0.5 * step) if friction else (step,)):
+                    plus = residuals(self._moved_contact(name, j, axis, eps))
+                    minus = residuals(self._moved_contact(name, j, axis, -eps))
+                    diffs.append((plus - minus) / (2.0 * eps))
+                out[:, :, 3 * j + axis] = diffs[0] if len(diffs) == 1 else (4.0 * diffs[1] - diffs[0]) / 3.0
+        return out
+
+    def _moved_contact(self, name: str, j: int, axis: int, d: float):
+        """The tape's contact data with obstacle j moved by d along ``axis`` or turned by d about it (world axes,
+        about its local origin) in every env."""
+        g = self.sim.model.obstacles
+        poses = {nm: v.copy() for nm, v in self.poses.items()}
+        if name == "obstacle_position":
+            poses["obstacle_position"][:, j, axis] += d
+        else:
+            turn = np.zeros(4)
+            turn[0], turn[1 + axis] = np.cos(0.5 * d), np.sin(0.5 * d)
+            poses["obstacle_orientation"][:, j] = _quat_mul(turn, poses["obstacle_orientation"][:, j])
+        B, M = poses["obstacle_position"].shape[:2]
+        p0, p1, rot, box = np.zeros((B, M, 3)), np.zeros((B, M, 3)), np.zeros((B, M, 3, 3)), np.zeros((B, M, 2, 3))
+        world_arrays(g, poses["obstacle_position"], poses["obstacle_orientation"], poses["obstacle_a"],
+                     poses["obstacle_b"], poses["obstacle_radius"], p0, p1, rot, box)
+        return self.contact._replace(p0=p0, p1=p1, rot=rot, box=box)
+
     def _gravity_columns(self) -> np.ndarray:
         """(n, 3) ∂f/∂g (the same for every env and step)."""
         rod = self.sim.kernel_rod
@@ -382,7 +450,9 @@ class Tape:
         """(B, n) ∂f/∂p · δp of step k for the tangent ``tan`` of parameter ``name``."""
         if name == "gravity":
             return tan @ self._gravity_columns().T
-        if name == "kappa_bar":
+        if name in _POSE_FIELDS:
+            v = tan.reshape(tan.shape[0], -1)
+        elif name == "kappa_bar":
             v = tan[k].reshape(tan.shape[1], -1)
         elif name == "tau_bar":
             v = tan[k]
@@ -448,7 +518,8 @@ class Tape:
         fixed = self.sim.kernel_rod.fixed.astype(bool)
         N = self.tau_bar.shape[2]
         E = self.ref_d1.shape[2]
-        out = {nm: np.zeros(_param_shape(nm, T, B, n, N)) for nm in params}
+        M = self.sim.model.obstacles.count
+        out = {nm: np.zeros(_param_shape(nm, T, B, n, N, M)) for nm in params}
         names = tuple(nm for nm in params if nm not in ("dof0", "vel0"))
         gx = cx[T].copy()  # (B, n) adjoint of x_k (total, including the later steps' dependence)
         gu = cu[T].copy()
@@ -476,7 +547,9 @@ class Tape:
                     out[nm] += -(lam @ self._gravity_columns())
                     continue
                 g = -np.einsum("bnk,bn->bk", lin.P[nm], lam)
-                if nm == "kappa_bar":
+                if nm in _POSE_FIELDS:
+                    out[nm] += g.reshape(out[nm].shape)
+                elif nm == "kappa_bar":
                     out[nm][k] = g.reshape(B, N, 2)
                 elif nm == "tau_bar":
                     out[nm][k] = g
@@ -494,6 +567,14 @@ class Tape:
         if "vel0" in out:
             out["vel0"][:] = gu
         return out
+
+
+def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a ∘ b of quaternions wxyz (a (4,), b (..., 4))."""
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = np.moveaxis(b, -1, 0)
+    return np.stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2], axis=-1)
 
 
 def _constrain(ab: np.ndarray, fixed: np.ndarray, kl: int) -> None:
@@ -535,7 +616,9 @@ def _turn_map(kvec: np.ndarray, x: np.ndarray, t: np.ndarray, link: np.ndarray) 
     return out
 
 
-def _param_shape(name, T, B, n, N):
+def _param_shape(name, T, B, n, N, M=0):
+    if name in _POSE_FIELDS:
+        return (B, M, 3)
     return {"dof0": (B, n), "vel0": (B, n), "kappa_bar": (T, B, N, 2), "tau_bar": (T, B, N),
             "log_youngs_modulus": (B,), "log_shear_modulus": (B,), "log_density": (B,), "damping": (B,),
             "gravity": (B, 3), "log_contact_stiffness": (B,), "friction": (B,)}[name]
@@ -549,7 +632,7 @@ def _checked(tangents: dict, tape: Tape) -> dict:
         if nm not in PARAMETERS:
             raise GradientError(f"unknown parameter {nm!r}; known: {', '.join(PARAMETERS)}")
         arr = np.asarray(v, dtype=np.float64)
-        want = _param_shape(nm, T, B, n, N)
+        want = _param_shape(nm, T, B, n, N, tape.sim.model.obstacles.count)
         if arr.shape != want:
             raise GradientError(f"tangent of {nm!r} has shape {arr.shape}, expected {want}")
         if not np.all(np.isfinite(arr)):
@@ -594,6 +677,7 @@ def rollout(sim, state, controls) -> Tape:
         raise GradientError("rollout needs at least one control (one per step)")
     B = sim.envs
     contact = _contact_snapshot(sim, state) if int(prm["n_obstacles"]) > 0 else None
+    poses = {nm: np.array(getattr(state, nm), copy=True) for nm in ObstacleWorld._POSE} if contact else None
     snap = lambda: (state.dof.reshape(B, -1).copy(), state.dof_vel.reshape(B, -1).copy(),  # noqa: E731
                     state.edge_ref_d1.copy(), state.edge_tangent.copy(), state.node_ref_twist.copy())
     frames = [snap()]
@@ -627,7 +711,8 @@ def rollout(sim, state, controls) -> Tape:
     dof, vel, d1, t, beta = (np.stack(a) for a in zip(*frames))
     return Tape(sim=sim, dof=dof, vel=vel, ref_d1=d1, tangent=t, ref_twist=beta, kappa_bar=np.stack(kbs),
                 tau_bar=np.stack(tbs), grav=np.stack(gravs), unconverged=unconverged,
-                moved=np.stack(moved) if moved else None, fallback=np.stack(fallbacks), contact=contact)
+                moved=np.stack(moved) if moved else None, fallback=np.stack(fallbacks), poses=poses,
+                contact=contact)
 
 
 def _contact_snapshot(sim, state):

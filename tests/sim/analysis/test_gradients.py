@@ -156,6 +156,24 @@ def contact_simulator(mode: str, kind: str, mu: float = 0.0, nu: float = 1e-2, k
     return Simulator(build_model(spec), envs=B)
 
 
+def posed_dof(sim, kb, tb, moved=None, turned=None) -> np.ndarray:
+    """:func:`final_dof` with the obstacles moved by ``moved`` (B, M, 3) [m] or turned by the rotation vectors
+    ``turned`` (B, M, 3) (world axes, about each obstacle's origin) before the rollout."""
+    st = start(sim)
+    if moved is not None:
+        st.obstacle_position[:] += moved
+    if turned is not None:
+        for e in range(B):
+            for j in range(turned.shape[1]):
+                w = turned[e, j]
+                a = np.linalg.norm(w)
+                q = np.r_[math.cos(0.5 * a), math.sin(0.5 * a) * w / a] if a > 0 else np.r_[1.0, 0.0, 0.0, 0.0]
+                st.obstacle_orientation[e, j] = G._quat_mul(q, st.obstacle_orientation[e, j])
+    for c in controls(sim, kb, tb):
+        sim.step(st, c)
+    return st.dof.reshape(B, -1).copy()
+
+
 FRICTION = {"frictionless": (0.0, 1e-2), "sliding": (0.3, 1e-3), "sticking": (0.5, 1.0)}  # μ, ν [m/s]
 CONTACT_CASES = [(mode, kind, regime) for mode in ("2d", "3d")
                  for kind in ("plane", "sphere", "capsule", "cylinder", "box") for regime in FRICTION]
@@ -202,6 +220,11 @@ def test_tangents_through_obstacle_contact_match_central_differences(mode, kind,
             contact_simulator(mode, kind, mu + eps, nu), kb, tb))
     _check_tangents(tape, contact_params, steps=(1e-3, 1e-4, 1e-5), smallest=1e-6)
     checked.update(contact_params)
+    dp, dr = rng.normal(0.0, 1.0, (B, 1, 3)), rng.normal(0.0, 1.0, (B, 1, 3))  # the obstacle moved and turned
+    pose_params = {"obstacle_position": ({"obstacle_position": dp}, lambda eps: posed_dof(sim, kb, tb, eps * dp)),
+                   "obstacle_rotation": ({"obstacle_rotation": dr}, lambda eps: posed_dof(sim, kb, tb, None, eps * dr))}
+    _check_tangents(tape, pose_params)
+    checked.update(pose_params)
     n = tape.dof.shape[2]  # the adjoint through the contact is the tangent mode's transpose
     c_dof = rng.normal(0.0, 1.0, (T + 1, B, n))
     grads = tape.vjp({"dof": c_dof})
