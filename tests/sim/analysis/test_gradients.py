@@ -58,6 +58,31 @@ def start(sim, dof0=None, vel0=None):
     return st
 
 
+def random_controls(mode: str, N: int, rng):
+    """Natural curvature and twist for every step and env around the rest values (2-D: κ1 only)."""
+    kb = rng.normal(0.0, 0.05, (T, B, N, 2))
+    tb = rng.normal(0.0, 0.05, (T, B, N)) if mode == "3d" else np.zeros((T, B, N))
+    if mode == "2d":
+        kb[..., 1] = 0.0
+    return kb, tb
+
+
+def _check_adjoint(tape, checked, rng, *, velocities=False) -> dict:
+    """⟨vjp(c), t⟩ = ⟨c, jvp(t)⟩ for a random cotangent on every state (and on the final velocities) and each checked
+    tangent t; returns the gradients."""
+    n = tape.dof.shape[2]
+    cot = {"dof": rng.normal(0.0, 1.0, (T + 1, B, n))}
+    if velocities:
+        cot["vel"] = rng.normal(0.0, 1.0, (B, n))
+    grads = tape.vjp(cot)
+    for name, (tangent, _) in checked.items():
+        out = tape.jvp(tangent)
+        rhs = np.sum(cot["dof"] * out["dof"]) + (np.sum(cot["vel"] * out["vel"][-1]) if velocities else 0.0)
+        lhs = sum(np.sum(grads[k] * v) for k, v in tangent.items())
+        assert lhs == pytest.approx(rhs, rel=1e-10), name
+    return grads
+
+
 def final_dof(sim, kb, tb, **kw) -> np.ndarray:
     st = start(sim, **kw)
     for c in controls(sim, kb, tb):
@@ -188,10 +213,7 @@ def test_tangents_through_obstacle_contact_match_central_differences(mode, kind,
     rng = np.random.default_rng(1)
     sim = contact_simulator(mode, kind, mu, nu)
     N = sim.model.node_count
-    kb = rng.normal(0.0, 0.05, (T, B, N, 2))
-    tb = rng.normal(0.0, 0.05, (T, B, N)) if mode == "3d" else np.zeros((T, B, N))
-    if mode == "2d":
-        kb[..., 1] = 0.0
+    kb, tb = random_controls(mode, N, rng)
     st = start(sim)
     touched = []
     ctrls = controls(sim, kb, tb)
@@ -225,13 +247,7 @@ def test_tangents_through_obstacle_contact_match_central_differences(mode, kind,
                    "obstacle_rotation": ({"obstacle_rotation": dr}, lambda eps: posed_dof(sim, kb, tb, None, eps * dr))}
     _check_tangents(tape, pose_params)
     checked.update(pose_params)
-    n = tape.dof.shape[2]  # the adjoint through the contact is the tangent mode's transpose
-    c_dof = rng.normal(0.0, 1.0, (T + 1, B, n))
-    grads = tape.vjp({"dof": c_dof})
-    for name in checked:
-        tangent = checked[name][0]
-        lhs = sum(np.sum(grads[k] * v) for k, v in tangent.items())
-        assert lhs == pytest.approx(np.sum(c_dof * tape.jvp(tangent)["dof"]), rel=1e-10), name
+    _check_adjoint(tape, checked, rng)  # the adjoint through the contact is the tangent mode's transpose
     free = simulator(mode)  # the same rollout without the obstacle: different derivatives
     g = np.tile([0.3, 0.0, 0.5], (B, 1))
     jc = tape.jvp({"gravity": g})["dof"][-1]
@@ -255,21 +271,13 @@ def test_tangents_through_viscous_drag_match_central_differences(mode):
     rng = np.random.default_rng(2)
     sim = drag_simulator(mode)
     N = sim.model.node_count
-    kb = rng.normal(0.0, 0.05, (T, B, N, 2))
-    tb = rng.normal(0.0, 0.05, (T, B, N)) if mode == "3d" else np.zeros((T, B, N))
-    if mode == "2d":
-        kb[..., 1] = 0.0
+    kb, tb = random_controls(mode, N, rng)
     tape = G.rollout(sim, start(sim), controls(sim, kb, tb))
     assert tape.unconverged == 0
     perturbed = perturbations(mode, sim, kb, tb, tape, rng, make=drag_simulator)
     checked = {k: perturbed[k] for k in ("dof0", "vel0", "kappa_bar", "gravity", "damping")}
     _check_tangents(tape, checked)
-    n = tape.dof.shape[2]
-    c_dof = rng.normal(0.0, 1.0, (T + 1, B, n))
-    grads = tape.vjp({"dof": c_dof})
-    for name, (tangent, _) in checked.items():
-        lhs = sum(np.sum(grads[k] * v) for k, v in tangent.items())
-        assert lhs == pytest.approx(np.sum(c_dof * tape.jvp(tangent)["dof"]), rel=1e-10), name
+    _check_adjoint(tape, checked, rng)
     still = simulator(mode)
     v0 = checked["vel0"][0]
     jd = tape.jvp(v0)["dof"][-1]
@@ -299,22 +307,14 @@ def test_tangents_with_prescribed_motion_match_central_differences(mode, fluid):
     rng = np.random.default_rng(3)
     sim = moving_simulator(mode, fluid)
     N = sim.model.node_count
-    kb = rng.normal(0.0, 0.05, (T, B, N, 2))
-    tb = rng.normal(0.0, 0.05, (T, B, N)) if mode == "3d" else np.zeros((T, B, N))
-    if mode == "2d":
-        kb[..., 1] = 0.0
+    kb, tb = random_controls(mode, N, rng)
     tape = G.rollout(sim, start(sim), controls(sim, kb, tb))
     assert tape.unconverged == 0 and tape.moved is not None
     assert np.abs(tape.dof[-1, :, 2] - tape.dof[0, :, 2]).max() > 0.01  # the clamp moved
     perturbed = perturbations(mode, sim, kb, tb, tape, rng, make=lambda m, **kw: moving_simulator(m, fluid, **kw))
     checked = {k: perturbed[k] for k in ("dof0", "vel0", "kappa_bar", "gravity", "log_youngs_modulus")}
     _check_tangents(tape, checked)
-    n = tape.dof.shape[2]
-    c_dof = rng.normal(0.0, 1.0, (T + 1, B, n))
-    grads = tape.vjp({"dof": c_dof})
-    for name, (tangent, _) in checked.items():
-        lhs = sum(np.sum(grads[k] * v) for k, v in tangent.items())
-        assert lhs == pytest.approx(np.sum(c_dof * tape.jvp(tangent)["dof"]), rel=1e-10), name
+    _check_adjoint(tape, checked, rng)
     held = Simulator(build_model(dataclasses.replace(make_spec(**{**ROD, "mode": mode, "clamp": "none"}), fixes=(
         dataclasses.replace(MOVING[0], velocity=(0.0, 0.0, 0.0)),), **({"drag": DRAG} if fluid else {}))), envs=B)
     g = checked["gravity"][0]
@@ -325,16 +325,8 @@ def test_tangents_with_prescribed_motion_match_central_differences(mode, fluid):
 
 def test_adjoint_is_the_transpose_of_the_tangent_mode(case):
     mode, sim, kb, tb, tape, rng = case
-    n = tape.dof.shape[2]
-    c_dof = rng.normal(0.0, 1.0, (T + 1, B, n))  # a loss over the whole trajectory
-    c_vel = rng.normal(0.0, 1.0, (B, n))  # and the final velocities
-    grads = tape.vjp({"dof": c_dof, "vel": c_vel})
+    grads = _check_adjoint(tape, perturbations(*case), rng, velocities=True)  # a loss over the whole trajectory
     assert not grads["log_contact_stiffness"].any() and not grads["friction"].any()  # no contact here
-    for name, (tangent, _) in perturbations(*case).items():
-        out = tape.jvp(tangent)
-        rhs = np.sum(c_dof * out["dof"]) + np.sum(c_vel * out["vel"][-1])
-        lhs = sum(np.sum(grads[k] * v) for k, v in tangent.items())
-        assert lhs == pytest.approx(rhs, rel=1e-10), name
 
 
 def test_envs_of_a_batch_are_differentiated_alone(case):
@@ -357,10 +349,7 @@ def test_tangents_of_the_midpoint_rule_match_central_differences(mode):
     make = lambda m, **kw: simulator(m, integrator="midpoint", **kw)  # noqa: E731
     sim = make(mode)
     N = sim.model.node_count
-    kb = rng.normal(0.0, 0.05, (T, B, N, 2))
-    tb = rng.normal(0.0, 0.05, (T, B, N)) if mode == "3d" else np.zeros((T, B, N))
-    if mode == "2d":
-        kb[..., 1] = 0.0
+    kb, tb = random_controls(mode, N, rng)
     tape = G.rollout(sim, start(sim), controls(sim, kb, tb))
     assert tape.unconverged == 0 and np.all(tape.rule(0).beta == -1.0)
     fell = tape.fallback  # steps that gained energy, redone by backward Euler, among midpoint steps
@@ -369,15 +358,7 @@ def test_tangents_of_the_midpoint_rule_match_central_differences(mode):
         assert (fell[:, 0] != fell[:, 1]).any()  # on some step in one env alone
     perturbed = perturbations(mode, sim, kb, tb, tape, rng, make=make)
     _check_tangents(tape, perturbed)
-    n = tape.dof.shape[2]
-    c_dof = rng.normal(0.0, 1.0, (T + 1, B, n))
-    c_vel = rng.normal(0.0, 1.0, (B, n))
-    grads = tape.vjp({"dof": c_dof, "vel": c_vel})
-    for name, (tangent, _) in perturbed.items():
-        out = tape.jvp(tangent)
-        rhs = np.sum(c_dof * out["dof"]) + np.sum(c_vel * out["vel"][-1])
-        lhs = sum(np.sum(grads[k] * v) for k, v in tangent.items())
-        assert lhs == pytest.approx(rhs, rel=1e-10), name
+    _check_adjoint(tape, perturbed, rng, velocities=True)
 
 
 def test_what_is_not_covered_is_refused_by_name():
