@@ -1,6 +1,6 @@
 """What is computed from the simulator rather than by stepping it: static equilibrium and its Hessian, inverse
 statics (the natural curvature that reaches a target), derivatives of a rollout by the implicit function theorem,
-``rodlab fit`` (calibrating a scene to measured motion) and the internal loads of a rod (docs/physics.md §2.5, §3.8-3.10).
+``rodlab fit`` (calibrating a scene to measured motion), open-loop trajectory optimisation and the internal loads of a rod (docs/physics.md §2.5, §3.8-3.10).
 """
 from __future__ import annotations
 
@@ -30,6 +30,8 @@ _LAZY = {
     "solve_static": "sim.analysis.static",
     "static_hessian": "sim.analysis.static",
     "static_stability": "sim.analysis.static",
+    "TrajectoryResult": "sim.analysis.trajectory",
+    "optimise_controls": "sim.analysis.trajectory",
 }
 
 __all__ = sorted(_LAZY)
