@@ -15,7 +15,8 @@ until the node's next row; absent = the rest controls. In 2-D, kappa1 is the in-
 Parameters (``--params``, comma separated): ``youngs_modulus``, ``shear_modulus`` (moves ν), ``density`` (each a
 factor on every rod, fitted in log space), ``damping`` [1/s], ``gravity`` (the vector; its in-plane components in
 2-D), the obstacle contact's ``contact_stiffness`` (a factor, in log space) and ``friction`` (the [contact] μ:
-obstacles without a μ of their own), and the actuation map from commanded to actual natural curvature, actual = gain · followed + offset, per
+obstacles without a μ of their own), ``obstacle_position`` (every obstacle's placement, each axis; in the plane in
+2-D: the fitted scene moves its point, centre, ends or position), and the actuation map from commanded to actual natural curvature, actual = gain · followed + offset, per
 commanded node: ``actuation_gain`` (also on the twist), ``actuation_offset`` (κ1 and κ2), ``actuation_play`` (the
 half-width w of a backlash, in the commands' units: hysteresis) and ``actuation_lag`` [s] (a time constant τ), one
 play and one lag for every commanded node's actuator: followed = the lag of the play of the command
@@ -61,8 +62,7 @@ __all__ = ["FIT_PARAMETERS", "FIT_METHODS", "FitError", "Measurements", "Command
            "RESIDUAL_COLUMNS", "fit_command"]
 
 FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "damping", "gravity", "contact_stiffness", "friction",
-                  "actuation_gain",
-                  "actuation_offset", "actuation_play", "actuation_lag")
+                  "obstacle_position", "actuation_gain", "actuation_offset", "actuation_play", "actuation_lag")
 _LOG = ("youngs_modulus", "shear_modulus", "density", "contact_stiffness")  # fitted as ln of a factor on the scene's value
 MAX_TIME_S = 3600.0  # longest motion a fit simulates
 ACTUATION_LAG_MAX_S = 10.0  # longest actuator time constant a fit considers
@@ -397,6 +397,24 @@ def _unknown_bounds(spec, u: "Unknown", play_limit: float = np.inf) -> tuple[flo
     return -np.inf, np.inf
 
 
+_ANCHORS = ("point", "center", "start", "position")  # an obstacle spec's position fields; a capsule's end moves along
+
+
+def _anchor(o) -> tuple:
+    """The point an obstacle spec is placed by (a plane's point, a sphere's centre, a capsule's or cylinder's start,
+    a box's or mesh's position)."""
+    return next(getattr(o, f) for f in _ANCHORS if hasattr(o, f))
+
+
+def _moved_obstacle(o, d):
+    """The obstacle spec ``o`` translated by d (3,) [m]."""
+    if not any(d):
+        return o
+    shift = {f: tuple(float(v) + float(dv) for v, dv in zip(getattr(o, f), d))
+             for f in (*_ANCHORS, "end") if hasattr(o, f)}
+    return dataclasses.replace(o, **shift)
+
+
 def _bound_text(u: "Unknown") -> str:
     key = {"youngs_modulus": "rod.youngs_modulus", "density": "rod.density", "damping": "sim.damping",
            "gravity": "sim.gravity", "contact_stiffness": "contact.stiffness", "friction": "contact.friction"}.get(u.name)
@@ -432,7 +450,7 @@ class Problem:
                            "--controls: the commanded curvature it maps")
         if "shear_modulus" in params and self.planar:
             raise FitError("shear_modulus: a 2-D scene has no twist, so the data cannot tell the shear modulus")
-        touching = [p for p in params if p in ("contact_stiffness", "friction")]
+        touching = [p for p in params if p in ("contact_stiffness", "friction", "obstacle_position")]
         if touching and not (model.obstacles.count > 0 and spec.contact.enabled):
             raise FitError(f"{touching[0]}: the scene has no obstacle contact (no [[obstacle]], or [contact] "
                            "enabled = false)")
@@ -459,6 +477,10 @@ class Problem:
                         for n in self.cmds.nodes for c in comps]
             elif p in ("actuation_play", "actuation_lag"):
                 out.append(Unknown(p, 0, p))
+            elif p == "obstacle_position":  # every obstacle moved along each axis (2-D: in the plane)
+                for j, o in enumerate(self.spec.obstacles):
+                    for a in ((0, 2) if self.planar else (0, 1, 2)):
+                        out.append(Unknown(p, 3 * j + a, f"obstacle_position[{o.name or j}].{'xyz'[a]}"))
             else:
                 out.append(Unknown(p, 0, p))
         return out
@@ -539,7 +561,12 @@ class Problem:
             contact = dataclasses.replace(
                 contact, stiffness=_clip(contact.stiffness * math.exp(vals.get("contact_stiffness", 0.0)), k_lo, k_hi),
                 friction=_clip(float(vals.get("friction", contact.friction)), m_lo, m_hi))
-        return dataclasses.replace(spec, sim=sim, rods=tuple(rods), contact=contact)
+        obstacles = spec.obstacles
+        moved = {u.index: zi for u, zi in zip(self.unknowns, z) if u.name == "obstacle_position"}
+        if moved:
+            obstacles = tuple(_moved_obstacle(o, [moved.get(3 * j + a, 0.0) for a in range(3)])
+                              for j, o in enumerate(obstacles))
+        return dataclasses.replace(spec, sim=sim, rods=tuple(rods), contact=contact, obstacles=obstacles)
 
     def _value(self, z: np.ndarray, name: str) -> float:
         return next((max(float(zi), 0.0) for u, zi in zip(self.unknowns, z) if u.name == name), 0.0)
@@ -676,6 +703,10 @@ class Problem:
             g = np.zeros((1, 3))
             g[0, u.index] = 1.0
             return {"gravity": g}
+        if u.name == "obstacle_position":
+            d = np.zeros((1, len(self.spec.obstacles), 3))
+            d[0, u.index // 3, u.index % 3] = 1.0
+            return {"obstacle_position": d}
         kb = np.zeros((T, 1, N, 2))
         tb = np.zeros((T, 1, N))
         if u.name in ("actuation_gain", "actuation_play", "actuation_lag"):
@@ -713,6 +744,8 @@ class Problem:
                 out[u.label] = spec.contact.stiffness
             elif u.name == "friction":
                 out[u.label] = spec.contact.friction
+            elif u.name == "obstacle_position":  # where the fitted scene puts the obstacle's anchor point
+                out[u.label] = float(_anchor(spec.obstacles[u.index // 3])[u.index % 3])
             elif u.name in ("damping", "gravity", "actuation_lag", "actuation_play"):
                 out[u.label] = _clip(float(zi), *_unknown_bounds(self.spec, u, self.play_limit))
             else:
