@@ -6,6 +6,7 @@
   of synthetic marker data (5 markers at 30 Hz, 1 mm noise) with the exact Jacobian of the tangent mode, and the
   same fit with the Jacobian by finite-difference probing (one extra simulation per parameter: the real2sim
   approach), in the same run;
+* open-loop trajectory optimisation: the arm's tip made to follow a path from rest controls (L-BFGS-B, adjoint);
 * the inverse-statics baseline against the shipped SAC policy on Follow Target and 4D IK (same seeds).
 
 Writes ``gradients.json`` into ``--out`` and prints a table.
@@ -164,6 +165,27 @@ def bench_fit(seconds: float, repeats: int) -> dict:
     return out
 
 
+def bench_trajectory(steps: int) -> dict:
+    """Open-loop trajectory optimisation: the paper's arm's tip made to follow a path its controls can follow (made by
+    random bounded deltas of every interior node's curvature), from rest controls."""
+    from sim import Simulator, build_model
+    from sim.analysis import optimise_controls
+
+    sim = Simulator(build_model(_arm_spec()), envs=1)
+    rng = np.random.default_rng(0)
+    st, c = sim.reset(), sim.make_control()
+    path = []
+    for _ in range(steps):
+        c.kappa_bar[:, 1:-1] += rng.uniform(-0.02, 0.02, c.kappa_bar[:, 1:-1].shape)
+        sim.step(st, c)
+        path.append(st.dof.reshape(1, -1, 4)[0, -1, :3].copy())
+    res = optimise_controls(sim, sim.reset(), np.array(path), max_delta=0.02, max_iterations=300)
+    err = np.linalg.norm(res.positions[:, 0] - np.array(path), axis=1)
+    return {"steps": steps, "unknowns": int(steps * (sim.model.node_count - 2) * 2), "evaluations": res.evaluations,
+            "seconds": res.seconds, "cost0": float(res.cost0[0]), "cost": float(res.cost[0]),
+            "tip_error_max_m": float(err.max()), "tip_error_final_m": float(err[-1])}
+
+
 def bench_baseline(episodes: int) -> dict:
     from pathlib import Path
 
@@ -188,7 +210,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--envs", type=int, default=50, help="envs of the step-derivative timing (default 50)")
     p.add_argument("--fit-seconds", type=float, default=10.0, help="seconds of motion to fit (default 10)")
     p.add_argument("--episodes", type=int, default=10, help="episodes per task of the baseline comparison")
-    p.add_argument("--parts", default="step,gap,fit,baseline")
+    p.add_argument("--parts", default="step,gap,fit,trajectory,baseline")
     args = p.parse_args(argv)
     parts = set(args.parts.split(","))
     reps = args.repeats or (1 if args.quick else 3)
@@ -212,6 +234,11 @@ def main(argv: list[str] | None = None) -> int:
               f"({ft['exact']['evaluations']} evaluations), probing {ft['probing']['seconds_median']:.1f} s "
               f"({ft['probing']['evaluations']}); ratio {ft['probing_over_exact']:.2f}; errors "
               f"{ {k: round(v, 4) for k, v in ft['exact']['relative_error'].items()} }")
+    if "trajectory" in parts:
+        out["trajectory"] = tr = bench_trajectory(10 if args.quick else 50)
+        print(f"trajectory ({tr['steps']} steps, {tr['unknowns']} unknowns): cost {tr['cost0']:.3g} -> {tr['cost']:.3g} "
+              f"in {tr['evaluations']} evaluations, {tr['seconds']:.1f} s; tip error max {tr['tip_error_max_m'] * 1e3:.2f} "
+              f"mm, final {tr['tip_error_final_m'] * 1e3:.2f} mm")
     if "baseline" in parts:
         out["baseline"] = bench_baseline(2 if args.quick else args.episodes)
         for task, row in out["baseline"].items():
