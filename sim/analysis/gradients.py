@@ -25,13 +25,14 @@ transposed, the adjoint (reverse) mode :meth:`Tape.vjp`.
 
 The derivatives are of the backward-Euler map the Newton iterate satisfies; a step that ended unconverged
 (``accept_unconverged``) is differentiated as if it had converged (:attr:`Tape.unconverged` counts them). Not
-covered yet (a clear :class:`GradientError`): contact between edges (self- and rod–rod), turning clamps, steps
-that took the retry ladder (sub-steps). The implicit midpoint rule is covered: its step solves a backward-Euler
+covered yet (a clear :class:`GradientError`): contact between edges (self- and rod–rod), steps that took the retry
+ladder (sub-steps). The implicit midpoint rule is covered: its step solves a backward-Euler
 residual over h/2 for the half-step point y = x½ and the end follows linearly, x' = 2 y − x, u' = 2 (y − x)/(h/2) − u
 (the end frames transported from the start to x'); a midpoint step that gained energy and was redone by backward
-Euler is differentiated as such, in its env alone. Prescribed motion at a velocity or twist rate is covered:
-the moved DOFs are constants of each step (held, their tangent 0), and each step is linearised from the DOFs it
-started from, the moved ones already at their step-end values. Viscous drag is covered: it depends on the step's
+Euler is differentiated as such, in its env alone. Prescribed motion (fixes moved at a velocity or twist rate, or
+turned) is covered: the moved DOFs are constants of each step (held, their tangent 0), and each step is linearised
+from the state its kernel started from, the motion already applied (the rollout applies the step's motion stage to
+a copy to record it). Viscous drag is covered: it depends on the step's
 start through the velocity and the tangent it lags, so with drag ∂f/∂x is a band, by differences as with friction.
 
 Parameters (keys of the tangent / gradient dicts):
@@ -201,7 +202,8 @@ class Tape:
     tau_bar: np.ndarray  # (T, B, N)
     grav: np.ndarray  # (T, B, n) the external forces (gravity and loads) of each step
     unconverged: int = 0
-    moved: np.ndarray | None = None  # (T, B, n) the DOFs each step started from, prescribed motion applied; None: dof
+    moved: dict | None = None  # with prescribed motion: each step's start (dof, ref_d1, tangent, ref_twist (T, B, …)),
+    # the motion applied (moved DOFs, turned clamp frames); None: the states before the steps
     fallback: np.ndarray | None = None  # (T, B) the midpoint steps redone by backward Euler
     poses: dict | None = None  # the obstacles' pose arrays through the rollout (ObstacleWorld._POSE), with contact
     contact: object = None  # the obstacles' contact data of the rollout (its own work space), None without contact
@@ -214,7 +216,13 @@ class Tape:
     def _start(self, k: int) -> np.ndarray:
         """(B, n) the DOFs step k started from: the state before it, with the prescribed DOFs already moved to their
         values at the step's end (the step moves them first and holds them there)."""
-        return self.dof[k] if self.moved is None else self.moved[k]
+        return self.dof[k] if self.moved is None else self.moved["dof"][k]
+
+    def _frames(self, k: int):
+        """(ref_d1, tangent, ref_twist) step k started from (a turning clamp's frames turned first)."""
+        if self.moved is None:
+            return self.ref_d1[k], self.tangent[k], self.ref_twist[k]
+        return self.moved["ref_d1"][k], self.moved["tangent"][k], self.moved["ref_twist"][k]
 
     # ------------------------------------------------------------------ linearisation of one step (all envs)
     def _rods(self, k: int):
@@ -281,8 +289,9 @@ class Tape:
         st_band = np.zeros((B, n + kl, 2 * kl + 1) if want_start else (1, 1, 1))
         rod, rod_e, rod_g, rod_m = self._rods(k)
         c = np.ascontiguousarray
-        start = StateArrays(dof=c(self._start(k)), vel=c(self.vel[k]), ref_d1=c(self.ref_d1[k]),
-                            tangent=c(self.tangent[k]), ref_twist=c(self.ref_twist[k]), time=np.zeros(B),
+        d10, t00, b0 = self._frames(k)
+        start = StateArrays(dof=c(self._start(k)), vel=c(self.vel[k]), ref_d1=c(d10), tangent=c(t00), ref_twist=c(b0),
+                            time=np.zeros(B),
                             failed=np.zeros(B, np.bool_))
         y = self._solved(k)
         linearise_step(start, c(y), ControlArrays(c(self.kappa_bar[k]), c(self.tau_bar[k])), h,
@@ -332,7 +341,10 @@ class Tape:
         if planar:
             return _Lin(k, ab, kl, Fx, Fu, None, None, None, P, rule)
         link = sim.kernel_rod.link.astype(bool)
-        t0, t1 = self.tangent[k], self.tangent[k + 1]
+        # the transport runs from the step's start tangents (a turning clamp's turned first); a change of the state
+        # before the step moves them as the positions before the motion (the motion is held: it moves no frame of a
+        # free DOF)
+        t0, t1 = self._frames(k)[1], self.tangent[k + 1]
         kvec = np.cross(t1, t0) / (1.0 + np.einsum("bij,bij->bi", t0, t1))[..., None]
         a = _turn_map(kvec, self.dof[k], t0, link)
         b = _turn_map(kvec, self.dof[k + 1], t1, link)
@@ -366,8 +378,9 @@ class Tape:
         y = self._solved(k)
         h = self.rule(k).h_solve
         for e in range(B):
-            args = (c(y[e]), c(self._start(k)[e]), c(self.vel[k, e]), c(self.ref_d1[k, e]),
-                    c(self.tangent[k, e]), c(self.ref_twist[k, e]), float(h[e]), c(self.kappa_bar[k, e]),
+            d1s, ts, bs = (v[e] for v in self._frames(k))
+            args = (c(y[e]), c(self._start(k)[e]), c(self.vel[k, e]), c(d1s), c(ts), c(bs), float(h[e]),
+                    c(self.kappa_bar[k, e]),
                     c(self.tau_bar[k, e]), rod)
             assemble_at(e, *args, prm0, self.contact, f0, ab)
             assemble_at(e, *args, prm1, self.contact, f1, ab)
@@ -391,6 +404,7 @@ class Tape:
             step *= max(1.0, float(np.abs(self.poses["obstacle_position"]).max()))
         kl = KL_2D if sim.model.mode == "2d" else KL_3D
         y, x0, h = self._solved(k), self._start(k), self.rule(k).h_solve
+        d1s, ts, bs = self._frames(k)
         f = np.zeros(n)
         ab = np.zeros((n + kl, 2 * kl + 1))
         c = np.ascontiguousarray
@@ -398,9 +412,8 @@ class Tape:
         def residuals(cd) -> np.ndarray:
             res = np.zeros((B, n))
             for e in range(B):
-                assemble_at(e, c(y[e]), c(x0[e]), c(self.vel[k, e]), c(self.ref_d1[k, e]), c(self.tangent[k, e]),
-                            c(self.ref_twist[k, e]), float(h[e]), c(self.kappa_bar[k, e]), c(self.tau_bar[k, e]), rod,
-                            prm, cd, f, ab)
+                assemble_at(e, c(y[e]), c(x0[e]), c(self.vel[k, e]), c(d1s[e]), c(ts[e]), c(bs[e]), float(h[e]),
+                            c(self.kappa_bar[k, e]), c(self.tau_bar[k, e]), rod, prm, cd, f, ab)
                 res[e] = f
             return res
 
@@ -660,15 +673,12 @@ def _cotangent(v, T, B, n) -> np.ndarray:
 def rollout(sim, state, controls) -> Tape:
     """Run ``sim`` from ``state`` (advanced in place) for T steps under ``controls`` (a sequence of T
     :class:`sim.Control`, one per step) and record what :class:`Tape` needs to differentiate it. Raises
-    :class:`GradientError` for what the derivatives do not cover (contact between edges, turning clamps, a step
-    that failed or took the retry ladder)."""
+    :class:`GradientError` for what the derivatives do not cover (contact between edges, a step that failed or took
+    the retry ladder)."""
     prm = sim.kernel_params[0]
     if bool(prm["rod_pairs"]):
         raise GradientError("derivatives through contact between edges (self_contact, rod_contact) are not "
                             "available yet: turn them off in [contact] (obstacle contact, with friction, is)")
-    if sim.model.rotating_fixes:
-        raise GradientError("derivatives with prescribed motion that turns a clamp ([[fix]] with an "
-                            "angular_velocity) are not available yet (fixes moved at a velocity or twist rate are)")
     if sim._frame_loads is not None:
         raise GradientError("derivatives with moments or material-frame loads ([[load]] moment / frame = "
                             "\"material\", which depend on the configuration) are not available yet")
@@ -683,8 +693,7 @@ def rollout(sim, state, controls) -> Tape:
     frames = [snap()]
     kbs, tbs, gravs = [], [], []
     unconverged = 0
-    moving = sim._moving_dofs if sim._motion else None  # prescribed: moved before the step, held through it
-    moved = []
+    moved = []  # with prescribed motion, the state each step's kernel starts from (the motion applied first)
     fallbacks = []
     for k, ctrl in enumerate(controls):
         force = getattr(ctrl, "force", None)  # node forces: held over the step, known inputs like gravity
@@ -692,6 +701,11 @@ def rollout(sim, state, controls) -> Tape:
                      np.broadcast_to(sim.kernel_rod.grav, (B, sim.kernel_rod.grav.shape[1])).copy())
         kbs.append(np.array(ctrl.kappa_bar, dtype=np.float64))
         tbs.append(np.array(ctrl.tau_bar, dtype=np.float64))
+        if sim._motion:  # what the step's own motion stage will do, on a copy: moved DOFs, turned clamp frames
+            pre = state.copy()
+            sim._prescribe(pre)
+            moved.append((pre.dof.reshape(B, -1).copy(), pre.edge_ref_d1.copy(), pre.edge_tangent.copy(),
+                          pre.node_ref_twist.copy()))
         st = sim.step(state, ctrl)
         bad = np.flatnonzero(st.failed)
         if bad.size:
@@ -703,15 +717,12 @@ def rollout(sim, state, controls) -> Tape:
             raise GradientError(f"step {k}: env {e} took the retry ladder ({int(st.substeps[e])} sub-steps); "
                                 "derivatives through sub-steps are not available yet (a smaller dt avoids them)")
         unconverged += int(np.count_nonzero(~st.converged))
-        if moving is not None:
-            start = frames[-1][0].copy()
-            start[:, moving] = state.dof.reshape(B, -1)[:, moving]
-            moved.append(start)
         frames.append(snap())
     dof, vel, d1, t, beta = (np.stack(a) for a in zip(*frames))
     return Tape(sim=sim, dof=dof, vel=vel, ref_d1=d1, tangent=t, ref_twist=beta, kappa_bar=np.stack(kbs),
                 tau_bar=np.stack(tbs), grav=np.stack(gravs), unconverged=unconverged,
-                moved=np.stack(moved) if moved else None, fallback=np.stack(fallbacks), poses=poses,
+                moved=dict(zip(("dof", "ref_d1", "tangent", "ref_twist"), (np.stack(a) for a in zip(*moved))))
+                if moved else None, fallback=np.stack(fallbacks), poses=poses,
                 contact=contact)
 
 

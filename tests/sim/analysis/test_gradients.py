@@ -323,6 +323,33 @@ def test_tangents_with_prescribed_motion_match_central_differences(mode, fluid):
     assert np.linalg.norm(jm - jh) > 1e-3 * np.linalg.norm(jh)
 
 
+TURNING = FixSpec(nodes=(0, 1), twist_edges=(0,), angular_velocity=(0.5, 2.0, 1.0), center=(0.0, 0.0, 0.0),
+                  start=0.02, stop=0.08)
+
+
+def turning_simulator(mode: str, fluid: bool = False, **kw) -> Simulator:
+    """:func:`simulator` with its clamp turned about the base for part of the rollout (3-D)."""
+    spec = make_spec(**{**ROD, "mode": mode, "clamp": "none", **kw})
+    spec = dataclasses.replace(spec, fixes=(TURNING,), **({"drag": DRAG} if fluid else {}))
+    return Simulator(build_model(spec), envs=B)
+
+
+@pytest.mark.parametrize("fluid", [False, True])
+def test_tangents_with_a_turning_clamp_match_central_differences(fluid):
+    """A clamp turned rigidly (its nodes, and its edge's angle so that its material frame turns with it) before each
+    step of a window: each step is linearised from the state its kernel started from, the turn applied."""
+    rng = np.random.default_rng(5)
+    sim = turning_simulator("3d", fluid)
+    kb, tb = random_controls("3d", sim.model.node_count, rng)
+    tape = G.rollout(sim, start(sim), controls(sim, kb, tb))
+    assert tape.unconverged == 0 and tape.moved is not None
+    assert np.abs(tape.moved["dof"][2] - tape.dof[2]).max() > 1e-2  # the clamp turned (its nodes and edge angle)
+    perturbed = perturbations("3d", sim, kb, tb, tape, rng, make=lambda m, **kw: turning_simulator(m, fluid, **kw))
+    checked = {k: perturbed[k] for k in ("dof0", "vel0", "kappa_bar", "tau_bar", "gravity")}
+    _check_tangents(tape, checked)
+    _check_adjoint(tape, checked, rng)
+
+
 def test_adjoint_is_the_transpose_of_the_tangent_mode(case):
     mode, sim, kb, tb, tape, rng = case
     grads = _check_adjoint(tape, perturbations(*case), rng, velocities=True)  # a loss over the whole trajectory
