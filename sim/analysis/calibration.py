@@ -14,7 +14,7 @@ until the node's next row; absent = the rest controls. In 2-D, kappa1 is the in-
 
 Parameters (``--params``, comma separated): ``youngs_modulus``, ``shear_modulus`` (moves ν), ``density`` (each a
 factor on every rod, fitted in log space), ``damping`` [1/s], ``gravity`` (the vector; its in-plane components in
-2-D), the obstacle contact's ``contact_stiffness`` (a factor, in log space) and ``friction`` (the [contact] μ:
+2-D), the obstacle contact's ``contact_stiffness`` and ``contact_delta`` (factors, in log space) and ``friction`` (the [contact] μ:
 obstacles without a μ of their own), ``obstacle_position`` (every obstacle's placement, each axis; in the plane in
 2-D: the fitted scene moves its point, centre, ends or position), and the actuation map from commanded to actual natural curvature, actual = gain · followed + offset, per
 commanded node: ``actuation_gain`` (also on the twist), ``actuation_offset`` (κ1 and κ2), ``actuation_play`` (the
@@ -61,9 +61,9 @@ __all__ = ["FIT_PARAMETERS", "FIT_METHODS", "FitError", "Measurements", "Command
            "measurements_from_arrays", "node_arclength", "load_controls", "fit", "write_report", "PLOTS",
            "RESIDUAL_COLUMNS", "fit_command"]
 
-FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "damping", "gravity", "contact_stiffness", "friction",
-                  "obstacle_position", "actuation_gain", "actuation_offset", "actuation_play", "actuation_lag")
-_LOG = ("youngs_modulus", "shear_modulus", "density", "contact_stiffness")  # fitted as ln of a factor on the scene's value
+FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "damping", "gravity", "contact_stiffness",
+                  "contact_delta", "friction", "obstacle_position", "actuation_gain", "actuation_offset", "actuation_play", "actuation_lag")
+_LOG = ("youngs_modulus", "shear_modulus", "density", "contact_stiffness", "contact_delta")  # fitted as ln of a factor on the scene's value
 MAX_TIME_S = 3600.0  # longest motion a fit simulates
 ACTUATION_LAG_MAX_S = 10.0  # longest actuator time constant a fit considers
 UNIT_FACTOR = 100.0  # a measured point farther than this many rod lengths from the rod's start is in wrong units
@@ -387,6 +387,9 @@ def _unknown_bounds(spec, u: "Unknown", play_limit: float = np.inf) -> tuple[flo
     if u.name == "contact_stiffness":
         lo_v, hi_v, _ = BOUNDS["contact.stiffness"]
         return math.log(lo_v / spec.contact.stiffness), math.log(hi_v / spec.contact.stiffness)
+    if u.name == "contact_delta":
+        lo_v, hi_v, _ = BOUNDS["contact.delta"]
+        return math.log(lo_v / spec.contact.delta), math.log(hi_v / spec.contact.delta)
     if u.name == "friction":
         lo_v, hi_v, _ = BOUNDS["contact.friction"]
         return lo_v, hi_v
@@ -417,7 +420,8 @@ def _moved_obstacle(o, d):
 
 def _bound_text(u: "Unknown") -> str:
     key = {"youngs_modulus": "rod.youngs_modulus", "density": "rod.density", "damping": "sim.damping",
-           "gravity": "sim.gravity", "contact_stiffness": "contact.stiffness", "friction": "contact.friction"}.get(u.name)
+           "gravity": "sim.gravity", "contact_stiffness": "contact.stiffness", "contact_delta": "contact.delta",
+           "friction": "contact.friction"}.get(u.name)
     if u.name == "actuation_lag":
         return f"actuation_lag in [0, {ACTUATION_LAG_MAX_S:g}] s"
     if u.name == "actuation_play":
@@ -450,7 +454,7 @@ class Problem:
                            "--controls: the commanded curvature it maps")
         if "shear_modulus" in params and self.planar:
             raise FitError("shear_modulus: a 2-D scene has no twist, so the data cannot tell the shear modulus")
-        touching = [p for p in params if p in ("contact_stiffness", "friction", "obstacle_position")]
+        touching = [p for p in params if p in ("contact_stiffness", "contact_delta", "friction", "obstacle_position")]
         if touching and not (model.obstacles.count > 0 and spec.contact.enabled):
             raise FitError(f"{touching[0]}: the scene has no obstacle contact (no [[obstacle]], or [contact] "
                            "enabled = false)")
@@ -555,11 +559,13 @@ class Problem:
         sim = dataclasses.replace(spec.sim, gravity=tuple(g),
                                   damping=_clip(float(vals.get("damping", spec.sim.damping)), c_lo, c_hi))
         contact = spec.contact
-        if "contact_stiffness" in vals or "friction" in vals:
+        if "contact_stiffness" in vals or "friction" in vals or "contact_delta" in vals:
             k_lo, k_hi, _ = BOUNDS["contact.stiffness"]
             m_lo, m_hi, _ = BOUNDS["contact.friction"]
+            d_lo, d_hi, _ = BOUNDS["contact.delta"]
             contact = dataclasses.replace(
                 contact, stiffness=_clip(contact.stiffness * math.exp(vals.get("contact_stiffness", 0.0)), k_lo, k_hi),
+                delta=_clip(contact.delta * math.exp(vals.get("contact_delta", 0.0)), d_lo, d_hi),
                 friction=_clip(float(vals.get("friction", contact.friction)), m_lo, m_hi))
         obstacles = spec.obstacles
         moved = {u.index: zi for u, zi in zip(self.unknowns, z) if u.name == "obstacle_position"}
@@ -697,6 +703,8 @@ class Problem:
             return {"damping": np.ones(1)}
         if u.name == "contact_stiffness":
             return {"log_contact_stiffness": np.ones(1)}
+        if u.name == "contact_delta":
+            return {"log_contact_delta": np.ones(1)}
         if u.name == "friction":
             return {"friction": np.ones(1)}
         if u.name == "gravity":
@@ -742,6 +750,8 @@ class Problem:
                 out[u.label] = rod.density
             elif u.name == "contact_stiffness":
                 out[u.label] = spec.contact.stiffness
+            elif u.name == "contact_delta":
+                out[u.label] = spec.contact.delta
             elif u.name == "friction":
                 out[u.label] = spec.contact.friction
             elif u.name == "obstacle_position":  # where the fitted scene puts the obstacle's anchor point

@@ -47,6 +47,7 @@ Parameters (keys of the tangent / gradient dicts):
     damping             (B,)          the viscous damping rate [1/s]
     gravity             (B, 3)        the gravity vector [m/s²]
     log_contact_stiffness (B,)        ln of a factor on the [contact] stiffness (obstacle contact)
+    log_contact_delta   (B,)          ln of a factor on the [contact] distance δ over which the energy acts
     friction            (B,)          the [contact] friction μ (of the obstacles without a μ of their own)
     obstacle_position   (B, M, 3)     each obstacle's position [m] (its local origin in the world)
     obstacle_rotation   (B, M, 3)     a small turn of each obstacle about its local origin, as a rotation vector in
@@ -73,9 +74,10 @@ from sim.kernels.probe import assemble_at
 __all__ = ["GradientError", "Tape", "rollout", "PARAMETERS"]
 
 PARAMETERS = ("dof0", "vel0", "kappa_bar", "tau_bar", "log_youngs_modulus", "log_shear_modulus", "log_density",
-              "damping", "gravity", "log_contact_stiffness", "friction", "obstacle_position", "obstacle_rotation")
+              "damping", "gravity", "log_contact_stiffness", "friction", "log_contact_delta", "obstacle_position",
+              "obstacle_rotation")
 _POSE_FIELDS = ("obstacle_position", "obstacle_rotation")
-_CONTACT_FIELDS = ("log_contact_stiffness", "friction")
+_CONTACT_FIELDS = ("log_contact_stiffness", "friction", "log_contact_delta")
 
 
 class GradientError(ValueError):
@@ -356,35 +358,53 @@ class Tape:
                     a_end=a, b_end=b)
 
     def _contact_column(self, k: int, name: str, rod) -> np.ndarray:
-        """(B, n, 1) ∂f/∂p of step k for the contact stiffness's log factor or the [contact] μ: the residual is
-        linear in either, so the column is f(2k) − f(k), or f(μ + 1) − f(μ) (friction acting, also from μ = 0), at
-        the solution, evaluated with the candidates the step's linearisation listed in the contact data."""
+        """(B, n, 1) ∂f/∂p of step k for the contact stiffness's log factor, the [contact] μ or the contact distance's
+        log factor, at the solution, evaluated with the candidates the step's linearisation listed in the contact
+        data. The residual is linear in the stiffness and in μ, so their columns are f(2k) − f(k) and f(μ + 1) − f(μ)
+        (friction acting, also from μ = 0); δ enters the energy's shape: central differences in ln δ (with friction
+        extrapolated from ε and ε/2, as the start band)."""
         sim = self.sim
         B, n = self.dof.shape[1], self.dof.shape[2]
         out = np.zeros((B, n, 1))
         if self.contact is None:
             return out
         prm0 = sim.kernel_params
-        prm1 = prm0.copy()
-        if name == "log_contact_stiffness":
-            prm1[0]["contact_k"] = 2.0 * float(prm0[0]["contact_k"])
-        else:
-            prm1[0]["friction"] = float(prm0[0]["friction"]) + 1.0
-            prm1[0]["friction_on"] = True
         kl = KL_2D if sim.model.mode == "2d" else KL_3D
-        f0, f1 = np.zeros(n), np.zeros(n)
+        f = np.zeros(n)
         ab = np.zeros((n + kl, 2 * kl + 1))
         c = np.ascontiguousarray
         y = self._solved(k)
         h = self.rule(k).h_solve
+        args = []
         for e in range(B):
             d1s, ts, bs = (v[e] for v in self._frames(k))
-            args = (c(y[e]), c(self._start(k)[e]), c(self.vel[k, e]), c(d1s), c(ts), c(bs), float(h[e]),
-                    c(self.kappa_bar[k, e]),
-                    c(self.tau_bar[k, e]), rod)
-            assemble_at(e, *args, prm0, self.contact, f0, ab)
-            assemble_at(e, *args, prm1, self.contact, f1, ab)
-            out[e, :, 0] = f1 - f0
+            args.append((c(y[e]), c(self._start(k)[e]), c(self.vel[k, e]), c(d1s), c(ts), c(bs), float(h[e]),
+                         c(self.kappa_bar[k, e]), c(self.tau_bar[k, e]), rod))
+
+        def residuals(**changed) -> np.ndarray:
+            prm = prm0.copy()
+            for key, v in changed.items():
+                prm[0][key] = v
+            res = np.zeros((B, n))
+            for e in range(B):
+                assemble_at(e, *args[e], prm, self.contact, f, ab)
+                res[e] = f
+            return res
+
+        if name == "log_contact_stiffness":
+            out[:, :, 0] = residuals(contact_k=2.0 * float(prm0[0]["contact_k"])) - residuals()
+        elif name == "friction":
+            out[:, :, 0] = residuals(friction=float(prm0[0]["friction"]) + 1.0, friction_on=True) - residuals()
+        else:
+            delta = float(prm0[0]["contact_delta"])
+            friction = bool(prm0[0]["friction_on"])
+            step = FRICTION_FD_STEP if friction else 1e-6
+            diffs = []
+            for eps in ((step, 0.5 * step) if friction else (step,)):
+                plus = residuals(contact_delta=delta * np.exp(eps))
+                minus = residuals(contact_delta=delta * np.exp(-eps))
+                diffs.append((plus - minus) / (2.0 * eps))
+            out[:, :, 0] = diffs[0] if len(diffs) == 1 else (4.0 * diffs[1] - diffs[0]) / 3.0
         return out
 
     def _pose_columns(self, k: int, name: str, rod) -> np.ndarray:
@@ -634,7 +654,7 @@ def _param_shape(name, T, B, n, N, M=0):
         return (B, M, 3)
     return {"dof0": (B, n), "vel0": (B, n), "kappa_bar": (T, B, N, 2), "tau_bar": (T, B, N),
             "log_youngs_modulus": (B,), "log_shear_modulus": (B,), "log_density": (B,), "damping": (B,),
-            "gravity": (B, 3), "log_contact_stiffness": (B,), "friction": (B,)}[name]
+            "gravity": (B, 3), "log_contact_stiffness": (B,), "friction": (B,), "log_contact_delta": (B,)}[name]
 
 
 def _checked(tangents: dict, tape: Tape) -> dict:

@@ -241,13 +241,23 @@ def test_the_friction_coefficient_is_recovered_from_a_rod_sliding_down_an_inclin
     assert res.spec.contact.friction == res.params["friction"]
 
 
-def _rod_on_a_sphere(center, mode):
+def _rod_on_a_sphere(center, mode, delta=1e-3):
     """A cantilever sagging onto a sphere under its free end."""
     from sim.scene.obstacles import ContactSpec, SphereSpec
     spec = make_spec(nodes=9, length=0.5, radius=0.01, E=1e8, dt=0.01, gravity=(0.0, 0.0, -9.8), damping=2.0,
                      max_iter=60, tol=1e-10, dtol=1e-10, mode=mode)
     return dataclasses.replace(spec, obstacles=(SphereSpec(center=center, radius=0.1, name="ball"),),
-                               contact=ContactSpec(stiffness=1e4, delta=1e-3))
+                               contact=ContactSpec(stiffness=1e4, delta=delta))
+
+
+def test_the_contact_distance_is_recovered_from_the_rod_resting_on_a_sphere():
+    """The contact's δ sets how far above the sphere the rod comes to rest: fitted from half the true value."""
+    center = (0.45, 0.0, -0.12)
+    meas, _ = synthetic(_rod_on_a_sphere(center, "2d", delta=2e-2), ["damping"], [2.0], seconds=0.8)
+    res = F.fit(_rod_on_a_sphere(center, "2d", delta=1e-2), meas, ["contact_delta"])
+    assert res.params["contact_delta"] == pytest.approx(2e-2, rel=0.05), res.params
+    assert abs(res.params["contact_delta"] - 2e-2) < 4.0 * res.stderr["contact_delta"]
+    assert res.spec.contact.delta == res.params["contact_delta"] and res.unconverged_steps == 0
 
 
 @pytest.mark.parametrize("mode", ["2d", "3d"])
@@ -273,7 +283,7 @@ def test_an_obstacle_position_is_recovered_from_the_rod_resting_on_it(mode):
 def test_contact_parameters_need_contact(tmp_path):
     spec = load_scene(scene(tmp_path))
     meas, _ = synthetic(spec, ["damping"], [0.5], seconds=0.2)
-    for name in ("friction", "contact_stiffness", "obstacle_position"):
+    for name in ("friction", "contact_stiffness", "contact_delta", "obstacle_position"):
         with pytest.raises(F.FitError, match=f"{name}: the scene has no obstacle contact"):
             F.fit(spec, meas, [name])
 

@@ -171,12 +171,13 @@ def _obstacle(kind: str):
     return BoxSpec(position=tuple(tip + [0.1 + 0.05 + GAP, 0.0, 0.0]), half_extents=(0.1, 0.3, 0.3))  # a face
 
 
-def contact_simulator(mode: str, kind: str, mu: float = 0.0, nu: float = 1e-2, k: float = 1e4, **kw) -> Simulator:
+def contact_simulator(mode: str, kind: str, mu: float = 0.0, nu: float = 1e-2, k: float = 1e4, delta: float = 5e-3,
+                      **kw) -> Simulator:
     """:func:`simulator` with an obstacle of ``kind`` it presses against (contact stiffness ``k``), friction ``mu``
     with velocity tolerance ``nu``, and the default line search (friction's Newton needs it: docs/physics.md §4.6)."""
     spec = make_spec(**{**ROD, "mode": mode, "line_search": "auto", **kw})
     spec = dataclasses.replace(spec, obstacles=(_obstacle(kind),),
-                               contact=ContactSpec(stiffness=k, delta=5e-3, friction=mu,
+                               contact=ContactSpec(stiffness=k, delta=delta, friction=mu,
                                                    friction_velocity_tol=nu))
     return Simulator(build_model(spec), envs=B)
 
@@ -236,7 +237,9 @@ def test_tangents_through_obstacle_contact_match_central_differences(mode, kind,
     _check_tangents(tape, checked)
     # the contact's own parameters move the rod less (1e-5 to 1e-3 of these): larger steps in the study
     contact_params = {"log_contact_stiffness": ({"log_contact_stiffness": np.ones(B)}, lambda eps: final_dof(
-        contact_simulator(mode, kind, mu, nu, k=1e4 * math.exp(eps)), kb, tb))}
+        contact_simulator(mode, kind, mu, nu, k=1e4 * math.exp(eps)), kb, tb)),
+        "log_contact_delta": ({"log_contact_delta": np.ones(B)}, lambda eps: final_dof(
+            contact_simulator(mode, kind, mu, nu, delta=5e-3 * math.exp(eps)), kb, tb))}
     if mu > 0.0:
         contact_params["friction"] = ({"friction": np.ones(B)}, lambda eps: final_dof(
             contact_simulator(mode, kind, mu + eps, nu), kb, tb))
