@@ -357,94 +357,82 @@ class Tape:
         return _Lin(k, ab, kl, Fx, Fu, G, _turn_map(ky, self.dof[k], t0, link), _turn_map(ky, y, ty, link), P, rule,
                     a_end=a, b_end=b)
 
+    def _residuals(self, k: int, rod):
+        """A function (prm, cd) -> (B, n): step k's residual of every env at its solution with the parameters record
+        ``prm`` and the contact data ``cd`` (the candidates the step's linearisation listed)."""
+        B, n = self.dof.shape[1], self.dof.shape[2]
+        kl = KL_2D if self.sim.model.mode == "2d" else KL_3D
+        f = np.zeros(n)
+        ab = np.zeros((n + kl, 2 * kl + 1))
+        c = np.ascontiguousarray
+        y, x0, h = self._solved(k), self._start(k), self.rule(k).h_solve
+        d1s, ts, bs = self._frames(k)
+        args = [(c(y[e]), c(x0[e]), c(self.vel[k, e]), c(d1s[e]), c(ts[e]), c(bs[e]), float(h[e]),
+                 c(self.kappa_bar[k, e]), c(self.tau_bar[k, e]), rod) for e in range(B)]
+
+        def residuals(prm, cd) -> np.ndarray:
+            res = np.zeros((B, n))
+            for e in range(B):
+                assemble_at(e, *args[e], prm, cd, f, ab)
+                res[e] = f
+            return res
+
+        return residuals
+
+    def _difference(self, moved, step: float) -> np.ndarray:
+        """Central difference (moved(ε) − moved(−ε))/(2ε) of a residual function ``moved``; with friction step 1e-7
+        (``step`` scaled by FRICTION_FD_STEP/1e-6) extrapolated from ε and ε/2, as the start band."""
+        if not bool(self.sim.kernel_params[0]["friction_on"]):
+            return (moved(step) - moved(-step)) / (2.0 * step)
+        step *= FRICTION_FD_STEP / 1e-6
+        d1, d2 = ((moved(eps) - moved(-eps)) / (2.0 * eps) for eps in (step, 0.5 * step))
+        return (4.0 * d2 - d1) / 3.0
+
     def _contact_column(self, k: int, name: str, rod) -> np.ndarray:
         """(B, n, 1) ∂f/∂p of step k for the contact stiffness's log factor, the [contact] μ or the contact distance's
         log factor, at the solution, evaluated with the candidates the step's linearisation listed in the contact
         data. The residual is linear in the stiffness and in μ, so their columns are f(2k) − f(k) and f(μ + 1) − f(μ)
-        (friction acting, also from μ = 0); δ enters the energy's shape: central differences in ln δ (with friction
-        extrapolated from ε and ε/2, as the start band)."""
-        sim = self.sim
+        (friction acting, also from μ = 0); δ enters the energy's shape: central differences in ln δ."""
         B, n = self.dof.shape[1], self.dof.shape[2]
         out = np.zeros((B, n, 1))
         if self.contact is None:
             return out
-        prm0 = sim.kernel_params
-        kl = KL_2D if sim.model.mode == "2d" else KL_3D
-        f = np.zeros(n)
-        ab = np.zeros((n + kl, 2 * kl + 1))
-        c = np.ascontiguousarray
-        y = self._solved(k)
-        h = self.rule(k).h_solve
-        args = []
-        for e in range(B):
-            d1s, ts, bs = (v[e] for v in self._frames(k))
-            args.append((c(y[e]), c(self._start(k)[e]), c(self.vel[k, e]), c(d1s), c(ts), c(bs), float(h[e]),
-                         c(self.kappa_bar[k, e]), c(self.tau_bar[k, e]), rod))
+        prm0 = self.sim.kernel_params
+        residuals = self._residuals(k, rod)
 
-        def residuals(**changed) -> np.ndarray:
+        def at(**changed) -> np.ndarray:
             prm = prm0.copy()
             for key, v in changed.items():
                 prm[0][key] = v
-            res = np.zeros((B, n))
-            for e in range(B):
-                assemble_at(e, *args[e], prm, self.contact, f, ab)
-                res[e] = f
-            return res
+            return residuals(prm, self.contact)
 
         if name == "log_contact_stiffness":
-            out[:, :, 0] = residuals(contact_k=2.0 * float(prm0[0]["contact_k"])) - residuals()
+            out[:, :, 0] = at(contact_k=2.0 * float(prm0[0]["contact_k"])) - at()
         elif name == "friction":
-            out[:, :, 0] = residuals(friction=float(prm0[0]["friction"]) + 1.0, friction_on=True) - residuals()
+            out[:, :, 0] = at(friction=float(prm0[0]["friction"]) + 1.0, friction_on=True) - at()
         else:
             delta = float(prm0[0]["contact_delta"])
-            friction = bool(prm0[0]["friction_on"])
-            step = FRICTION_FD_STEP if friction else 1e-6
-            diffs = []
-            for eps in ((step, 0.5 * step) if friction else (step,)):
-                plus = residuals(contact_delta=delta * np.exp(eps))
-                minus = residuals(contact_delta=delta * np.exp(-eps))
-                diffs.append((plus - minus) / (2.0 * eps))
-            out[:, :, 0] = diffs[0] if len(diffs) == 1 else (4.0 * diffs[1] - diffs[0]) / 3.0
+            out[:, :, 0] = self._difference(lambda eps: at(contact_delta=delta * np.exp(eps)), 1e-6)
         return out
 
     def _pose_columns(self, k: int, name: str, rod) -> np.ndarray:
         """(B, n, 3 M) ∂f/∂p of step k for every obstacle's position or turn (column 3 j + axis): central differences
         of the residual at the solution with the pose moved and its world arrays derived anew, with the candidates
-        the step's linearisation listed (with friction: step 1e-7, extrapolated from ε and ε/2)."""
-        sim = self.sim
+        the step's linearisation listed."""
         B, n = self.dof.shape[1], self.dof.shape[2]
-        M = sim.model.obstacles.count
+        M = self.sim.model.obstacles.count
         out = np.zeros((B, n, 3 * M))
         if self.contact is None or M == 0:
             return out
-        prm = sim.kernel_params
-        friction = bool(prm[0]["friction_on"])
-        step = FRICTION_FD_STEP if friction else 1e-6
+        step = 1e-6
         if name == "obstacle_position":
             step *= max(1.0, float(np.abs(self.poses["obstacle_position"]).max()))
-        kl = KL_2D if sim.model.mode == "2d" else KL_3D
-        y, x0, h = self._solved(k), self._start(k), self.rule(k).h_solve
-        d1s, ts, bs = self._frames(k)
-        f = np.zeros(n)
-        ab = np.zeros((n + kl, 2 * kl + 1))
-        c = np.ascontiguousarray
-
-        def residuals(cd) -> np.ndarray:
-            res = np.zeros((B, n))
-            for e in range(B):
-                assemble_at(e, c(y[e]), c(x0[e]), c(self.vel[k, e]), c(d1s[e]), c(ts[e]), c(bs[e]), float(h[e]),
-                            c(self.kappa_bar[k, e]), c(self.tau_bar[k, e]), rod, prm, cd, f, ab)
-                res[e] = f
-            return res
-
+        residuals = self._residuals(k, rod)
+        prm = self.sim.kernel_params
         for j in range(M):
             for axis in range(3):
-                diffs = []
-                for eps in ((step, 0.5 * step) if friction else (step,)):
-                    plus = residuals(self._moved_contact(name, j, axis, eps))
-                    minus = residuals(self._moved_contact(name, j, axis, -eps))
-                    diffs.append((plus - minus) / (2.0 * eps))
-                out[:, :, 3 * j + axis] = diffs[0] if len(diffs) == 1 else (4.0 * diffs[1] - diffs[0]) / 3.0
+                out[:, :, 3 * j + axis] = self._difference(
+                    lambda eps, j=j, axis=axis: residuals(prm, self._moved_contact(name, j, axis, eps)), step)
         return out
 
     def _moved_contact(self, name: str, j: int, axis: int, d: float):
