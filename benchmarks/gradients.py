@@ -1,7 +1,8 @@
 """Derivatives, fitting and inverse statics (``rodlab bench gradients``): what they cost and what they give.
 
 * step derivative: one backward (adjoint) step against one forward step of the paper's arm, per env, and the memory a
-  rollout keeps per step (the recorded states, and the linearisation cached for repeated passes);
+  rollout keeps per step (the recorded states, and the linearisation cached for repeated passes), recorded whole and
+  checkpointed (``rollout(checkpoint=K)``: memory and the time of an adjoint pass over the rollout);
 * fit: 3 parameters (Young's modulus, damping, the actuation gain of one commanded node) of the paper's arm from 10 s
   of synthetic marker data (5 markers at 30 Hz, 1 mm noise) with the exact Jacobian of the tangent mode, and the
   same fit with the Jacobian by finite-difference probing (one extra simulation per parameter: the real2sim
@@ -69,6 +70,37 @@ def bench_step(envs: int, repeats: int) -> dict:
             "backward_ms_per_env": 1e3 * (b + li) / envs, "linearise_ms_per_env": 1e3 * li / envs,
             "backward_cached_ms_per_env": 1e3 * b / envs, "backward_over_forward": (b + li) / f, "record_bytes_per_env_step": rec,
             "linearisation_bytes_per_env_step": lin_bytes}
+
+
+def bench_checkpoint(envs: int, steps: int, every: int, repeats: int) -> dict:
+    """A rollout of ``steps`` steps of the paper arm (a drifting command) recorded whole and checkpointed every
+    ``every`` steps: the bytes each keeps per env and step (:attr:`Tape.nbytes`, controls included) and the time of
+    one adjoint pass over the whole rollout (the checkpointed one steps each segment again)."""
+    from sim import Simulator, build_model
+    from sim.analysis import rollout
+
+    sim = Simulator(build_model(_arm_spec()), envs=envs)
+    rng = np.random.default_rng(0)
+    N = sim.model.node_count
+    kb = rng.normal(0.0, 0.01, (steps, envs, N, 2)).cumsum(axis=0)
+    ctrls = []
+    for k in range(steps):
+        c = sim.make_control()
+        c.kappa_bar[:] = kb[k]
+        ctrls.append(c)
+    out: dict = {"envs": envs, "steps": steps, "every": every}
+    for name, kw in (("whole", {}), ("checkpointed", {"checkpoint": every})):
+        times = []
+        for _ in range(repeats):
+            tape = rollout(sim, sim.reset(), ctrls, **kw)
+            n = tape.dof.shape[2]
+            t0 = time.perf_counter()
+            tape.vjp({"dof": np.ones((envs, n))}, params=("kappa_bar", "dof0"))
+            times.append(time.perf_counter() - t0)
+        out[name] = {"bytes_per_env_step": tape.nbytes / (envs * steps), "adjoint_s_median": float(np.median(times))}
+    out["memory_ratio"] = out["checkpointed"]["bytes_per_env_step"] / out["whole"]["bytes_per_env_step"]
+    out["time_ratio"] = out["checkpointed"]["adjoint_s_median"] / out["whole"]["adjoint_s_median"]
+    return out
 
 
 def bench_unconverged_gap(steps: int, iterations=(2, 3, 5, 30)) -> dict:
@@ -222,6 +254,12 @@ def main(argv: list[str] | None = None) -> int:
               f"{st['backward_ms_per_env']:.3f} ms/env ({st['backward_over_forward']:.0f}x; linearisation "
               f"{st['linearise_ms_per_env']:.3f}); memory {st['record_bytes_per_env_step']} B recorded + "
               f"{st['linearisation_bytes_per_env_step']} B linearisation per env-step")
+        out["checkpoint"] = ck = bench_checkpoint(4 if args.quick else min(args.envs, 100), 10 if args.quick else 100,
+                                                  5 if args.quick else 10, reps)
+        print(f"rollout of {ck['steps']} steps ({ck['envs']} envs): kept {ck['whole']['bytes_per_env_step']:.0f} B per "
+              f"env-step whole, {ck['checkpointed']['bytes_per_env_step']:.0f} B checkpointed every {ck['every']} "
+              f"({ck['memory_ratio']:.2f}x); adjoint pass {ck['whole']['adjoint_s_median']:.2f} s vs "
+              f"{ck['checkpointed']['adjoint_s_median']:.2f} s ({ck['time_ratio']:.2f}x)")
     if "gap" in parts:
         out["unconverged_gap"] = g = bench_unconverged_gap(10 if args.quick else 40)
         for row in g["rows"]:

@@ -9,6 +9,8 @@
 The natural curvature ``kappa_bar`` (T, B, N, 2) and optionally the natural twist ``tau_bar`` (T, B, N) are the
 inputs (the absolute values each step reads); the outputs are the final DOFs and velocities. Gradients come from one
 backward pass of transposed solves (``Tape.vjp``), so any number of per-step controls costs the same. float64 only.
+``DifferentiableRollout(sim, state, checkpoint=K)`` keeps the state every K steps instead of every state and steps
+the segments again in the backward pass (``rollout(checkpoint=K)``: the same gradients, less memory).
 """
 from __future__ import annotations
 
@@ -45,9 +47,10 @@ class DifferentiableRollout:
     """Rollouts of ``sim`` from a copy of ``state`` as a torch function of the per-step natural curvature and twist.
     :attr:`last_tape` is the :class:`sim.analysis.gradients.Tape` of the last call (its states, ``unconverged``)."""
 
-    def __init__(self, sim, state):
+    def __init__(self, sim, state, *, checkpoint: int | None = None):
         self.sim = sim
         self.state = state.copy()
+        self.checkpoint = checkpoint
         self.last_tape: Tape | None = None
 
     def run(self, kappa_bar: np.ndarray, tau_bar: np.ndarray) -> Tape:
@@ -64,7 +67,7 @@ class DifferentiableRollout:
             c.kappa_bar[...] = kappa_bar[k]
             c.tau_bar[...] = tau_bar[k]
             ctrls.append(c)
-        return rollout(self.sim, self.state.copy(), ctrls)
+        return rollout(self.sim, self.state.copy(), ctrls, checkpoint=self.checkpoint)
 
     def __call__(self, kappa_bar: torch.Tensor, tau_bar: torch.Tensor | None = None):
         if kappa_bar.dtype != torch.float64:

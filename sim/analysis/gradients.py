@@ -70,6 +70,7 @@ from sim.contact.world import ObstacleWorld, contact_data, contact_scratch, spec
 from sim.kernels.data import KL_2D, KL_3D, ControlArrays, StateArrays
 from sim.kernels.linearise import Linearisation, RodFactors, Wanted, factor_bands, linearise_step, solve_bands
 from sim.kernels.probe import assemble_at
+from sim.state import STATE_ARRAYS, Control
 
 __all__ = ["GradientError", "Tape", "rollout", "PARAMETERS"]
 
@@ -210,6 +211,18 @@ class Tape:
     poses: dict | None = None  # the obstacles' pose arrays through the rollout (ObstacleWorld._POSE), with contact
     contact: object = None  # the obstacles' contact data of the rollout (its own work space), None without contact
     _lin: dict = dataclasses.field(default_factory=dict, repr=False)
+    _replay: object = dataclasses.field(default=None, repr=False)  # a checkpointed rollout's records (rollout(checkpoint=))
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes the tape keeps of the rollout (records, checkpoints and controls; not the linearisations a pass
+        keeps for the next one, at most 256 MiB)."""
+        inputs = self.kappa_bar.nbytes + self.tau_bar.nbytes
+        if self._replay is not None:
+            return inputs + self._replay.nbytes
+        arrays = [self.dof, self.vel, self.ref_d1, self.tangent, self.ref_twist, self.grav, self.fallback,
+                  *(self.moved or {}).values()]
+        return inputs + sum(a.nbytes for a in arrays if a is not None)
 
     @property
     def steps(self) -> int:
@@ -253,7 +266,7 @@ class Tape:
         if lin is None or any(nm not in lin.P for nm in names if nm != "gravity"):
             lin = self._linearise(k, names)
             kept = sum(v.nbytes for key, v in self._lin.items() if isinstance(key, int))
-            if kept + 3 * lin.nbytes < _CACHE_BYTES:  # room for it and its two factors
+            if self._replay is None and kept + 3 * lin.nbytes < _CACHE_BYTES:  # room for it and its two factors
                 self._lin[k] = lin
         return lin
 
@@ -678,11 +691,17 @@ def _cotangent(v, T, B, n) -> np.ndarray:
     return out
 
 
-def rollout(sim, state, controls) -> Tape:
+def rollout(sim, state, controls, *, checkpoint: int | None = None) -> Tape:
     """Run ``sim`` from ``state`` (advanced in place) for T steps under ``controls`` (a sequence of T
     :class:`sim.Control`, one per step) and record what :class:`Tape` needs to differentiate it. Raises
     :class:`GradientError` for what the derivatives do not cover (contact between edges, a step that failed or took
-    the retry ladder)."""
+    the retry ladder).
+
+    ``checkpoint=K``: keep the whole state only every K steps (and the controls) instead of every state; a pass that
+    needs the states between two checkpoints steps ``sim`` again from the earlier one (each segment once per pass:
+    the forward steps once more, for memory ∝ T/K + K states instead of T). The steps are deterministic, so the
+    derivatives are those of the full tape to the last bit. A checkpointed tape keeps no linearisation between
+    passes (:attr:`Tape.nbytes` is what it keeps)."""
     prm = sim.kernel_params[0]
     if bool(prm["rod_pairs"]):
         raise GradientError("derivatives through contact between edges (self_contact, rod_contact) are not "
@@ -693,45 +712,159 @@ def rollout(sim, state, controls) -> Tape:
     controls = list(controls)
     if not controls:
         raise GradientError("rollout needs at least one control (one per step)")
+    if checkpoint is not None and not (isinstance(checkpoint, (int, np.integer)) and checkpoint >= 1):
+        raise GradientError(f"checkpoint must be a whole number of steps ≥ 1, got {checkpoint!r}")
     B = sim.envs
     contact = _contact_snapshot(sim, state) if int(prm["n_obstacles"]) > 0 else None
     poses = {nm: np.array(getattr(state, nm), copy=True) for nm in ObstacleWorld._POSE} if contact else None
-    snap = lambda: (state.dof.reshape(B, -1).copy(), state.dof_vel.reshape(B, -1).copy(),  # noqa: E731
-                    state.edge_ref_d1.copy(), state.edge_tangent.copy(), state.node_ref_twist.copy())
-    frames = [snap()]
-    kbs, tbs, gravs = [], [], []
-    unconverged = 0
-    moved = []  # with prescribed motion, the state each step's kernel starts from (the motion applied first)
-    fallbacks = []
+    kbs = np.stack([np.array(c.kappa_bar, dtype=np.float64) for c in controls])
+    tbs = np.stack([np.array(c.tau_bar, dtype=np.float64) for c in controls])
+    common = dict(sim=sim, kappa_bar=kbs, tau_bar=tbs, poses=poses, contact=contact)
+    if checkpoint is not None:
+        forces = [None if getattr(c, "force", None) is None else np.array(c.force, dtype=np.float64)
+                  for c in controls]
+        kept, unconverged = [], 0
+        for k in range(len(controls)):
+            if k % checkpoint == 0:
+                kept.append(state.copy())
+            unconverged += _advance(sim, state, _control(kbs, tbs, forces, k), k)[3]
+        replay = _Replay(sim, int(checkpoint), kept, kbs, tbs, forces)
+        return replay.tape(common, unconverged)
+    frames = [_snap(state, B)]
+    steps = []
     for k, ctrl in enumerate(controls):
-        force = getattr(ctrl, "force", None)  # node forces: held over the step, known inputs like gravity
-        gravs.append(sim._external_forces(state.time, force) if sim._loads or force is not None else
-                     np.broadcast_to(sim.kernel_rod.grav, (B, sim.kernel_rod.grav.shape[1])).copy())
-        kbs.append(np.array(ctrl.kappa_bar, dtype=np.float64))
-        tbs.append(np.array(ctrl.tau_bar, dtype=np.float64))
-        if sim._motion:  # what the step's own motion stage will do, on a copy: moved DOFs, turned clamp frames
-            pre = state.copy()
-            sim._prescribe(pre)
-            moved.append((pre.dof.reshape(B, -1).copy(), pre.edge_ref_d1.copy(), pre.edge_tangent.copy(),
-                          pre.node_ref_twist.copy()))
-        st = sim.step(state, ctrl)
-        bad = np.flatnonzero(st.failed)
-        if bad.size:
-            raise GradientError(f"step {k}: env {int(bad[0])} failed; a failed step has no derivative")
-        fallbacks.append(st.midpoint_fallbacks > 0)  # redone by backward Euler (a midpoint step that gained energy)
-        sub = np.flatnonzero(st.substeps > 1)
-        if sub.size:
-            e = int(sub[0])
-            raise GradientError(f"step {k}: env {e} took the retry ladder ({int(st.substeps[e])} sub-steps); "
-                                "derivatives through sub-steps are not available yet (a smaller dt avoids them)")
-        unconverged += int(np.count_nonzero(~st.converged))
-        frames.append(snap())
+        steps.append(_advance(sim, state, ctrl, k))
+        frames.append(_snap(state, B))
     dof, vel, d1, t, beta = (np.stack(a) for a in zip(*frames))
-    return Tape(sim=sim, dof=dof, vel=vel, ref_d1=d1, tangent=t, ref_twist=beta, kappa_bar=np.stack(kbs),
-                tau_bar=np.stack(tbs), grav=np.stack(gravs), unconverged=unconverged,
-                moved=dict(zip(("dof", "ref_d1", "tangent", "ref_twist"), (np.stack(a) for a in zip(*moved))))
-                if moved else None, fallback=np.stack(fallbacks), poses=poses,
-                contact=contact)
+    gravs, moved, fallbacks, unconverged = zip(*steps)
+    return Tape(dof=dof, vel=vel, ref_d1=d1, tangent=t, ref_twist=beta, grav=np.stack(gravs),
+                unconverged=int(sum(unconverged)),
+                moved=dict(zip(_MOVED, (np.stack(a) for a in zip(*moved)))) if sim._motion else None,
+                fallback=np.stack(fallbacks), **common)
+
+
+_STATE_FIELDS = ("dof", "vel", "ref_d1", "tangent", "ref_twist")  # a tape's records of every state (T + 1, …)
+_MOVED = ("dof", "ref_d1", "tangent", "ref_twist")  # the start of each step with its prescribed motion applied
+
+
+def _snap(state, B: int) -> tuple:
+    """The state's records (:data:`_STATE_FIELDS`), copied."""
+    return (state.dof.reshape(B, -1).copy(), state.dof_vel.reshape(B, -1).copy(), state.edge_ref_d1.copy(),
+            state.edge_tangent.copy(), state.node_ref_twist.copy())
+
+
+def _control(kbs, tbs, forces, k: int) -> Control:
+    return Control(kbs[k], tbs[k], forces[k])
+
+
+def _advance(sim, state, ctrl, k: int) -> tuple:
+    """Take step ``k`` of a rollout (``state`` in place) and return what a tape records of it: its external forces
+    (B, n) (gravity, loads and the control's node forces: known inputs held over the step), the state its kernel
+    started from with the step's prescribed motion applied (a tuple of :data:`_MOVED`; None without motion), which
+    envs' midpoint steps were redone by backward Euler (B,), and how many envs ended unconverged."""
+    B = sim.envs
+    force = getattr(ctrl, "force", None)
+    grav = (sim._external_forces(state.time, force) if sim._loads or force is not None else
+            np.broadcast_to(sim.kernel_rod.grav, (B, sim.kernel_rod.grav.shape[1])).copy())
+    moved = None
+    if sim._motion:  # what the step's own motion stage will do, on a copy: moved DOFs, turned clamp frames
+        pre = state.copy()
+        sim._prescribe(pre)
+        moved = (pre.dof.reshape(B, -1).copy(), pre.edge_ref_d1.copy(), pre.edge_tangent.copy(),
+                 pre.node_ref_twist.copy())
+    st = sim.step(state, ctrl)
+    bad = np.flatnonzero(st.failed)
+    if bad.size:
+        raise GradientError(f"step {k}: env {int(bad[0])} failed; a failed step has no derivative")
+    sub = np.flatnonzero(st.substeps > 1)
+    if sub.size:
+        e = int(sub[0])
+        raise GradientError(f"step {k}: env {e} took the retry ladder ({int(st.substeps[e])} sub-steps); "
+                            "derivatives through sub-steps are not available yet (a smaller dt avoids them)")
+    return grav, moved, st.midpoint_fallbacks > 0, int(np.count_nonzero(~st.converged))
+
+
+class _Replay:
+    """The records of a checkpointed rollout: the whole state every ``every`` steps and the controls; the records
+    between two checkpoints are made again by stepping the simulator from the earlier one, one segment (``every``
+    steps and the ``every`` + 1 states around them) at a time, the last one kept."""
+
+    def __init__(self, sim, every: int, kept: list, kbs, tbs, forces):
+        self.sim, self.every, self.kept = sim, every, kept
+        self.kbs, self.tbs, self.forces = kbs, tbs, forces
+        self.T = kbs.shape[0]
+        self._segment: tuple = (-1, None, None)
+        self.replays = 0  # segments stepped again (each pass over the steps: ⌈T / every⌉)
+
+    def _records(self, c: int) -> tuple:
+        if self._segment[0] != c:
+            self._segment = (-1, None, None)  # drop the old segment first: at most one is held
+            B = self.sim.envs
+            state = self.kept[c // self.every].copy()
+            states, steps = [_snap(state, B)], []
+            for k in range(c, min(c + self.every, self.T)):
+                steps.append(_advance(self.sim, state, _control(self.kbs, self.tbs, self.forces, k), k))
+                states.append(_snap(state, B))
+            self._segment = (c, states, steps)
+            self.replays += 1
+        return self._segment[1], self._segment[2]
+
+    def state(self, field: int, k: int) -> np.ndarray:
+        c = self._segment[0]
+        if not (c >= 0 and c <= k <= c + len(self._segment[2])):
+            c = min(k, self.T - 1) // self.every * self.every
+        return self._records(c)[0][k - c][field]
+
+    def step(self, field: int, k: int, part: int | None = None) -> np.ndarray:
+        c = k // self.every * self.every
+        rec = self._records(c)[1][k - c][field]
+        return rec if part is None else rec[part]
+
+    def tape(self, common: dict, unconverged: int) -> "Tape":
+        T, (B, n) = self.T, self.kept[0].dof.reshape(self.sim.envs, -1).shape
+        snap = _snap(self.kept[0], B)
+        lazy = {nm: _Lazy(lambda k, i=i: self.state(i, k), (T + 1,) + snap[i].shape)
+                for i, nm in enumerate(_STATE_FIELDS)}
+        moved = None
+        if self.sim._motion:
+            moved = {nm: _Lazy(lambda k, i=i: self.step(1, k, i), (T,) + snap[j].shape)
+                     for i, (nm, j) in enumerate(zip(_MOVED, (0, 2, 3, 4)))}
+        return Tape(**lazy, grav=_Lazy(lambda k: self.step(0, k), (T, B, n)), unconverged=unconverged, moved=moved,
+                    fallback=_Lazy(lambda k: self.step(2, k), (T, B)), _replay=self, **common)
+
+    @property
+    def nbytes(self) -> int:
+        held = sum(getattr(s, nm).nbytes for s in self.kept for nm in STATE_ARRAYS)
+        return held + sum(f.nbytes for f in self.forces if f is not None)
+
+
+class _Lazy:
+    """A tape's per-step records read like a (T [+ 1], …) array: ``a[k]``, ``a[k, e]``, ``a.shape``; any other
+    index (a slice: ``tape.dof[:, 0]``) makes every record once, in order, and indexes their stack."""
+
+    def __init__(self, get, shape: tuple):
+        self._get, self.shape = get, shape
+
+    @property
+    def ndim(self) -> int:
+        return len(self.shape)
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, idx):
+        k, rest = (idx[0], idx[1:]) if isinstance(idx, tuple) else (idx, ())
+        if isinstance(k, (int, np.integer)):
+            k = int(k) + (self.shape[0] if k < 0 else 0)
+            if not 0 <= k < self.shape[0]:
+                raise IndexError(f"record {k} of {self.shape[0]}")
+            a = self._get(k)
+            return a[rest] if rest else a
+        return np.asarray(self)[idx]
+
+    def __array__(self, dtype=None, copy=None):
+        a = np.stack([self._get(k) for k in range(self.shape[0])])
+        return a if dtype is None else a.astype(dtype)
 
 
 def _contact_snapshot(sim, state):

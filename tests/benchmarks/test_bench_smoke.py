@@ -103,6 +103,8 @@ def test_gradients_bench_tiny_measures_a_step_and_both_fits():
     st = gb.bench_step(2, 1)
     assert st["forward_ms_per_env"] > 0 and st["backward_ms_per_env"] > st["backward_cached_ms_per_env"] > 0
     assert st["record_bytes_per_env_step"] > 0 and st["linearisation_bytes_per_env_step"] > 0
+    ck = gb.bench_checkpoint(2, 12, 4, 1)  # 3 of 12 states kept: a fraction of the whole tape's bytes
+    assert 0 < ck["checkpointed"]["bytes_per_env_step"] < 0.6 * ck["whole"]["bytes_per_env_step"]
     ft = gb.bench_fit(0.5, 1)
     for how in ("exact", "probing"):  # both methods fit the synthetic data to its noise
         assert ft[how]["rms_m"] < 2e-3 and ft[how]["seconds_median"] > 0

@@ -405,3 +405,57 @@ def test_what_is_not_covered_is_refused_by_name():
         tape.jvp({"damping": np.ones(3)})
     with pytest.raises(G.GradientError, match="non-finite"):
         tape.vjp({"dof": np.full(tape.dof.shape[1:], np.nan)})
+
+
+CHECKPOINTED = {  # scenes whose records take every path of a step: contact with friction, turned frames, drag, rules
+    "sliding on a sphere": lambda: contact_simulator("3d", "sphere", *FRICTION["sliding"]),
+    "a clamp turned in a fluid": lambda: turning_simulator("3d", True),
+    "a clamp carried, 2-D": lambda: moving_simulator("2d"),
+    "midpoint, 2-D": lambda: simulator("2d", integrator="midpoint"),
+}
+
+
+@pytest.mark.parametrize("name", CHECKPOINTED)
+def test_a_checkpointed_rollout_gives_the_full_tapes_derivatives(name):
+    """``rollout(checkpoint=K)`` keeps the state every K steps and steps again from it when a pass needs the states
+    between (each segment once per pass): its records, tangents and gradients are the full tape's to the bit, for
+    K = 1, a K that does not divide T, and K = T."""
+    rng = np.random.default_rng(6)
+    sim = CHECKPOINTED[name]()
+    mode, N = sim.model.mode, sim.model.node_count
+    kb, tb = random_controls(mode, N, rng)
+    full = G.rollout(sim, start(sim), controls(sim, kb, tb))
+    n = full.dof.shape[2]
+    free = ~sim.kernel_rod.fixed.astype(bool)
+    tangents = [{"dof0": rng.normal(0.0, 0.01, (B, n)) * free}, {"kappa_bar": random_controls(mode, N, rng)[0]},
+                {"gravity": rng.normal(0.0, 1.0, (B, 3)), "damping": np.ones(B)}]
+    cot = {"dof": rng.normal(0.0, 1.0, (T + 1, B, n)), "vel": rng.normal(0.0, 1.0, (B, n))}
+    want_t, want_g = full.jvp(tangents), full.vjp(cot)
+    for every in (1, 2, T):
+        tape = G.rollout(sim, start(sim), controls(sim, kb, tb), checkpoint=every)
+        assert tape.unconverged == full.unconverged
+        assert np.array_equal(tape.dof[:, 1], full.dof[:, 1]) and np.array_equal(tape.vel[-1], full.vel[-1])
+        segments = -(-T // every)
+        before = tape._replay.replays
+        got_g = tape.vjp(cot)
+        # each segment stepped again once per pass (the last one may still be held from reading the records)
+        assert segments - 1 <= tape._replay.replays - before <= segments
+        got_t = tape.jvp(tangents)
+        for key in want_t:
+            assert np.array_equal(got_t[key], want_t[key]), (every, key)
+        for key in want_g:
+            assert np.array_equal(got_g[key], want_g[key]), (every, key)
+        assert not any(isinstance(k, int) for k in tape._lin)  # no linearisation kept between passes
+
+
+def test_a_checkpointed_rollout_keeps_a_fraction_of_the_states():
+    """A 40-step rollout checkpointed every 8 steps keeps 5 states (and the controls) instead of 41 records."""
+    sim = simulator("3d")
+    steps = 40
+    ctrls = [sim.make_control() for _ in range(steps)]
+    full = G.rollout(sim, start(sim), ctrls)
+    kept = G.rollout(sim, start(sim), ctrls, checkpoint=8)
+    controls_bytes = full.kappa_bar.nbytes + full.tau_bar.nbytes
+    assert kept.nbytes - controls_bytes < 0.25 * (full.nbytes - controls_bytes)
+    with pytest.raises(G.GradientError, match="checkpoint must be"):
+        G.rollout(sim, start(sim), ctrls, checkpoint=0)
