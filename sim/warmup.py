@@ -11,6 +11,7 @@ import numpy as np
 
 from sim.analysis.gradients import rollout
 from sim.analysis.static import solve_static
+from sim.kernels.probe import pair_linearisation, pair_residual
 from sim.scene.model import build_model
 from sim.scene.spec import RodSpec, SceneSpec, SimSpec
 from sim.step import Simulator
@@ -57,6 +58,11 @@ def compile_kernels(*, verbose: bool = False, on_stage: Callable[[str], None] | 
         solve_static(spec, state, sim.make_control(), max_steps=2)   # the stability check's Hessian
         tape = rollout(sim, sim.reset(), [sim.make_control()])          # the step's linearisation
         tape.jvp({"kappa_bar": np.zeros_like(tape.kappa_bar)})
+        x, x0 = (np.ascontiguousarray(tape.dof[i, 0]) for i in (1, 0))  # the edge pairs' part, without pairs
+        n = x.size
+        pair_residual(sim.kernel_params, sim.kernel_rod, x, x0, spec.sim.dt, np.empty(n))
+        pair_linearisation(sim.kernel_params, sim.kernel_rod, x, x0, spec.sim.dt, 1e-7, True, True, np.empty(n),
+                           np.empty(n, np.int64), np.empty((n, n)), np.empty((n, n)))
     return time.perf_counter() - t0
 
 

@@ -22,11 +22,16 @@ transposed, the adjoint (reverse) mode :meth:`Tape.vjp`.
   the start positions) and J's position columns come from differences too (the Newton Jacobian leaves out how the
   lagged normal and closest point turn). The ownership rule and the candidate list are piecewise constant, so the
   derivative is that of the contact set the solution has.
+* Contact between edges (self- and rod–rod): a pair couples DOFs far apart along the chain, so J = A + U E_Sᵀ, A the
+  band without the pairs, S the free position DOFs of the nodes of the pairs within reach and U (n, s) their columns
+  (central differences of the pairs' residual, step 1e-7 extrapolated: the energy turns over the contact distance);
+  J⁻¹ and J⁻ᵀ by the Woodbury identity on A's banded factor (s extra columns and an s × s solve per env). With
+  friction the pairs' slip velocity adds their start columns to ∂f/∂x. The pairs are those at the solution (found
+  again there: the contact margin must be at least δ), with the terms each carries there.
 
 The derivatives are of the backward-Euler map the Newton iterate satisfies; a step that ended unconverged
 (``accept_unconverged``) is differentiated as if it had converged (:attr:`Tape.unconverged` counts them). Not
-covered yet (a clear :class:`GradientError`): contact between edges (self- and rod–rod), steps that took the retry
-ladder (sub-steps). The implicit midpoint rule is covered: its step solves a backward-Euler
+covered yet (a clear :class:`GradientError`): steps that took the retry ladder (sub-steps). The implicit midpoint rule is covered: its step solves a backward-Euler
 residual over h/2 for the half-step point y = x½ and the end follows linearly, x' = 2 y − x, u' = 2 (y − x)/(h/2) − u
 (the end frames transported from the start to x'); a midpoint step that gained energy and was redone by backward
 Euler is differentiated as such, in its env alone. Prescribed motion (fixes moved at a velocity or twist rate, or
@@ -69,7 +74,7 @@ import numpy as np
 from sim.contact.world import ObstacleWorld, contact_data, contact_scratch, spec_contact_data, world_arrays
 from sim.kernels.data import KL_2D, KL_3D, ControlArrays, StateArrays
 from sim.kernels.linearise import Linearisation, RodFactors, Wanted, factor_bands, linearise_step, solve_bands
-from sim.kernels.probe import assemble_at
+from sim.kernels.probe import assemble_at, pair_linearisation, pair_residual
 from sim.state import STATE_ARRAYS, Control
 
 __all__ = ["GradientError", "Tape", "rollout", "PARAMETERS"]
@@ -153,6 +158,7 @@ class _Lin:
     rule: "_Rule"
     a_end: np.ndarray | None = None  # the end frames' maps when the rule solves for another point than the end
     b_end: np.ndarray | None = None
+    low: dict = dataclasses.field(default_factory=dict)  # env -> (S, U): edge pairs in touch, J = band + U E_Sᵀ
     _lu: dict = dataclasses.field(default_factory=dict, repr=False)
 
     def end_maps(self):
@@ -167,8 +173,7 @@ class _Lin:
         """Fxᵀ λ for every env: lam (B, n)."""
         return np.einsum("bnm,bn->bm", self.Fx, lam) if self.Fx.ndim == 3 else self.Fx * lam
 
-    def solve(self, rhs: np.ndarray, *, transpose: bool = False) -> np.ndarray:
-        """J⁻¹ rhs or J⁻ᵀ rhs for every env: rhs (B, n, P)."""
+    def _factor(self, transpose: bool) -> np.ndarray:
         lu = self._lu.get(transpose)
         if lu is None:
             lu = np.empty_like(self.J)
@@ -179,14 +184,47 @@ class _Lin:
                 raise GradientError(f"step {self.step}: env {int(bad[0])}'s Jacobian is singular (pivot "
                                     f"{int(status[bad[0]]) - 1}); its derivative is not defined")
             self._lu[transpose] = lu
+        return lu
+
+    def _woodbury(self, e: int, transpose: bool) -> tuple[np.ndarray, np.ndarray]:
+        """For env e's edge-pair term J = A + U E_Sᵀ (A the band): (W, C) with W = A⁻¹ U and C = I + W[S] (or, for
+        Jᵀ = Aᵀ + E_S Uᵀ, W = A⁻ᵀ E_S and C = I + Uᵀ W): then J⁻¹ b = z − W C⁻¹ z[S] (J⁻ᵀ b = z − W C⁻¹ Uᵀ z),
+        z the band's solve (the Woodbury identity; s = |S| extra columns of the band's factor)."""
+        key = ("woodbury", e, transpose)
+        if key not in self._lu:
+            S, U = self.low[e]
+            n, s = U.shape
+            if transpose:
+                rhs = np.zeros((1, n, s))
+                rhs[0, S, np.arange(s)] = 1.0
+            else:
+                rhs = U[None]
+            W = np.empty((1, n, s))
+            solve_bands(np.ascontiguousarray(self._factor(transpose)[e:e + 1]), self.kl, np.ascontiguousarray(rhs), W)
+            W = W[0]
+            self._lu[key] = (W, np.eye(s) + (U.T @ W if transpose else W[S]))
+        return self._lu[key]
+
+    def solve(self, rhs: np.ndarray, *, transpose: bool = False) -> np.ndarray:
+        """J⁻¹ rhs or J⁻ᵀ rhs for every env: rhs (B, n, P)."""
+        lu = self._factor(transpose)
         out = np.empty(rhs.shape)
         solve_bands(lu, self.kl, np.ascontiguousarray(rhs, dtype=np.float64), out)
+        for e, (S, U) in self.low.items():
+            W, C = self._woodbury(e, transpose)
+            z = out[e]
+            try:
+                out[e] = z - W @ np.linalg.solve(C, U.T @ z if transpose else z[S])
+            except np.linalg.LinAlgError:
+                raise GradientError(f"step {self.step}: env {e}'s Jacobian with its edge-pair contact is singular; "
+                                    "its derivative is not defined") from None
         return out
 
     @property
     def nbytes(self) -> int:
         arrays = [self.J, self.Fx, self.G, self.a, self.b, self.a_end, self.b_end, *self.P.values(),
-                  *self._lu.values()]
+                  *(a for v in self._lu.values() for a in (v if isinstance(v, tuple) else (v,))),
+                  *(a for v in self.low.values() for a in v)]
         return sum(a.nbytes for a in arrays if a is not None)
 
 
@@ -309,8 +347,11 @@ class Tape:
                             time=np.zeros(B),
                             failed=np.zeros(B, np.bool_))
         y = self._solved(k)
+        pairs = bool(prm["rod_pairs"])
+        prm_band = sim.kernel_params.copy()
+        prm_band[0]["rod_pairs"] = False  # the band without the edge pairs: they are a term of their own (_pair_terms)
         linearise_step(start, c(y), ControlArrays(c(self.kappa_bar[k]), c(self.tau_bar[k])), h,
-                       RodFactors(rod, rod_e, rod_g, rod_m), sim.kernel_params, self._cd,
+                       RodFactors(rod, rod_e, rod_g, rod_m), prm_band, self._cd,
                        Wanted(want_kb, want_tb, want_sc, want_start, FRICTION_FD_STEP if want_start else 1e-6),
                        Linearisation(ab, kbc, tbc, sc, st_band))
         pos_dof = np.ones(n, bool) if planar else (np.arange(n) % 4 != 3)
@@ -337,6 +378,9 @@ class Tape:
             S[:, :, fixed] = 0.0
             S[:, np.arange(n), np.arange(n)] += np.where(pos_dof[None, :], 0.0, Fx)
             Fx = S
+        low: dict = {}
+        if pairs:
+            low, Fx = self._pair_terms(k, y, h, Fx)
         P: dict = {}
         if want_kb:
             P["kappa_bar"] = kbc.reshape(B, n, 2 * N) * ~fixed[None, :, None]
@@ -354,7 +398,7 @@ class Tape:
         if "damping" in names:  # the damping force c m (y − x)/h on positions
             P["damping"] = ((mass * pos_dof * ~fixed)[None, :] * (y - self._start(k)) / hc)[:, :, None]
         if planar:
-            return _Lin(k, ab, kl, Fx, Fu, None, None, None, P, rule)
+            return _Lin(k, ab, kl, Fx, Fu, None, None, None, P, rule, low=low)
         link = sim.kernel_rod.link.astype(bool)
         # the transport runs from the step's start tangents (a turning clamp's turned first); a change of the state
         # before the step moves them as the positions before the motion (the motion is held: it moves no frame of a
@@ -364,11 +408,57 @@ class Tape:
         a = _turn_map(kvec, self.dof[k], t0, link)
         b = _turn_map(kvec, self.dof[k + 1], t1, link)
         if not rule.any_midpoint:
-            return _Lin(k, ab, kl, Fx, Fu, G, a, b, P, rule)
+            return _Lin(k, ab, kl, Fx, Fu, G, a, b, P, rule, low=low)
         ty = _tangents(y, link, t1)  # the residual's frames are transported to y's tangents; the end's to x''s
         ky = np.cross(ty, t0) / (1.0 + np.einsum("bij,bij->bi", t0, ty))[..., None]
         return _Lin(k, ab, kl, Fx, Fu, G, _turn_map(ky, self.dof[k], t0, link), _turn_map(ky, y, ty, link), P, rule,
-                    a_end=a, b_end=b)
+                    a_end=a, b_end=b, low=low)
+
+    def _pair_terms(self, k: int, y: np.ndarray, h: np.ndarray, Fx: np.ndarray) -> tuple[dict, np.ndarray]:
+        """Step k's edge-pair contact per env: its Jacobian as the term U E_Sᵀ of J (S the free position DOFs of
+        the nodes of the pairs within reach, U (n, s) their columns, constrained rows 0), and with friction its
+        dependence on the start positions (the slip velocity) added to ``Fx`` (made dense). Central differences of
+        the pairs' residual (:func:`sim.kernels.probe.pair_linearisation`), with friction at step 1e-7,
+        extrapolated, as the start band."""
+        sim = self.sim
+        prm = sim.kernel_params
+        friction = float(prm[0]["friction"]) > 0.0
+        B, n = y.shape
+        x0 = self._start(k)
+        fixed = sim.kernel_rod.fixed.astype(bool)
+        f = np.empty(n)
+        dofs = np.empty(n, np.int64)
+        cols = np.empty((n, n))
+        start_cols = np.empty((n, n) if friction else (1, 1))
+        c = np.ascontiguousarray
+        low = {}
+        for e in range(B):
+            s = pair_linearisation(prm, sim.kernel_rod, c(y[e]), c(x0[e]), float(h[e]), FRICTION_FD_STEP, True,
+                                   friction, f, dofs, cols, start_cols)
+            if s == 0:
+                continue
+            S = dofs[:s].copy()
+            U = cols[:, :s].copy()
+            U[fixed] = 0.0
+            low[e] = (S, U)
+            if friction:
+                if Fx.ndim == 2:
+                    dense = np.zeros((B, n, n))
+                    dense[:, np.arange(n), np.arange(n)] = Fx
+                    Fx = dense
+                V = start_cols[:, :s].copy()
+                V[fixed] = 0.0
+                Fx[e][:, S] += V
+        return low, Fx
+
+    def _pair_residuals(self, k: int, prm_arr) -> np.ndarray:
+        """(B, n) step k's edge-pair residual of every env at its solution with the parameters record ``prm_arr``."""
+        y, x0, h = self._solved(k), self._start(k), self.rule(k).h_solve
+        out = np.empty(y.shape)
+        c = np.ascontiguousarray
+        for e in range(y.shape[0]):
+            pair_residual(prm_arr, self.sim.kernel_rod, c(y[e]), c(x0[e]), float(h[e]), out[e])
+        return out
 
     def _residuals(self, k: int, rod):
         """A function (prm, cd) -> (B, n): step k's residual of every env at its solution with the parameters record
@@ -395,7 +485,8 @@ class Tape:
     def _difference(self, moved, step: float) -> np.ndarray:
         """Central difference (moved(ε) − moved(−ε))/(2ε) of a residual function ``moved``; with friction step 1e-7
         (``step`` scaled by FRICTION_FD_STEP/1e-6) extrapolated from ε and ε/2, as the start band."""
-        if not bool(self.sim.kernel_params[0]["friction_on"]):
+        prm = self.sim.kernel_params[0]
+        if not (bool(prm["friction_on"]) or (bool(prm["rod_pairs"]) and float(prm["friction"]) > 0.0)):
             return (moved(step) - moved(-step)) / (2.0 * step)
         step *= FRICTION_FD_STEP / 1e-6
         d1, d2 = ((moved(eps) - moved(-eps)) / (2.0 * eps) for eps in (step, 0.5 * step))
@@ -408,16 +499,18 @@ class Tape:
         (friction acting, also from μ = 0); δ enters the energy's shape: central differences in ln δ."""
         B, n = self.dof.shape[1], self.dof.shape[2]
         out = np.zeros((B, n, 1))
-        if self.contact is None:
-            return out
         prm0 = self.sim.kernel_params
-        residuals = self._residuals(k, rod)
+        obstacles, pairs = self.contact is not None, bool(prm0[0]["rod_pairs"])
+        if not (obstacles or pairs):
+            return out
+        residuals = self._residuals(k, rod) if obstacles else None
 
         def at(**changed) -> np.ndarray:
             prm = prm0.copy()
             for key, v in changed.items():
                 prm[0][key] = v
-            return residuals(prm, self.contact)
+            res = residuals(prm, self.contact) if obstacles else np.zeros((B, n))
+            return res + self._pair_residuals(k, prm) if pairs else res
 
         if name == "log_contact_stiffness":
             out[:, :, 0] = at(contact_k=2.0 * float(prm0[0]["contact_k"])) - at()
@@ -694,8 +787,8 @@ def _cotangent(v, T, B, n) -> np.ndarray:
 def rollout(sim, state, controls, *, checkpoint: int | None = None) -> Tape:
     """Run ``sim`` from ``state`` (advanced in place) for T steps under ``controls`` (a sequence of T
     :class:`sim.Control`, one per step) and record what :class:`Tape` needs to differentiate it. Raises
-    :class:`GradientError` for what the derivatives do not cover (contact between edges, a step that failed or took
-    the retry ladder).
+    :class:`GradientError` for what the derivatives do not cover (a step that failed or took the retry ladder; contact
+    between edges with a contact margin below δ).
 
     ``checkpoint=K``: keep the whole state only every K steps (and the controls) instead of every state; a pass that
     needs the states between two checkpoints steps ``sim`` again from the earlier one (each segment once per pass:
@@ -703,9 +796,10 @@ def rollout(sim, state, controls, *, checkpoint: int | None = None) -> Tape:
     derivatives are those of the full tape to the last bit. A checkpointed tape keeps no linearisation between
     passes (:attr:`Tape.nbytes` is what it keeps)."""
     prm = sim.kernel_params[0]
-    if bool(prm["rod_pairs"]):
-        raise GradientError("derivatives through contact between edges (self_contact, rod_contact) are not "
-                            "available yet: turn them off in [contact] (obstacle contact, with friction, is)")
+    if bool(prm["rod_pairs"]) and float(prm["contact_margin"]) < float(prm["contact_delta"]):
+        raise GradientError(f"derivatives through contact between edges need the [contact] margin "
+                            f"({float(prm['contact_margin']):g} m) at least the distance delta "
+                            f"({float(prm['contact_delta']):g} m), so that every pair in reach is found again")
     if sim._frame_loads is not None:
         raise GradientError("derivatives with moments or material-frame loads ([[load]] moment / frame = "
                             "\"material\", which depend on the configuration) are not available yet")

@@ -48,6 +48,7 @@ from sim.geometry.vec3 import vcross, vdot, vlerp, vsub
 from sim.numba_options import OPT_ALLOC, OPT_CONTACT
 
 __all__ = ["allowed_pairs", "model_pairs", "pair_links", "edge_rods", "seg_seg_derivs", "find_candidates", "add_candidates",
+           "pair_gap",
            "add_forces", "smallest_gap", "pair_energy", "pair_rows", "update_fraction", "Coupling", "alloc_coupling",
            "reset_coupling", "EdgePairContact", "alloc", "present", "candidates", "friction_acts", "broadphase",
            "refresh", "penetration", "step_limit", "accumulate", "energy", "report"]
@@ -362,6 +363,9 @@ def _gap(x, radius, i, j):
     """Gap [m] of edges i and j at node positions x."""
     return _segments_gap(row3(x, i), row3(x, i + 1), row3(x, j), row3(x, j + 1),
                          edge_radius(radius, i) + edge_radius(radius, j))[0]
+
+
+pair_gap = _gap  # the public name (sim.kernels.probe)
 
 
 @njit(inline="always", **OPT_CONTACT)

@@ -1,14 +1,18 @@
-"""The step's residual and Jacobian at a given iterate, for analysis outside the step (sim.analysis.gradients)."""
+"""The step's residual and Jacobian at a given iterate, for analysis outside the step (sim.analysis.gradients): the
+whole residual (:func:`assemble_at`), and the edge pairs' part alone with its derivatives (:func:`pair_linearisation`,
+:func:`pair_residual`)."""
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
+from sim.contact import edge_pairs
 from sim.contact import stages as contact
-from sim.kernels.newton import assemble
+from sim.kernels.newton import assemble, positions
 from sim.kernels.workspace import alloc_workspace, copy_into
 from sim.numba_options import OPT_ALLOC
 
-__all__ = ["assemble_at"]
+__all__ = ["assemble_at", "pair_linearisation", "pair_residual"]
 
 
 @njit(**OPT_ALLOC)
@@ -28,3 +32,101 @@ def assemble_at(e, x, x0, u0, d1s, ts, bs, h, kb, tb, rod, prm_arr, cd, f_out, a
     assemble(prm.planar, e, w.x, h, kb, tb, rod, prm, cs, w, True, False)
     copy_into(f_out, w.f)
     copy_into(ab_out, w.ab)
+
+
+@njit(**OPT_ALLOC)
+def _pair_forces(ep, prm, rod, pos, pos0, h, w, out):
+    """out (n,) = the residual of the candidate pairs of ``ep`` at node positions ``pos`` from ``pos0`` over h."""
+    for r in range(w.f.shape[0]):
+        w.f[r] = 0.0
+    edge_pairs.add_forces(ep, rod.pairs, rod.pair_links, prm, pos, pos0, h, 2 if prm.planar else 4, rod.fixed,
+                          rod.edge_radius, w, False, False)
+    for r in range(out.shape[0]):
+        out[r] = w.f[r]
+
+
+@njit(**OPT_ALLOC)
+def pair_linearisation(prm_arr, rod, x, x0, h, step, richardson, of_start, f_out, dofs, cols, start_cols):
+    """The residual of the edge pairs alone at the DOFs ``x`` (n,) of a step of size h from ``x0`` (its slip
+    velocity (x − x0)/h) into ``f_out`` (n,), over the candidate pairs at ``x`` (a fresh list: with the contact
+    margin ≥ δ every pair the step's solution felt, and each pair's terms as there); and its derivatives with respect
+    to the position DOFs of the nodes of the pairs within reach (gap < δ), constrained DOFs left out: their indices
+    into ``dofs`` (returns their count s), the columns ∂f/∂x' into ``cols[:, :s]`` (n, ≥ s) and with ``of_start``
+    ∂f/∂x (the start's positions) into ``start_cols[:, :s]``. Central differences of step ε = ``step`` times the
+    largest coordinate (at least 1 m); with ``richardson`` also at ε/2, combined as (4 D(ε/2) − D(ε))/3."""
+    prm = prm_arr[0]
+    planar = prm.planar
+    dpn = 2 if planar else 4
+    n = x.shape[0]
+    N = n // dpn
+    P = rod.pairs.shape[0]
+    w = alloc_workspace(N, planar, P)
+    ep = edge_pairs.alloc(N, P)
+    pos = np.empty((N, 3))
+    pos0 = np.empty((N, 3))
+    positions(planar, x, pos, prm.plane_y)
+    positions(planar, x0, pos0, prm.plane_y)
+    edge_pairs.find_candidates(ep, rod.pairs, pos, pos, rod.edge_radius, prm.contact_margin)
+    _pair_forces(ep, prm, rod, pos, pos0, h, w, f_out)
+    near = np.zeros(N, np.bool_)
+    for m in range(ep.count[0]):
+        c = ep.cand[m]
+        i = rod.pairs[c, 0]
+        j = rod.pairs[c, 1]
+        if edge_pairs.pair_gap(pos, rod.edge_radius, i, j) < prm.contact_delta:
+            near[i] = True
+            near[i + 1] = True
+            near[j] = True
+            near[j + 1] = True
+    scale = 1.0
+    for k in range(N):
+        for a in range(3):
+            scale = max(scale, abs(pos[k, a]), abs(pos0[k, a]))
+    fp = np.empty(n)
+    fm = np.empty(n)
+    s = 0
+    for k in range(N):
+        if not near[k]:
+            continue
+        for a in range(3):
+            if planar and a == 1:
+                continue
+            d = dpn * k + (a if not planar else a // 2)
+            if rod.fixed[d]:
+                continue
+            dofs[s] = d
+            for which in range(2 if of_start else 1):
+                arr = pos if which == 0 else pos0
+                out = cols if which == 0 else start_cols
+                v = arr[k, a]
+                for level in range(2 if richardson else 1):
+                    eps = step * scale * (0.5 if level == 1 else 1.0)
+                    arr[k, a] = v + eps
+                    _pair_forces(ep, prm, rod, pos, pos0, h, w, fp)
+                    arr[k, a] = v - eps
+                    _pair_forces(ep, prm, rod, pos, pos0, h, w, fm)
+                    arr[k, a] = v
+                    for r in range(n):
+                        dr = (fp[r] - fm[r]) / (2.0 * eps)
+                        out[r, s] = dr if level == 0 else (4.0 * dr - out[r, s]) / 3.0
+            s += 1
+    return s
+
+
+@njit(**OPT_ALLOC)
+def pair_residual(prm_arr, rod, x, x0, h, f_out):
+    """The residual of the edge pairs alone at the DOFs ``x`` of a step of size h from ``x0`` into ``f_out`` (n,),
+    over the candidate pairs at ``x`` (as :func:`pair_linearisation`)."""
+    prm = prm_arr[0]
+    planar = prm.planar
+    dpn = 2 if planar else 4
+    N = x.shape[0] // dpn
+    P = rod.pairs.shape[0]
+    w = alloc_workspace(N, planar, P)
+    ep = edge_pairs.alloc(N, P)
+    pos = np.empty((N, 3))
+    pos0 = np.empty((N, 3))
+    positions(planar, x, pos, prm.plane_y)
+    positions(planar, x0, pos0, prm.plane_y)
+    edge_pairs.find_candidates(ep, rod.pairs, pos, pos, rod.edge_radius, prm.contact_margin)
+    _pair_forces(ep, prm, rod, pos, pos0, h, w, f_out)
