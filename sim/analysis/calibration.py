@@ -14,8 +14,8 @@ until the node's next row; absent = the rest controls. In 2-D, kappa1 is the in-
 
 Parameters (``--params``, comma separated): ``youngs_modulus``, ``shear_modulus`` (moves ν), ``density`` (each a
 factor on every rod, fitted in log space), ``damping`` [1/s], ``gravity`` (the vector; its in-plane components in
-2-D), the obstacle contact's ``contact_stiffness`` and ``contact_delta`` (factors, in log space) and ``friction`` (the [contact] μ:
-obstacles without a μ of their own), ``obstacle_position`` (every obstacle's placement, each axis; in the plane in
+2-D), the contact's ``contact_stiffness`` and ``contact_delta`` (factors, in log space) and ``friction`` (the [contact] μ:
+obstacles without a μ of their own, and contact between edges), ``obstacle_position`` (every obstacle's placement, each axis; in the plane in
 2-D: the fitted scene moves its point, centre, ends or position), and the actuation map from commanded to actual natural curvature, actual = gain · followed + offset, per
 commanded node: ``actuation_gain`` (also on the twist), ``actuation_offset`` (κ1 and κ2), ``actuation_play`` (the
 half-width w of a backlash, in the commands' units: hysteresis) and ``actuation_lag`` [s] (a time constant τ), one
@@ -454,11 +454,16 @@ class Problem:
                            "--controls: the commanded curvature it maps")
         if "shear_modulus" in params and self.planar:
             raise FitError("shear_modulus: a 2-D scene has no twist, so the data cannot tell the shear modulus")
-        touching = [p for p in params if p in ("contact_stiffness", "contact_delta", "friction", "obstacle_position")]
-        if touching and not (model.obstacles.count > 0 and spec.contact.enabled):
-            raise FitError(f"{touching[0]}: the scene has no obstacle contact (no [[obstacle]], or [contact] "
+        probe = Simulator(model, 1)
+        obstacles = model.obstacles.count > 0 and spec.contact.enabled
+        if "obstacle_position" in params and not obstacles:
+            raise FitError("obstacle_position: the scene has no obstacle contact (no [[obstacle]], or [contact] "
                            "enabled = false)")
-        self.rest_kb, self.rest_tb = Simulator(model, 1)._rest_control_arrays()
+        touching = [p for p in params if p in ("contact_stiffness", "contact_delta", "friction")]
+        if touching and not (obstacles or bool(probe.kernel_params[0]["rod_pairs"])):
+            raise FitError(f"{touching[0]}: the scene has no contact (no [[obstacle]], no self_contact or rod_contact "
+                           "between edges, or [contact] enabled = false)")
+        self.rest_kb, self.rest_tb = probe._rest_control_arrays()
         self.cmd_kb, self.cmd_tb = command_schedule(cmds, self.steps, self.dt, model.node_count)
         used = (self.cmd_kb[..., 0],) if self.planar else (self.cmd_kb, self.cmd_tb)  # 2-D: κ1 only
         self.play_limit = float(max(np.max(np.abs(c), initial=0.0) for c in used))

@@ -280,12 +280,36 @@ def test_an_obstacle_position_is_recovered_from_the_rod_resting_on_it(mode):
     assert res.rms_m == pytest.approx(NOISE_M, rel=0.2) and res.unconverged_steps == 0
 
 
+def _rod_across_a_rod(delta):
+    """3-D: a cantilever (the measured rod, first) sagging onto a stiff rod clamped across under its middle."""
+    from sim.scene.obstacles import ContactSpec
+    spec = make_spec(nodes=9, length=0.5, radius=0.01, E=1e7, dt=0.01, gravity=(0.0, 0.0, -9.8), damping=2.0,
+                     max_iter=60, tol=1e-10, dtol=1e-10, line_search="auto")
+    top = spec.rods[0]
+    under = dataclasses.replace(top, name="under", start=(0.3, -0.25, -0.05), direction=(0.0, 1.0, 0.0),
+                                youngs_modulus=1e10)
+    return dataclasses.replace(spec, rods=(top, under), contact=ContactSpec(stiffness=1e4, delta=delta,
+                                                                            rod_contact=True))
+
+
+def test_the_contact_distance_between_two_rods_is_recovered_from_one_resting_on_the_other():
+    """Contact between edges: δ sets how far above the rod under it the cantilever comes to rest; fitted from half
+    the true value with the derivatives through the edge pairs."""
+    meas, _ = synthetic(_rod_across_a_rod(2e-2), ["damping"], [2.0], seconds=0.8)
+    res = F.fit(_rod_across_a_rod(1e-2), meas, ["contact_delta"])
+    assert res.params["contact_delta"] == pytest.approx(2e-2, rel=0.05), res.params
+    assert abs(res.params["contact_delta"] - 2e-2) < 4.0 * res.stderr["contact_delta"]
+    assert res.rms_m == pytest.approx(NOISE_M, rel=0.2) and res.unconverged_steps == 0
+
+
 def test_contact_parameters_need_contact(tmp_path):
     spec = load_scene(scene(tmp_path))
     meas, _ = synthetic(spec, ["damping"], [0.5], seconds=0.2)
-    for name in ("friction", "contact_stiffness", "contact_delta", "obstacle_position"):
-        with pytest.raises(F.FitError, match=f"{name}: the scene has no obstacle contact"):
+    for name in ("friction", "contact_stiffness", "contact_delta"):
+        with pytest.raises(F.FitError, match=f"{name}: the scene has no contact"):
             F.fit(spec, meas, [name])
+    with pytest.raises(F.FitError, match="obstacle_position: the scene has no obstacle contact"):
+        F.fit(spec, meas, ["obstacle_position"])
 
 
 def test_parameters_the_data_cannot_separate_are_said(tmp_path):
