@@ -64,7 +64,7 @@ def bench_step(envs: int, repeats: int) -> dict:
         bwd.append(time.perf_counter() - t0)
     N = sim.model.node_count
     rec = (2 * n + 2 * (N - 1) * 3 + N + 2 * N + N + n) * 8  # dof, vel, d1, t, β, κ̄, τ̄, external forces
-    lin_bytes = tape._lin[0].nbytes // envs  # J's band and its factor, F, G, a, b, ∂f/∂κ̄ as kept after a pass
+    lin_bytes = tape._lin[(0, 0)].nbytes // envs  # J's band and its factor, F, G, a, b, ∂f/∂κ̄ as kept after a pass
     f, b, li = (float(np.median(v)) for v in (fwd, bwd, lin))
     return {"envs": envs, "nodes": N, "dofs": n, "forward_ms_per_env": 1e3 * f / envs,
             "backward_ms_per_env": 1e3 * (b + li) / envs, "linearise_ms_per_env": 1e3 * li / envs,

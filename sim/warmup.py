@@ -11,7 +11,8 @@ import numpy as np
 
 from sim.analysis.gradients import rollout
 from sim.analysis.static import solve_static
-from sim.kernels.probe import pair_linearisation, pair_residual
+from sim.contact.world import spec_contact_data
+from sim.kernels.probe import pair_linearisation, pair_residual, substeps_at
 from sim.scene.model import build_model
 from sim.scene.spec import RodSpec, SceneSpec, SimSpec
 from sim.step import Simulator
@@ -63,6 +64,14 @@ def compile_kernels(*, verbose: bool = False, on_stage: Callable[[str], None] | 
         pair_residual(sim.kernel_params, sim.kernel_rod, x, x0, spec.sim.dt, np.empty(n))
         pair_linearisation(sim.kernel_params, sim.kernel_rod, x, x0, spec.sim.dt, 1e-7, True, True, np.empty(n),
                            np.empty(n, np.int64), np.empty((n, n)), np.empty((n, n)))
+        m, st, ctrl = sim.model, sim.reset(), sim.make_control()  # the retry ladder's sub-steps taken again
+        E, N = m.node_count - 1, m.node_count
+        substeps_at(0, x0, np.ascontiguousarray(st.dof_vel.reshape(2, -1)[0]), st.edge_ref_d1[0].copy(),
+                    st.edge_tangent[0].copy(), st.node_ref_twist[0].copy(), ctrl.kappa_bar[0].copy(),
+                    ctrl.tau_bar[0].copy(), 2, sim.kernel_rod._replace(grav=np.ascontiguousarray(tape.grav[0])),
+                    sim.kernel_params, spec_contact_data(m.obstacles, 1, N, m.edge_radius, candidates=0),
+                    np.empty((3, n)), np.empty((3, n)), np.empty((3, E, 3)), np.empty((3, E, 3)), np.empty((3, N)),
+                    np.zeros(2, np.int64))
     return time.perf_counter() - t0
 
 

@@ -30,8 +30,11 @@ transposed, the adjoint (reverse) mode :meth:`Tape.vjp`.
   again there: the contact margin must be at least δ), with the terms each carries there.
 
 The derivatives are of the backward-Euler map the Newton iterate satisfies; a step that ended unconverged
-(``accept_unconverged``) is differentiated as if it had converged (:attr:`Tape.unconverged` counts them). Not
-covered yet (a clear :class:`GradientError`): steps that took the retry ladder (sub-steps). The implicit midpoint rule is covered: its step solves a backward-Euler
+(``accept_unconverged``) is differentiated as if it had converged (:attr:`Tape.unconverged` counts them). A step
+the retry ladder split into ns sub-steps in an env is differentiated sub-step by sub-step: the rollout takes them
+again from the step's start with the ladder's own sub-step kernel (:func:`sim.kernels.probe.substeps_at`, bit for
+bit) and records their states; each part j of the step is linearised in every env at once, the envs whose
+sub-steps are over (or whose step was whole) left as they are by it (:class:`_Part`). The implicit midpoint rule is covered: its step solves a backward-Euler
 residual over h/2 for the half-step point y = x½ and the end follows linearly, x' = 2 y − x, u' = 2 (y − x)/(h/2) − u
 (the end frames transported from the start to x'); a midpoint step that gained energy and was redone by backward
 Euler is differentiated as such, in its env alone. Prescribed motion (fixes moved at a velocity or twist rate, or
@@ -74,7 +77,7 @@ import numpy as np
 from sim.contact.world import ObstacleWorld, contact_data, contact_scratch, spec_contact_data, world_arrays
 from sim.kernels.data import KL_2D, KL_3D, ControlArrays, StateArrays
 from sim.kernels.linearise import Linearisation, RodFactors, Wanted, factor_bands, linearise_step, solve_bands
-from sim.kernels.probe import assemble_at, pair_linearisation, pair_residual
+from sim.kernels.probe import assemble_at, pair_linearisation, pair_residual, substeps_at
 from sim.state import STATE_ARRAYS, Control
 
 __all__ = ["GradientError", "Tape", "rollout", "PARAMETERS"]
@@ -121,21 +124,52 @@ class _Rule:
     beta: np.ndarray
     gamma: np.ndarray
     delta: np.ndarray
+    identity: np.ndarray  # (B,) the envs this part leaves as they are: x' = x, u' = u (alpha 0, beta 1, gamma 0, delta −1)
 
     @classmethod
-    def of(cls, h: float, midpoint: np.ndarray) -> "_Rule":
-        """``midpoint`` (B,): the envs whose step was an implicit-midpoint step."""
+    def of(cls, h, midpoint: np.ndarray, identity: np.ndarray | None = None) -> "_Rule":
+        """``h``: the step (a number, or one per env); ``midpoint`` (B,): the envs whose step was an
+        implicit-midpoint step; ``identity`` (B,): the envs the part leaves as they are (their sub-steps are over)."""
         mp = np.asarray(midpoint, dtype=bool)
-        return cls(np.where(mp, 0.5 * h, h), np.where(mp, 2.0, 1.0), np.where(mp, -1.0, 0.0),
-                   np.where(mp, 4.0 / h, 1.0 / h), np.where(mp, 1.0, 0.0))
+        same = np.zeros(mp.shape, bool) if identity is None else np.asarray(identity, dtype=bool)
+        h = np.broadcast_to(np.asarray(h, dtype=np.float64), mp.shape)
+        return cls(np.where(mp, 0.5 * h, h), np.where(same, 0.0, np.where(mp, 2.0, 1.0)),
+                   np.where(same, 1.0, np.where(mp, -1.0, 0.0)), np.where(same, 0.0, np.where(mp, 4.0 / h, 1.0 / h)),
+                   np.where(same, -1.0, np.where(mp, 1.0, 0.0)), same)
 
     @property
     def any_midpoint(self) -> bool:
-        return bool(np.any(self.beta != 0.0))
+        return bool(np.any(self.delta > 0.0))
 
     def solved(self, x: np.ndarray, x1: np.ndarray) -> np.ndarray:
-        """The solved-for point y (B, n) from the step's start x and end x'."""
-        return (x1 - self.beta[:, None] * x) / self.alpha[:, None]
+        """The solved-for point y (B, n) from the step's start x and end x' (an env the part leaves: its x)."""
+        alpha = np.where(self.identity, 1.0, self.alpha)[:, None]
+        return np.where(self.identity[:, None], x, (x1 - self.beta[:, None] * x) / alpha)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Part:
+    """A part of recorded step ``k`` as its linearisation sees it, every field (B, …): the whole step, or where the
+    retry ladder split it in some env, sub-step ``j`` (an env that took ns sub-steps has ns parts; the parts after
+    an env's last are the identity for it, :attr:`_Rule.identity`). x0, u0, (d1, t0, b0): the DOFs, velocities and
+    frames the part starts from (the step's prescribed motion applied); ``pre`` the DOFs before the motion (a change
+    of the state before the step moves the frames as these); x1, t1: the DOFs and tangents it ends at."""
+
+    k: int
+    j: int
+    x0: np.ndarray
+    pre: np.ndarray
+    u0: np.ndarray
+    d1: np.ndarray
+    t0: np.ndarray
+    b0: np.ndarray
+    x1: np.ndarray
+    t1: np.ndarray
+    rule: _Rule
+
+    def solved(self) -> np.ndarray:
+        """(B, n) the point the part's residual was solved for (its end; the midpoint rule: the half-step point)."""
+        return self.rule.solved(self.x0, self.x1)
 
 
 @dataclasses.dataclass
@@ -246,6 +280,8 @@ class Tape:
     moved: dict | None = None  # with prescribed motion: each step's start (dof, ref_d1, tangent, ref_twist (T, B, …)),
     # the motion applied (moved DOFs, turned clamp frames); None: the states before the steps
     fallback: np.ndarray | None = None  # (T, B) the midpoint steps redone by backward Euler
+    subs: object = None  # per step {env: (ns, xs, vs, d1s, ts, bs, fell)}: the sub-steps of the envs the retry ladder
+    # split (states before each and after the last, midpoint sub-steps redone by backward Euler); None: none split
     poses: dict | None = None  # the obstacles' pose arrays through the rollout (ObstacleWorld._POSE), with contact
     contact: object = None  # the obstacles' contact data of the rollout (its own work space), None without contact
     _lin: dict = dataclasses.field(default_factory=dict, repr=False)
@@ -259,7 +295,8 @@ class Tape:
         if self._replay is not None:
             return inputs + self._replay.nbytes
         arrays = [self.dof, self.vel, self.ref_d1, self.tangent, self.ref_twist, self.grav, self.fallback,
-                  *(self.moved or {}).values()]
+                  *(self.moved or {}).values(), *(a for step in self.subs or () for sub in step.values()
+                                                   for a in sub[1:])]
         return inputs + sum(a.nbytes for a in arrays if a is not None)
 
     @property
@@ -299,30 +336,65 @@ class Tape:
             self._lin["cd"] = spec_contact_data(m.obstacles, 1, m.node_count, m.edge_radius, candidates=0)
         return self._lin["cd"]
 
-    def _linear(self, k: int, names: tuple[str, ...]) -> _Lin:
-        lin = self._lin.get(k)
+    def _linear(self, k: int, names: tuple[str, ...], j: int = 0) -> _Lin:
+        """Part j of step k linearised (:class:`_Part`), kept for further passes while they fit."""
+        lin = self._lin.get((k, j))
         if lin is None or any(nm not in lin.P for nm in names if nm != "gravity"):
-            lin = self._linearise(k, names)
-            kept = sum(v.nbytes for key, v in self._lin.items() if isinstance(key, int))
+            lin = self._linearise(self._part(k, j), names)
+            kept = sum(v.nbytes for key, v in self._lin.items() if isinstance(key, tuple))
             if self._replay is None and kept + 3 * lin.nbytes < _CACHE_BYTES:  # room for it and its two factors
-                self._lin[k] = lin
+                self._lin[(k, j)] = lin
         return lin
 
-    def rule(self, k: int) -> _Rule:
-        """The integration rule of each env's step k (implicit midpoint unless the scene's rule is backward Euler or
-        the step fell back to it)."""
+    def _subs(self, k: int) -> dict:
+        return {} if self.subs is None else self.subs[k]
+
+    def parts(self, k: int) -> int:
+        """How many parts step k is differentiated in: 1, or the most sub-steps the retry ladder split it into in an
+        env."""
+        return max((v[0] for v in self._subs(k).values()), default=1)
+
+    def rule(self, k: int, j: int = 0) -> _Rule:
+        """The integration rule of each env's part j of step k (implicit midpoint unless the scene's rule is backward
+        Euler or the (sub)step fell back to it; the identity for an env whose sub-steps are over)."""
         B = self.dof.shape[1]
+        dt = self.sim.model.dt
         mp = bool(self.sim.kernel_params[0]["midpoint"])
-        fell = self.fallback[k] if self.fallback is not None else np.zeros(B, bool)
-        return _Rule.of(self.sim.model.dt, np.full(B, mp) & ~fell)
+        fell = self.fallback[k].copy() if self.fallback is not None else np.zeros(B, bool)
+        subs = self._subs(k)
+        h = np.full(B, dt)
+        done = np.full(B, j >= 1)
+        for e, (ns, *_, fl) in subs.items():
+            h[e] = dt / ns
+            done[e] = j >= ns
+            fell[e] = bool(fl[min(j, ns - 1)])
+        return _Rule.of(h, np.full(B, mp) & ~fell, done)
 
-    def _solved(self, k: int) -> np.ndarray:
-        """(B, n) the point step k's residual was solved for (its end; the midpoint rule: the half-step point)."""
-        return self.rule(k).solved(self._start(k), self.dof[k + 1])
+    def _part(self, k: int, j: int = 0) -> _Part:
+        """Part j of step k (:class:`_Part`): the whole step where no env took sub-steps."""
+        d1, t0, b0 = self._frames(k)
+        x0, pre, u0, x1, t1 = self._start(k), self.dof[k], self.vel[k], self.dof[k + 1], self.tangent[k + 1]
+        subs = self._subs(k)
+        if subs or j > 0:
+            x0, pre, u0, d1, t0, b0, x1, t1 = (np.array(a, copy=True) for a in (x0, pre, u0, d1, t0, b0, x1, t1))
+            end = (self.dof[k + 1], self.vel[k + 1], self.ref_d1[k + 1], self.tangent[k + 1], self.ref_twist[k + 1])
+            for e in range(x0.shape[0]):
+                if e in subs:
+                    ns, xs, vs, d1s, ts, bs, _ = subs[e]
+                    a, b = (j, j + 1) if j < ns else (ns, ns)
+                    x0[e], u0[e], d1[e], t0[e], b0[e] = xs[a], vs[a], d1s[a], ts[a], bs[a]
+                    x1[e], t1[e] = xs[b], ts[b]
+                    if j > 0:
+                        pre[e] = xs[a]
+                elif j > 0:  # its one step is over: the part leaves it at the step's end
+                    x0[e], u0[e], d1[e], t0[e], b0[e] = (v[e] for v in end)
+                    pre[e], x1[e], t1[e] = end[0][e], end[0][e], end[3][e]
+        return _Part(k, j, x0, pre, u0, d1, t0, b0, x1, t1, self.rule(k, j))
 
-    def _linearise(self, k: int, names: tuple[str, ...]) -> _Lin:
+    def _linearise(self, part: _Part, names: tuple[str, ...]) -> _Lin:
         sim, m = self.sim, self.sim.model
-        rule = self.rule(k)
+        k = part.k
+        rule = part.rule
         h = rule.h_solve  # (B,) the step of the residual solved (half the step for the midpoint rule)
         hc = h[:, None]
         planar = m.mode == "2d"
@@ -342,11 +414,10 @@ class Tape:
         st_band = np.zeros((B, n + kl, 2 * kl + 1) if want_start else (1, 1, 1))
         rod, rod_e, rod_g, rod_m = self._rods(k)
         c = np.ascontiguousarray
-        d10, t00, b0 = self._frames(k)
-        start = StateArrays(dof=c(self._start(k)), vel=c(self.vel[k]), ref_d1=c(d10), tangent=c(t00), ref_twist=c(b0),
+        start = StateArrays(dof=c(part.x0), vel=c(part.u0), ref_d1=c(part.d1), tangent=c(part.t0), ref_twist=c(part.b0),
                             time=np.zeros(B),
                             failed=np.zeros(B, np.bool_))
-        y = self._solved(k)
+        y = part.solved()
         pairs = bool(prm["rod_pairs"])
         prm_band = sim.kernel_params.copy()
         prm_band[0]["rod_pairs"] = False  # the band without the edge pairs: they are a term of their own (_pair_terms)
@@ -380,7 +451,7 @@ class Tape:
             Fx = S
         low: dict = {}
         if pairs:
-            low, Fx = self._pair_terms(k, y, h, Fx)
+            low, Fx = self._pair_terms(part, y, Fx)
         P: dict = {}
         if want_kb:
             P["kappa_bar"] = kbc.reshape(B, n, 2 * N) * ~fixed[None, :, None]
@@ -391,31 +462,33 @@ class Tape:
                 P[nm] = sc[:, :, j:j + 1] * ~fixed[None, :, None]
         for nm in _CONTACT_FIELDS:
             if nm in names:  # after linearise_step: the contact data hold this step's candidates
-                P[nm] = self._contact_column(k, nm, rod) * ~fixed[None, :, None]
+                P[nm] = self._contact_column(part, nm, rod) * ~fixed[None, :, None]
         for nm in _POSE_FIELDS:
             if nm in names:
-                P[nm] = self._pose_columns(k, nm, rod) * ~fixed[None, :, None]
+                P[nm] = self._pose_columns(part, nm, rod) * ~fixed[None, :, None]
         if "damping" in names:  # the damping force c m (y − x)/h on positions
-            P["damping"] = ((mass * pos_dof * ~fixed)[None, :] * (y - self._start(k)) / hc)[:, :, None]
+            P["damping"] = ((mass * pos_dof * ~fixed)[None, :] * (y - part.x0) / hc)[:, :, None]
         if planar:
             return _Lin(k, ab, kl, Fx, Fu, None, None, None, P, rule, low=low)
         link = sim.kernel_rod.link.astype(bool)
         # the transport runs from the step's start tangents (a turning clamp's turned first); a change of the state
         # before the step moves them as the positions before the motion (the motion is held: it moves no frame of a
         # free DOF)
-        t0, t1 = self._frames(k)[1], self.tangent[k + 1]
+        t0, t1 = part.t0, part.t1
         kvec = np.cross(t1, t0) / (1.0 + np.einsum("bij,bij->bi", t0, t1))[..., None]
-        a = _turn_map(kvec, self.dof[k], t0, link)
-        b = _turn_map(kvec, self.dof[k + 1], t1, link)
+        a = _turn_map(kvec, part.pre, t0, link)
+        b = _turn_map(kvec, part.x1, t1, link)
+        a[rule.identity], b[rule.identity] = 0.0, 0.0  # an env the part leaves: its frames stay
         if not rule.any_midpoint:
             return _Lin(k, ab, kl, Fx, Fu, G, a, b, P, rule, low=low)
         ty = _tangents(y, link, t1)  # the residual's frames are transported to y's tangents; the end's to x''s
         ky = np.cross(ty, t0) / (1.0 + np.einsum("bij,bij->bi", t0, ty))[..., None]
-        return _Lin(k, ab, kl, Fx, Fu, G, _turn_map(ky, self.dof[k], t0, link), _turn_map(ky, y, ty, link), P, rule,
-                    a_end=a, b_end=b, low=low)
+        ay, by = _turn_map(ky, part.pre, t0, link), _turn_map(ky, y, ty, link)
+        ay[rule.identity], by[rule.identity] = 0.0, 0.0
+        return _Lin(k, ab, kl, Fx, Fu, G, ay, by, P, rule, a_end=a, b_end=b, low=low)
 
-    def _pair_terms(self, k: int, y: np.ndarray, h: np.ndarray, Fx: np.ndarray) -> tuple[dict, np.ndarray]:
-        """Step k's edge-pair contact per env: its Jacobian as the term U E_Sᵀ of J (S the free position DOFs of
+    def _pair_terms(self, part: _Part, y: np.ndarray, Fx: np.ndarray) -> tuple[dict, np.ndarray]:
+        """The part's edge-pair contact per env: its Jacobian as the term U E_Sᵀ of J (S the free position DOFs of
         the nodes of the pairs within reach, U (n, s) their columns, constrained rows 0), and with friction its
         dependence on the start positions (the slip velocity) added to ``Fx`` (made dense). Central differences of
         the pairs' residual (:func:`sim.kernels.probe.pair_linearisation`), with friction at step 1e-7,
@@ -424,7 +497,7 @@ class Tape:
         prm = sim.kernel_params
         friction = float(prm[0]["friction"]) > 0.0
         B, n = y.shape
-        x0 = self._start(k)
+        x0, h = part.x0, part.rule.h_solve
         fixed = sim.kernel_rod.fixed.astype(bool)
         f = np.empty(n)
         dofs = np.empty(n, np.int64)
@@ -451,26 +524,26 @@ class Tape:
                 Fx[e][:, S] += V
         return low, Fx
 
-    def _pair_residuals(self, k: int, prm_arr) -> np.ndarray:
-        """(B, n) step k's edge-pair residual of every env at its solution with the parameters record ``prm_arr``."""
-        y, x0, h = self._solved(k), self._start(k), self.rule(k).h_solve
+    def _pair_residuals(self, part: _Part, prm_arr) -> np.ndarray:
+        """(B, n) the part's edge-pair residual of every env at its solution with the parameters record ``prm_arr``."""
+        y, x0, h = part.solved(), part.x0, part.rule.h_solve
         out = np.empty(y.shape)
         c = np.ascontiguousarray
         for e in range(y.shape[0]):
             pair_residual(prm_arr, self.sim.kernel_rod, c(y[e]), c(x0[e]), float(h[e]), out[e])
         return out
 
-    def _residuals(self, k: int, rod):
-        """A function (prm, cd) -> (B, n): step k's residual of every env at its solution with the parameters record
-        ``prm`` and the contact data ``cd`` (the candidates the step's linearisation listed)."""
+    def _residuals(self, part: _Part, rod):
+        """A function (prm, cd) -> (B, n): the part's residual of every env at its solution with the parameters record
+        ``prm`` and the contact data ``cd`` (the candidates the part's linearisation listed)."""
         B, n = self.dof.shape[1], self.dof.shape[2]
         kl = KL_2D if self.sim.model.mode == "2d" else KL_3D
         f = np.zeros(n)
         ab = np.zeros((n + kl, 2 * kl + 1))
         c = np.ascontiguousarray
-        y, x0, h = self._solved(k), self._start(k), self.rule(k).h_solve
-        d1s, ts, bs = self._frames(k)
-        args = [(c(y[e]), c(x0[e]), c(self.vel[k, e]), c(d1s[e]), c(ts[e]), c(bs[e]), float(h[e]),
+        k = part.k
+        y, x0, h = part.solved(), part.x0, part.rule.h_solve
+        args = [(c(y[e]), c(x0[e]), c(part.u0[e]), c(part.d1[e]), c(part.t0[e]), c(part.b0[e]), float(h[e]),
                  c(self.kappa_bar[k, e]), c(self.tau_bar[k, e]), rod) for e in range(B)]
 
         def residuals(prm, cd) -> np.ndarray:
@@ -492,8 +565,8 @@ class Tape:
         d1, d2 = ((moved(eps) - moved(-eps)) / (2.0 * eps) for eps in (step, 0.5 * step))
         return (4.0 * d2 - d1) / 3.0
 
-    def _contact_column(self, k: int, name: str, rod) -> np.ndarray:
-        """(B, n, 1) ∂f/∂p of step k for the contact stiffness's log factor, the [contact] μ or the contact distance's
+    def _contact_column(self, part: _Part, name: str, rod) -> np.ndarray:
+        """(B, n, 1) ∂f/∂p of the part for the contact stiffness's log factor, the [contact] μ or the contact distance's
         log factor, at the solution, evaluated with the candidates the step's linearisation listed in the contact
         data. The residual is linear in the stiffness and in μ, so their columns are f(2k) − f(k) and f(μ + 1) − f(μ)
         (friction acting, also from μ = 0); δ enters the energy's shape: central differences in ln δ."""
@@ -503,14 +576,14 @@ class Tape:
         obstacles, pairs = self.contact is not None, bool(prm0[0]["rod_pairs"])
         if not (obstacles or pairs):
             return out
-        residuals = self._residuals(k, rod) if obstacles else None
+        residuals = self._residuals(part, rod) if obstacles else None
 
         def at(**changed) -> np.ndarray:
             prm = prm0.copy()
             for key, v in changed.items():
                 prm[0][key] = v
             res = residuals(prm, self.contact) if obstacles else np.zeros((B, n))
-            return res + self._pair_residuals(k, prm) if pairs else res
+            return res + self._pair_residuals(part, prm) if pairs else res
 
         if name == "log_contact_stiffness":
             out[:, :, 0] = at(contact_k=2.0 * float(prm0[0]["contact_k"])) - at()
@@ -521,8 +594,8 @@ class Tape:
             out[:, :, 0] = self._difference(lambda eps: at(contact_delta=delta * np.exp(eps)), 1e-6)
         return out
 
-    def _pose_columns(self, k: int, name: str, rod) -> np.ndarray:
-        """(B, n, 3 M) ∂f/∂p of step k for every obstacle's position or turn (column 3 j + axis): central differences
+    def _pose_columns(self, part: _Part, name: str, rod) -> np.ndarray:
+        """(B, n, 3 M) ∂f/∂p of the part for every obstacle's position or turn (column 3 j + axis): central differences
         of the residual at the solution with the pose moved and its world arrays derived anew, with the candidates
         the step's linearisation listed."""
         B, n = self.dof.shape[1], self.dof.shape[2]
@@ -533,7 +606,7 @@ class Tape:
         step = 1e-6
         if name == "obstacle_position":
             step *= max(1.0, float(np.abs(self.poses["obstacle_position"]).max()))
-        residuals = self._residuals(k, rod)
+        residuals = self._residuals(part, rod)
         prm = self.sim.kernel_params
         for j in range(M):
             for axis in range(3):
@@ -608,23 +681,24 @@ class Tape:
         phi = np.zeros((B, E, Q))
         ddof[:, 0], dvel[:, 0] = dx.transpose(2, 0, 1), du.transpose(2, 0, 1)
         for k in range(T):
-            lin = self._linear(k, names)
-            rhs = lin.start_term(dx) + lin.Fu[:, :, None] * du
-            if not planar:
-                rhs += lin.G @ (phi + lin.a @ dx)
-            for q, t in enumerate(tans):
-                for nm in names:
-                    if nm in t:
-                        rhs[:, :, q] += self._rhs_params(lin, nm, t[nm], k)
-            dy = -lin.solve(rhs)  # the solved-for point (the end; the midpoint rule: the half-step point)
-            r = lin.rule
-            dx1 = r.alpha[:, None, None] * dy + r.beta[:, None, None] * dx
-            du = r.gamma[:, None, None] * (dy - dx) - r.delta[:, None, None] * du
-            du[np.ix_(r.delta != 0.0, fixed)] = 0.0  # the midpoint rule sets the constrained DOFs' velocities to 0
-            if not planar:
-                a_end, b_end = lin.end_maps()
-                phi = phi + a_end @ dx + b_end @ dx1
-            dx = dx1
+            for j in range(self.parts(k)):  # a step the retry ladder split: sub-step by sub-step
+                lin = self._linear(k, names, j)
+                rhs = lin.start_term(dx) + lin.Fu[:, :, None] * du
+                if not planar:
+                    rhs += lin.G @ (phi + lin.a @ dx)
+                for q, t in enumerate(tans):
+                    for nm in names:
+                        if nm in t:
+                            rhs[:, :, q] += self._rhs_params(lin, nm, t[nm], k)
+                dy = -lin.solve(rhs)  # the solved-for point (the end; the midpoint rule: the half-step point)
+                r = lin.rule
+                dx1 = r.alpha[:, None, None] * dy + r.beta[:, None, None] * dx
+                du = r.gamma[:, None, None] * (dy - dx) - r.delta[:, None, None] * du
+                du[np.ix_(r.delta > 0.0, fixed)] = 0.0  # the midpoint rule sets the constrained DOFs' velocities to 0
+                if not planar:
+                    a_end, b_end = lin.end_maps()
+                    phi = phi + a_end @ dx + b_end @ dx1
+                dx = dx1
             ddof[:, k + 1], dvel[:, k + 1] = dx.transpose(2, 0, 1), du.transpose(2, 0, 1)
         if many:
             return {"dof": ddof, "vel": dvel}
@@ -652,43 +726,44 @@ class Tape:
         gu = cu[T].copy()
         gphi = np.zeros((B, E))
         for k in range(T - 1, -1, -1):
-            lin = self._linear(k, names)
-            # the solved-for point y gives x_{k+1} = α y + β x_k, u_{k+1} = γ (y − x_k) − δ u_k and
-            # φ_{k+1} = φ_k + a_end x_k + b_end x_{k+1}
-            r = lin.rule
-            gu = gu.copy()
-            gu[np.ix_(r.delta != 0.0, fixed)] = 0.0  # the midpoint rule sets constrained DOFs' velocities to 0
-            gx_end = gx
-            if not planar:
-                a_end, b_end = lin.end_maps()
-                gx_end = gx + np.einsum("ben,be->bn", b_end, gphi)
-            al, be, ga, de = (v[:, None] for v in (r.alpha, r.beta, r.gamma, r.delta))
-            gy = al * gx_end + ga * gu
-            gx_prev = be * gx_end - ga * gu + cx[k]
-            gu_prev = -de * gu + cu[k]
-            if not planar:
-                gx_prev = gx_prev + np.einsum("ben,be->bn", a_end, gphi)
-            lam = lin.solve(gy[:, :, None], transpose=True)[:, :, 0]  # y = −J⁻¹ rhs ⇒ ∂/∂rhs = −λ
-            for nm in names:
-                if nm == "gravity":
-                    out[nm] += -(lam @ self._gravity_columns())
-                    continue
-                g = -np.einsum("bnk,bn->bk", lin.P[nm], lam)
-                if nm in _POSE_FIELDS:
-                    out[nm] += g.reshape(out[nm].shape)
-                elif nm == "kappa_bar":
-                    out[nm][k] = g.reshape(B, N, 2)
-                elif nm == "tau_bar":
-                    out[nm][k] = g
-                else:
-                    out[nm] += g[:, 0]
-            gx_prev = gx_prev - lin.start_adjoint(lam)
-            gu_prev = gu_prev - lin.Fu * lam
-            if not planar:
-                Gl = -np.einsum("bne,bn->be", lin.G, lam)
-                gx_prev = gx_prev + np.einsum("ben,be->bn", lin.a, Gl)
-                gphi = gphi + Gl
-            gx, gu = gx_prev, gu_prev
+            for j in range(self.parts(k) - 1, -1, -1):  # a step the retry ladder split: sub-step by sub-step
+                lin = self._linear(k, names, j)
+                # the solved-for point y gives x_{k+1} = α y + β x_k, u_{k+1} = γ (y − x_k) − δ u_k and
+                # φ_{k+1} = φ_k + a_end x_k + b_end x_{k+1}
+                r = lin.rule
+                gu = gu.copy()
+                gu[np.ix_(r.delta > 0.0, fixed)] = 0.0  # the midpoint rule sets constrained DOFs' velocities to 0
+                gx_end = gx
+                if not planar:
+                    a_end, b_end = lin.end_maps()
+                    gx_end = gx + np.einsum("ben,be->bn", b_end, gphi)
+                al, be, ga, de = (v[:, None] for v in (r.alpha, r.beta, r.gamma, r.delta))
+                gy = al * gx_end + ga * gu
+                gx_prev = be * gx_end - ga * gu + (cx[k] if j == 0 else 0.0)
+                gu_prev = -de * gu + (cu[k] if j == 0 else 0.0)
+                if not planar:
+                    gx_prev = gx_prev + np.einsum("ben,be->bn", a_end, gphi)
+                lam = lin.solve(gy[:, :, None], transpose=True)[:, :, 0]  # y = −J⁻¹ rhs ⇒ ∂/∂rhs = −λ
+                for nm in names:
+                    if nm == "gravity":
+                        out[nm] += -(lam @ self._gravity_columns())
+                        continue
+                    g = -np.einsum("bnk,bn->bk", lin.P[nm], lam)
+                    if nm in _POSE_FIELDS:
+                        out[nm] += g.reshape(out[nm].shape)
+                    elif nm == "kappa_bar":
+                        out[nm][k] += g.reshape(B, N, 2)
+                    elif nm == "tau_bar":
+                        out[nm][k] += g
+                    else:
+                        out[nm] += g[:, 0]
+                gx_prev = gx_prev - lin.start_adjoint(lam)
+                gu_prev = gu_prev - lin.Fu * lam
+                if not planar:
+                    Gl = -np.einsum("bne,bn->be", lin.G, lam)
+                    gx_prev = gx_prev + np.einsum("ben,be->bn", lin.a, Gl)
+                    gphi = gphi + Gl
+                gx, gu = gx_prev, gu_prev
         if "dof0" in out:
             out["dof0"][:] = gx
         if "vel0" in out:
@@ -787,8 +862,8 @@ def _cotangent(v, T, B, n) -> np.ndarray:
 def rollout(sim, state, controls, *, checkpoint: int | None = None) -> Tape:
     """Run ``sim`` from ``state`` (advanced in place) for T steps under ``controls`` (a sequence of T
     :class:`sim.Control`, one per step) and record what :class:`Tape` needs to differentiate it. Raises
-    :class:`GradientError` for what the derivatives do not cover (a step that failed or took the retry ladder; contact
-    between edges with a contact margin below δ).
+    :class:`GradientError` for what the derivatives do not cover (a step that failed; contact between edges with a
+    contact margin below δ).
 
     ``checkpoint=K``: keep the whole state only every K steps (and the controls) instead of every state; a pass that
     needs the states between two checkpoints steps ``sim`` again from the earlier one (each segment once per pass:
@@ -814,27 +889,32 @@ def rollout(sim, state, controls, *, checkpoint: int | None = None) -> Tape:
     kbs = np.stack([np.array(c.kappa_bar, dtype=np.float64) for c in controls])
     tbs = np.stack([np.array(c.tau_bar, dtype=np.float64) for c in controls])
     common = dict(sim=sim, kappa_bar=kbs, tau_bar=tbs, poses=poses, contact=contact)
+    m = sim.model
+    cd = contact if contact is not None else spec_contact_data(m.obstacles, 1, m.node_count, m.edge_radius,
+                                                               candidates=0)
     if checkpoint is not None:
         forces = [None if getattr(c, "force", None) is None else np.array(c.force, dtype=np.float64)
                   for c in controls]
-        kept, unconverged = [], 0
+        kept, unconverged, split = [], 0, False
         for k in range(len(controls)):
             if k % checkpoint == 0:
                 kept.append(state.copy())
-            unconverged += _advance(sim, state, _control(kbs, tbs, forces, k), k)[3]
-        replay = _Replay(sim, int(checkpoint), kept, kbs, tbs, forces)
-        return replay.tape(common, unconverged)
+            rec = _advance(sim, state, _control(kbs, tbs, forces, k), k, cd)
+            unconverged += rec[3]
+            split = split or bool(rec[4])
+        replay = _Replay(sim, int(checkpoint), kept, kbs, tbs, forces, cd)
+        return replay.tape(common, unconverged, split)
     frames = [_snap(state, B)]
     steps = []
     for k, ctrl in enumerate(controls):
-        steps.append(_advance(sim, state, ctrl, k))
+        steps.append(_advance(sim, state, ctrl, k, cd))
         frames.append(_snap(state, B))
     dof, vel, d1, t, beta = (np.stack(a) for a in zip(*frames))
-    gravs, moved, fallbacks, unconverged = zip(*steps)
+    gravs, moved, fallbacks, unconverged, subs = zip(*steps)
     return Tape(dof=dof, vel=vel, ref_d1=d1, tangent=t, ref_twist=beta, grav=np.stack(gravs),
                 unconverged=int(sum(unconverged)),
                 moved=dict(zip(_MOVED, (np.stack(a) for a in zip(*moved)))) if sim._motion else None,
-                fallback=np.stack(fallbacks), **common)
+                fallback=np.stack(fallbacks), subs=list(subs) if any(subs) else None, **common)
 
 
 _STATE_FIELDS = ("dof", "vel", "ref_d1", "tangent", "ref_twist")  # a tape's records of every state (T + 1, …)
@@ -851,31 +931,52 @@ def _control(kbs, tbs, forces, k: int) -> Control:
     return Control(kbs[k], tbs[k], forces[k])
 
 
-def _advance(sim, state, ctrl, k: int) -> tuple:
+def _advance(sim, state, ctrl, k: int, cd) -> tuple:
     """Take step ``k`` of a rollout (``state`` in place) and return what a tape records of it: its external forces
     (B, n) (gravity, loads and the control's node forces: known inputs held over the step), the state its kernel
     started from with the step's prescribed motion applied (a tuple of :data:`_MOVED`; None without motion), which
-    envs' midpoint steps were redone by backward Euler (B,), and how many envs ended unconverged."""
+    envs' midpoint steps were redone by backward Euler (B,), how many envs ended unconverged, and the sub-steps of
+    the envs the retry ladder split ({env: …}, :func:`_substeps`; ``cd`` the contact data they are taken with)."""
     B = sim.envs
     force = getattr(ctrl, "force", None)
     grav = (sim._external_forces(state.time, force) if sim._loads or force is not None else
             np.broadcast_to(sim.kernel_rod.grav, (B, sim.kernel_rod.grav.shape[1])).copy())
     moved = None
+    begin = state
     if sim._motion:  # what the step's own motion stage will do, on a copy: moved DOFs, turned clamp frames
-        pre = state.copy()
-        sim._prescribe(pre)
-        moved = (pre.dof.reshape(B, -1).copy(), pre.edge_ref_d1.copy(), pre.edge_tangent.copy(),
-                 pre.node_ref_twist.copy())
+        begin = state.copy()
+        sim._prescribe(begin)
+        moved = (begin.dof.reshape(B, -1).copy(), begin.edge_ref_d1.copy(), begin.edge_tangent.copy(),
+                 begin.node_ref_twist.copy())
+    start = _snap(begin, B)  # the state the kernel starts from (for a split step's sub-steps)
     st = sim.step(state, ctrl)
     bad = np.flatnonzero(st.failed)
     if bad.size:
         raise GradientError(f"step {k}: env {int(bad[0])} failed; a failed step has no derivative")
-    sub = np.flatnonzero(st.substeps > 1)
-    if sub.size:
-        e = int(sub[0])
-        raise GradientError(f"step {k}: env {e} took the retry ladder ({int(st.substeps[e])} sub-steps); "
-                            "derivatives through sub-steps are not available yet (a smaller dt avoids them)")
-    return grav, moved, st.midpoint_fallbacks > 0, int(np.count_nonzero(~st.converged))
+    subs = {int(e): _substeps(sim, int(e), int(st.substeps[e]), start, ctrl, grav, cd, state, k)
+            for e in np.flatnonzero(st.substeps > 1)}
+    return grav, moved, st.midpoint_fallbacks > 0, int(np.count_nonzero(~st.converged)), subs
+
+
+def _substeps(sim, e: int, ns: int, start: tuple, ctrl, grav: np.ndarray, cd, state, k: int) -> tuple:
+    """The ``ns`` sub-steps the retry ladder took env ``e``'s step ``k`` in, taken again from the kernel's start
+    ``start`` with the ladder's own sub-step (:func:`sim.kernels.probe.substeps_at`): (ns, xs, vs, d1s, ts, bs, fell),
+    the states before each sub-step and after the last (ns + 1, …) and the midpoint sub-steps redone by backward Euler
+    (ns,). Raises :class:`GradientError` if they do not end where the step did."""
+    x, v, d1, t, beta = (np.ascontiguousarray(a[e]) for a in start)
+    n, E, N = x.size, d1.shape[0], beta.size
+    xs, vs = np.empty((ns + 1, n)), np.empty((ns + 1, n))
+    d1s, ts, bs = np.empty((ns + 1, E, 3)), np.empty((ns + 1, E, 3)), np.empty((ns + 1, N))
+    fell = np.zeros(ns, np.int64)
+    rod = sim.kernel_rod._replace(grav=np.ascontiguousarray(grav))
+    done = substeps_at(e, x, v, d1, t, beta, np.ascontiguousarray(ctrl.kappa_bar[e], dtype=np.float64),
+                       np.ascontiguousarray(ctrl.tau_bar[e], dtype=np.float64), ns, rod, sim.kernel_params, cd,
+                       xs, vs, d1s, ts, bs, fell)
+    end = state.dof.reshape(sim.envs, -1)[e]
+    if done < ns or not np.allclose(xs[ns], end, rtol=0.0, atol=1e-9 * max(1.0, float(np.abs(end).max()))):
+        raise GradientError(f"step {k}: env {e}'s {ns} sub-steps of the retry ladder were not taken again as the "
+                            "step took them; its derivative is not available")
+    return ns, xs, vs, d1s, ts, bs, fell.astype(bool)
 
 
 class _Replay:
@@ -883,9 +984,9 @@ class _Replay:
     between two checkpoints are made again by stepping the simulator from the earlier one, one segment (``every``
     steps and the ``every`` + 1 states around them) at a time, the last one kept."""
 
-    def __init__(self, sim, every: int, kept: list, kbs, tbs, forces):
+    def __init__(self, sim, every: int, kept: list, kbs, tbs, forces, cd):
         self.sim, self.every, self.kept = sim, every, kept
-        self.kbs, self.tbs, self.forces = kbs, tbs, forces
+        self.kbs, self.tbs, self.forces, self.cd = kbs, tbs, forces, cd
         self.T = kbs.shape[0]
         self._segment: tuple = (-1, None, None)
         self.replays = 0  # segments stepped again (each pass over the steps: ⌈T / every⌉)
@@ -897,7 +998,7 @@ class _Replay:
             state = self.kept[c // self.every].copy()
             states, steps = [_snap(state, B)], []
             for k in range(c, min(c + self.every, self.T)):
-                steps.append(_advance(self.sim, state, _control(self.kbs, self.tbs, self.forces, k), k))
+                steps.append(_advance(self.sim, state, _control(self.kbs, self.tbs, self.forces, k), k, self.cd))
                 states.append(_snap(state, B))
             self._segment = (c, states, steps)
             self.replays += 1
@@ -914,7 +1015,7 @@ class _Replay:
         rec = self._records(c)[1][k - c][field]
         return rec if part is None else rec[part]
 
-    def tape(self, common: dict, unconverged: int) -> "Tape":
+    def tape(self, common: dict, unconverged: int, split: bool) -> "Tape":
         T, (B, n) = self.T, self.kept[0].dof.reshape(self.sim.envs, -1).shape
         snap = _snap(self.kept[0], B)
         lazy = {nm: _Lazy(lambda k, i=i: self.state(i, k), (T + 1,) + snap[i].shape)
@@ -924,7 +1025,8 @@ class _Replay:
             moved = {nm: _Lazy(lambda k, i=i: self.step(1, k, i), (T,) + snap[j].shape)
                      for i, (nm, j) in enumerate(zip(_MOVED, (0, 2, 3, 4)))}
         return Tape(**lazy, grav=_Lazy(lambda k: self.step(0, k), (T, B, n)), unconverged=unconverged, moved=moved,
-                    fallback=_Lazy(lambda k: self.step(2, k), (T, B)), _replay=self, **common)
+                    fallback=_Lazy(lambda k: self.step(2, k), (T, B)),
+                    subs=_Lazy(lambda k: self.step(4, k), (T,)) if split else None, _replay=self, **common)
 
     @property
     def nbytes(self) -> int:

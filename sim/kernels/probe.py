@@ -1,6 +1,6 @@
 """The step's residual and Jacobian at a given iterate, for analysis outside the step (sim.analysis.gradients): the
-whole residual (:func:`assemble_at`), and the edge pairs' part alone with its derivatives (:func:`pair_linearisation`,
-:func:`pair_residual`)."""
+whole residual (:func:`assemble_at`), the edge pairs' part alone with its derivatives (:func:`pair_linearisation`,
+:func:`pair_residual`), and the sub-steps of a step the retry ladder split (:func:`substeps_at`)."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,11 +8,12 @@ from numba import njit
 
 from sim.contact import edge_pairs
 from sim.contact import stages as contact
-from sim.kernels.newton import assemble, positions
+from sim.kernels.data import OK
+from sim.kernels.newton import assemble, positions, substep
 from sim.kernels.workspace import alloc_workspace, copy_into
 from sim.numba_options import OPT_ALLOC
 
-__all__ = ["assemble_at", "pair_linearisation", "pair_residual"]
+__all__ = ["assemble_at", "pair_linearisation", "pair_residual", "substeps_at"]
 
 
 @njit(**OPT_ALLOC)
@@ -130,3 +131,34 @@ def pair_residual(prm_arr, rod, x, x0, h, f_out):
     positions(planar, x0, pos0, prm.plane_y)
     edge_pairs.find_candidates(ep, rod.pairs, pos, pos, rod.edge_radius, prm.contact_margin)
     _pair_forces(ep, prm, rod, pos, pos0, h, w, f_out)
+
+
+@njit(**OPT_ALLOC)
+def substeps_at(e, x, v, d1, t, beta, kb, tb, ns, rod, prm_arr, cd, xs, vs, d1s, ts, bs, fell):
+    """Env ``e``'s step taken as ``ns`` sub-steps of prm.dt / ns from the state (x, v, d1, t, beta), as the retry
+    ladder's level of ns sub-steps takes them (:func:`sim.kernels.ladder.env_step`): the state before each sub-step
+    and after the last into xs, vs (ns + 1, n), d1s, ts (ns + 1, E, 3), bs (ns + 1, N), and into fell (ns,) 1 where a
+    midpoint sub-step was redone by backward Euler. Returns how many sub-steps succeeded (ns: all)."""
+    prm = prm_arr[0]
+    N = beta.shape[0]
+    w = alloc_workspace(N, prm.planar, rod.pairs.shape[0])
+    cs = contact.alloc(cd, N, rod.pairs.shape[0])
+    copy_into(w.sub_x, x)
+    copy_into(w.sub_v, v)
+    copy_into(w.sub_d1, d1)
+    copy_into(w.sub_t, t)
+    copy_into(w.sub_beta, beta)
+    h = prm.dt / ns
+    for s in range(ns + 1):
+        copy_into(xs[s], w.sub_x)
+        copy_into(vs[s], w.sub_v)
+        copy_into(d1s[s], w.sub_d1)
+        copy_into(ts[s], w.sub_t)
+        copy_into(bs[s], w.sub_beta)
+        if s == ns:
+            break
+        st, it, conv, r, r0, pen, pen0, f = substep(e, h, kb, tb, rod, prm, cs, w, False)
+        if st != OK:
+            return s
+        fell[s] = f
+    return ns

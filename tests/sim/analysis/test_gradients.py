@@ -499,6 +499,37 @@ def test_tangents_through_contact_between_edges_match_central_differences(scene,
     assert np.linalg.norm(jc - ja) > 1e-3 * np.linalg.norm(ja)
 
 
+SPLIT = {  # Newton capped so that the retry ladder splits steps: in one env of two (2 sub-steps), in both (up to 16)
+    "3-D, one env split": dict(mode="3d", max_iter=5),
+    "3-D, both split": dict(mode="3d", max_iter=4),
+    "2-D": dict(mode="2d", max_iter=3),
+    "3-D midpoint": dict(mode="3d", max_iter=5, integrator="midpoint"),
+}
+
+
+@pytest.mark.parametrize("name", SPLIT)
+def test_tangents_through_the_retry_ladders_sub_steps_match_central_differences(name):
+    """A step whose Newton solve fails is taken as 2, 4, … sub-steps (docs/physics.md §6): the rollout takes the
+    sub-steps again from the step's start with the ladder's own sub-step (bit for bit), and the derivatives chain
+    through them, env by env (an env whose step was not split, or whose sub-steps are over, is left as it is by the
+    parts after its last)."""
+    kw = dict(SPLIT[name])
+    mode = kw.pop("mode")
+    make = lambda m, **k2: simulator(m, tol=1e-10, dtol=1e-10, **{**kw, **k2})  # noqa: E731
+    rng = np.random.default_rng(0)
+    sim = make(mode)
+    kb, tb = random_controls(mode, sim.model.node_count, rng)
+    tape = G.rollout(sim, start(sim), controls(sim, kb, tb))
+    split = [sorted(tape.subs[k]) for k in range(T)]
+    assert tape.subs is not None and max(tape.parts(k) for k in range(T)) > 1, split
+    perturbed = perturbations(mode, sim, kb, tb, tape, rng, make=make)
+    _check_tangents(tape, perturbed)
+    _check_adjoint(tape, perturbed, rng, velocities=True)
+    every = G.rollout(sim, start(sim), controls(sim, kb, tb), checkpoint=2)  # the sub-steps taken again there too
+    g = perturbed["gravity"][0]
+    assert np.array_equal(every.jvp(g)["dof"], tape.jvp(g)["dof"])
+
+
 CHECKPOINTED = {  # scenes whose records take every path of a step: contact with friction, turned frames, drag, rules
     "sliding on a sphere": lambda: contact_simulator("3d", "sphere", *FRICTION["sliding"]),
     "a rod sliding across another": lambda: _pair_simulator(_crossing, "3d", *FRICTION["sliding"]),
@@ -538,7 +569,7 @@ def test_a_checkpointed_rollout_gives_the_full_tapes_derivatives(name):
             assert np.array_equal(got_t[key], want_t[key]), (every, key)
         for key in want_g:
             assert np.array_equal(got_g[key], want_g[key]), (every, key)
-        assert not any(isinstance(k, int) for k in tape._lin)  # no linearisation kept between passes
+        assert not any(isinstance(k, tuple) for k in tape._lin)  # no linearisation kept between passes
 
 
 def test_a_checkpointed_rollout_keeps_a_fraction_of_the_states():
