@@ -12,8 +12,9 @@ simulated positions are interpolated linearly along the rod and in time. CONTROL
 ``t,node,kappa1,kappa2,twist`` (integrated curvature at a node, as the tasks command it), held from each row's time
 until the node's next row; absent = the rest controls. In 2-D, kappa1 is the in-plane curvature.
 
-Parameters (``--params``, comma separated): ``youngs_modulus``, ``shear_modulus`` (moves ν), ``density`` (each a
-factor on every rod, fitted in log space), ``damping`` [1/s], ``gravity`` (the vector; its in-plane components in
+Parameters (``--params``, comma separated): ``youngs_modulus``, ``shear_modulus`` (moves ν), ``density``, ``radius``
+(circular sections: the stiffness, mass and contact radius follow it) (each a factor on every rod and edge, fitted in
+log space), ``damping`` [1/s], ``gravity`` (the vector; its in-plane components in
 2-D), the contact's ``contact_stiffness`` and ``contact_delta`` (factors, in log space) and ``friction`` (the [contact] μ:
 obstacles without a μ of their own, and contact between edges), ``obstacle_position`` (every obstacle's placement, each axis; in the plane in
 2-D: the fitted scene moves its point, centre, ends or position), and the actuation map from commanded to actual natural curvature, actual = gain · followed + offset, per
@@ -61,9 +62,9 @@ __all__ = ["FIT_PARAMETERS", "FIT_METHODS", "FitError", "Measurements", "Command
            "measurements_from_arrays", "node_arclength", "load_controls", "fit", "write_report", "PLOTS",
            "RESIDUAL_COLUMNS", "fit_command"]
 
-FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "damping", "gravity", "contact_stiffness",
+FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "radius", "damping", "gravity", "contact_stiffness",
                   "contact_delta", "friction", "obstacle_position", "actuation_gain", "actuation_offset", "actuation_play", "actuation_lag")
-_LOG = ("youngs_modulus", "shear_modulus", "density", "contact_stiffness", "contact_delta")  # fitted as ln of a factor on the scene's value
+_LOG = ("youngs_modulus", "shear_modulus", "density", "radius", "contact_stiffness", "contact_delta")  # fitted as ln of a factor on the scene's value
 MAX_TIME_S = 3600.0  # longest motion a fit simulates
 ACTUATION_LAG_MAX_S = 10.0  # longest actuator time constant a fit considers
 UNIT_FACTOR = 100.0  # a measured point farther than this many rod lengths from the rod's start is in wrong units
@@ -364,12 +365,14 @@ def _rod_values(r, name: str) -> list[float]:
     v = [float(getattr(r, name))]
     if name == "youngs_modulus" and r.edge_youngs_modulus is not None:
         v += [float(x) for x in r.edge_youngs_modulus]
+    if name == "radius" and r.edge_radius is not None:
+        v += [float(x) for x in r.edge_radius]
     return v
 
 
 def _unknown_bounds(spec, u: "Unknown", play_limit: float = np.inf) -> tuple[float, float]:
     """(lowest, highest) of the unknown ``u`` (its z: a log factor, a rate, a component) from sim.scene.validate.BOUNDS."""
-    if u.name in ("youngs_modulus", "density"):
+    if u.name in ("youngs_modulus", "density", "radius"):
         lo_v, hi_v, _ = BOUNDS[f"rod.{u.name}"]
         lo = max(math.log(lo_v / min(_rod_values(r, u.name))) for r in spec.rods)
         hi = min(math.log(hi_v / max(_rod_values(r, u.name))) for r in spec.rods)
@@ -419,7 +422,8 @@ def _moved_obstacle(o, d):
 
 
 def _bound_text(u: "Unknown") -> str:
-    key = {"youngs_modulus": "rod.youngs_modulus", "density": "rod.density", "damping": "sim.damping",
+    key = {"youngs_modulus": "rod.youngs_modulus", "density": "rod.density", "radius": "rod.radius",
+           "damping": "sim.damping",
            "gravity": "sim.gravity", "contact_stiffness": "contact.stiffness", "contact_delta": "contact.delta",
            "friction": "contact.friction"}.get(u.name)
     if u.name == "actuation_lag":
@@ -452,6 +456,10 @@ class Problem:
         if (cmds is None) and any(p.startswith("actuation_") for p in params):
             raise FitError("the actuation map (actuation_gain, actuation_offset, actuation_play, actuation_lag) needs "
                            "--controls: the commanded curvature it maps")
+        narrow = [r.name for r in spec.rods if r.cross_section != "circle"]
+        if "radius" in params and narrow:
+            raise FitError(f"radius: rod {narrow[0]!r} has a non-circular section (width and height, or semi-axes), "
+                           "not a radius")
         if "shear_modulus" in params and self.planar:
             raise FitError("shear_modulus: a 2-D scene has no twist, so the data cannot tell the shear modulus")
         probe = Simulator(model, 1)
@@ -540,10 +548,12 @@ class Problem:
         fE = math.exp(vals.get("youngs_modulus", 0.0))
         fG = math.exp(vals.get("shear_modulus", 0.0))
         fR = math.exp(vals.get("density", 0.0))
+        fr = math.exp(vals.get("radius", 0.0))
         # values are clipped into BOUNDS: the optimiser stays within Problem.bounds, so this only absorbs the
         # rounding of exp(log) at a bound
         E_lo, E_hi, _ = BOUNDS["rod.youngs_modulus"]
         R_lo, R_hi, _ = BOUNDS["rod.density"]
+        r_lo, r_hi, _ = BOUNDS["rod.radius"]
         rods = []
         for r in spec.rods:
             if "shear_modulus" in vals:
@@ -552,9 +562,11 @@ class Problem:
                 nu = r.poisson_ratio
             edge_e = None if r.edge_youngs_modulus is None else \
                 tuple(_clip(fE * v, E_lo, E_hi) for v in r.edge_youngs_modulus)
+            edge_r = None if r.edge_radius is None else tuple(_clip(fr * v, r_lo, r_hi) for v in r.edge_radius)
             rods.append(dataclasses.replace(r, youngs_modulus=_clip(r.youngs_modulus * fE, E_lo, E_hi),
                                             poisson_ratio=nu, density=_clip(r.density * fR, R_lo, R_hi),
-                                            edge_youngs_modulus=edge_e))
+                                            edge_youngs_modulus=edge_e, radius=_clip(r.radius * fr, r_lo, r_hi),
+                                            edge_radius=edge_r))
         g = list(spec.sim.gravity)
         g_lo, g_hi, _ = BOUNDS["sim.gravity"]
         for a, c in enumerate("xyz"):
@@ -704,6 +716,8 @@ class Problem:
             return {"log_shear_modulus": np.ones(1)}
         if u.name == "density":
             return {"log_density": np.ones(1)}
+        if u.name == "radius":
+            return {"log_radius": np.ones(1)}
         if u.name == "damping":
             return {"damping": np.ones(1)}
         if u.name == "contact_stiffness":
@@ -753,6 +767,8 @@ class Problem:
                 out[u.label] = rod.youngs_modulus / (2.0 * (1.0 + rod.poisson_ratio))
             elif u.name == "density":
                 out[u.label] = rod.density
+            elif u.name == "radius":
+                out[u.label] = rod.radius
             elif u.name == "contact_stiffness":
                 out[u.label] = spec.contact.stiffness
             elif u.name == "contact_delta":

@@ -52,6 +52,10 @@ Parameters (keys of the tangent / gradient dicts):
     log_youngs_modulus  (B,)          ln of a factor on every stretching and bending stiffness
     log_shear_modulus   (B,)          ln of a factor on every twisting stiffness
     log_density         (B,)          ln of a factor on every mass (and weight)
+    log_radius          (B,)          ln of a factor on every edge's radius (circular sections): the stretching
+                                      stiffness and masses scale with its square, the bending and twisting
+                                      stiffness and the twist angles' inertia with its fourth power, the contact
+                                      radius with it
     damping             (B,)          the viscous damping rate [1/s]
     gravity             (B, 3)        the gravity vector [m/s²]
     log_contact_stiffness (B,)        ln of a factor on the [contact] stiffness (obstacle contact)
@@ -61,6 +65,8 @@ Parameters (keys of the tangent / gradient dicts):
     obstacle_rotation   (B, M, 3)     a small turn of each obstacle about its local origin, as a rotation vector in
                                       world axes [rad] (orientation' = exp(ω) ∘ orientation)
 
+The radius enters every stiffness and mass as a power and the contact's gap: its column is a central difference of
+the residual in its log factor (the rod record scaled as above, the weight with the mass), at the part's contact set.
 The residual is linear in the contact stiffness (E ∝ k, and friction ∝ λ) and in μ, so their columns are
 differences of two residual evaluations (the stiffness doubled; μ + 1), at the contact set of the step's solution;
 without obstacle contact they are 0. The obstacles' poses (constant through a rollout) enter the contact residual
@@ -83,7 +89,7 @@ from sim.state import STATE_ARRAYS, Control
 __all__ = ["GradientError", "Tape", "rollout", "PARAMETERS"]
 
 PARAMETERS = ("dof0", "vel0", "kappa_bar", "tau_bar", "log_youngs_modulus", "log_shear_modulus", "log_density",
-              "damping", "gravity", "log_contact_stiffness", "friction", "log_contact_delta", "obstacle_position",
+              "log_radius", "damping", "gravity", "log_contact_stiffness", "friction", "log_contact_delta", "obstacle_position",
               "obstacle_rotation")
 _POSE_FIELDS = ("obstacle_position", "obstacle_rotation")
 _CONTACT_FIELDS = ("log_contact_stiffness", "friction", "log_contact_delta")
@@ -466,6 +472,8 @@ class Tape:
         for nm in _POSE_FIELDS:
             if nm in names:
                 P[nm] = self._pose_columns(part, nm, rod) * ~fixed[None, :, None]
+        if "log_radius" in names:
+            P["log_radius"] = self._radius_column(part, rod) * ~fixed[None, :, None]
         if "damping" in names:  # the damping force c m (y − x)/h on positions
             P["damping"] = ((mass * pos_dof * ~fixed)[None, :] * (y - part.x0) / hc)[:, :, None]
         if planar:
@@ -524,14 +532,41 @@ class Tape:
                 Fx[e][:, S] += V
         return low, Fx
 
-    def _pair_residuals(self, part: _Part, prm_arr) -> np.ndarray:
-        """(B, n) the part's edge-pair residual of every env at its solution with the parameters record ``prm_arr``."""
+    def _pair_residuals(self, part: _Part, prm_arr, rod=None) -> np.ndarray:
+        """(B, n) the part's edge-pair residual of every env at its solution with the parameters record ``prm_arr``
+        (and the rod record ``rod``: the simulator's by default)."""
         y, x0, h = part.solved(), part.x0, part.rule.h_solve
         out = np.empty(y.shape)
         c = np.ascontiguousarray
         for e in range(y.shape[0]):
-            pair_residual(prm_arr, self.sim.kernel_rod, c(y[e]), c(x0[e]), float(h[e]), out[e])
+            pair_residual(prm_arr, self.sim.kernel_rod if rod is None else rod, c(y[e]), c(x0[e]), float(h[e]), out[e])
         return out
+
+    def _radius_column(self, part: _Part, rod) -> np.ndarray:
+        """(B, n, 1) ∂f/∂(ln r) of the part: central differences of its residual with every edge's radius scaled
+        by e^ε (the stretching stiffness and the position DOFs' masses and weights by e^2ε, the bending and
+        twisting stiffness and the twist angles' inertia by e^4ε, the contact radius by e^ε)."""
+        m = self.sim.model
+        narrow = [r for r in m.spec.rods if getattr(r, "cross_section", "circle") != "circle"]
+        if narrow:
+            raise GradientError(f"log_radius: rod {narrow[0].name!r} has a {narrow[0].cross_section} section, not "
+                                "a radius")
+        n = self.dof.shape[2]
+        pos_dof = np.ones(n, bool) if m.mode == "2d" else (np.arange(n) % 4 != 3)
+        weight = np.asarray(m.dof_gravity, dtype=np.float64)
+        prm = self.sim.kernel_params
+        obstacles, pairs = self.contact is not None, bool(prm[0]["rod_pairs"])
+        cd = self.contact if obstacles else self._cd
+
+        def scaled(eps: float) -> np.ndarray:
+            s2 = np.exp(2.0 * eps)
+            r = rod._replace(EA=rod.EA * s2, EI1=rod.EI1 * s2**2, EI2=rod.EI2 * s2**2, GJ=rod.GJ * s2**2,
+                             mass=rod.mass * np.where(pos_dof, s2, s2**2), grav=rod.grav + (s2 - 1.0) * weight,
+                             edge_radius=rod.edge_radius * np.exp(eps))
+            res = self._residuals(part, r)(prm, cd)
+            return res + self._pair_residuals(part, prm, r) if pairs else res
+
+        return self._difference(scaled, 1e-6)[:, :, None]
 
     def _residuals(self, part: _Part, rod):
         """A function (prm, cd) -> (B, n): the part's residual of every env at its solution with the parameters record
@@ -822,7 +857,8 @@ def _param_shape(name, T, B, n, N, M=0):
     if name in _POSE_FIELDS:
         return (B, M, 3)
     return {"dof0": (B, n), "vel0": (B, n), "kappa_bar": (T, B, N, 2), "tau_bar": (T, B, N),
-            "log_youngs_modulus": (B,), "log_shear_modulus": (B,), "log_density": (B,), "damping": (B,),
+            "log_youngs_modulus": (B,), "log_shear_modulus": (B,), "log_density": (B,), "log_radius": (B,),
+            "damping": (B,),
             "gravity": (B, 3), "log_contact_stiffness": (B,), "friction": (B,), "log_contact_delta": (B,)}[name]
 
 

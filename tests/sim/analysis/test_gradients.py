@@ -124,6 +124,8 @@ def perturbations(mode, sim, kb, tb, tape, rng, make=simulator):
             make(mode, E=1e6 * math.exp(eps)), kb, tb)),
         "log_density": ({"log_density": one}, lambda eps: final_dof(
             make(mode, density=1000.0 * math.exp(eps)), kb, tb)),
+        "log_radius": ({"log_radius": one}, lambda eps: final_dof(
+            make(mode, radius=sim.model.spec.rods[0].radius * math.exp(eps)), kb, tb)),
         "damping": ({"damping": one}, lambda eps: final_dof(make(mode, damping=0.3 + eps), kb, tb)),
         "gravity": ({"gravity": np.tile(g, (B, 1))}, lambda eps: final_dof(
             make(mode, gravity=tuple(np.array([0.0, 0.0, -9.8]) + eps * g)), kb, tb)),
@@ -233,7 +235,7 @@ def test_tangents_through_obstacle_contact_match_central_differences(mode, kind,
         assert (max(ratio) > 0.999) if regime == "sliding" else (0.01 < max(ratio) < 0.95), ratio
     perturbed = perturbations(mode, sim, kb, tb, tape, rng,
                               make=lambda m, **kw: contact_simulator(m, kind, mu, nu, **kw))
-    checked = {k: perturbed[k] for k in ("dof0", "kappa_bar", "log_youngs_modulus", "gravity")}
+    checked = {k: perturbed[k] for k in ("dof0", "kappa_bar", "log_youngs_modulus", "gravity", "log_radius")}
     _check_tangents(tape, checked)
     # the contact's own parameters move the rod less (1e-5 to 1e-3 of these): larger steps in the study
     contact_params = {"log_contact_stiffness": ({"log_contact_stiffness": np.ones(B)}, lambda eps: final_dof(
@@ -480,7 +482,7 @@ def test_tangents_through_contact_between_edges_match_central_differences(scene,
     if mu > 0.0:  # the friction law's branch: sliding on some step, sticking throughout
         assert (max(ratio) > 0.999) if regime == "sliding" else (0.01 < max(ratio) < 0.95), ratio
     perturbed = perturbations(mode, sim, kb, tb, tape, rng, make=make)
-    checked = {k: perturbed[k] for k in ("dof0", "vel0", "kappa_bar", "log_youngs_modulus", "gravity")}
+    checked = {k: perturbed[k] for k in ("dof0", "vel0", "kappa_bar", "log_youngs_modulus", "gravity", "log_radius")}
     _check_tangents(tape, checked)
     contact_params = {"log_contact_stiffness": ({"log_contact_stiffness": np.ones(B)}, lambda eps: final_dof(
         make(mode, k=1e4 * math.exp(eps)), kb, tb)),
