@@ -14,7 +14,8 @@ until the node's next row; absent = the rest controls. In 2-D, kappa1 is the in-
 
 Parameters (``--params``, comma separated): ``youngs_modulus``, ``shear_modulus`` (moves ν), ``density``, ``radius``
 (circular sections: the stiffness, mass and contact radius follow it) (each a factor on every rod and edge, fitted in
-log space), ``damping`` [1/s], ``gravity`` (the vector; its in-plane components in
+log space), ``rest_kappa`` (the natural curvature at every interior node that is not commanded, each component; in
+2-D the in-plane one: an offset the fitted scene holds as ``natural_curvature``), ``damping`` [1/s], ``gravity`` (the vector; its in-plane components in
 2-D), the contact's ``contact_stiffness`` and ``contact_delta`` (factors, in log space) and ``friction`` (the [contact] μ:
 obstacles without a μ of their own, and contact between edges), ``obstacle_position`` (every obstacle's placement, each axis; in the plane in
 2-D: the fitted scene moves its point, centre, ends or position), and the actuation map from commanded to actual natural curvature, actual = gain · followed + offset, per
@@ -50,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.analysis import gradients as G
-from sim.scene.model import build_model
+from sim.scene.model import build_model, planar_nodes
 from sim.scene.spec import SceneError, dump_scene, load_scene
 from sim.scene.validate import BOUNDS
 from sim.step import Simulator
@@ -62,7 +63,8 @@ __all__ = ["FIT_PARAMETERS", "FIT_METHODS", "FitError", "Measurements", "Command
            "measurements_from_arrays", "node_arclength", "load_controls", "fit", "write_report", "PLOTS",
            "RESIDUAL_COLUMNS", "fit_command"]
 
-FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "radius", "damping", "gravity", "contact_stiffness",
+FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "radius", "rest_kappa", "damping", "gravity",
+                  "contact_stiffness",
                   "contact_delta", "friction", "obstacle_position", "actuation_gain", "actuation_offset", "actuation_play", "actuation_lag")
 _LOG = ("youngs_modulus", "shear_modulus", "density", "radius", "contact_stiffness", "contact_delta")  # fitted as ln of a factor on the scene's value
 MAX_TIME_S = 3600.0  # longest motion a fit simulates
@@ -398,6 +400,16 @@ def _unknown_bounds(spec, u: "Unknown", play_limit: float = np.inf) -> tuple[flo
         return lo_v, hi_v
     if u.name == "actuation_lag":
         return 0.0, ACTUATION_LAG_MAX_S
+    if u.name == "rest_kappa":  # the scene's natural curvature there plus the offset stays within its bounds
+        lo_v, hi_v, _ = BOUNDS["rod.natural_curvature"]
+        node, start = u.index // 2, 0
+        for rod in spec.rods:
+            if node < start + rod.nodes:
+                nat = rod.natural_curvature
+                held = 0.0 if nat is None else max(abs(v) for v in nat[node - start])
+                return lo_v + held, hi_v - held
+            start += rod.nodes
+        return lo_v, hi_v
     if u.name == "actuation_play":  # wider than every command, the output never moves
         return 0.0, play_limit
     return -np.inf, np.inf
@@ -425,7 +437,7 @@ def _bound_text(u: "Unknown") -> str:
     key = {"youngs_modulus": "rod.youngs_modulus", "density": "rod.density", "radius": "rod.radius",
            "damping": "sim.damping",
            "gravity": "sim.gravity", "contact_stiffness": "contact.stiffness", "contact_delta": "contact.delta",
-           "friction": "contact.friction"}.get(u.name)
+           "friction": "contact.friction", "rest_kappa": "rod.natural_curvature"}.get(u.name)
     if u.name == "actuation_lag":
         return f"actuation_lag in [0, {ACTUATION_LAG_MAX_S:g}] s"
     if u.name == "actuation_play":
@@ -494,6 +506,18 @@ class Problem:
                         for n in self.cmds.nodes for c in comps]
             elif p in ("actuation_play", "actuation_lag"):
                 out.append(Unknown(p, 0, p))
+            elif p == "rest_kappa":  # every interior node of every rod, each component (2-D: the in-plane one);
+                # not a commanded node: the command sets its natural curvature (actuation_offset shifts it)
+                comps = (0,) if self.planar else (0, 1)
+                offsets = self.model0.rod_node_offsets
+                commanded = set() if self.cmds is None else {int(n) for n in self.cmds.nodes}
+                for r, rod in enumerate(self.spec.rods):
+                    for i in range(1, rod.nodes - 1):
+                        node = int(offsets[r]) + i
+                        if node in commanded:
+                            continue
+                        where = f"{rod.name}[{i}]" if len(self.spec.rods) > 1 else f"{i}"
+                        out += [Unknown(p, 2 * node + c, f"rest_kappa[{where}].kappa{c + 1}") for c in comps]
             elif p == "obstacle_position":  # every obstacle moved along each axis (2-D: in the plane)
                 for j, o in enumerate(self.spec.obstacles):
                     for a in ((0, 2) if self.planar else (0, 1, 2)):
@@ -584,12 +608,33 @@ class Problem:
                 contact, stiffness=_clip(contact.stiffness * math.exp(vals.get("contact_stiffness", 0.0)), k_lo, k_hi),
                 delta=_clip(contact.delta * math.exp(vals.get("contact_delta", 0.0)), d_lo, d_hi),
                 friction=_clip(float(vals.get("friction", contact.friction)), m_lo, m_hi))
+        bent = {u.index: float(zi) for u, zi in zip(self.unknowns, z) if u.name == "rest_kappa"}
+        if bent:
+            rods = self._bent_rods(rods, bent)
         obstacles = spec.obstacles
         moved = {u.index: zi for u, zi in zip(self.unknowns, z) if u.name == "obstacle_position"}
         if moved:
             obstacles = tuple(_moved_obstacle(o, [moved.get(3 * j + a, 0.0) for a in range(3)])
                               for j, o in enumerate(obstacles))
         return dataclasses.replace(spec, sim=sim, rods=tuple(rods), contact=contact, obstacles=obstacles)
+
+    def _bent_rods(self, rods: list, bent: dict) -> list:
+        """The rods with the natural curvature offsets ``bent`` (2 node + component, in the controls' terms: 2-D, the
+        in-plane curvature) added to their scene ``natural_curvature``."""
+        m = self.model0
+        offsets = m.rod_node_offsets
+        comp, sign = planar_nodes(m) if self.planar else (None, None)
+        out = []
+        for r, rod in enumerate(rods):
+            nat = np.zeros((rod.nodes, 2)) if rod.natural_curvature is None else np.array(rod.natural_curvature)
+            for i in range(1, rod.nodes - 1):
+                node = int(offsets[r]) + i
+                if self.planar:  # the controls' in-plane column is the rod's component comp there, signed
+                    nat[i, int(comp[node])] += bent.get(2 * node, 0.0) * float(sign[node]) * float(m.planar_sign)
+                else:
+                    nat[i] += (bent.get(2 * node, 0.0), bent.get(2 * node + 1, 0.0))
+            out.append(dataclasses.replace(rod, natural_curvature=tuple((float(a), float(b)) for a, b in nat)))
+        return out
 
     def _value(self, z: np.ndarray, name: str) -> float:
         return next((max(float(zi), 0.0) for u, zi in zip(self.unknowns, z) if u.name == name), 0.0)
@@ -619,6 +664,9 @@ class Problem:
         T = self.steps
         kb = np.broadcast_to(self.rest_kb, (T,) + self.rest_kb.shape).copy()
         tb = np.broadcast_to(self.rest_tb, (T,) + self.rest_tb.shape).copy()
+        for u, zi in zip(self.unknowns, z):  # the natural curvature the fitted scene holds (spec_at)
+            if u.name == "rest_kappa":
+                kb[:, u.index // 2, u.index % 2] += zi
         if self.cmds is None:
             return kb, tb
         gains = {u.index: zi for u, zi in zip(self.unknowns, z) if u.name == "actuation_gain"}
@@ -736,6 +784,9 @@ class Problem:
             return {"obstacle_position": d}
         kb = np.zeros((T, 1, N, 2))
         tb = np.zeros((T, 1, N))
+        if u.name == "rest_kappa":  # added to every step's natural curvature at its node
+            kb[:, 0, u.index // 2, u.index % 2] = 1.0
+            return {"kappa_bar": kb}
         if u.name in ("actuation_gain", "actuation_play", "actuation_lag"):
             (fk, ft), derivs = self.followed(z)
             if u.name == "actuation_gain":

@@ -206,11 +206,14 @@ def _rod_arrays(rod) -> dict:
         mass[:-1] += 0.5 * me
         mass[1:] += 0.5 * me
     d1, t = initial_reference_frames(x)
+    kbar = material_curvature(x, d1, np.cross(t, d1))  # rest shape: material = reference frame (θ = 0)
+    if getattr(rod, "natural_curvature", None) is not None:  # added to the rest shape's (its ends unused)
+        kbar[1:-1] += np.asarray(rod.natural_curvature, dtype=np.float64).reshape(N, 2)[1:-1]
     return dict(
         x=x, lbar=lbar, vor=vor, r=r, EA=E * A, EI1=EI1, EI2=EI2, GJ=GJ, mass=mass, theta=rod.density * Jp * lbar,
         node_EI1=_node_stiffness(EI1, lbar), node_EI2=_node_stiffness(EI2, lbar), node_GJ=_node_stiffness(GJ, lbar),
         d1=d1, t=t,
-        kbar=material_curvature(x, d1, np.cross(t, d1)),  # rest shape: material = reference frame (θ = 0)
+        kbar=kbar,
         planar=_planar_axes(d1[0], t[0]))
 
 

@@ -16,7 +16,10 @@ Keys (SI units)::
            [a, b] (a along m1); sim/scene/section.py), rest_points [m] (list of [x, y, z]: a non-straight rest
            shape instead of nodes/length/start/direction); radius (circle) and youngs_modulus also take a
            list of nodes - 1 values, one per edge (a non-uniform rod); prestretch [-] (default 0: rest
-           edge lengths = initial / (1 + prestretch), the rod starts with that axial strain)
+           edge lengths = initial / (1 + prestretch), the rod starts with that axial strain); natural_curvature
+           [-] (list of nodes pairs [κ1, κ2]: integrated natural curvature in the material frame added to the
+           rest shape's at each node, so the rod starts away from its stress-free shape; the end nodes' are not
+           used; docs/physics.md §1.2)
     [[rod]] several rods in one scene: one table per rod, each with every [rod] key and a ``name`` (a
            non-empty string, unique; required when there are several rods, default "rod"). A file has [rod]
            (one rod, named "rod") or [[rod]] tables, not both. The rods are one chain of nodes in file order
@@ -35,7 +38,7 @@ import math
 import os
 import re
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -111,6 +114,8 @@ class RodSpec:
     # pre-stretch ε0 [-]: the rest edge lengths are the initial ones / (1 + ε0), so the rod starts with axial
     # strain ε0 (tension E A ε0 where its ends are held; ε0 < 0 starts it compressed)
     prestretch: float = 0.0
+    # natural curvature added to the rest shape's: (nodes, 2) integrated [κ1, κ2] per node (ends unused), or None
+    natural_curvature: tuple | None = None
     # the rod's name: the ``rod`` key of loads and fixes, and how the outputs' per-rod slices are named
     name: str = _bc.ROD_NAME
 
@@ -172,7 +177,8 @@ class SceneSpec:
 _SIM_KEYS = {"dt", "gravity", "damping", "newton_tol", "newton_max_iter", "accept_unconverged", "mode",
              "integrator", "line_search", "newton_dtol", "divergence_guard"}
 _ROD_KEYS = {"nodes", "length", "radius", "density", "youngs_modulus", "poisson_ratio", "start", "direction",
-             "clamp", "cross_section", "width", "height", "semi_axes", "rest_points", "prestretch", "name"}
+             "clamp", "cross_section", "width", "height", "semi_axes", "rest_points", "prestretch",
+             "natural_curvature", "name"}
 
 
 def _table(doc: dict, name: str, path: str | None, *, required: bool = True) -> dict | None:
@@ -312,6 +318,19 @@ def _parse_rod(r: dict, name: str, rp: str, sim: SimSpec, where: str, path: str 
         **sec,
         **_take_shape(r, where, path, rp),
     )
+    if "natural_curvature" in r:
+        v = r["natural_curvature"]
+        if not isinstance(v, list) or len(v) != rod.nodes:
+            raise SceneError(f"{where}: {rp}natural_curvature: expected {rod.nodes} pairs [kappa1, kappa2] (one per "
+                             f"node), got {v!r:.80}")
+        pairs = []
+        for i, pair in enumerate(v):
+            if not (isinstance(pair, list) and len(pair) == 2
+                    and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in pair)):
+                raise SceneError(f"{where}: {rp}natural_curvature[{i}]: expected a pair of numbers [kappa1, kappa2], "
+                                 f"got {pair!r:.80}")
+            pairs.append((float(pair[0]), float(pair[1])))
+        rod = replace(rod, natural_curvature=tuple(pairs))
     if sim.mode == "2d":
         if abs(rod.direction[1]) > 1e-12:
             raise SceneError(f"{where}: {rp}direction: mode '2d' needs a direction in the x-z plane (y = 0), "
@@ -444,6 +463,8 @@ def _rod_lines(rod: RodSpec) -> list[str]:
         lines.append(f"prestretch = {format_value(rod.prestretch)}")
     if rod.rest_points is not None:
         lines.append("rest_points = [" + ", ".join(format_value(list(p)) for p in rod.rest_points) + "]")
+    if getattr(rod, "natural_curvature", None) is not None:
+        lines.append("natural_curvature = [" + ", ".join(format_value(list(p)) for p in rod.natural_curvature) + "]")
     return lines
 
 

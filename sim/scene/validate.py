@@ -46,6 +46,7 @@ BOUNDS: dict[str, tuple[float, float, str]] = {
     "rod.height": (1e-7, 1e2, "m"),
     "rod.semi_axes": (1e-7, 1e2, "m"),
     "rod.prestretch": (-0.5, 0.5, "-"),
+    "rod.natural_curvature": (-10.0, 10.0, "-"),
     "load.force": (-1e9, 1e9, "N"),
     "load.torque": (-1e9, 1e9, "N m"),
     "load.moment": (-1e9, 1e9, "N m"),
@@ -214,6 +215,13 @@ def _check_rod(c: _Checker, r: Any, mode: str, rp: str) -> None:
     c.unit(rp + "direction", r.direction)
     c.choice(rp + "clamp", r.clamp, CLAMPS)
     c.num(rp + "prestretch", getattr(r, "prestretch", 0.0), "rod.prestretch")
+    nat = getattr(r, "natural_curvature", None)
+    if nat is not None:
+        if not isinstance(nat, (tuple, list, np.ndarray)) or len(nat) != n:
+            c.fail(rp + "natural_curvature", f"expected rod.nodes = {n} pairs [kappa1, kappa2], got "
+                                             f"{len(nat) if hasattr(nat, '__len__') else nat!r}")
+        for pair in nat:
+            c.vec(rp + "natural_curvature", pair, "rod.natural_curvature", n=2)
     # derived quantities (docs/physics.md §1.5): all must be positive normal floats
     seg = length / (n - 1)
     if sec is None:

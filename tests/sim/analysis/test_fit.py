@@ -70,6 +70,30 @@ def test_the_radius_is_recovered_with_the_stiffness(tmp_path, mode):
         F.fit(strip, meas, ["radius"])
 
 
+@pytest.mark.parametrize("mode", ["2d", "3d"])
+def test_the_rest_curvature_is_recovered_and_held_by_the_fitted_scene(tmp_path, mode):
+    """rest_kappa: the natural curvature of every interior node, fitted from a straight guess to a rod whose natural
+    curvature bends it (every component; 2-D: the in-plane one), each within 4 standard errors. The fitted scene
+    holds it as natural_curvature: built again, its rest controls are the fitted ones."""
+    from sim.scene.model import build_model
+    from sim.step import Simulator
+    spec = load_scene(scene(tmp_path, mode))
+    probe = F.Problem(spec, synthetic(spec, ["damping"], [0.2], seconds=0.1)[0], None, ["rest_kappa"])
+    z_true = np.random.default_rng(3).normal(0.0, 0.05, len(probe.unknowns))
+    meas, _ = synthetic(spec, ["rest_kappa"], z_true, seconds=1.0)
+    res = F.fit(spec, meas, ["rest_kappa"])
+    got = np.array([res.params[u.label] for u in probe.unknowns])
+    se = np.array([res.stderr[u.label] for u in probe.unknowns])
+    assert np.all(np.abs(got - z_true) < 4.0 * se + 1e-9) and res.confounded == []
+    # 5 markers for 7 nodes' curvature, 1 mm noise: within 0.3 of the truth's spread (the straight guess: 1.0)
+    assert np.sqrt(np.mean((got - z_true) ** 2)) < 0.3 * np.sqrt(np.mean(z_true ** 2))
+    assert res.rms_m == pytest.approx(NOISE_M, rel=0.2) and res.unconverged_steps == 0
+    kb_fit = probe.controls_at(got)[0][0]
+    kb_scene = Simulator(build_model(res.spec), 1).make_control().kappa_bar[0]
+    assert np.allclose(kb_scene, kb_fit, atol=1e-12), (kb_scene, kb_fit)
+    assert res.spec.rods[0].natural_curvature is not None
+
+
 def test_the_adjoint_gradient_is_the_jacobian_transposed_times_the_residuals(tmp_path):
     """Jᵀ r from one adjoint pass equals the tangent-mode Jacobian's, for log factors, a rate, gravity and the
     actuation map (its commands enter every step's natural curvature)."""
