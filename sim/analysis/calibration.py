@@ -14,7 +14,8 @@ until the node's next row; absent = the rest controls. In 2-D, kappa1 is the in-
 
 Parameters (``--params``, comma separated): ``youngs_modulus``, ``shear_modulus`` (moves ν), ``density``, ``radius``
 (circular sections: the stiffness, mass and contact radius follow it) (each a factor on every rod and edge, fitted in
-log space), ``rest_kappa`` (the natural curvature at every interior node that is not commanded, each component; in
+log space), ``base_position`` (the rods moved, their clamps with them, along each axis; in the plane in 2-D: the
+fitted scene moves their start), ``rest_kappa`` (the natural curvature at every interior node that is not commanded, each component; in
 2-D the in-plane one: an offset the fitted scene holds as ``natural_curvature``), ``damping`` [1/s], ``gravity`` (the vector; its in-plane components in
 2-D), the contact's ``contact_stiffness`` and ``contact_delta`` (factors, in log space) and ``friction`` (the [contact] μ:
 obstacles without a μ of their own, and contact between edges), ``obstacle_position`` (every obstacle's placement, each axis; in the plane in
@@ -63,8 +64,8 @@ __all__ = ["FIT_PARAMETERS", "FIT_METHODS", "FitError", "Measurements", "Command
            "measurements_from_arrays", "node_arclength", "load_controls", "fit", "write_report", "PLOTS",
            "RESIDUAL_COLUMNS", "fit_command"]
 
-FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "radius", "rest_kappa", "damping", "gravity",
-                  "contact_stiffness",
+FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "radius", "rest_kappa", "base_position", "damping",
+                  "gravity", "contact_stiffness",
                   "contact_delta", "friction", "obstacle_position", "actuation_gain", "actuation_offset", "actuation_play", "actuation_lag")
 _LOG = ("youngs_modulus", "shear_modulus", "density", "radius", "contact_stiffness", "contact_delta")  # fitted as ln of a factor on the scene's value
 MAX_TIME_S = 3600.0  # longest motion a fit simulates
@@ -433,6 +434,15 @@ def _moved_obstacle(o, d):
     return dataclasses.replace(o, **shift)
 
 
+def _moved_rod(r, d):
+    """The rod spec ``r`` translated by d (3,) [m] (its start, or its rest points)."""
+    start = tuple(float(v) + float(dv) for v, dv in zip(r.start, d))
+    if r.rest_points is None:
+        return dataclasses.replace(r, start=start)
+    pts = tuple(tuple(float(v) + float(dv) for v, dv in zip(p, d)) for p in r.rest_points)
+    return dataclasses.replace(r, start=start, rest_points=pts)
+
+
 def _bound_text(u: "Unknown") -> str:
     key = {"youngs_modulus": "rod.youngs_modulus", "density": "rod.density", "radius": "rod.radius",
            "damping": "sim.damping",
@@ -468,6 +478,9 @@ class Problem:
         if (cmds is None) and any(p.startswith("actuation_") for p in params):
             raise FitError("the actuation map (actuation_gain, actuation_offset, actuation_play, actuation_lag) needs "
                            "--controls: the commanded curvature it maps")
+        if "base_position" in params and any(any(f.angular_velocity) for f in spec.fixes):
+            raise FitError("base_position: a clamp turned about a centre ([[fix]] angular_velocity) turns with the "
+                           "base; fit the base of a scene without one")
         narrow = [r.name for r in spec.rods if r.cross_section != "circle"]
         if "radius" in params and narrow:
             raise FitError(f"radius: rod {narrow[0]!r} has a non-circular section (width and height, or semi-axes), "
@@ -518,6 +531,8 @@ class Problem:
                             continue
                         where = f"{rod.name}[{i}]" if len(self.spec.rods) > 1 else f"{i}"
                         out += [Unknown(p, 2 * node + c, f"rest_kappa[{where}].kappa{c + 1}") for c in comps]
+            elif p == "base_position":  # the rods (their clamp with them) moved along each axis (2-D: in the plane)
+                out += [Unknown(p, a, f"base_position.{'xyz'[a]}") for a in ((0, 2) if self.planar else (0, 1, 2))]
             elif p == "obstacle_position":  # every obstacle moved along each axis (2-D: in the plane)
                 for j, o in enumerate(self.spec.obstacles):
                     for a in ((0, 2) if self.planar else (0, 1, 2)):
@@ -608,6 +623,10 @@ class Problem:
                 contact, stiffness=_clip(contact.stiffness * math.exp(vals.get("contact_stiffness", 0.0)), k_lo, k_hi),
                 delta=_clip(contact.delta * math.exp(vals.get("contact_delta", 0.0)), d_lo, d_hi),
                 friction=_clip(float(vals.get("friction", contact.friction)), m_lo, m_hi))
+        shift = [next((float(zi) for u, zi in zip(self.unknowns, z) if u.name == "base_position" and u.index == a), 0.0)
+                 for a in range(3)]
+        if any(shift):
+            rods = [_moved_rod(r, shift) for r in rods]
         bent = {u.index: float(zi) for u, zi in zip(self.unknowns, z) if u.name == "rest_kappa"}
         if bent:
             rods = self._bent_rods(rods, bent)
@@ -778,6 +797,10 @@ class Problem:
             g = np.zeros((1, 3))
             g[0, u.index] = 1.0
             return {"gravity": g}
+        if u.name == "base_position":  # every node moved, the clamp's too (a constrained DOF keeps its change)
+            d = np.zeros((1, self.model0.node_count, 2 if self.planar else 4))
+            d[0, :, u.index if not self.planar else u.index // 2] = 1.0
+            return {"dof0": d.reshape(1, -1)}
         if u.name == "obstacle_position":
             d = np.zeros((1, len(self.spec.obstacles), 3))
             d[0, u.index // 3, u.index % 3] = 1.0
@@ -826,6 +849,8 @@ class Problem:
                 out[u.label] = spec.contact.delta
             elif u.name == "friction":
                 out[u.label] = spec.contact.friction
+            elif u.name == "base_position":  # where the fitted scene puts the first rod's start
+                out[u.label] = float(spec.rods[0].start[u.index])
             elif u.name == "obstacle_position":  # where the fitted scene puts the obstacle's anchor point
                 out[u.label] = float(_anchor(spec.obstacles[u.index // 3])[u.index % 3])
             elif u.name in ("damping", "gravity", "actuation_lag", "actuation_play"):

@@ -199,6 +199,7 @@ class _Lin:
     a_end: np.ndarray | None = None  # the end frames' maps when the rule solves for another point than the end
     b_end: np.ndarray | None = None
     low: dict = dataclasses.field(default_factory=dict)  # env -> (S, U): edge pairs in touch, J = band + U E_Sᵀ
+    Jc: np.ndarray | None = None  # (B, n, nc) J's columns of the constrained DOFs (before they were made identity)
     _lu: dict = dataclasses.field(default_factory=dict, repr=False)
 
     def end_maps(self):
@@ -352,6 +353,16 @@ class Tape:
                 self._lin[(k, j)] = lin
         return lin
 
+    def _held_ok(self) -> bool:
+        """Whether the constrained DOFs keep a change through the steps: yes unless a clamp is turned about a centre
+        ([[fix]] angular_velocity: its DOFs' change turns with it)."""
+        return not any(any(f.angular_velocity) for f in self.sim.model.spec.fixes)
+
+    def _check_held(self) -> None:
+        if not self._held_ok():
+            raise GradientError("dof0: a change of the constrained DOFs (the clamp moved) with a clamp turned about a "
+                                "centre ([[fix]] angular_velocity) is not available: a turned clamp's change turns")
+
     def _subs(self, k: int) -> dict:
         return {} if self.subs is None else self.subs[k]
 
@@ -444,6 +455,12 @@ class Tape:
                 G[:, r[ok], np.arange(E)[ok]] = ab[:, r[ok], d]
             G[:, th, np.arange(E)] -= mass[th][None, :] / hc**2
             G[:, fixed, :] = 0.0
+        held = np.flatnonzero(fixed)
+        Jc = np.zeros((B, n, held.size))  # the constrained DOFs' columns: a change of a held DOF moves the others
+        for j, col in enumerate(held):
+            rows = np.arange(max(0, col - kl), min(n, col + kl + 1))
+            Jc[:, rows, j] = ab[:, rows, kl + col - rows]
+        Jc[:, fixed, :] = 0.0
         _constrain(ab, fixed, kl)  # constrained DOFs: identity rows and columns (residual 0, they do not move)
         damp = float(prm["damping"])
         Fx = -(mass / hc**2 + np.where(pos_dof, damp * mass, 0.0) / hc)  # (B, n)
@@ -452,7 +469,6 @@ class Tape:
         if want_start:  # the start positions' columns by differences, the twist angles' inertia on the diagonal
             S = _dense(st_band, n, kl)
             S[:, fixed, :] = 0.0
-            S[:, :, fixed] = 0.0
             S[:, np.arange(n), np.arange(n)] += np.where(pos_dof[None, :], 0.0, Fx)
             Fx = S
         low: dict = {}
@@ -477,7 +493,7 @@ class Tape:
         if "damping" in names:  # the damping force c m (y − x)/h on positions
             P["damping"] = ((mass * pos_dof * ~fixed)[None, :] * (y - part.x0) / hc)[:, :, None]
         if planar:
-            return _Lin(k, ab, kl, Fx, Fu, None, None, None, P, rule, low=low)
+            return _Lin(k, ab, kl, Fx, Fu, None, None, None, P, rule, low=low, Jc=Jc)
         link = sim.kernel_rod.link.astype(bool)
         # the transport runs from the step's start tangents (a turning clamp's turned first); a change of the state
         # before the step moves them as the positions before the motion (the motion is held: it moves no frame of a
@@ -488,12 +504,12 @@ class Tape:
         b = _turn_map(kvec, part.x1, t1, link)
         a[rule.identity], b[rule.identity] = 0.0, 0.0  # an env the part leaves: its frames stay
         if not rule.any_midpoint:
-            return _Lin(k, ab, kl, Fx, Fu, G, a, b, P, rule, low=low)
+            return _Lin(k, ab, kl, Fx, Fu, G, a, b, P, rule, low=low, Jc=Jc)
         ty = _tangents(y, link, t1)  # the residual's frames are transported to y's tangents; the end's to x''s
         ky = np.cross(ty, t0) / (1.0 + np.einsum("bij,bij->bi", t0, ty))[..., None]
         ay, by = _turn_map(ky, part.pre, t0, link), _turn_map(ky, y, ty, link)
         ay[rule.identity], by[rule.identity] = 0.0, 0.0
-        return _Lin(k, ab, kl, Fx, Fu, G, ay, by, P, rule, a_end=a, b_end=b, low=low)
+        return _Lin(k, ab, kl, Fx, Fu, G, ay, by, P, rule, a_end=a, b_end=b, low=low, Jc=Jc)
 
     def _pair_terms(self, part: _Part, y: np.ndarray, Fx: np.ndarray) -> tuple[dict, np.ndarray]:
         """The part's edge-pair contact per env: its Jacobian as the term U E_Sᵀ of J (S the free position DOFs of
@@ -707,6 +723,10 @@ class Tape:
         planar = self.sim.model.mode == "2d"
         fixed = self.sim.kernel_rod.fixed.astype(bool)
         E = self.ref_d1.shape[2]
+        held = np.flatnonzero(fixed)
+        moves_held = any("dof0" in t and np.any(t["dof0"][:, held] != 0.0) for t in tans)
+        if moves_held:
+            self._check_held()
         ddof = np.zeros((Q, T + 1, B, n))
         dvel = np.zeros((Q, T + 1, B, n))
         names = tuple(sorted({nm for t in tans for nm in t if nm not in ("dof0", "vel0")}))
@@ -725,6 +745,9 @@ class Tape:
                     for nm in names:
                         if nm in t:
                             rhs[:, :, q] += self._rhs_params(lin, nm, t[nm], k)
+                if moves_held:  # the constrained DOFs keep their change (dy = dx there) and move the others
+                    rhs += lin.Jc @ dx[:, held]
+                    rhs[:, held] = -dx[:, held]
                 dy = -lin.solve(rhs)  # the solved-for point (the end; the midpoint rule: the half-step point)
                 r = lin.rule
                 dx1 = r.alpha[:, None, None] * dy + r.beta[:, None, None] * dx
@@ -756,6 +779,9 @@ class Tape:
         E = self.ref_d1.shape[2]
         M = self.sim.model.obstacles.count
         out = {nm: np.zeros(_param_shape(nm, T, B, n, N, M)) for nm in params}
+        held = np.flatnonzero(fixed)
+        if "dof0" in params and held.size and not self._held_ok():
+            held = held[:0]  # a turned clamp does not keep a change: its DOFs' gradient is left at 0
         names = tuple(nm for nm in params if nm not in ("dof0", "vel0"))
         gx = cx[T].copy()  # (B, n) adjoint of x_k (total, including the later steps' dependence)
         gu = cu[T].copy()
@@ -793,6 +819,8 @@ class Tape:
                     else:
                         out[nm] += g[:, 0]
                 gx_prev = gx_prev - lin.start_adjoint(lam)
+                if held.size:  # the constrained DOFs keep their change: λ there, less what they move elsewhere
+                    gx_prev[:, held] += lam[:, held] - np.einsum("bnc,bn->bc", lin.Jc, lam)
                 gu_prev = gu_prev - lin.Fu * lam
                 if not planar:
                     Gl = -np.einsum("bne,bn->be", lin.G, lam)

@@ -501,6 +501,54 @@ def test_tangents_through_contact_between_edges_match_central_differences(scene,
     assert np.linalg.norm(jc - ja) > 1e-3 * np.linalg.norm(ja)
 
 
+HELD_SCENES = {  # a change of the constrained DOFs too (the clamp moved): they keep it and move the rest
+    "2-D": lambda: simulator("2d"), "3-D": lambda: simulator("3d"),
+    "3-D sliding on a sphere": lambda: contact_simulator("3d", "sphere", *FRICTION["sliding"]),
+    "3-D, clamp carried in a fluid": lambda: moving_simulator("3d", True),
+}
+
+
+@pytest.mark.parametrize("name", HELD_SCENES)
+def test_a_change_of_the_clamp_is_kept_and_moves_the_rod(name):
+    """dof0 on the constrained DOFs: the clamp moved (and, 3-D, turned about the rod's axis through its twist
+    angle). A constrained DOF keeps its change through every step (J's columns there, kept aside, move the others).
+    Moving the whole rod without obstacles moves every state by the same (translation invariance, exact); a random
+    change of every DOF, clamp included, against central differences; the adjoint against the tangents."""
+    sim = HELD_SCENES[name]()
+    mode = sim.model.mode
+    rng = np.random.default_rng(8)
+    kb, tb = random_controls(mode, sim.model.node_count, rng)
+    tape = G.rollout(sim, start(sim), controls(sim, kb, tb))
+    n = tape.dof.shape[2]
+    fixed = sim.kernel_rod.fixed.astype(bool)
+    pos = np.ones(n, bool) if mode == "2d" else (np.arange(n) % 4 != 3)
+    d = np.array([0.3, -0.2, 0.5]) if mode == "3d" else np.array([0.3, 0.5])
+    shift = np.zeros((B, n))
+    shift[:, pos] = np.tile(d, n // (4 if mode == "3d" else 2))
+    if tape.contact is None:
+        moved = tape.jvp({"dof0": shift})["dof"]
+        assert np.allclose(moved, shift[None], atol=1e-9), np.abs(moved - shift[None]).max()
+    x0 = rng.normal(0.0, 0.01, (B, n))
+    x0[:, fixed & ~pos] *= 10.0  # the clamp's twist angle (3-D): a roll of its material frame
+    if mode == "3d":
+        x0[:, n - 1] = 0.0  # the last node's dummy angle
+    tangent = {"dof0": x0}
+    checked = {"dof0 (clamp too)": (tangent, lambda eps: final_dof(sim, kb, tb, dof0=tape.dof[0] + eps * x0))}
+    assert np.abs(x0[:, fixed]).max() > 0
+    _check_tangents(tape, checked)
+    _check_adjoint(tape, checked, rng)
+
+
+def test_a_change_of_a_turned_clamp_is_refused():
+    sim = turning_simulator("3d")
+    tape = G.rollout(sim, start(sim), controls(sim, *random_controls("3d", sim.model.node_count,
+                                                                       np.random.default_rng(0))))
+    x0 = np.zeros((B, tape.dof.shape[2]))
+    x0[:, 0] = 1.0  # node 0: the clamp's
+    with pytest.raises(G.GradientError, match="turned about a centre"):
+        tape.jvp({"dof0": x0})
+
+
 SPLIT = {  # Newton capped so that the retry ladder splits steps: in one env of two (2 sub-steps), in both (up to 16)
     "3-D, one env split": dict(mode="3d", max_iter=5),
     "3-D, both split": dict(mode="3d", max_iter=4),
