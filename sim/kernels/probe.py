@@ -17,10 +17,9 @@ __all__ = ["assemble_at", "pair_linearisation", "pair_residual", "substeps_at"]
 
 
 @njit(**OPT_ALLOC)
-def assemble_at(e, x, x0, u0, d1s, ts, bs, h, kb, tb, rod, prm_arr, cd, f_out, ab_out):
-    """Residual f_out (n,) and banded Jacobian ab_out (n + kl, 2 kl + 1) (full band) of env ``e``'s step of size h
-    from (x0, u0, frames d1s/ts/bs) at the DOFs x. A workspace per call: an analysis path, not the step's."""
-    prm = prm_arr[0]
+def _work_from(prm, rod, cd, x0, u0, d1s, ts, bs):
+    """A work space and contact sets of their own (an analysis path, not the step's) holding the (sub)step start
+    state (x0, u0, frames d1s/ts/bs)."""
     N = bs.shape[0]
     w = alloc_workspace(N, prm.planar, rod.pairs.shape[0])
     cs = contact.alloc(cd, N, rod.pairs.shape[0])
@@ -29,6 +28,15 @@ def assemble_at(e, x, x0, u0, d1s, ts, bs, h, kb, tb, rod, prm_arr, cd, f_out, a
     copy_into(w.sub_d1, d1s)
     copy_into(w.sub_t, ts)
     copy_into(w.sub_beta, bs)
+    return w, cs
+
+
+@njit(**OPT_ALLOC)
+def assemble_at(e, x, x0, u0, d1s, ts, bs, h, kb, tb, rod, prm_arr, cd, f_out, ab_out):
+    """Residual f_out (n,) and banded Jacobian ab_out (n + kl, 2 kl + 1) (full band) of env ``e``'s step of size h
+    from (x0, u0, frames d1s/ts/bs) at the DOFs x (:func:`_work_from`)."""
+    prm = prm_arr[0]
+    w, cs = _work_from(prm, rod, cd, x0, u0, d1s, ts, bs)
     copy_into(w.x, x)
     assemble(prm.planar, e, w.x, h, kb, tb, rod, prm, cs, w, True, False)
     copy_into(f_out, w.f)
@@ -47,6 +55,24 @@ def _pair_forces(ep, prm, rod, pos, pos0, h, w, out):
 
 
 @njit(**OPT_ALLOC)
+def _pairs_at(prm, rod, x, x0, h, f_out):
+    """The candidate pairs at the DOFs ``x`` (a fresh list) and their residual from ``x0`` over h into ``f_out``:
+    returns (work space, pair contact, node positions at x, at x0)."""
+    planar = prm.planar
+    N = x.shape[0] // (2 if planar else 4)
+    P = rod.pairs.shape[0]
+    w = alloc_workspace(N, planar, P)
+    ep = edge_pairs.alloc(N, P)
+    pos = np.empty((N, 3))
+    pos0 = np.empty((N, 3))
+    positions(planar, x, pos, prm.plane_y)
+    positions(planar, x0, pos0, prm.plane_y)
+    edge_pairs.find_candidates(ep, rod.pairs, pos, pos, rod.edge_radius, prm.contact_margin)
+    _pair_forces(ep, prm, rod, pos, pos0, h, w, f_out)
+    return w, ep, pos, pos0
+
+
+@njit(**OPT_ALLOC)
 def pair_linearisation(prm_arr, rod, x, x0, h, step, richardson, of_start, f_out, dofs, cols, start_cols):
     """The residual of the edge pairs alone at the DOFs ``x`` (n,) of a step of size h from ``x0`` (its slip
     velocity (x − x0)/h) into ``f_out`` (n,), over the candidate pairs at ``x`` (a fresh list: with the contact
@@ -60,15 +86,7 @@ def pair_linearisation(prm_arr, rod, x, x0, h, step, richardson, of_start, f_out
     dpn = 2 if planar else 4
     n = x.shape[0]
     N = n // dpn
-    P = rod.pairs.shape[0]
-    w = alloc_workspace(N, planar, P)
-    ep = edge_pairs.alloc(N, P)
-    pos = np.empty((N, 3))
-    pos0 = np.empty((N, 3))
-    positions(planar, x, pos, prm.plane_y)
-    positions(planar, x0, pos0, prm.plane_y)
-    edge_pairs.find_candidates(ep, rod.pairs, pos, pos, rod.edge_radius, prm.contact_margin)
-    _pair_forces(ep, prm, rod, pos, pos0, h, w, f_out)
+    w, ep, pos, pos0 = _pairs_at(prm, rod, x, x0, h, f_out)
     near = np.zeros(N, np.bool_)
     for m in range(ep.count[0]):
         c = ep.cand[m]
@@ -118,19 +136,7 @@ def pair_linearisation(prm_arr, rod, x, x0, h, step, richardson, of_start, f_out
 def pair_residual(prm_arr, rod, x, x0, h, f_out):
     """The residual of the edge pairs alone at the DOFs ``x`` of a step of size h from ``x0`` into ``f_out`` (n,),
     over the candidate pairs at ``x`` (as :func:`pair_linearisation`)."""
-    prm = prm_arr[0]
-    planar = prm.planar
-    dpn = 2 if planar else 4
-    N = x.shape[0] // dpn
-    P = rod.pairs.shape[0]
-    w = alloc_workspace(N, planar, P)
-    ep = edge_pairs.alloc(N, P)
-    pos = np.empty((N, 3))
-    pos0 = np.empty((N, 3))
-    positions(planar, x, pos, prm.plane_y)
-    positions(planar, x0, pos0, prm.plane_y)
-    edge_pairs.find_candidates(ep, rod.pairs, pos, pos, rod.edge_radius, prm.contact_margin)
-    _pair_forces(ep, prm, rod, pos, pos0, h, w, f_out)
+    _pairs_at(prm_arr[0], rod, x, x0, h, f_out)
 
 
 @njit(**OPT_ALLOC)
@@ -140,14 +146,7 @@ def substeps_at(e, x, v, d1, t, beta, kb, tb, ns, rod, prm_arr, cd, xs, vs, d1s,
     and after the last into xs, vs (ns + 1, n), d1s, ts (ns + 1, E, 3), bs (ns + 1, N), and into fell (ns,) 1 where a
     midpoint sub-step was redone by backward Euler. Returns how many sub-steps succeeded (ns: all)."""
     prm = prm_arr[0]
-    N = beta.shape[0]
-    w = alloc_workspace(N, prm.planar, rod.pairs.shape[0])
-    cs = contact.alloc(cd, N, rod.pairs.shape[0])
-    copy_into(w.sub_x, x)
-    copy_into(w.sub_v, v)
-    copy_into(w.sub_d1, d1)
-    copy_into(w.sub_t, t)
-    copy_into(w.sub_beta, beta)
+    w, cs = _work_from(prm, rod, cd, x, v, d1, t, beta)
     h = prm.dt / ns
     for s in range(ns + 1):
         copy_into(xs[s], w.sub_x)
