@@ -779,9 +779,8 @@ class Tape:
         E = self.ref_d1.shape[2]
         M = self.sim.model.obstacles.count
         out = {nm: np.zeros(_param_shape(nm, T, B, n, N, M)) for nm in params}
-        held = np.flatnonzero(fixed)
-        if "dof0" in params and held.size and not self._held_ok():
-            held = held[:0]  # a turned clamp does not keep a change: its DOFs' gradient is left at 0
+        kept = self._held_ok()  # a turned clamp does not keep a change (jvp refuses one): its DOFs' gradient is 0
+        held = np.flatnonzero(fixed) if kept else np.zeros(0, np.int64)
         names = tuple(nm for nm in params if nm not in ("dof0", "vel0"))
         gx = cx[T].copy()  # (B, n) adjoint of x_k (total, including the later steps' dependence)
         gu = cu[T].copy()
@@ -829,6 +828,8 @@ class Tape:
                 gx, gu = gx_prev, gu_prev
         if "dof0" in out:
             out["dof0"][:] = gx
+            if not kept:
+                out["dof0"][:, fixed] = 0.0
         if "vel0" in out:
             out["vel0"][:] = gu
         return out
@@ -971,7 +972,7 @@ def rollout(sim, state, controls, *, checkpoint: int | None = None) -> Tape:
     frames = [_snap(state, B)]
     steps = []
     for k, ctrl in enumerate(controls):
-        steps.append(_advance(sim, state, ctrl, k, cd))
+        steps.append(_advance(sim, state, ctrl, k, cd, frames[-1]))
         frames.append(_snap(state, B))
     dof, vel, d1, t, beta = (np.stack(a) for a in zip(*frames))
     gravs, moved, fallbacks, unconverged, subs = zip(*steps)
@@ -995,24 +996,27 @@ def _control(kbs, tbs, forces, k: int) -> Control:
     return Control(kbs[k], tbs[k], forces[k])
 
 
-def _advance(sim, state, ctrl, k: int, cd) -> tuple:
+def _advance(sim, state, ctrl, k: int, cd, before: tuple | None = None) -> tuple:
     """Take step ``k`` of a rollout (``state`` in place) and return what a tape records of it: its external forces
     (B, n) (gravity, loads and the control's node forces: known inputs held over the step), the state its kernel
     started from with the step's prescribed motion applied (a tuple of :data:`_MOVED`; None without motion), which
     envs' midpoint steps were redone by backward Euler (B,), how many envs ended unconverged, and the sub-steps of
-    the envs the retry ladder split ({env: …}, :func:`_substeps`; ``cd`` the contact data they are taken with)."""
+    the envs the retry ladder split ({env: …}, :func:`_substeps`; ``cd`` the contact data they are taken with;
+    ``before``: the caller's :func:`_snap` of the state before the step, taken here if None)."""
     B = sim.envs
     force = getattr(ctrl, "force", None)
     grav = (sim._external_forces(state.time, force) if sim._loads or force is not None else
             np.broadcast_to(sim.kernel_rod.grav, (B, sim.kernel_rod.grav.shape[1])).copy())
     moved = None
-    begin = state
+    if before is None:
+        before = _snap(state, B)
     if sim._motion:  # what the step's own motion stage will do, on a copy: moved DOFs, turned clamp frames
-        begin = state.copy()
-        sim._prescribe(begin)
-        moved = (begin.dof.reshape(B, -1).copy(), begin.edge_ref_d1.copy(), begin.edge_tangent.copy(),
-                 begin.node_ref_twist.copy())
-    start = _snap(begin, B)  # the state the kernel starts from (for a split step's sub-steps)
+        pre = state.copy()
+        sim._prescribe(pre)
+        moved = (pre.dof.reshape(B, -1).copy(), pre.edge_ref_d1.copy(), pre.edge_tangent.copy(),
+                 pre.node_ref_twist.copy())
+    # the state the kernel starts from (for a split step's sub-steps): the motion moves DOFs and frames, not velocities
+    start = before if moved is None else (moved[0], before[1], *moved[1:])
     st = sim.step(state, ctrl)
     bad = np.flatnonzero(st.failed)
     if bad.size:
@@ -1062,7 +1066,8 @@ class _Replay:
             state = self.kept[c // self.every].copy()
             states, steps = [_snap(state, B)], []
             for k in range(c, min(c + self.every, self.T)):
-                steps.append(_advance(self.sim, state, _control(self.kbs, self.tbs, self.forces, k), k, self.cd))
+                steps.append(_advance(self.sim, state, _control(self.kbs, self.tbs, self.forces, k), k, self.cd,
+                                      states[-1]))
                 states.append(_snap(state, B))
             self._segment = (c, states, steps)
             self.replays += 1

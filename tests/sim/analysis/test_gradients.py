@@ -547,6 +547,9 @@ def test_a_change_of_a_turned_clamp_is_refused():
     x0[:, 0] = 1.0  # node 0: the clamp's
     with pytest.raises(G.GradientError, match="turned about a centre"):
         tape.jvp({"dof0": x0})
+    grad = tape.vjp({"dof": np.ones(tape.dof.shape[1:])}, params=("dof0",))["dof0"]  # nor a gradient there
+    fixed = sim.kernel_rod.fixed.astype(bool)
+    assert not grad[:, fixed].any() and grad[:, ~fixed].any()
 
 
 SPLIT = {  # Newton capped so that the retry ladder splits steps: in one env of two (2 sub-steps), in both (up to 16)
