@@ -41,6 +41,16 @@ __all__ = ["Simulator", "MIDPOINT_ENERGY_TOL"]
 IndexLike = int | Sequence[int] | np.ndarray | slice | None
 
 
+def _alike(a, b) -> bool:
+    """Equal, or for floats equal to rounding (a rest shape moved as a whole keeps its lengths to the last bits)."""
+    a, b = np.asarray(a), np.asarray(b)
+    if a.shape != b.shape:
+        return False
+    if a.dtype.kind == "f":
+        return bool(np.allclose(a, b, rtol=1e-12, atol=0.0))
+    return bool(np.array_equal(a, b))
+
+
 class Simulator:
     """Batched implicit DER simulator for ``envs`` copies of ``model``.
 
@@ -144,6 +154,39 @@ class Simulator:
         """The kernels' rod record (``sim.kernels.data.RodData``: masses, stiffnesses, rest shape, fixed DOFs,
         gravity), built from the Model."""
         return self._rod
+
+    def set_env_models(self, models: Sequence[Model]) -> None:
+        """Give env e the masses, stiffnesses, damping and gravity of ``models[e]`` (one per env; each the model of
+        the same rods as this one with other material values, section sizes, damping or gravity — several parameter
+        sets stepped in one batch, as a multi-start fit does). Their initial state and controls are the caller's
+        (:meth:`reset` stays this model's). ValueError naming what differs where the kernels share it (the rest
+        shape, fixes, joints, the step's parameters, the contact's radii or settings)."""
+        if len(models) != self.envs:
+            raise ValueError(f"set_env_models: expected {self.envs} models (one per env), got {len(models)}")
+        prm = self._prm[0]
+        touching = int(prm["n_obstacles"]) > 0 or bool(prm["rod_pairs"])
+        pairs = self._rod.pairs
+        rods = []
+        for e, m in enumerate(models):
+            if m.mode != self.model.mode or m.node_count != self.model.node_count:
+                raise ValueError(f"set_env_models: model {e} has {m.node_count} nodes in {m.mode}; this simulator's "
+                                 f"has {self.model.node_count} in {self.model.mode}")
+            p = Params.from_model(m, pairs=pairs).record()[0]
+            # the midpoint rule's energy floor scales with the stiffness (a threshold on rounding: the first's serves);
+            # the motion plane is a 2-D rod's only
+            skip = ("midpoint_energy_floor",) + (() if prm["planar"] else ("plane_y",))
+            bad = [name for name in p.dtype.names if name not in skip and not _alike(p[name], prm[name])]
+            if bad:
+                raise ValueError(f"set_env_models: model {e} differs in the step parameter {bad[0]}, which every env "
+                                 "shares")
+            r = RodData.from_model(m, pairs=pairs)
+            if not touching:  # the contact radii are read by contact only
+                r = r._replace(edge_radius=self._rod.edge_radius)
+            rods.append(r)
+        try:
+            self._rod = RodData.stacked(rods)
+        except ValueError as exc:
+            raise ValueError(f"set_env_models: {exc}") from None
 
     # ------------------------------------------------------------------ obstacle poses (in the State)
     def set_obstacle_pose(self, state: State, i: int, position, orientation_wxyz=(1.0, 0.0, 0.0, 0.0), *,

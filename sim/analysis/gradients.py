@@ -325,10 +325,9 @@ class Tape:
     def _rods(self, k: int):
         """The kernels' rod data of step k (each env's external forces; no DOF constrained) and its variants with
         the stiffness, twisting stiffness or mass doubled."""
-        m = self.sim.model
         rod = self.sim.kernel_rod._replace(grav=np.ascontiguousarray(self.grav[k]))
         rod = rod._replace(fixed=np.zeros_like(rod.fixed))
-        weight = np.asarray(m.dof_gravity)[None, :]
+        weight = self.sim.kernel_rod.grav  # the weights (R, n): the record's own external forces are gravity's
         rod_e = rod._replace(EA=2.0 * rod.EA, EI1=2.0 * rod.EI1, EI2=2.0 * rod.EI2)
         rod_g = rod._replace(GJ=2.0 * rod.GJ)
         rod_m = rod._replace(mass=2.0 * rod.mass, grav=np.ascontiguousarray(rod.grav + weight))
@@ -453,7 +452,7 @@ class Tape:
                 r = th + kl - d  # band entry (r, d) is J[r, r + d − kl]: column th where r = th + kl − d
                 ok = (r >= 0) & (r < n)
                 G[:, r[ok], np.arange(E)[ok]] = ab[:, r[ok], d]
-            G[:, th, np.arange(E)] -= mass[th][None, :] / hc**2
+            G[:, th, np.arange(E)] -= mass[:, th] / hc**2
             G[:, fixed, :] = 0.0
         held = np.flatnonzero(fixed)
         Jc = np.zeros((B, n, held.size))  # the constrained DOFs' columns: a change of a held DOF moves the others
@@ -462,9 +461,9 @@ class Tape:
             Jc[:, rows, j] = ab[:, rows, kl + col - rows]
         Jc[:, fixed, :] = 0.0
         _constrain(ab, fixed, kl)  # constrained DOFs: identity rows and columns (residual 0, they do not move)
-        damp = float(prm["damping"])
-        Fx = -(mass / hc**2 + np.where(pos_dof, damp * mass, 0.0) / hc)  # (B, n)
-        Fu = -mass / hc
+        damp = sim.kernel_rod.damping  # (R, 1)
+        Fx = -(mass / hc**2 + np.where(pos_dof, damp * mass, 0.0) / hc) * np.ones((B, 1))  # (B, n)
+        Fu = -mass / hc * np.ones((B, 1))
         Fx[:, fixed], Fu[:, fixed] = 0.0, 0.0
         if want_start:  # the start positions' columns by differences, the twist angles' inertia on the diagonal
             S = _dense(st_band, n, kl)
@@ -491,7 +490,7 @@ class Tape:
         if "log_radius" in names:
             P["log_radius"] = self._radius_column(part, rod) * ~fixed[None, :, None]
         if "damping" in names:  # the damping force c m (y − x)/h on positions
-            P["damping"] = ((mass * pos_dof * ~fixed)[None, :] * (y - part.x0) / hc)[:, :, None]
+            P["damping"] = ((mass * pos_dof * ~fixed) * (y - part.x0) / hc)[:, :, None]
         if planar:
             return _Lin(k, ab, kl, Fx, Fu, None, None, None, P, rule, low=low, Jc=Jc)
         link = sim.kernel_rod.link.astype(bool)
@@ -569,7 +568,7 @@ class Tape:
                                 "a radius")
         n = self.dof.shape[2]
         pos_dof = np.ones(n, bool) if m.mode == "2d" else (np.arange(n) % 4 != 3)
-        weight = np.asarray(m.dof_gravity, dtype=np.float64)
+        weight = self.sim.kernel_rod.grav  # the weights (R, n) (RodData: the record's external forces are gravity's)
         prm = self.sim.kernel_params
         obstacles, pairs = self.contact is not None, bool(prm[0]["rod_pairs"])
         cd = self.contact if obstacles else self._cd
@@ -682,25 +681,25 @@ class Tape:
                      poses["obstacle_b"], poses["obstacle_radius"], p0, p1, rot, box)
         return self.contact._replace(p0=p0, p1=p1, rot=rot, box=box)
 
-    def _gravity_columns(self) -> np.ndarray:
-        """(n, 3) ∂f/∂g (the same for every env and step)."""
+    def _gravity_columns(self, B: int) -> np.ndarray:
+        """(B, n, 3) ∂f/∂g of every env (the same for every step)."""
         rod = self.sim.kernel_rod
         n = self.dof.shape[2]
-        out = np.zeros((n, 3))
-        mass = rod.mass
+        out = np.zeros((B, n, 3))
+        mass = np.broadcast_to(rod.mass, (B, n))
         if self.sim.model.mode == "2d":
-            out[0::2, 0] = -mass[0::2]
-            out[1::2, 2] = -mass[1::2]
+            out[:, 0::2, 0] = -mass[:, 0::2]
+            out[:, 1::2, 2] = -mass[:, 1::2]
         else:
             for c in range(3):
-                out[c::4, c] = -mass[c::4]
-        out[rod.fixed.astype(bool)] = 0.0
+                out[:, c::4, c] = -mass[:, c::4]
+        out[:, rod.fixed.astype(bool)] = 0.0
         return out
 
     def _rhs_params(self, lin: _Lin, name: str, tan: np.ndarray, k: int) -> np.ndarray:
         """(B, n) ∂f/∂p · δp of step k for the tangent ``tan`` of parameter ``name``."""
         if name == "gravity":
-            return tan @ self._gravity_columns().T
+            return np.einsum("bnc,bc->bn", self._gravity_columns(tan.shape[0]), tan)
         if name in _POSE_FIELDS:
             v = tan.reshape(tan.shape[0], -1)
         elif name == "kappa_bar":
@@ -806,7 +805,7 @@ class Tape:
                 lam = lin.solve(gy[:, :, None], transpose=True)[:, :, 0]  # y = −J⁻¹ rhs ⇒ ∂/∂rhs = −λ
                 for nm in names:
                     if nm == "gravity":
-                        out[nm] += -(lam @ self._gravity_columns())
+                        out[nm] += -np.einsum("bn,bnc->bc", lam, self._gravity_columns(B))
                         continue
                     g = -np.einsum("bnk,bn->bk", lin.P[nm], lam)
                     if nm in _POSE_FIELDS:

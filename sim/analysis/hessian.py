@@ -9,7 +9,7 @@ from __future__ import annotations
 from numba import njit
 
 from sim.contact import stages as contact
-from sim.kernels.data import KL_2D, KL_3D
+from sim.kernels.data import KL_2D, KL_3D, env_rod
 from sim.kernels.newton import assemble, positions
 from sim.kernels.workspace import alloc_workspace, copy_into
 from sim.numba_options import OPT_ALLOC
@@ -26,6 +26,7 @@ def static_jacobian(e, x, d1, t, beta, kb, tb, rod, prm_arr, cd):
     off-band coupling of touching edge pairs: the DOFs (K,) and their dense block (K, K) (K = 0 without).
     ``prm_arr``: the Simulator's one-record parameter array (:meth:`sim.kernels.data.Params.record`)."""
     prm = prm_arr[0]
+    rod = env_rod(rod, e)
     planar = prm.planar
     n = x.shape[0]
     N = rod.vor_len.shape[0]

@@ -34,7 +34,7 @@ def assemble_2d(e, x, h, kb, tb, rod, prm, cs, w, with_jac, sym):
     N = n // 2
     kl = KL_2D
     sgn = prm.planar_sign
-    damp = prm.damping
+    damp = rod.damping[0]  # env e's record (sim.kernels.data.env_rod)
     ih = 1.0 / h
     ih2 = ih * ih
     if with_jac:

@@ -36,7 +36,7 @@ def assemble_3d(e, x, h, kb, tb, rod, prm, cs, w, with_jac, sym):
     n = x.shape[0]
     N = n // 4
     kl = KL_3D
-    damp = prm.damping
+    damp = rod.damping[0]  # env e's record (sim.kernels.data.env_rod)
     ih = 1.0 / h
     ih2 = ih * ih
     for k in range(N):

@@ -7,6 +7,7 @@ from __future__ import annotations
 from numba import njit, prange
 
 from sim.contact import stages as contact
+from sim.kernels.data import env_rod
 from sim.kernels.ladder import env_step
 from sim.kernels.workspace import alloc_workspace
 from sim.numba_options import OPT, OPT_ALLOC
@@ -56,8 +57,8 @@ def step_kernel(state, ctl, rod, prm_arr, cd, crep, out):
             _clear_outputs(out, e)
             if failed[e]:
                 continue
-            ok = env_step(e, dof[e], vel[e], ref_d1[e], tangent[e], ref_twist[e], kappa_bar[e], tau_bar[e], rod, prm,
-                          cs, crep, out, w)
+            ok = env_step(e, dof[e], vel[e], ref_d1[e], tangent[e], ref_twist[e], kappa_bar[e], tau_bar[e],
+                          env_rod(rod, e), prm, cs, crep, out, w)
             if ok:
                 times[e] += prm.dt
             else:

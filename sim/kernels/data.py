@@ -13,15 +13,17 @@ from enum import IntEnum
 from typing import Any, NamedTuple
 
 import numpy as np
+from numba import njit
 
 from sim.contact.edge_pairs import model_pairs, pair_links
 from sim.contact.world import contact_radii
+from sim.numba_options import OPT_ALLOC
 from sim.scene.model import planar_nodes
 
 __all__ = ["LineSearch", "Params", "PARAMS_DTYPE", "RodData", "StateArrays", "ControlArrays", "StepOutput",
            "ContactReport", "OK", "NON_FINITE", "RESIDUAL_GROWTH", "BAD_PIVOT", "UNCONVERGED", "STRAIN",
            "MIDPOINT_GAINED", "KL_3D", "KL_2D", "MIDPOINT_ENERGY_TOL", "MIDPOINT_ENERGY_FLOOR", "RETRY_LEVELS",
-           "MAX_STRAIN"]
+           "MAX_STRAIN", "env_rod"]
 
 # (sub)step status codes of sim.kernels.newton
 OK, NON_FINITE, RESIDUAL_GROWTH, BAD_PIVOT, UNCONVERGED, STRAIN, MIDPOINT_GAINED = range(7)
@@ -56,7 +58,7 @@ class LineSearch(IntEnum):
 @dataclasses.dataclass(frozen=True)
 class Params:
     """The solver's scalar parameters by name, read in the kernels as ``prm`` (one record of
-    :data:`PARAMS_DTYPE`, :meth:`record`). Units: dt [s], damping [1/s], newton_dtol [m/s],
+    :data:`PARAMS_DTYPE`, :meth:`record`). Units: dt [s], newton_dtol [m/s],
     contact_delta/contact_margin/max_penetration/plane_y [m], contact_k [N/m], friction_nu [m/s]; the rest
     dimensionless; drag_normal/drag_tangential [N s/m²] and the flow velocity flow_x/y/z [m/s] of the viscous drag
     (``drag_on``: a coefficient above 0; docs/physics.md §3.1). ``planar``: the 2-D model; ``midpoint``: implicit
@@ -65,7 +67,6 @@ class Params:
     contact_k, contact_delta, contact_margin and the [contact] friction μ = friction); ``n_obstacles``: 0 when contact is disabled."""
 
     dt: float
-    damping: float
     newton_tol: float
     newton_dtol: float
     contact_k: float
@@ -109,7 +110,7 @@ class Params:
         drag = getattr(m.spec, "drag", None)
         flow = drag.flow if drag is not None else (0.0, 0.0, 0.0)
         return cls(
-            dt=m.dt, damping=m.damping, newton_tol=m.newton_tol, newton_dtol=m.newton_dtol,
+            dt=m.dt, newton_tol=m.newton_tol, newton_dtol=m.newton_dtol,
             contact_k=c.stiffness, contact_delta=c.delta, friction=c.friction, friction_nu=c.friction_velocity_tol,
             contact_margin=c.margin, planar_sign=m.planar_sign, plane_y=m.plane_y, max_strain=MAX_STRAIN,
             max_penetration=4.0 * c.delta if mp is None else float(mp), divergence_guard=m.divergence_guard,
@@ -142,16 +143,20 @@ PARAMS_DTYPE = np.dtype([(f.name, _DTYPES[f.type]) for f in dataclasses.fields(P
 
 class RodData(NamedTuple):
     """The rod's constant per-edge / per-node / per-DOF arrays (docs/physics.md §1.2): rest edge lengths (N-1,),
-    Voronoi lengths (N,), DOF masses, fixed-DOF flags (n,) of one env, and the external forces grav (gravity plus
-    point loads): (1, n) shared by all envs, or (B, n) per env when time-windowed loads act (row min(e, rows - 1));
-    the stiffnesses: EA [N] per edge (N-1,), EI1/EI2/GJ [N m²] per node (N,) (an interior node: the
-    length-weighted mean of its two edges' compliances; docs/physics.md §1.5). The planar rod reads its in-plane
-    bending stiffness from EI1. edge_radius [m]: the contact radius, (1,) for a rod of one radius, else (N-1,) per
-    edge (sim.contact.imc). link (N-1,) uint8: 1 for a material edge, 0 for a joint edge between two rods of a
-    scene (docs/physics.md §1.7): no stretching, no bending or twisting at its two nodes, no contact, its frame
-    carried along unchanged. pairs (P, 2) int64: the edge pairs that may touch (sim.contact.edge_pairs.allowed_pairs;
-    (0, 2) without self- or rod–rod contact); pair_links (P, 3) int64: the pairs sharing each pair's start nodes
-    (sim.contact.edge_pairs.pair_links: which node terms a pair carries)."""
+    Voronoi lengths (N,), fixed-DOF flags (n,) shared by every env, and per env (leading axis R: 1 shared by all
+    envs, or B, one row per env, row min(e, R - 1) — :func:`env_rod` picks env e's): the DOF masses mass (R, n), the
+    stiffnesses EA [N] per edge (R, N-1), EI1/EI2/GJ [N m²] per node (R, N) (an interior node: the length-weighted
+    mean of its two edges' compliances; docs/physics.md §1.5) and the viscous damping rate damping (R, 1) [1/s]; the
+    external forces grav (gravity plus point loads) (R, n) likewise, (B, n) when time-windowed loads act. The planar
+    rod reads its in-plane bending stiffness from EI1. edge_radius [m]: the contact radius, (1,) for a rod of one
+    radius, else (N-1,) per edge (sim.contact.imc). link (N-1,) uint8: 1 for a material edge, 0 for a joint edge
+    between two rods of a scene (docs/physics.md §1.7): no stretching, no bending or twisting at its two nodes, no
+    contact, its frame carried along unchanged. pairs (P, 2) int64: the edge pairs that may touch
+    (sim.contact.edge_pairs.allowed_pairs; (0, 2) without self- or rod–rod contact); pair_links (P, 3) int64: the
+    pairs sharing each pair's start nodes (sim.contact.edge_pairs.pair_links: which node terms a pair carries).
+
+    The kernels of one env read the record :func:`env_rod` gives: its rows of the per-env arrays (mass (n,), EA,
+    EI1, EI2, GJ, damping (1,)), the rest as here."""
 
     rest_len: np.ndarray
     vor_len: np.ndarray
@@ -166,10 +171,12 @@ class RodData(NamedTuple):
     link: np.ndarray
     pairs: np.ndarray
     pair_links: np.ndarray
+    damping: np.ndarray
 
     @classmethod
     def from_model(cls, model: Any, *, pairs: np.ndarray | None = None) -> RodData:
-        """The arrays of ``model`` (gravity only in grav); ``pairs`` as in :meth:`Params.from_model`."""
+        """The arrays of ``model``, one row shared by every env (gravity only in grav); ``pairs`` as in
+        :meth:`Params.from_model`."""
         m = model
         if m.mode == "3d":
             ei1 = m.node_EI1
@@ -178,11 +185,35 @@ class RodData(NamedTuple):
             ei1 = np.where(comp == 0, m.node_EI1, m.node_EI2)
         if pairs is None:
             pairs = model_pairs(m)
+        def row(a) -> np.ndarray:
+            return np.array(a, dtype=np.float64)[None, :]
+
         return cls(rest_len=np.array(m.rest_edge_length), vor_len=np.array(m.voronoi_length),
-                   mass=np.array(m.dof_mass), fixed=np.array(m.dof_fixed), grav=np.array(m.dof_gravity)[None, :],
-                   EA=np.array(m.edge_EA), EI1=np.array(ei1), EI2=np.array(m.node_EI2), GJ=np.array(m.node_GJ),
+                   mass=row(m.dof_mass), fixed=np.array(m.dof_fixed), grav=row(m.dof_gravity),
+                   EA=row(m.edge_EA), EI1=row(ei1), EI2=row(m.node_EI2), GJ=row(m.node_GJ),
                    edge_radius=contact_radii(m.edge_radius), link=_edge_link(m),
-                   pairs=pairs, pair_links=pair_links(pairs))
+                   pairs=pairs, pair_links=pair_links(pairs), damping=np.full((1, 1), float(m.damping)))
+
+    PER_ENV = ("mass", "grav", "EA", "EI1", "EI2", "GJ", "damping")  # the fields with a row per env (or one)
+
+    @classmethod
+    def stacked(cls, rods: "list[RodData]") -> RodData:
+        """One record of B envs from B one-row records of rods alike but for their per-env fields (:attr:`PER_ENV`:
+        masses, stiffnesses, damping, external forces); the shared arrays are the first's. ValueError naming the
+        field where they differ beyond rounding (rest lengths, fixed DOFs, joints, contact radii, edge pairs)."""
+        first = rods[0]
+        for name in cls._fields:
+            if name in cls.PER_ENV:
+                continue
+            for r in rods[1:]:
+                a, b = getattr(first, name), getattr(r, name)
+                same = a.shape == b.shape and (np.allclose(a, b, rtol=1e-12, atol=0.0) if a.dtype.kind == "f"
+                                               else np.array_equal(a, b))
+                if not same:  # (floats to rounding: a rest shape moved as a whole keeps its lengths to the last bits)
+                    raise ValueError(f"the envs' rods differ in {name}, which every env shares")
+        per = {name: np.ascontiguousarray(np.concatenate([getattr(r, name)[:1] for r in rods], axis=0))
+               for name in cls.PER_ENV}
+        return first._replace(**per)
 
 
 def _edge_link(m: Any) -> np.ndarray:
@@ -191,6 +222,15 @@ def _edge_link(m: Any) -> np.ndarray:
     if link is None or len(link) != m.node_count - 1:
         return np.ones(m.node_count - 1, np.uint8)
     return np.asarray(link, dtype=np.uint8)
+
+
+@njit(**OPT_ALLOC)  # with the runtime: the views it returns are counted in the caller (OPT's would be freed twice)
+def env_rod(rod, e):
+    """Env e's record of ``rod`` (:class:`RodData`): its rows of the per-env arrays (row min(e, R - 1))."""
+    return RodData(rod.rest_len, rod.vor_len, rod.mass[min(e, rod.mass.shape[0] - 1)], rod.fixed, rod.grav,
+                   rod.EA[min(e, rod.EA.shape[0] - 1)], rod.EI1[min(e, rod.EI1.shape[0] - 1)],
+                   rod.EI2[min(e, rod.EI2.shape[0] - 1)], rod.GJ[min(e, rod.GJ.shape[0] - 1)], rod.edge_radius,
+                   rod.link, rod.pairs, rod.pair_links, rod.damping[min(e, rod.damping.shape[0] - 1)])
 
 
 class StateArrays(NamedTuple):

@@ -29,7 +29,7 @@ from sim.energies.bend_twist import bend_twist_core
 from sim.geometry.frames import transport
 from sim.geometry.vec3 import vcross, vdot, vmul, vnorm, vsub
 from sim.kernels.banded import band_lu_apply, band_lu_factor
-from sim.kernels.data import KL_2D, KL_3D
+from sim.kernels.data import KL_2D, KL_3D, env_rod
 from sim.kernels.newton import assemble, positions
 from sim.kernels.workspace import alloc_workspace, copy_into
 from sim.numba_options import OPT_ALLOC
@@ -269,6 +269,7 @@ def _linearise_env(e, x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g
                    want_tb, want_scalars, want_start, fd_step, ab_out, kb_out, tb_out, sc_out, start_out, f0, fp, fm,
                    xp, kb1):
     """Env e of :func:`_linearise_envs` with the work space of its chunk."""
+    rod, rod_e, rod_g, rod_m = env_rod(rod, e), env_rod(rod_e, e), env_rod(rod_g, e), env_rod(rod_m, e)
     n = x1s.shape[1]
     N = bs.shape[1]
     planar = prm.planar

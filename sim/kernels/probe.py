@@ -8,7 +8,7 @@ from numba import njit
 
 from sim.contact import edge_pairs
 from sim.contact import stages as contact
-from sim.kernels.data import OK
+from sim.kernels.data import OK, env_rod
 from sim.kernels.newton import assemble, positions, substep
 from sim.kernels.workspace import alloc_workspace, copy_into
 from sim.numba_options import OPT_ALLOC
@@ -36,6 +36,7 @@ def assemble_at(e, x, x0, u0, d1s, ts, bs, h, kb, tb, rod, prm_arr, cd, f_out, a
     """Residual f_out (n,) and banded Jacobian ab_out (n + kl, 2 kl + 1) (full band) of env ``e``'s step of size h
     from (x0, u0, frames d1s/ts/bs) at the DOFs x (:func:`_work_from`)."""
     prm = prm_arr[0]
+    rod = env_rod(rod, e)
     w, cs = _work_from(prm, rod, cd, x0, u0, d1s, ts, bs)
     copy_into(w.x, x)
     assemble(prm.planar, e, w.x, h, kb, tb, rod, prm, cs, w, True, False)
@@ -146,6 +147,7 @@ def substeps_at(e, x, v, d1, t, beta, kb, tb, ns, rod, prm_arr, cd, xs, vs, d1s,
     and after the last into xs, vs (ns + 1, n), d1s, ts (ns + 1, E, 3), bs (ns + 1, N), and into fell (ns,) 1 where a
     midpoint sub-step was redone by backward Euler. Returns how many sub-steps succeeded (ns: all)."""
     prm = prm_arr[0]
+    rod = env_rod(rod, e)
     w, cs = _work_from(prm, rod, cd, x, v, d1, t, beta)
     h = prm.dt / ns
     for s in range(ns + 1):
