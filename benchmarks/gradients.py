@@ -7,6 +7,7 @@
   of synthetic marker data (5 markers at 30 Hz, 1 mm noise) with the exact Jacobian of the tangent mode, and the
   same fit with the Jacobian by finite-difference probing (one extra simulation per parameter: the real2sim
   approach), in the same run;
+* multi-start: one batched iteration of K starts against the starts one by one, and a fit a single start misses;
 * open-loop trajectory optimisation: the arm's tip made to follow a path from rest controls (L-BFGS-B, adjoint);
 * the inverse-statics baseline against the shipped SAC policy on Follow Target and 4D IK (same seeds).
 
@@ -197,6 +198,66 @@ def bench_fit(seconds: float, repeats: int) -> dict:
     return out
 
 
+def bench_starts(starts: int, repeats: int) -> dict:
+    """Multi-start fitting: one batched iteration of ``starts`` starts (rollout and tangents of every env at once)
+    against the same starts one by one, on the paper's arm (3 parameters, 2 s of markers); and a fit one start
+    misses (the stiffness of a swinging rod from 1/3.5 of it: a minimum per count of periods) from one start and from
+    ``starts``."""
+    import tempfile
+    from pathlib import Path
+
+    from sim import build_model
+    from sim.analysis import Measurements, Problem, fit, load_controls, start_points
+    from sim.scene import RodSpec, SceneSpec, SimSpec
+
+    spec = _arm_spec()
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "commands.csv"
+        path.write_text("t,node,kappa1,kappa2,twist\n0,10,0.15,0.1,0\n1,10,-0.1,0.05,0\n")
+        cmds = load_controls(path, build_model(spec))
+    t = np.arange(0.0, 2.0 + 1e-9, 1.0 / 30.0)
+    s = np.linspace(0.2, 1.0, 5)
+    meas = Measurements(np.repeat(t, 5), np.tile(s, t.size), np.zeros(t.size * 5, int), np.zeros((t.size * 5, 3)))
+    prob = Problem(spec, meas, cmds, ["youngs_modulus", "damping", "actuation_gain"])
+    Z = start_points(prob, starts, np.random.default_rng(0))
+    batched, alone = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        prob.jacobians(prob.rollouts(Z), Z)
+        batched.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        for z in Z:
+            prob.jacobian(prob.rollout(z), z)
+        alone.append(time.perf_counter() - t0)
+    out: dict = {"starts": starts, "steps": prob.steps, "iteration_batched_s_median": float(np.median(batched)),
+                 "iteration_one_by_one_s_median": float(np.median(alone))}
+    out["one_by_one_over_batched"] = out["iteration_one_by_one_s_median"] / out["iteration_batched_s_median"]
+    # a stiff, lightly damped rod without gravity, its curvature stepped at one node: it swings about the shape the
+    # command sets, several periods in 1.5 s, so the residual has a minimum per count of periods
+    swing = SceneSpec(sim=SimSpec(dt=0.005, gravity=(0.0, 0.0, 0.0), newton_tol=1e-10, newton_max_iter=30,
+                                  accept_unconverged=False, damping=0.05, mode="2d", line_search="none",
+                                  newton_dtol=1e-9),
+                      rod=RodSpec(nodes=9, length=1.0, radius=0.01, density=1000.0, youngs_modulus=2e8,
+                                  poisson_ratio=0.5, start=(0.0, 0.0, 0.0), direction=(1.0, 0.0, 0.0)))
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "step.csv"
+        path.write_text("t,node,kappa1,kappa2,twist\n0,4,0.4,0,0\n")
+        step = load_controls(path, build_model(swing))
+    t = np.arange(0.0, 1.5 + 1e-9, 1.0 / 30.0)
+    m0 = Measurements(np.repeat(t, 5), np.tile(np.linspace(0.25, 1.0, 5), t.size), np.zeros(t.size * 5, int),
+                      np.zeros((t.size * 5, 3)))
+    sp = Problem(swing, m0, step, ["youngs_modulus"])
+    pos = sp.predict(sp._node_pos(sp.rollout(np.array([math.log(3.5)])).dof[:, 0], 0.0))
+    noisy = Measurements(m0.t, m0.s, m0.rod, pos + np.random.default_rng(1).normal(0.0, 1e-3, pos.shape) * [1, 0, 1])
+    for k in (1, starts):
+        t0 = time.perf_counter()
+        res = fit(swing, noisy, ["youngs_modulus"], cmds=step, starts=k)
+        out[f"swinging_{k}_starts"] = {"seconds": time.perf_counter() - t0, "rms_m": res.rms_m,
+                                       "relative_error": abs(res.params["youngs_modulus"] / 7e8 - 1.0),
+                                       "iterations": res.iterations}
+    return out
+
+
 def bench_trajectory(steps: int) -> dict:
     """Open-loop trajectory optimisation: the paper's arm's tip made to follow a path its controls can follow (made by
     random bounded deltas of every interior node's curvature), from rest controls."""
@@ -242,7 +303,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--envs", type=int, default=50, help="envs of the step-derivative timing (default 50)")
     p.add_argument("--fit-seconds", type=float, default=10.0, help="seconds of motion to fit (default 10)")
     p.add_argument("--episodes", type=int, default=10, help="episodes per task of the baseline comparison")
-    p.add_argument("--parts", default="step,gap,fit,trajectory,baseline")
+    p.add_argument("--parts", default="step,gap,fit,starts,trajectory,baseline")
+    p.add_argument("--starts", type=int, default=8, help="starts of the multi-start figures (default 8)")
     args = p.parse_args(argv)
     parts = set(args.parts.split(","))
     reps = args.repeats or (1 if args.quick else 3)
@@ -272,6 +334,13 @@ def main(argv: list[str] | None = None) -> int:
               f"({ft['exact']['evaluations']} evaluations), probing {ft['probing']['seconds_median']:.1f} s "
               f"({ft['probing']['evaluations']}); ratio {ft['probing_over_exact']:.2f}; errors "
               f"{ {k: round(v, 4) for k, v in ft['exact']['relative_error'].items()} }")
+    if "starts" in parts:
+        out["starts"] = ms = bench_starts(2 if args.quick else args.starts, reps)
+        one, many = ms["swinging_1_starts"], ms[f"swinging_{ms['starts']}_starts"]
+        print(f"{ms['starts']} starts: a batched iteration {ms['iteration_batched_s_median']:.2f} s, one by one "
+              f"{ms['iteration_one_by_one_s_median']:.2f} s ({ms['one_by_one_over_batched']:.2f}x); swinging rod: one "
+              f"start rms {one['rms_m'] * 1e3:.2f} mm ({one['seconds']:.1f} s), {ms['starts']} starts "
+              f"{many['rms_m'] * 1e3:.2f} mm, E off by {many['relative_error']:.2%} ({many['seconds']:.1f} s)")
     if "trajectory" in parts:
         out["trajectory"] = tr = bench_trajectory(10 if args.quick else 50)
         print(f"trajectory ({tr['steps']} steps, {tr['unknowns']} unknowns): cost {tr['cost0']:.3g} -> {tr['cost']:.3g} "

@@ -32,6 +32,7 @@ _LAZY = {
     "static_stability": "sim.analysis.static",
     "TrajectoryResult": "sim.analysis.trajectory",
     "optimise_controls": "sim.analysis.trajectory",
+    "start_points": "sim.analysis.multistart",
 }
 
 __all__ = sorted(_LAZY)

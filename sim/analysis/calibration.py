@@ -1,7 +1,7 @@
 """``rodlab fit``: calibrate a scene's parameters so that the simulated rod moves like measured motion.
 
     rodlab fit SCENE.toml DATA --params youngs_modulus,damping [--controls CONTROLS.csv] [--out FITTED.toml]
-               [--report DIR] [--holdout 0.2] [--json]
+               [--report DIR] [--holdout 0.2] [--starts K [--seed S]] [--json]
 
 DATA: a CSV with columns ``t,s,x,y,z`` (time [s] from the scene's initial state, arclength [m] from the rod's first
 node along its rest shape, position [m] in the scene's frame) and a ``rod`` column naming the rod when the scene has
@@ -35,7 +35,8 @@ squared residuals with their gradient Jᵀr from one adjoint pass per evaluation
 values ± standard errors from the Gauss–Newton covariance, their correlation, the RMS residual (and on a held-out
 final part of the motion with ``--holdout``), with ``--report`` a folder with ``fit.json``, ``residuals.csv`` (every
 point, held-out ones marked) and plots: measured against fitted markers, the residual over time and along the rod,
-the correlation matrix (:func:`write_report`).
+the correlation matrix (:func:`write_report`). With ``--starts K`` the fit first searches from K starting points at
+once, each an env of one batched simulator (:mod:`sim.analysis.multistart`), and fits from the best.
 Ctrl-C keeps the best parameters so far.
 """
 from __future__ import annotations
@@ -55,6 +56,7 @@ from sim.analysis import gradients as G
 from sim.scene.model import build_model, planar_nodes
 from sim.scene.spec import SceneError, dump_scene, load_scene
 from sim.scene.validate import BOUNDS
+from sim.state import STATE_ARRAYS
 from sim.step import Simulator
 from sim.support.atomicio import write_text, write_via_path
 from sim.support.paths import check_output_path
@@ -462,6 +464,8 @@ class Problem:
     """The simulated positions at the measured points as a function of the unknowns z (log factors, damping,
     gravity, actuation map), and their Jacobian by the tangent mode."""
 
+    LOG = _LOG  # the parameters fitted as the log of a factor on the scene's value
+
     def __init__(self, spec, meas: Measurements, cmds: Commands | None, params: list[str]):
         self.spec, self.meas, self.cmds = spec, meas, cmds
         bad = [p for p in params if p not in FIT_PARAMETERS]
@@ -746,15 +750,58 @@ class Problem:
             ctrls.append(c)
         return G.rollout(sim, sim.reset(), ctrls)
 
-    def residuals(self, tape: G.Tape) -> np.ndarray:
-        pos = self._node_pos(tape.dof[:, 0], self.model0.plane_y if self.planar else None)
+    def rollouts(self, Z: np.ndarray) -> G.Tape:
+        """One rollout of as many envs as rows of ``Z`` (K, P), env e at the unknowns Z[e]: each env with its own
+        masses, stiffnesses, damping and gravity (:meth:`sim.step.Simulator.set_env_models`), initial state (the
+        base and obstacles where Z[e] puts them) and controls."""
+        models = []
+        for z in Z:
+            try:
+                models.append(build_model(self.spec_at(z)))
+            except (SceneError, ValueError) as exc:
+                raise FitError(f"parameters {self.describe(z)} make no valid scene: {exc}") from None
+        K = len(models)
+        sim = Simulator(models[0], K)
+        try:
+            sim.set_env_models(models)
+        except ValueError as exc:
+            raise FitError(f"--starts: {exc}; fit such a parameter from one start") from None
+        state = sim.reset()
+        for e, m in enumerate(models[1:], start=1):
+            one = Simulator(m, 1).reset()
+            for name in STATE_ARRAYS:
+                getattr(state, name)[e] = getattr(one, name)[0]
+        ctrl = [self.controls_at(z) for z in Z]
+        ctrls = []
+        for k in range(self.steps):
+            c = sim.make_control()
+            for e, (kb, tb) in enumerate(ctrl):
+                c.kappa_bar[e] = kb[k]
+                c.tau_bar[e] = tb[k]
+            ctrls.append(c)
+        return G.rollout(sim, state, ctrls)
+
+    def residuals(self, tape: G.Tape, env: int = 0) -> np.ndarray:
+        pos = self._node_pos(tape.dof[:, env], self.model0.plane_y if self.planar else None)
         return (self.predict(pos) - self.meas.pos)[:, self._axes].reshape(-1)
 
     def jacobian(self, tape: G.Tape, z: np.ndarray) -> np.ndarray:
-        tangents = [self._tangent(u, z) for u in self.unknowns]
-        d = tape.jvp(tangents)["dof"][:, :, 0]  # (P, T + 1, n)
-        cols = [(self.predict(self._node_pos(d[q], None)))[:, self._axes].reshape(-1) for q in range(len(tangents))]
-        return np.stack(cols, axis=1)
+        return self.jacobians(tape, z[None, :])[0]
+
+    def jacobians(self, tape: G.Tape, Z: np.ndarray) -> np.ndarray:
+        """(K, residuals, P): the Jacobian of every env of ``tape`` (:meth:`rollouts` at Z (K, P)), by one pass
+        of the tangent mode for all of them."""
+        tangents = []
+        for u in self.unknowns:  # each env its own unknown's tangent, side by side along the env axis
+            per = [self._tangent(u, z) for z in Z]
+            tangents.append({nm: np.concatenate([t[nm] for t in per], axis=1 if nm in ("kappa_bar", "tau_bar") else 0)
+                             for nm in per[0]})
+        d = tape.jvp(tangents)["dof"]  # (P, T + 1, K, n)
+        out = np.empty((Z.shape[0], 0 if d.shape[0] == 0 else self.meas.t.size * len(self._axes), len(tangents)))
+        for e in range(Z.shape[0]):
+            for q in range(len(tangents)):
+                out[e, :, q] = self.predict(self._node_pos(d[q, :, e], None))[:, self._axes].reshape(-1)
+        return out
 
     def gradient(self, tape: G.Tape, z: np.ndarray, r: np.ndarray) -> np.ndarray:
         """Jᵀ r (the gradient of ½‖r‖² with respect to the unknowns) by one adjoint pass, without J: the residuals'
@@ -907,12 +954,18 @@ class FitResult:
     confounded: list = dataclasses.field(default_factory=list)  # groups of unknowns the data cannot separate
     track: "FitTrack | None" = None  # the fitted motion beside the measured points (for drawing them together)
     at_bound: list = dataclasses.field(default_factory=list)  # unknowns that ended on a bound of Problem.bounds
+    # with several starts (fit(starts=K)): each start's values where it began and ended and its RMS residual [m]
+    # there, the best first polished (its index ``best``)
+    starts: list = dataclasses.field(default_factory=list)
 
     def summary(self) -> dict:
-        return {"params": self.params, "stderr": {k: (None if math.isinf(v) else v) for k, v in self.stderr.items()},
-                "not_separable": self.confounded, "at_bound": self.at_bound, "rms_m": self.rms_m,
-                "holdout_rms_m": None if math.isnan(self.holdout_rms_m) else self.holdout_rms_m,
-                "iterations": self.iterations, "seconds": round(self.seconds, 3)}
+        out = {"params": self.params, "stderr": {k: (None if math.isinf(v) else v) for k, v in self.stderr.items()},
+               "not_separable": self.confounded, "at_bound": self.at_bound, "rms_m": self.rms_m,
+               "holdout_rms_m": None if math.isnan(self.holdout_rms_m) else self.holdout_rms_m,
+               "iterations": self.iterations, "seconds": round(self.seconds, 3)}
+        if self.starts:
+            out["starts"] = [{"from": s["from"], "to": s["to"], "rms_m": s["rms_m"]} for s in self.starts]
+        return out
 
 
 class _Stopped(Exception):
@@ -923,12 +976,17 @@ FIT_METHODS = ("lm", "lbfgs")
 
 
 def fit(spec, meas: Measurements, params: list[str], *, cmds: Commands | None = None, holdout: float = 0.0,
-        max_iterations: int = 50, progress: bool = False, log=None, on_eval=None, method: str = "lm") -> FitResult:
+        max_iterations: int = 50, progress: bool = False, log=None, on_eval=None, method: str = "lm",
+        starts: int = 1, seed: int = 0) -> FitResult:
     """Fit ``params`` of ``spec`` to ``meas`` (see the module docstring). ``on_eval(evaluation, rms_m, values)``, if
     given, is called after each residual evaluation (its count from 1, the RMS residual [m], the unknowns' values by
     label); returning True stops the fit, which then ends like one interrupted by Ctrl-C (the best so far).
     ``method``: "lm", trust-region least squares with J from the tangent mode (P tangents per evaluation), or
-    "lbfgs", L-BFGS-B on ½‖r‖² with its gradient Jᵀr from one adjoint pass (for many unknowns)."""
+    "lbfgs", L-BFGS-B on ½‖r‖² with its gradient Jᵀr from one adjoint pass (for many unknowns). ``starts`` > 1:
+    that many starting points (the scene's values and ``starts`` − 1 drawn around them with ``seed``) searched in
+    lock-step as the envs of one batched simulator (:mod:`sim.analysis.multistart`, at most ``max_iterations``
+    batched iterations), the best then fitted as one start; the material values, damping, gravity, base, obstacles
+    and actuation map may differ per env, the contact's settings may not."""
     import scipy.optimize
 
     if method not in FIT_METHODS:
@@ -943,12 +1001,24 @@ def fit(spec, meas: Measurements, params: list[str], *, cmds: Commands | None = 
             raise FitError(f"--holdout {holdout}: no measured points left to fit")
     else:
         train = meas
+    if not (isinstance(starts, (int, np.integer)) and starts >= 1):
+        raise FitError(f"--starts must be an integer >= 1, got {starts!r}")
+    if starts > 1:
+        if method != "lm":
+            raise FitError("--starts needs --method lm (the starts are Levenberg–Marquardt iterations side by side)")
+        shared = [p for p in params if p in ("contact_stiffness", "contact_delta", "friction")]
+        if shared:
+            raise FitError(f"--starts: {shared[0]} is a [contact] setting every env of a batch shares; fit it from "
+                           "one start")
     prob = Problem(spec, train, cmds, params)
     m_res = 3 * train.t.size
     if m_res < len(prob.unknowns):
         raise FitError(f"{train.t.size} measured points cannot determine {len(prob.unknowns)} unknowns")
     t0 = time.perf_counter()
-    best = {"cost": np.inf, "z": prob.z0()}
+    z_start, searched, n_lock, stopped = prob.z0(), [], 0, False
+    if starts > 1:  # Ctrl-C or on_eval stopping the search: the best start as it stands, not polished
+        z_start, searched, n_lock, stopped = _search_starts(prob, starts, seed, max_iterations, progress, log, on_eval)
+    best = {"cost": np.inf, "z": z_start}
     cache: dict = {}
     evals = [0]
     bar = progress_bar(max_iterations, desc="rodlab fit", unit="eval", enabled=progress)
@@ -989,17 +1059,19 @@ def fit(spec, meas: Measurements, params: list[str], *, cmds: Commands | None = 
         return 0.5 * float(r @ r), prob.gradient(tape_at(z), z, r)
 
     try:
+        if stopped:
+            raise _Stopped
         if method == "lm":
-            res = scipy.optimize.least_squares(fun, prob.z0(), jac=jac, bounds=(lo, hi), method="trf", x_scale="jac",
+            res = scipy.optimize.least_squares(fun, z_start, jac=jac, bounds=(lo, hi), method="trf", x_scale="jac",
                                                max_nfev=max_iterations, xtol=1e-10, ftol=1e-12, gtol=1e-12)
         else:
-            res = scipy.optimize.minimize(loss_and_gradient, prob.z0(), jac=True, method="L-BFGS-B",
+            res = scipy.optimize.minimize(loss_and_gradient, z_start, jac=True, method="L-BFGS-B",
                                           bounds=list(zip(lo, hi)),
                                           options={"maxfun": max_iterations, "ftol": 1e-15, "gtol": 1e-12})
-        nit = int(res.nfev)
+        nit = int(res.nfev) + n_lock
     except (KeyboardInterrupt, _Stopped):
         interrupted = True
-        nit = evals[0]
+        nit = evals[0] + n_lock
     finally:
         bar.close()
     z = best["z"]
@@ -1040,7 +1112,36 @@ def fit(spec, meas: Measurements, params: list[str], *, cmds: Commands | None = 
     return FitResult(params=vals, stderr=stderr, correlation=corr, rms_m=float(np.sqrt(np.mean(r ** 2))),
                      holdout_rms_m=hold, iterations=nit, seconds=time.perf_counter() - t0, interrupted=interrupted,
                      spec=prob.spec_at(z), residual_rows=rows, unconverged_steps=tape.unconverged,
-                     confounded=confounded, track=track, at_bound=at_bound)
+                     confounded=confounded, track=track, at_bound=at_bound, starts=searched)
+
+
+def _search_starts(prob: Problem, K: int, seed: int, iterations: int, progress: bool, log, on_eval):
+    """The multi-start search of :func:`fit`: (the best start's unknowns, each start's record for
+    :attr:`FitResult.starts`, the batched iterations, whether it was stopped)."""
+    from sim.analysis.multistart import lockstep_lm, start_points
+
+    Z0 = start_points(prob, K, np.random.default_rng(seed))
+    m = max(prob.meas.t.size * len(prob._axes), 1)
+    bar = progress_bar(iterations, desc=f"rodlab fit: {K} starts", unit="it", enabled=progress)
+
+    def on_iteration(i: int, cost: np.ndarray, Z: np.ndarray) -> bool:
+        rms = math.sqrt(float(np.min(cost)) / m)
+        bar.update(1)
+        bar.set_postfix_str(f"best rms {rms * 1e3:.3g} mm")
+        if log is not None:
+            log(f"rodlab fit: {K} starts, iteration {i}: best rms {rms:.4g} m")
+        return bool(on_eval is not None and on_eval(i, rms, prob.values(Z[int(np.argmin(cost))])))
+
+    try:
+        ms = lockstep_lm(prob, Z0, iterations=iterations, on_iteration=on_iteration)
+    except G.GradientError as exc:
+        raise FitError(f"{K} starts: {exc}") from None
+    finally:
+        bar.close()
+    order = np.argsort(ms.cost)
+    searched = [{"from": prob.values(ms.start[e]), "to": prob.values(ms.z[e]),
+                 "rms_m": math.sqrt(float(ms.cost[e]) / m) if np.isfinite(ms.cost[e]) else None} for e in order]
+    return ms.z[ms.best].copy(), searched, ms.iterations, ms.interrupted
 
 
 CONFOUNDED_RCOND = 1e-7  # a direction of the unknowns whose scaled singular value is below this fraction of the
@@ -1315,6 +1416,10 @@ def fit_command(argv: list[str] | None = None, *, readers=None) -> int:
     ap.add_argument("--method", choices=FIT_METHODS, default="lm",
                     help="lm: trust-region least squares with the tangent-mode Jacobian (default); lbfgs: L-BFGS-B "
                          "with the gradient from one adjoint pass per evaluation (many unknowns)")
+    ap.add_argument("--starts", type=int, default=1,
+                    help="starting points searched side by side as the envs of one batched simulator, the best then "
+                         "fitted (default 1: the scene's values; --method lm)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the starting points drawn (default 0)")
     ap.add_argument("--json", action="store_true", help="print one JSON object on the last line")
     add_progress_flag(ap)
     args = ap.parse_args(argv)
@@ -1346,7 +1451,8 @@ def _run(args, readers=None) -> int:
     meas = load_measurements(args.data, spec, readers=readers, episode=args.episode)
     cmds = load_controls(args.controls, build_model(spec)) if args.controls else None
     res = fit(spec, meas, params, cmds=cmds, holdout=args.holdout, max_iterations=args.max_iterations,
-              progress=progress_wanted(args.progress, json_output=args.json), method=args.method)
+              progress=progress_wanted(args.progress, json_output=args.json), method=args.method, starts=args.starts,
+              seed=args.seed)
     dump_scene(res.spec, out)
     if args.report:
         write_report(args.report, res, scene=str(scene), data=str(args.data), fitted_scene=str(out))
@@ -1354,6 +1460,10 @@ def _run(args, readers=None) -> int:
         print(f"rodlab fit: {'interrupted: best so far' if res.interrupted else 'done'} after {res.iterations} "
               f"evaluations in {res.seconds:.1f} s; rms {res.rms_m:.4g} m"
               + ("" if math.isnan(res.holdout_rms_m) else f", held out {res.holdout_rms_m:.4g} m"))
+        if res.starts:
+            far = [s for s in res.starts if s["rms_m"] is None or s["rms_m"] > 1.01 * res.starts[0]["rms_m"]]
+            print(f"  {len(res.starts)} starts: the best ended at rms {res.starts[0]['rms_m']:.4g} m; "
+                  f"{len(far)} ended elsewhere (other minima, or stopped short)")
         for k, v in res.params.items():
             print(f"  {k:<28} {v:.6g} ± {res.stderr[k]:.2g}")
         for g in res.confounded:

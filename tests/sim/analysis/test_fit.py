@@ -18,7 +18,7 @@ from sim.analysis import calibration as F
 from sim.scene.spec import dump_scene, load_scene
 from sim.scene.validate import BOUNDS
 from tests.helpers.cli import rodlab
-from tests.helpers.fit import NOISE_M, synthetic, write_csv
+from tests.helpers.fit import NOISE_M, rod_on_a_sphere, synthetic, write_csv
 from tests.helpers.rodspec import make_spec
 
 
@@ -284,20 +284,11 @@ def test_the_friction_coefficient_is_recovered_from_a_rod_sliding_down_an_inclin
     assert res.spec.contact.friction == res.params["friction"]
 
 
-def _rod_on_a_sphere(center, mode, delta=1e-3):
-    """A cantilever sagging onto a sphere under its free end."""
-    from sim.scene.obstacles import ContactSpec, SphereSpec
-    spec = make_spec(nodes=9, length=0.5, radius=0.01, E=1e8, dt=0.01, gravity=(0.0, 0.0, -9.8), damping=2.0,
-                     max_iter=60, tol=1e-10, dtol=1e-10, mode=mode)
-    return dataclasses.replace(spec, obstacles=(SphereSpec(center=center, radius=0.1, name="ball"),),
-                               contact=ContactSpec(stiffness=1e4, delta=delta))
-
-
 def test_the_contact_distance_is_recovered_from_the_rod_resting_on_a_sphere():
     """The contact's δ sets how far above the sphere the rod comes to rest: fitted from half the true value."""
     center = (0.45, 0.0, -0.12)
-    meas, _ = synthetic(_rod_on_a_sphere(center, "2d", delta=2e-2), ["damping"], [2.0], seconds=0.8)
-    res = F.fit(_rod_on_a_sphere(center, "2d", delta=1e-2), meas, ["contact_delta"])
+    meas, _ = synthetic(rod_on_a_sphere(center, "2d", delta=2e-2), ["damping"], [2.0], seconds=0.8)
+    res = F.fit(rod_on_a_sphere(center, "2d", delta=1e-2), meas, ["contact_delta"])
     assert res.params["contact_delta"] == pytest.approx(2e-2, rel=0.05), res.params
     assert abs(res.params["contact_delta"] - 2e-2) < 4.0 * res.stderr["contact_delta"]
     assert res.spec.contact.delta == res.params["contact_delta"] and res.unconverged_steps == 0
@@ -311,8 +302,8 @@ def test_an_obstacle_position_is_recovered_from_the_rod_resting_on_it(mode):
     truth = (0.46, 0.004 if mode == "3d" else 0.0, -0.118)
     guess = (0.45, 0.0, -0.12)
     axes = (0, 1, 2) if mode == "3d" else (0, 2)
-    meas, _ = synthetic(_rod_on_a_sphere(truth, mode), ["damping"], [2.0], seconds=0.8)
-    res = F.fit(_rod_on_a_sphere(guess, mode), meas, ["obstacle_position"])
+    meas, _ = synthetic(rod_on_a_sphere(truth, mode), ["damping"], [2.0], seconds=0.8)
+    res = F.fit(rod_on_a_sphere(guess, mode), meas, ["obstacle_position"])
     got = [res.params[f"obstacle_position[ball].{'xyz'[a]}"] for a in axes]
     for a, v in zip(axes, got):  # within the reported uncertainty (the rest shape barely tells x: a tip on a ball)
         se = res.stderr[f"obstacle_position[ball].{'xyz'[a]}"]
@@ -351,7 +342,7 @@ def test_the_base_position_is_recovered_against_an_obstacle(mode):
     it rests, not only where. Recovered to a fraction of a millimetre from a guess a few centimetres off, each axis
     within 4 standard errors; the fitted scene's rod starts there."""
     center = (0.45, 0.0, -0.12)
-    truth = _rod_on_a_sphere(center, mode)
+    truth = rod_on_a_sphere(center, mode)
     shift = np.array([0.02, -0.01 if mode == "3d" else 0.0, 0.015])
     moved = dataclasses.replace(truth, rods=(dataclasses.replace(
         truth.rods[0], start=tuple(np.array(truth.rods[0].start) + shift)),))
