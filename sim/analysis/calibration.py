@@ -15,7 +15,9 @@ until the node's next row; absent = the rest controls. In 2-D, kappa1 is the in-
 Parameters (``--params``, comma separated): ``youngs_modulus``, ``shear_modulus`` (moves ν), ``density``, ``radius``
 (circular sections: the stiffness, mass and contact radius follow it) (each a factor on every rod and edge, fitted in
 log space), ``base_position`` (the rods moved, their clamps with them, along each axis; in the plane in 2-D: the
-fitted scene moves their start), ``rest_kappa`` (the natural curvature at every interior node that is not commanded, each component; in
+fitted scene moves their start), ``base_orientation`` (the rods turned about the first rod's start [rad]: in 2-D an angle
+in the plane, in 3-D about the first edge's directors d1 and d2; the fitted scene turns their direction or rest
+points), ``rest_kappa`` (the natural curvature at every interior node that is not commanded, each component; in
 2-D the in-plane one: an offset the fitted scene holds as ``natural_curvature``), ``damping`` [1/s], ``gravity`` (the vector; its in-plane components in
 2-D), the contact's ``contact_stiffness`` and ``contact_delta`` (factors, in log space) and ``friction`` (the [contact] μ:
 obstacles without a μ of their own, and contact between edges), ``obstacle_position`` (every obstacle's placement, each axis; in the plane in
@@ -53,6 +55,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.analysis import gradients as G
+from sim.geometry.frames import signed_angle, transport
 from sim.scene.model import build_model, planar_nodes
 from sim.scene.spec import SceneError, dump_scene, load_scene
 from sim.scene.validate import BOUNDS
@@ -66,12 +69,15 @@ __all__ = ["FIT_PARAMETERS", "FIT_METHODS", "FitError", "Measurements", "Command
            "measurements_from_arrays", "node_arclength", "load_controls", "fit", "write_report", "PLOTS",
            "RESIDUAL_COLUMNS", "fit_command"]
 
-FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "radius", "rest_kappa", "base_position", "damping",
+FIT_PARAMETERS = ("youngs_modulus", "shear_modulus", "density", "radius", "rest_kappa", "base_position",
+                  "base_orientation", "damping",
                   "gravity", "contact_stiffness",
                   "contact_delta", "friction", "obstacle_position", "actuation_gain", "actuation_offset", "actuation_play", "actuation_lag")
 _LOG = ("youngs_modulus", "shear_modulus", "density", "radius", "contact_stiffness", "contact_delta")  # fitted as ln of a factor on the scene's value
 MAX_TIME_S = 3600.0  # longest motion a fit simulates
 ACTUATION_LAG_MAX_S = 10.0  # longest actuator time constant a fit considers
+BASE_TURN_MAX = 0.5 * math.pi  # largest turn of the base a fit considers, each component [rad]
+BASE_TURN_STEP = 1e-6  # the base turn's tangent: central differences of the initial state at this angle [rad]
 UNIT_FACTOR = 100.0  # a measured point farther than this many rod lengths from the rod's start is in wrong units
 
 
@@ -415,6 +421,8 @@ def _unknown_bounds(spec, u: "Unknown", play_limit: float = np.inf) -> tuple[flo
         return lo_v, hi_v
     if u.name == "actuation_play":  # wider than every command, the output never moves
         return 0.0, play_limit
+    if u.name == "base_orientation":  # [rad], each component
+        return -BASE_TURN_MAX, BASE_TURN_MAX
     return -np.inf, np.inf
 
 
@@ -443,6 +451,34 @@ def _moved_rod(r, d):
         return dataclasses.replace(r, start=start)
     pts = tuple(tuple(float(v) + float(dv) for v, dv in zip(p, d)) for p in r.rest_points)
     return dataclasses.replace(r, start=start, rest_points=pts)
+
+
+def rotation_matrix(w: np.ndarray) -> np.ndarray:
+    """The rotation (3, 3) by the rotation vector w (3,) [rad] (Rodrigues)."""
+    ang = float(np.linalg.norm(w))
+    if ang == 0.0:
+        return np.eye(3)
+    k = w / ang
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(ang) * K + (1.0 - math.cos(ang)) * (K @ K)
+
+
+def _turned_rod(r, R: np.ndarray, pivot: np.ndarray):
+    """The rod spec ``r`` turned by R (3, 3) about the point ``pivot`` (3,) (its start and direction, or its rest
+    points)."""
+    start = tuple(float(v) for v in pivot + R @ (np.asarray(r.start, dtype=np.float64) - pivot))
+    d = R @ np.asarray(r.direction, dtype=np.float64)
+    direction = tuple(float(v) for v in d / np.linalg.norm(d))
+    if r.rest_points is None:
+        return dataclasses.replace(r, start=start, direction=direction)
+    pts = pivot + (np.asarray(r.rest_points, dtype=np.float64) - pivot) @ R.T
+    return dataclasses.replace(r, start=start, direction=direction,
+                               rest_points=tuple(tuple(float(v) for v in p) for p in pts))
+
+
+def _transport(u, ta, tb) -> tuple:
+    """:func:`sim.geometry.frames.transport` of three 3-vectors given as arrays."""
+    return transport(tuple(map(float, u)), tuple(map(float, ta)), tuple(map(float, tb)))
 
 
 def _bound_text(u: "Unknown") -> str:
@@ -482,9 +518,10 @@ class Problem:
         if (cmds is None) and any(p.startswith("actuation_") for p in params):
             raise FitError("the actuation map (actuation_gain, actuation_offset, actuation_play, actuation_lag) needs "
                            "--controls: the commanded curvature it maps")
-        if "base_position" in params and any(any(f.angular_velocity) for f in spec.fixes):
-            raise FitError("base_position: a clamp turned about a centre ([[fix]] angular_velocity) turns with the "
-                           "base; fit the base of a scene without one")
+        for name in ("base_position", "base_orientation"):
+            if name in params and any(any(f.angular_velocity) for f in spec.fixes):
+                raise FitError(f"{name}: a clamp turned about a centre ([[fix]] angular_velocity) turns with the "
+                               "base; fit the base of a scene without one")
         narrow = [r.name for r in spec.rods if r.cross_section != "circle"]
         if "radius" in params and narrow:
             raise FitError(f"radius: rod {narrow[0]!r} has a non-circular section (width and height, or semi-axes), "
@@ -537,6 +574,10 @@ class Problem:
                         out += [Unknown(p, 2 * node + c, f"rest_kappa[{where}].kappa{c + 1}") for c in comps]
             elif p == "base_position":  # the rods (their clamp with them) moved along each axis (2-D: in the plane)
                 out += [Unknown(p, a, f"base_position.{'xyz'[a]}") for a in ((0, 2) if self.planar else (0, 1, 2))]
+            elif p == "base_orientation":  # the rods turned about the first rod's start: 2-D in the plane; 3-D
+                # about the first edge's two directors (a turn about the rod's own axis is not a scene's to hold)
+                out += ([Unknown(p, 0, p)] if self.planar else
+                        [Unknown(p, a, f"{p}.d{a + 1}") for a in (0, 1)])
             elif p == "obstacle_position":  # every obstacle moved along each axis (2-D: in the plane)
                 for j, o in enumerate(self.spec.obstacles):
                     for a in ((0, 2) if self.planar else (0, 1, 2)):
@@ -627,6 +668,10 @@ class Problem:
                 contact, stiffness=_clip(contact.stiffness * math.exp(vals.get("contact_stiffness", 0.0)), k_lo, k_hi),
                 delta=_clip(contact.delta * math.exp(vals.get("contact_delta", 0.0)), d_lo, d_hi),
                 friction=_clip(float(vals.get("friction", contact.friction)), m_lo, m_hi))
+        turn = self._turn(z)
+        if turn is not None:  # about the first rod's start in the scene, before the shift
+            pivot = np.array(spec.rods[0].start, dtype=np.float64)
+            rods = [_turned_rod(r, turn, pivot) for r in rods]
         shift = [next((float(zi) for u, zi in zip(self.unknowns, z) if u.name == "base_position" and u.index == a), 0.0)
                  for a in range(3)]
         if any(shift):
@@ -640,6 +685,43 @@ class Problem:
             obstacles = tuple(_moved_obstacle(o, [moved.get(3 * j + a, 0.0) for a in range(3)])
                               for j, o in enumerate(obstacles))
         return dataclasses.replace(spec, sim=sim, rods=tuple(rods), contact=contact, obstacles=obstacles)
+
+    def _turn(self, z: np.ndarray) -> np.ndarray | None:
+        """The rotation matrix (3, 3) of the unknowns ``base_orientation`` at z (None without them): 2-D, the angle
+        about the plane's normal y; 3-D, the rotation vector a d1 + b d2 of the first edge's directors in the
+        scene."""
+        ang = {u.index: float(zi) for u, zi in zip(self.unknowns, z) if u.name == "base_orientation"}
+        if not ang:
+            return None
+        if self.planar:
+            w = np.array([0.0, ang[0], 0.0])
+        else:
+            d1 = np.asarray(self.model0.rest_ref_d1[0], dtype=np.float64)
+            d2 = np.cross(np.asarray(self.model0.rest_tangent[0], dtype=np.float64), d1)
+            w = ang.get(0, 0.0) * d1 + ang.get(1, 0.0) * d2
+        return rotation_matrix(w)
+
+    def _turn_tangent(self, z: np.ndarray, u: "Unknown") -> np.ndarray:
+        """(1, n) the initial DOFs' change per radian of the unknown ``u`` (base_orientation) at z: the positions
+        turned about the base, and in 3-D the twist angles' change that makes the tangent's frames (the stored ones
+        carried by parallel transport) the fitted scene's own (its rule for the first director, transported along
+        the rod), by central differences of the scene's initial state in the angle (no simulation: a map of
+        positions and frames, to ~1e-10)."""
+        eps = BASE_TURN_STEP
+        base = Simulator(build_model(self.spec_at(z)), 1).reset()
+        rows = []
+        for sign in (1.0, -1.0):
+            zz = np.array(z, dtype=np.float64)
+            zz[self.unknowns.index(u)] += sign * eps
+            st = Simulator(build_model(self.spec_at(zz)), 1).reset()
+            dof = st.dof[0].copy()
+            if not self.planar:  # θ: from the base's first directors carried to the turned tangents, to the scene's
+                for e in range(dof.shape[0] - 1):
+                    d1 = _transport(base.edge_ref_d1[0, e], base.edge_tangent[0, e], st.edge_tangent[0, e])
+                    dof[e, 3] = signed_angle(d1, tuple(map(float, st.edge_ref_d1[0, e])),
+                                             tuple(map(float, st.edge_tangent[0, e])))
+            rows.append(dof.reshape(-1))
+        return ((rows[0] - rows[1]) / (2.0 * eps))[None, :]
 
     def _bent_rods(self, rods: list, bent: dict) -> list:
         """The rods with the natural curvature offsets ``bent`` (2 node + component, in the controls' terms: 2-D, the
@@ -844,6 +926,8 @@ class Problem:
             g = np.zeros((1, 3))
             g[0, u.index] = 1.0
             return {"gravity": g}
+        if u.name == "base_orientation":  # every node turned, the clamp's too (a constrained DOF keeps its change)
+            return {"dof0": self._turn_tangent(z, u)}
         if u.name == "base_position":  # every node moved, the clamp's too (a constrained DOF keeps its change)
             d = np.zeros((1, self.model0.node_count, 2 if self.planar else 4))
             d[0, :, u.index if not self.planar else u.index // 2] = 1.0
@@ -898,6 +982,8 @@ class Problem:
                 out[u.label] = spec.contact.friction
             elif u.name == "base_position":  # where the fitted scene puts the first rod's start
                 out[u.label] = float(spec.rods[0].start[u.index])
+            elif u.name == "base_orientation":  # the turn [rad] (the fitted scene holds the turned direction)
+                out[u.label] = _clip(float(zi), -BASE_TURN_MAX, BASE_TURN_MAX)
             elif u.name == "obstacle_position":  # where the fitted scene puts the obstacle's anchor point
                 out[u.label] = float(_anchor(spec.obstacles[u.index // 3])[u.index % 3])
             elif u.name in ("damping", "gravity", "actuation_lag", "actuation_play"):

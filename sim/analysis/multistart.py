@@ -37,6 +37,7 @@ def _spread(prob: Any, name: str) -> float:
             "actuation_lag": 0.2,                # [s]
             "rest_kappa": 0.5,                   # integrated curvature
             "base_position": 0.05 * length,      # [m]
+            "base_orientation": 0.1,             # [rad]
             "obstacle_position": 0.05 * length,  # [m]
             "friction": 0.5}.get(name, 0.0)
 

@@ -24,8 +24,8 @@ def test_each_start_of_a_batch_has_the_residuals_and_jacobian_it_has_alone(tmp_p
     """Material factors, damping, gravity, the base and the actuation map differ per env: the batched rollout's
     residuals and tangent-mode Jacobian of each env equal its own one-env fit problem's."""
     spec, cmds = commanded_scene(tmp_path, mode)
-    params = ["youngs_modulus", "density", "radius", "damping", "gravity", "base_position", "actuation_gain",
-              "actuation_lag"]
+    params = ["youngs_modulus", "density", "radius", "damping", "gravity", "base_position", "base_orientation",
+              "actuation_gain", "actuation_lag"]
     meas, _ = synthetic(spec, ["damping"], [0.2], cmds=cmds, seconds=0.4)
     prob = F.Problem(spec, meas, cmds, params)
     Z = start_points(prob, 3, np.random.default_rng(1))
