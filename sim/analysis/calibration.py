@@ -55,6 +55,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.analysis import gradients as G
+from sim.geometry import matrix_from_rotvec
 from sim.geometry.frames import signed_angle, transport
 from sim.scene.model import build_model, planar_nodes
 from sim.scene.spec import SceneError, dump_scene, load_scene
@@ -453,16 +454,6 @@ def _moved_rod(r, d):
     return dataclasses.replace(r, start=start, rest_points=pts)
 
 
-def rotation_matrix(w: np.ndarray) -> np.ndarray:
-    """The rotation (3, 3) by the rotation vector w (3,) [rad] (Rodrigues)."""
-    ang = float(np.linalg.norm(w))
-    if ang == 0.0:
-        return np.eye(3)
-    k = w / ang
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(ang) * K + (1.0 - math.cos(ang)) * (K @ K)
-
-
 def _turned_rod(r, R: np.ndarray, pivot: np.ndarray):
     """The rod spec ``r`` turned by R (3, 3) about the point ``pivot`` (3,) (its start and direction, or its rest
     points)."""
@@ -699,7 +690,7 @@ class Problem:
             d1 = np.asarray(self.model0.rest_ref_d1[0], dtype=np.float64)
             d2 = np.cross(np.asarray(self.model0.rest_tangent[0], dtype=np.float64), d1)
             w = ang.get(0, 0.0) * d1 + ang.get(1, 0.0) * d2
-        return rotation_matrix(w)
+        return matrix_from_rotvec(w)
 
     def _turn_tangent(self, z: np.ndarray, u: "Unknown") -> np.ndarray:
         """(1, n) the initial DOFs' change per radian of the unknown ``u`` (base_orientation) at z: the positions
