@@ -5,6 +5,7 @@ import time
 
 import numpy as np
 
+from sim.geometry import matrix_to_quat, quat_to_matrix
 from workbench.panels.host import PanelHost
 from workbench.session import CONTROL_NODES, KAPPA_LIMIT, QUANTITIES, TWIST_LIMIT, colorbar_html
 from workbench.view import ARROW_MODES, CAMERAS
@@ -130,6 +131,9 @@ class ControlsPanel:
                                           hint="drag the target at the tip and the arm follows: the sliders become the "
                                                "curvature that holds the tip there at equilibrium (inverse statics, "
                                                "docs/physics.md §3.10; obstacles left out)")
+            self.reach_frame = gui.add_checkbox("Reach frame", initial_value=False,
+                                                hint="turn the target too: the tip's frame follows it, the twist "
+                                                     "sliders with the bending ones (3-D scenes)")
         self.reach_gizmo = None  # the target's transform gizmo while Reach is on
         self._syncing = False
         for h in (self.speed, self.color_by, self.color_range, self.color_max, self.arrows, self.force_scale, self.mode, self.rod, *(s for row in self.sliders for s in row)):
@@ -275,6 +279,15 @@ class ControlsPanel:
         def _(_e) -> None:
             self.show_reach(bool(self.reach.value))
 
+        @self.reach_frame.on_update
+        def _(_e) -> None:
+            if self.reach_frame.value and wb.tip_frame is None:
+                self.reach_frame.value = False
+                self._say("Reach frame: a 2-D scene has no tip frame to turn")
+                return
+            if self.reach.value:  # the gizmo again, with its rotation rings or without
+                self.show_reach(True)
+
         @self.zero_btn.on_click
         def _(_e) -> None:
             with wb.lock:
@@ -299,18 +312,31 @@ class ControlsPanel:
             self.reach.value = False
             self._say("Reach steers one rod by hand: stop the policy (or take over), one rod in the scene")
             return
-        g = app.server.scene.add_transform_controls("/reach_target", scale=REACH_GIZMO_SCALE, disable_rotations=True,
-                                                    position=tuple(float(v) for v in wb.tip), depth_test=False)
+        frame = wb.tip_frame if self.reach_frame.value else None  # the target's frame starts as the tip's
+        g = app.server.scene.add_transform_controls(
+            "/reach_target", scale=REACH_GIZMO_SCALE, disable_rotations=frame is None,
+            position=tuple(float(v) for v in wb.tip), depth_test=False,
+            wxyz=(1.0, 0.0, 0.0, 0.0) if frame is None else tuple(float(v) for v in matrix_to_quat(frame)))
 
         def _moved(_event) -> None:
             pos = np.asarray(g.position, dtype=np.float64)
             if pos.shape != (3,) or not np.all(np.isfinite(pos)) or np.abs(pos).max() > REACH_LIMIT_M:
                 self._say(f"Reach: a target beyond ±{REACH_LIMIT_M:g} m is ignored")
                 return
-            err = wb.reach_to(pos)
+            orientation = None
+            if frame is not None:
+                q = np.asarray(g.wxyz, dtype=np.float64)
+                if q.shape != (4,) or not np.all(np.isfinite(q)) or np.linalg.norm(q) < 1e-6:
+                    self._say("Reach frame: the target's orientation is not a rotation; ignored")
+                    return
+                orientation = quat_to_matrix(q / np.linalg.norm(q))
+            err = wb.reach_to(pos, orientation=orientation)
             self.sync_sliders()
-            self._say("" if err < 1e-3 else f"Reach: the closest equilibrium found is {err * 100:.1f} cm from the "
-                                              "target (out of reach, or still converging: move on)")
+            off = [] if err < 1e-3 else [f"{err * 100:.1f} cm"]
+            if orientation is not None and not wb.reach_angle < 1e-2:
+                off.append(f"{np.degrees(wb.reach_angle):.1f}°")
+            self._say("" if not off else f"Reach: the closest equilibrium found is {' and '.join(off)} from the "
+                                         "target (out of reach, or still converging: move on)")
 
         g.on_update(_moved)
         self.reach_gizmo = g

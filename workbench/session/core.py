@@ -25,7 +25,7 @@ from workbench.session.history import History, Snapshot
 from workbench.session.pull import Pull, control_force, grab, held_point, point
 from workbench.session.recorder import SessionRecorder
 from workbench.session.simbridge import ActionRefused, LiveSim, builtin_spec, load
-from workbench.session.teleop import KAPPA_LIMIT, Teleop
+from workbench.session.teleop import KAPPA_LIMIT, TWIST_LIMIT, Teleop
 
 Mode = Literal["teleop", "policy", "replay"]
 
@@ -60,6 +60,7 @@ class Workbench:
         self.on_scene_changed: list[Callable[[], None]] = []
         self._last_scalars: dict = {}
         self._reach_warm = None  # the last inverse-statics answer of reach_to (its warm start)
+        self.reach_angle = float("nan")  # the tip frame's angle from reach_to's target orientation [rad] (nan: none)
         self.pull: Pull | None = None  # a hand on the live rod (workbench.session.pull), None when nothing is held
         self._push_snapshot()
 
@@ -190,6 +191,12 @@ class Workbench:
         with self.lock:
             return self.live.tip
 
+    @property
+    def tip_frame(self) -> np.ndarray | None:
+        """(3, 3) the live rod's tip edge frame, columns (m1, m2, t); None in 2-D."""
+        with self.lock:
+            return self.live.tip_frame()
+
     # ------------------------------------------------------------------ snapshots / rewind
     def _push_snapshot(self) -> None:
         self.history.append(Snapshot(
@@ -221,40 +228,56 @@ class Workbench:
         with self.lock:
             self.teleop.set_value(k, comp, value)
 
-    def reach_to(self, target, *, node: int = -1) -> float:
+    def reach_to(self, target, *, node: int = -1, orientation=None) -> float:
         """Teleop by inverse statics (docs/physics.md §3.10): set the steered rod's absolute natural curvature at the
         control points to what holds its node ``node`` (default the tip; a control point dragged in the page) on
         ``target`` (3,) [m] at equilibrium, obstacles and contact left out
-        (the rod may press against an obstacle on its way); the twist sliders go to 0. A few Gauss–Newton iterations
-        per call, warm-started from the last call, so repeated calls (a dragged target) converge as they go.
-        Returns the distance [m] between the target and the equilibrium node of the curvature set. Raises
-        ActionRefused in policy mode or with several rods, ValueError for a target that is not 3 finite numbers."""
+        (the rod may press against an obstacle on its way); the twist sliders go to 0. With ``orientation`` (3, 3),
+        the tip edge's target frame (columns m1, m2, t; 3-D), the natural twist at the control points is solved for
+        too and set on the twist sliders. A few Gauss–Newton iterations per call, warm-started from the last call,
+        so repeated calls (a dragged target) converge as they go. Returns the distance [m] between the target and
+        the equilibrium node of the curvature set (the frame's angle from its target [rad]: ``reach_angle``).
+        Raises ActionRefused in policy mode or with several rods, ValueError for a target that is not 3 finite
+        numbers or an orientation that is not a rotation (or in 2-D, or not at the tip)."""
         tgt = np.asarray(target, dtype=np.float64).reshape(-1)
         if tgt.shape != (3,) or not np.all(np.isfinite(tgt)):
             raise ValueError(f"reach target must be 3 finite numbers [m], got {target!r}")
+        frames = None
+        if orientation is not None:
+            frames = np.asarray(orientation, dtype=np.float64)
+            if (frames.shape != (3, 3) or not np.all(np.isfinite(frames))
+                    or not np.allclose(frames.T @ frames, np.eye(3), atol=1e-6) or np.linalg.det(frames) < 0.0):
+                raise ValueError(f"reach orientation must be a rotation (3 x 3, columns m1, m2, t), got {orientation!r}")
+            if node != -1:
+                raise ValueError("reach orientation is the tip edge's: node must be the tip (-1)")
+            frames = frames[None]
         with self.lock:
             if self.mode != "teleop":
                 raise ActionRefused("reach steers the rod by hand: stop the policy (or take over) first")
             if len(self.teleop_rods()) > 1:
                 raise ActionRefused("reach steers a scene of one rod")
             spec = self.live.current_spec()
+            if frames is not None and spec.sim.mode != "3d":
+                raise ValueError("reach orientation: a 2-D scene has no tip frame to turn")
             contact = spec.contact
             if hasattr(contact, "enabled"):
                 contact = dataclasses.replace(contact, enabled=False)
             spec = dataclasses.replace(spec, obstacles=(), contact=contact)
             basis = smoothing_basis(self.teleop.converter.cfg)
-            key = (id(self.live.base_spec), self.live.gravity)  # a warm start holds for one scene only
+            # a warm start holds for one scene only, and for targets with a frame or without
+            key = (id(self.live.base_spec), self.live.gravity, frames is None)
             warm = self._reach_warm[1] if self._reach_warm is not None and self._reach_warm[0] == key else None
             tel = self.teleop
         res = reach(spec, tgt[None], basis=basis, tip=node, bound=KAPPA_LIMIT, max_iterations=4,  # outside the lock
-                    warm=warm)
+                    warm=warm, orientations=frames, twist_bound=TWIST_LIMIT)
         with self.lock:
             self._reach_warm = (key, res)
             if tel is self.teleop and self.mode == "teleop":
                 if tel.mode != "absolute":
                     tel.set_mode("absolute")
                 tel.values[:, :2] = res.coefficients[0]
-                tel.values[:, 2] = 0.0
+                tel.values[:, 2] = 0.0 if frames is None else res.twist_coefficients[0]
+            self.reach_angle = float("nan") if frames is None else float(res.orientation_error[0])
         return float(res.error[0])
 
     def teleop_rods(self) -> list[str]:

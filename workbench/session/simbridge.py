@@ -199,6 +199,13 @@ class LiveSim:
     def tip(self) -> np.ndarray:
         return np.asarray(self.state.node_pos[0, -1], dtype=np.float64).copy()
 
+    def tip_frame(self) -> np.ndarray | None:
+        """(3, 3) the tip edge's material frame, columns (m1, m2, t); None in 2-D (no frame to turn)."""
+        if self.model.mode != "3d":
+            return None
+        m1, m2, t = self.sim.material_frames(self.state)
+        return np.stack([m1[0, -1], m2[0, -1], t[0, -1]], axis=-1)
+
     # ---------------------------------------------------------------- snapshots
     def snapshot(self) -> tuple:
         return copy_struct(self.state), copy_struct(self.ctrl)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sim.support.assets import asset_path
 from workbench.session import pull
 from workbench.session.core import Workbench
 from workbench.session.policy_session import PolicySession
@@ -126,3 +127,37 @@ def test_a_pulled_env_of_the_grid_moves_and_the_others_do_not():
     assert np.abs(np.asarray(g.core.state.node_pos[1, -1]) - t0[1]).max() < 2e-3
     with pytest.raises(ValueError, match="env must be an index"):
         g.grab(3, tip_page)
+
+
+def test_reach_with_a_target_frame_turns_the_tip_there_with_the_twist():
+    """Reach frame (Workbench.reach_to with an orientation): the bending and twist sliders become what holds the tip
+    at a pose the arm can take (made by holding known curvature and twist), and the live arm settles in it; 2-D
+    scenes and a non-rotation are refused by name."""
+    wb = Workbench.builtin()
+    wb.teleop.set_mode("absolute")
+    wb.teleop.values[:, :2] = [[0.3, -0.2], [0.2, 0.4], [-0.3, 0.1], [0.1, 0.2], [0.2, -0.1]]
+    wb.teleop.values[:, 2] = [0.3, -0.2, 0.4, 0.1, -0.3]
+    for _ in range(400):
+        wb.step()
+    pose, frame = wb.tip.copy(), wb.tip_frame.copy()
+    wb.teleop.values[:] = 0.0
+    for _ in range(8):  # a drag sends several moves; each call goes a few iterations further
+        err = wb.reach_to(pose, orientation=frame)
+    assert err < 1e-3 and wb.reach_angle < 1e-2, (err, wb.reach_angle)
+    assert np.abs(wb.teleop.values[:, 2]).max() > 0.05  # the twist sliders moved
+    for _ in range(400):
+        wb.step()
+    assert np.linalg.norm(wb.tip - pose) < 3e-3
+    cos = (np.trace(wb.tip_frame.T @ frame) - 1.0) / 2.0
+    assert np.degrees(np.arccos(min(1.0, cos))) < 2.0
+    wb.reach_to(pose)  # without a frame again: the twist sliders go back to 0
+    assert not wb.teleop.values[:, 2].any() and np.isnan(wb.reach_angle)
+    with pytest.raises(ValueError, match="must be a rotation"):
+        wb.reach_to(pose, orientation=2.0 * np.eye(3))
+    with pytest.raises(ValueError, match="node must be the tip"):
+        wb.reach_to(pose, node=3, orientation=np.eye(3))
+    flat = Workbench.builtin()
+    flat.load_scene(asset_path("scenes/arm_2d.toml"))
+    assert flat.tip_frame is None
+    with pytest.raises(ValueError, match="a 2-D scene has no tip frame"):
+        flat.reach_to(flat.tip, orientation=np.eye(3))
