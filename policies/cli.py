@@ -200,8 +200,9 @@ def eval_main(argv: list[str]) -> int:
     _threads_env()
     p = argparse.ArgumentParser(prog="rodlab eval", description="Evaluate a policy file on a task "
                                 "(paper's average discounted return + task metrics).")
-    p.add_argument("policy", help="policy .zip (policies/pretrained/*.zip, runs/*/policy.zip), 'random', or "
-                                   "'inverse-statics' (the model-based baseline; reaching tasks)")
+    p.add_argument("policy", help="policy .zip (policies/pretrained/*.zip, runs/*/policy.zip), 'random', "
+                                   "'inverse-statics' (a model-based baseline; reaching tasks) or 'trajectory' "
+                                   "(receding-horizon trajectory optimisation; Follow Target)")
     p.add_argument("--task", default=None, help="task (default: the one stored in the policy file)")
     p.add_argument("--episodes", type=int, default=100)
     p.add_argument("--seed", type=int, default=0)

@@ -1,4 +1,5 @@
-"""A model-based baseline for the reaching tasks: inverse statics (``rodlab eval inverse-statics --task T``).
+"""Model-based baselines for the reaching tasks: inverse statics (``rodlab eval inverse-statics --task T``) and
+receding-horizon trajectory optimisation (``rodlab eval trajectory --task follow_target``).
 
 Each control step it asks :func:`sim.analysis.inverse.reach` for the control points' natural curvature that would hold the tip
 on the current target at equilibrium (warm-started from its previous answer, a few Gauss–Newton iterations per
@@ -8,18 +9,48 @@ control points and smoothing from the task, so it acts through the same converte
 target orientation and commands twist (4D IK) gets the tip frame too: the twist T* found with the curvature,
 a = clip((T* − T) / s_τ, −1, 1). It ignores dynamics (the target's motion, the arm's inertia): a baseline, not an
 optimum.
+
+The trajectory controller (:class:`TrajectoryController`) plans the task's own actions over the next ``horizon``
+control steps each control step (model-predictive control): the target moving on as it does in the task (its
+velocity, reflected at the box's faces; the random turns are unknown to it), the arm stepped by the simulator with
+converged Newton steps from the task's current state (all of it, not only the observed nodes: a full-state baseline),
+the actions mapped to the natural curvature exactly as the task's converter maps them (control points spread over
+their nodes, the increment spread over the sim steps). The objective, Σ_k ‖tip_k − target_k‖² over the control steps'
+ends, is minimised by L-BFGS-B in the box |a| ≤ 1 with its gradient from one adjoint pass
+(:mod:`sim.analysis.gradients`); the first action is applied, the rest shifted to warm-start the next plan.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
-from sim.analysis import reach
+from sim import Simulator, build_model
+from sim.analysis import reach, rollout
 from sim.geometry import from_xyzw, quat_to_matrix
 
-from .control import smoothing_basis
+from .control import smoothing_basis, smoothing_weights
 
-__all__ = ["InverseStaticsController", "MODEL_BASED"]
+__all__ = ["InverseStaticsController", "TrajectoryController", "MODEL_BASED", "model_based_controller"]
 
-MODEL_BASED = ("inverse-statics",)  # controller names `rodlab eval` takes in place of a policy file
+MODEL_BASED = ("inverse-statics", "trajectory")  # controller names `rodlab eval` takes in place of a policy file
+# the plan's steps are converged (its derivatives are those of converged steps): tolerances [N], [m/s], iterations
+PLAN_NEWTON_TOL, PLAN_NEWTON_DTOL, PLAN_NEWTON_ITER = 1e-9, 1e-9, 20
+
+
+def _core_of(env):
+    core = getattr(getattr(env, "venv", None), "core", None)
+    if core is None:
+        raise ValueError("a model-based controller needs a rodlab task env (its core: scene and converter)")
+    return core
+
+
+def model_based_controller(name: str, env, **kw):
+    """The controller ``name`` (:data:`MODEL_BASED`) for the SB3 VecEnv ``env`` of a rodlab task."""
+    if name == "inverse-statics":
+        return InverseStaticsController.for_env(env, **kw)
+    if name == "trajectory":
+        return TrajectoryController(_core_of(env), **kw)
+    raise ValueError(f"unknown model-based controller {name!r}; known: {', '.join(MODEL_BASED)}")
 
 
 class InverseStaticsController:
@@ -50,10 +81,7 @@ class InverseStaticsController:
     @classmethod
     def for_env(cls, env, **kw) -> "InverseStaticsController":
         """For an SB3 VecEnv of a rodlab task (``make_sb3_env``)."""
-        core = getattr(getattr(env, "venv", None), "core", None)
-        if core is None:
-            raise ValueError("inverse statics needs a rodlab task env (its core: scene and converter)")
-        return cls(core, **kw)
+        return cls(_core_of(env), **kw)
 
     def predict(self, obs, deterministic: bool = True):
         obs = np.asarray(obs, dtype=np.float64)
@@ -78,4 +106,120 @@ class InverseStaticsController:
             act = np.concatenate([act, at], axis=1)
         elif self.cfg.has_twist:  # no twist command: hold the natural twist
             act = np.concatenate([act, np.zeros((B, self.cfg.n_points))], axis=1)
+        return act.astype(np.float32), None
+
+
+class TrajectoryController:
+    """``predict(obs) -> (actions, None)`` like a policy: the first action of a plan of ``horizon`` control steps,
+    made again every control step (see the module docstring), for the task core ``core`` of a target-following task
+    (``target_pos`` and ``target_vel`` observed, a target box in its config). ``iterations``: L-BFGS-B iterations
+    per plan; ``effort``: weight of Σ‖a‖² [m²] against the squared distances."""
+
+    def __init__(self, core, *, horizon: int = 5, iterations: int = 20, effort: float = 1e-4):
+        names = [n for n, _ in core.obs_fields]
+        cfg = getattr(core, "config", None)
+        if "target_vel" not in names or not hasattr(cfg, "target_lo"):
+            raise ValueError(f"the trajectory controller follows a moving target (target_pos and target_vel in the "
+                             f"observation, a target box); this task observes {', '.join(names)} (inverse-statics "
+                             "reaches a fixed one)")
+        if horizon < 1 or iterations < 1 or not effort >= 0.0:
+            raise ValueError("trajectory controller: need horizon >= 1, iterations >= 1, effort >= 0")
+        self.core, self.cfg = core, core.converter.cfg
+        self.horizon, self.iterations, self.effort = int(horizon), int(iterations), float(effort)
+        self.slices, off = {}, 0
+        for name, size in core.obs_fields:
+            self.slices[name] = slice(off, off + int(size))
+            off += int(size)
+        spec = core.model.spec
+        self.spec = dataclasses.replace(spec, sim=dataclasses.replace(
+            spec.sim, newton_tol=PLAN_NEWTON_TOL, newton_dtol=PLAN_NEWTON_DTOL, newton_max_iter=PLAN_NEWTON_ITER))
+        self.lo, self.hi = np.asarray(cfg.target_lo, float), np.asarray(cfg.target_hi, float)
+        self.period = float(core.config.substeps) * float(core.model.dt)
+        owner, weight = smoothing_weights(self.cfg.n_nodes, self.cfg.control_points, self.cfg.smoothing)
+        self.W = np.zeros((self.cfg.n_points, self.cfg.n_nodes))  # control point -> node weights
+        nodes = np.flatnonzero(owner >= 0)
+        self.W[owner[nodes], nodes] = weight[nodes]
+        self._sim = None
+        self._plan = None
+
+    def _targets(self, pos: np.ndarray, vel: np.ndarray) -> np.ndarray:
+        """(H, B, D) the target at the end of each of the next H control steps: reflected at the box, no turns."""
+        out, p, v = [], pos.copy(), vel.copy()
+        for _ in range(self.horizon):
+            v = np.where((p < self.lo) | (p > self.hi), -v, v)
+            p = p + v * self.period
+            out.append(p)
+        return np.stack(out)
+
+    def _schedule(self, A: np.ndarray) -> np.ndarray:
+        """(T, B, N, C) the natural curvature's change from now at every sim step for the plan A (H, B, P, C)."""
+        S = self.cfg.substeps
+        steps = S if self.cfg.temporal_interpolation else 1
+        dK = self.cfg.kappa_scale * A
+        before = np.cumsum(dK, axis=0) - dK  # Σ_{i<k} of the increments
+        out = []
+        for k in range(self.horizon):
+            for j in range(S):
+                out.append(before[k] + min(j + 1, steps) / steps * dK[k])
+        return np.einsum("tbpc,pn->tbnc", np.stack(out), self.W)
+
+    def objective(self, x: np.ndarray, state, kappa0: np.ndarray, targets: np.ndarray) -> tuple[float, np.ndarray]:
+        """The plan's objective and its gradient at the actions x (H · B · P · C,) from ``state`` under the natural
+        curvature ``kappa0`` (B, N, 2) now, for ``targets`` (H, B, D)."""
+        H, S = self.horizon, self.cfg.substeps
+        B, N = kappa0.shape[:2]
+        P, C = self.cfg.n_points, self.cfg.n_components
+        A = x.reshape(H, B, P, C)
+        dk = self._schedule(A)
+        ctrls = []
+        for t in range(H * S):
+            c = self._sim.make_control()
+            c.kappa_bar[:] = kappa0
+            c.kappa_bar[:, :, :C] += dk[t]
+            ctrls.append(c)
+        tape = rollout(self._sim, state.copy(), ctrls)  # (a rollout advances the state it is given)
+        planar = self.core.planar
+        dpn = 2 if planar else 4
+        axes = [dpn * (N - 1) + a for a in range(2 if planar else 3)]
+        ends = [(k + 1) * S for k in range(H)]
+        tip = tape.dof[ends][:, :, axes]  # (H, B, D)
+        r = tip - targets
+        cost = float(np.sum(r * r)) + self.effort * float(np.sum(A * A))
+        cot = np.zeros_like(tape.dof)
+        cot[np.ix_(ends, np.arange(B), axes)] = 2.0 * r
+        g_kb = tape.vjp({"dof": cot}, params=("kappa_bar",))["kappa_bar"][..., :C]  # (T, B, N, C)
+        g_pts = np.einsum("tbnc,pn->tbpc", g_kb, self.W) * self.cfg.kappa_scale
+        steps = S if self.cfg.temporal_interpolation else 1
+        gA = np.zeros_like(A)
+        for k in range(H):
+            for j in range(S):
+                t = k * S + j
+                gA[:k] += g_pts[t]  # every earlier increment is held by now
+                gA[k] += min(j + 1, steps) / steps * g_pts[t]
+        return cost, (gA + 2.0 * self.effort * A).reshape(-1)
+
+    def predict(self, obs, deterministic: bool = True):
+        import scipy.optimize
+
+        obs = np.asarray(obs, dtype=np.float64)
+        core = self.core
+        B = obs.shape[0]
+        if B != core.envs:
+            raise ValueError(f"the trajectory controller plans for the task's {core.envs} envs, got {B} observations")
+        if self._sim is None:
+            self._sim = Simulator(build_model(self.spec), B)
+        H, P, C = self.horizon, self.cfg.n_points, self.cfg.n_components
+        targets = self._targets(obs[:, self.slices["target_pos"]], obs[:, self.slices["target_vel"]])
+        state = core.state.copy()
+        kappa0 = np.asarray(core.ctrl.kappa_bar, dtype=np.float64).copy()
+        x0 = np.zeros((H, B, P, C))
+        if self._plan is not None:  # the last plan, a step on
+            x0[:-1] = self._plan[1:]
+        res = scipy.optimize.minimize(self.objective, x0.reshape(-1), args=(state, kappa0, targets), jac=True,
+                                      method="L-BFGS-B", bounds=[(-1.0, 1.0)] * x0.size,
+                                      options={"maxiter": self.iterations})
+        self._plan = res.x.reshape(H, B, P, C)
+        act = self._plan[0].reshape(B, -1)
+        if self.cfg.has_twist:  # no twist command: hold the natural twist
+            act = np.concatenate([act, np.zeros((B, P))], axis=1)
         return act.astype(np.float32), None

@@ -15,8 +15,8 @@
 
 ``callback(step: EvalStep) -> bool | None`` is called after every batched step; returning True stops.
 ``policy_or_path`` may be a path (policy zip or SB3 checkpoint), an SB3 model or policy, or
-``"random"`` (uniform random actions; baseline) or ``"inverse-statics"`` (the model-based baseline of
-:mod:`policies.model_based`). Loading a path never unpickles: a full SB3 checkpoint is
+``"random"`` (uniform random actions; baseline), ``"inverse-statics"`` or ``"trajectory"`` (the model-based
+baselines of :mod:`policies.model_based`). Loading a path never unpickles: a full SB3 checkpoint is
 refused unless ``trust_pickle=True`` (``rodlab eval --trust-pickle``; see ``policies.learning.sac.load_policy``).
 """
 from __future__ import annotations
@@ -33,7 +33,7 @@ from sim.geometry import from_xyzw, quat_yaw
 from policies.elastica import make_elastica_vec_env
 from policies.learning.sac import PolicyLoadError, load_policy
 from policies.learning.sb3_env import make_sb3_env, task_short_name
-from policies.model_based import MODEL_BASED, InverseStaticsController
+from policies.model_based import MODEL_BASED, model_based_controller
 from policies.vec_env import SB3VecEnvAdapter
 
 # Slices into the flat observation (fields concatenated alphabetically, docs/tasks.md §4.3-7.3):
@@ -199,8 +199,8 @@ def _run_episodes(policy, task, episodes, seed, n, deterministic, callback, gamm
         raise ValueError(f"unknown backend {backend!r}; expected 'dismech' or 'elastica'")
     try:
         controller = None
-        if policy in MODEL_BASED:  # the inverse-statics baseline (policies.model_based), built for this env
-            controller = InverseStaticsController.for_env(env)
+        if policy in MODEL_BASED:  # a model-based baseline (policies.model_based), built for this env
+            controller = model_based_controller(policy, env)
         elif policy != "random":
             check_compatible(policy, env, task, source)
         if env_hook is not None:

@@ -1,6 +1,8 @@
-"""The inverse-statics baseline (policies.model_based) acts through the task's own converter: on the 4D IK task it
-brings the tip onto the (static) target and turns its frame onto the target's within a few dozen control steps, on Follow Target it stays far closer to
-the moving target than random actions; a task with obstacles is refused by name."""
+"""The model-based baselines (policies.model_based) act through the task's own converter. Inverse statics: on the 4D
+IK task it brings the tip onto the (static) target and turns its frame onto the target's within a few dozen control
+steps, on Follow Target it stays far closer to the moving target than random actions; a task with obstacles is
+refused by name. The trajectory controller: its plan's gradient is the objective's (central differences, 2-D and
+3-D), it follows the moving target closer than inverse statics, and a task without a moving target is refused."""
 from __future__ import annotations
 
 import numpy as np
@@ -41,3 +43,41 @@ def test_inverse_statics_follows_a_moving_target_better_than_random():
 def test_what_the_baseline_cannot_do_is_refused():
     with pytest.raises(ValueError, match="scenes with contact are not supported"):
         evaluate("inverse-statics", "tight_obstacles_2d", episodes=1, num_envs=1)
+
+
+@pytest.mark.parametrize("task", ["follow_target", "follow_target_2d"])
+def test_the_trajectory_plans_gradient_matches_central_differences(task):
+    """The plan's objective over 3 control steps from a moving arm: the adjoint gradient with respect to every action
+    (through the converter's spreading over nodes and sim steps) against central differences."""
+    from policies.learning.sb3_env import make_sb3_env
+    from policies.model_based import TrajectoryController
+
+    env = make_sb3_env(task, 2, 1)
+    try:
+        obs = env.reset()
+        for _ in range(3):  # a moving arm, bent
+            obs, *_ = env.step(np.full((2, env.action_space.shape[0]), 0.7, np.float32))
+        ctl = TrajectoryController(env.venv.core, horizon=3)
+        ctl.predict(obs)  # builds the plan's simulator
+        core = env.venv.core
+        targets = ctl._targets(obs[:, ctl.slices["target_pos"]], obs[:, ctl.slices["target_vel"]])
+        args = (core.state.copy(), np.asarray(core.ctrl.kappa_bar, dtype=np.float64).copy(), targets)
+        x = np.random.default_rng(0).uniform(-1.0, 1.0, ctl._plan.size)
+        _, g = ctl.objective(x, *args)
+        h = 1e-6
+        for i in np.random.default_rng(1).choice(x.size, 6, replace=False):
+            xp, xm = x.copy(), x.copy()
+            xp[i] += h
+            xm[i] -= h
+            fd = (ctl.objective(xp, *args)[0] - ctl.objective(xm, *args)[0]) / (2.0 * h)
+            assert abs(fd - g[i]) <= 1e-6 * np.abs(g).max(), (i, fd, g[i])
+    finally:
+        env.close()
+
+
+def test_the_trajectory_controller_follows_the_moving_target_closer_than_inverse_statics():
+    ours = tip_errors("trajectory", "follow_target", 40)
+    statics = tip_errors("inverse-statics", "follow_target", 40)
+    assert np.mean(ours[20:]) < 0.8 * np.mean(statics[20:]), (ours, statics)
+    with pytest.raises(ValueError, match="follows a moving target"):
+        evaluate("trajectory", "ik4d", episodes=1, num_envs=1)
