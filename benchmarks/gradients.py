@@ -65,7 +65,8 @@ def bench_step(envs: int, repeats: int) -> dict:
         tape.vjp({"dof": np.ones((envs, n))}, params=("kappa_bar", "dof0", "vel0"))  # the cached linearisation
         bwd.append(time.perf_counter() - t0)
     N = sim.model.node_count
-    rec = (2 * n + 2 * (N - 1) * 3 + N + 2 * N + N + n) * 8  # dof, vel, d1, t, β, κ̄, τ̄, external forces
+    # what a recorded step adds to a tape (Tape.nbytes: the state after it, its controls and external forces)
+    rec = (rollout(sim, state.copy(), [ctrl, ctrl]).nbytes - rollout(sim, state.copy(), [ctrl]).nbytes) // envs
     lin_bytes = tape._lin[(0, 0)].nbytes // envs  # J's band and its factor, F, G, a, b, ∂f/∂κ̄ as kept after a pass
     f, b, li = (float(np.median(v)) for v in (fwd, bwd, lin))
     return {"envs": envs, "nodes": N, "dofs": n, "forward_ms_per_env": 1e3 * f / envs,
