@@ -472,7 +472,7 @@ class Tape:
             Fx = S
         low: dict = {}
         if pairs:
-            low, Fx = self._pair_terms(part, y, Fx)
+            low, Fx = self._pair_terms(part, y, Fx, Jc)
         P: dict = {}
         if want_kb:
             P["kappa_bar"] = kbc.reshape(B, n, 2 * N) * ~fixed[None, :, None]
@@ -510,18 +510,20 @@ class Tape:
         ay[rule.identity], by[rule.identity] = 0.0, 0.0
         return _Lin(k, ab, kl, Fx, Fu, G, ay, by, P, rule, a_end=a, b_end=b, low=low, Jc=Jc)
 
-    def _pair_terms(self, part: _Part, y: np.ndarray, Fx: np.ndarray) -> tuple[dict, np.ndarray]:
+    def _pair_terms(self, part: _Part, y: np.ndarray, Fx: np.ndarray, Jc: np.ndarray) -> tuple[dict, np.ndarray]:
         """The part's edge-pair contact per env: its Jacobian as the term U E_Sᵀ of J (S the free position DOFs of
-        the nodes of the pairs within reach, U (n, s) their columns, constrained rows 0), and with friction its
-        dependence on the start positions (the slip velocity) added to ``Fx`` (made dense). Central differences of
-        the pairs' residual (:func:`sim.kernels.probe.pair_linearisation`), with friction at step 1e-7,
-        extrapolated, as the start band."""
+        the nodes of the pairs within reach, U (n, s) their columns, constrained rows 0), its columns at the
+        constrained DOFs of those nodes added to ``Jc`` (B, n, held) (a change of them is carried, as the band's),
+        and with friction its dependence on the start positions (the slip velocity) added to ``Fx`` (made dense).
+        Central differences of the pairs' residual (:func:`sim.kernels.probe.pair_linearisation`), with friction
+        at step 1e-7, extrapolated, as the start band."""
         sim = self.sim
         prm = sim.kernel_params
         friction = float(prm[0]["friction"]) > 0.0
         B, n = y.shape
         x0, h = part.x0, part.rule.h_solve
         fixed = sim.kernel_rod.fixed.astype(bool)
+        held = np.flatnonzero(fixed)
         f = np.empty(n)
         dofs = np.empty(n, np.int64)
         cols = np.empty((n, n))
@@ -536,7 +538,11 @@ class Tape:
             S = dofs[:s].copy()
             U = cols[:, :s].copy()
             U[fixed] = 0.0
-            low[e] = (S, U)
+            free = ~fixed[S]
+            if not free.all():  # the constrained DOFs' columns: carried as the band's (_linearise: Jc)
+                Jc[e][:, np.searchsorted(held, S[~free])] += U[:, ~free]
+            if free.any():
+                low[e] = (S[free], U[:, free])
             if friction:
                 if Fx.ndim == 2:
                     dense = np.zeros((B, n, n))

@@ -78,8 +78,9 @@ def pair_linearisation(prm_arr, rod, x, x0, h, step, richardson, of_start, f_out
     """The residual of the edge pairs alone at the DOFs ``x`` (n,) of a step of size h from ``x0`` (its slip
     velocity (x − x0)/h) into ``f_out`` (n,), over the candidate pairs at ``x`` (a fresh list: with the contact
     margin ≥ δ every pair the step's solution felt, and each pair's terms as there); and its derivatives with respect
-    to the position DOFs of the nodes of the pairs within reach (gap < δ), constrained DOFs left out: their indices
-    into ``dofs`` (returns their count s), the columns ∂f/∂x' into ``cols[:, :s]`` (n, ≥ s) and with ``of_start``
+    to the position DOFs of the nodes of the pairs within reach (gap < δ), constrained ones too (a change of them is
+    carried: the caller sets their columns apart): their indices into ``dofs`` (returns their count s), the columns
+    ∂f/∂x' into ``cols[:, :s]`` (n, ≥ s) and with ``of_start``
     ∂f/∂x (the start's positions) into ``start_cols[:, :s]``. Central differences of step ε = ``step`` times the
     largest coordinate (at least 1 m); with ``richardson`` also at ε/2, combined as (4 D(ε/2) − D(ε))/3."""
     prm = prm_arr[0]
@@ -112,8 +113,6 @@ def pair_linearisation(prm_arr, rod, x, x0, h, step, richardson, of_start, f_out
             if planar and a == 1:
                 continue
             d = dpn * k + (a if not planar else a // 2)
-            if rod.fixed[d]:
-                continue
             dofs[s] = d
             for which in range(2 if of_start else 1):
                 arr = pos if which == 0 else pos0

@@ -451,6 +451,14 @@ def _loop(base):
                                 edge_youngs_modulus=tuple([1e3 * E] * 4 + [E] * (len(pts) - 5))),)
 
 
+def _clamp_on_rod(base):
+    """3-D: a rod sagging onto another's clamped first edge, which lies across it just under its middle (the rest of
+    the other rod out over the side): the pair at the clamp holds the rod up, so a move of the clamp moves it."""
+    top = dataclasses.replace(base, name="top", start=(-0.3, 0.0, 0.0), direction=(1.0, 0.0, 0.0))
+    return top, dataclasses.replace(base, name="under", start=(0.0, -0.04, -(2 * R_PAIR + GAP)),
+                                    direction=(0.0, 1.0, 0.0))
+
+
 PAIR_SCENES = {"crossing": ("3d", _crossing), "tip": ("2d", _tip), "loop": ("3d", _loop)}
 PAIR_CASES = [("crossing", regime) for regime in FRICTION] + [("tip", "frictionless"), ("tip", "sliding"),
                                                                ("loop", "frictionless"), ("loop", "sliding")]
@@ -505,6 +513,8 @@ HELD_SCENES = {  # a change of the constrained DOFs too (the clamp moved): they 
     "2-D": lambda: simulator("2d"), "3-D": lambda: simulator("3d"),
     "3-D sliding on a sphere": lambda: contact_simulator("3d", "sphere", *FRICTION["sliding"]),
     "3-D, clamp carried in a fluid": lambda: moving_simulator("3d", True),
+    "3-D, a clamped edge on another rod": lambda: _pair_simulator(_clamp_on_rod, "3d", *FRICTION["frictionless"]),
+    "3-D, a clamped edge sliding on another rod": lambda: _pair_simulator(_clamp_on_rod, "3d", *FRICTION["sliding"]),
 }
 
 
@@ -518,7 +528,13 @@ def test_a_change_of_the_clamp_is_kept_and_moves_the_rod(name):
     mode = sim.model.mode
     rng = np.random.default_rng(8)
     kb, tb = random_controls(mode, sim.model.node_count, rng)
+    if "clamped edge" in name:
+        kb, tb = 0.2 * kb, 0.2 * tb  # small: the clamped edge stays on the other rod
     tape = G.rollout(sim, start(sim), controls(sim, kb, tb))
+    if "clamped edge" in name:  # the pair at the clamp in touch every step, in every env
+        st = start(sim)
+        for c in controls(sim, kb, tb):
+            assert np.all(sim.step(st, c).contact_count > 0)
     n = tape.dof.shape[2]
     fixed = sim.kernel_rod.fixed.astype(bool)
     pos = np.ones(n, bool) if mode == "2d" else (np.arange(n) % 4 != 3)
