@@ -62,7 +62,7 @@ def compile_kernels(*, verbose: bool = False, on_stage: Callable[[str], None] | 
         x, x0 = (np.ascontiguousarray(tape.dof[i, 0]) for i in (1, 0))  # the edge pairs' part, without pairs
         n = x.size
         pair_residual(sim.kernel_params, sim.kernel_rod, x, x0, spec.sim.dt, np.empty(n))
-        pair_linearisation(sim.kernel_params, sim.kernel_rod, x, x0, spec.sim.dt, 1e-7, True, True, np.empty(n),
+        pair_linearisation(sim.kernel_params, sim.kernel_rod, x, x0, spec.sim.dt, 1e-7, True, True,
                            np.empty(n, np.int64), np.empty((n, n)), np.empty((n, n)))
         m, st, ctrl = sim.model, sim.reset(), sim.make_control()  # the retry ladder's sub-steps taken again
         E, N = m.node_count - 1, m.node_count

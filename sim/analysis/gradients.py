@@ -524,7 +524,6 @@ class Tape:
         x0, h = part.x0, part.rule.h_solve
         fixed = sim.kernel_rod.fixed.astype(bool)
         held = np.flatnonzero(fixed)
-        f = np.empty(n)
         dofs = np.empty(n, np.int64)
         cols = np.empty((n, n))
         start_cols = np.empty((n, n) if friction else (1, 1))
@@ -532,7 +531,7 @@ class Tape:
         low = {}
         for e in range(B):
             s = pair_linearisation(prm, sim.kernel_rod, c(y[e]), c(x0[e]), float(h[e]), FRICTION_FD_STEP, True,
-                                   friction, f, dofs, cols, start_cols)
+                                   friction, dofs, cols, start_cols)
             if s == 0:
                 continue
             S = dofs[:s].copy()

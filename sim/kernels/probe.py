@@ -74,11 +74,10 @@ def _pairs_at(prm, rod, x, x0, h, f_out):
 
 
 @njit(**OPT_ALLOC)
-def pair_linearisation(prm_arr, rod, x, x0, h, step, richardson, of_start, f_out, dofs, cols, start_cols):
-    """The residual of the edge pairs alone at the DOFs ``x`` (n,) of a step of size h from ``x0`` (its slip
-    velocity (x − x0)/h) into ``f_out`` (n,), over the candidate pairs at ``x`` (a fresh list: with the contact
-    margin ≥ δ every pair the step's solution felt, and each pair's terms as there); and its derivatives with respect
-    to the position DOFs of the nodes of the pairs within reach (gap < δ), constrained ones too (a change of them is
+def pair_linearisation(prm_arr, rod, x, x0, h, step, richardson, of_start, dofs, cols, start_cols):
+    """The derivatives of the residual of the edge pairs alone at the DOFs ``x`` (n,) of a step of size h from ``x0``
+    (its slip velocity (x − x0)/h), over the candidate pairs at ``x`` (a fresh list: with the contact margin ≥ δ
+    every pair the step's solution felt, and each pair's terms as there), with respect to the position DOFs of the nodes of the pairs within reach (gap < δ), constrained ones too (a change of them is
     carried: the caller sets their columns apart): their indices into ``dofs`` (returns their count s), the columns
     ∂f/∂x' into ``cols[:, :s]`` (n, ≥ s) and with ``of_start``
     ∂f/∂x (the start's positions) into ``start_cols[:, :s]``. Central differences of step ε = ``step`` times the
@@ -88,7 +87,9 @@ def pair_linearisation(prm_arr, rod, x, x0, h, step, richardson, of_start, f_out
     dpn = 2 if planar else 4
     n = x.shape[0]
     N = n // dpn
-    w, ep, pos, pos0 = _pairs_at(prm, rod, x, x0, h, f_out)
+    fp = np.empty(n)
+    fm = np.empty(n)
+    w, ep, pos, pos0 = _pairs_at(prm, rod, x, x0, h, fp)
     near = np.zeros(N, np.bool_)
     for m in range(ep.count[0]):
         c = ep.cand[m]
@@ -103,8 +104,6 @@ def pair_linearisation(prm_arr, rod, x, x0, h, step, richardson, of_start, f_out
     for k in range(N):
         for a in range(3):
             scale = max(scale, abs(pos[k, a]), abs(pos0[k, a]))
-    fp = np.empty(n)
-    fm = np.empty(n)
     s = 0
     for k in range(N):
         if not near[k]:
