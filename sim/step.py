@@ -20,7 +20,7 @@ from sim.contact.world import (
     set_capsules,
     set_pose,
 )
-from sim.geometry.frames import transport
+from sim.geometry.frames import transport_vectors
 from sim.kernels.batch import CHUNK, step_kernel
 from sim.kernels.data import (
     MIDPOINT_ENERGY_TOL,
@@ -30,6 +30,7 @@ from sim.kernels.data import (
     RodData,
     StateArrays,
     StepOutput,
+    alike,
 )
 from sim.scene import validate as _validate
 from sim.scene.boundary import frame_load_forces, turn_fix, window_fraction
@@ -39,16 +40,6 @@ from sim.state import STATE_ARRAYS, Control, State, StepStats
 __all__ = ["Simulator", "MIDPOINT_ENERGY_TOL"]
 
 IndexLike = int | Sequence[int] | np.ndarray | slice | None
-
-
-def _alike(a, b) -> bool:
-    """Equal, or for floats equal to rounding (a rest shape moved as a whole keeps its lengths to the last bits)."""
-    a, b = np.asarray(a), np.asarray(b)
-    if a.shape != b.shape:
-        return False
-    if a.dtype.kind == "f":
-        return bool(np.allclose(a, b, rtol=1e-12, atol=0.0))
-    return bool(np.array_equal(a, b))
 
 
 class Simulator:
@@ -166,16 +157,16 @@ class Simulator:
         prm = self._prm[0]
         touching = int(prm["n_obstacles"]) > 0 or bool(prm["rod_pairs"])
         pairs = self._rod.pairs
+        # the midpoint rule's energy floor scales with the stiffness (a threshold on rounding: the first's serves);
+        # the motion plane is a 2-D rod's only
+        skip = ("midpoint_energy_floor",) + (() if prm["planar"] else ("plane_y",))
         rods = []
         for e, m in enumerate(models):
             if m.mode != self.model.mode or m.node_count != self.model.node_count:
                 raise ValueError(f"set_env_models: model {e} has {m.node_count} nodes in {m.mode}; this simulator's "
                                  f"has {self.model.node_count} in {self.model.mode}")
             p = Params.from_model(m, pairs=pairs).record()[0]
-            # the midpoint rule's energy floor scales with the stiffness (a threshold on rounding: the first's serves);
-            # the motion plane is a 2-D rod's only
-            skip = ("midpoint_energy_floor",) + (() if prm["planar"] else ("plane_y",))
-            bad = [name for name in p.dtype.names if name not in skip and not _alike(p[name], prm[name])]
+            bad = [name for name in p.dtype.names if name not in skip and not alike(p[name], prm[name])]
             if bad:
                 raise ValueError(f"set_env_models: model {e} differs in the step parameter {bad[0]}, which every env "
                                  "shares")
@@ -321,7 +312,7 @@ class Simulator:
                 for k, rf in enumerate(m.rotating_fixes):
                     if seconds[b, k] > 0.0:
                         turn_fix(rf, state.dof[b], state.edge_tangent[b], state.edge_ref_d1[b], float(seconds[b, k]),
-                                 _transport)
+                                 transport_vectors)
             disp += dof - before
         return disp
 
@@ -361,11 +352,6 @@ class Simulator:
         th = state.edge_theta[..., None]
         c, s = np.cos(th), np.sin(th)
         return c * d1 + s * d2, -s * d1 + c * d2, t.copy()
-
-
-def _transport(u, ta, tb):
-    """``sim.geometry.frames.transport`` (the step's own) on three 3-vectors given as arrays."""
-    return transport(tuple(map(float, u)), tuple(map(float, ta)), tuple(map(float, tb)))
 
 
 def _ix(i: IndexLike):

@@ -55,8 +55,8 @@ from pathlib import Path
 import numpy as np
 
 from sim.analysis import gradients as G
-from sim.geometry import matrix_from_rotvec
-from sim.geometry.frames import signed_angle, transport
+from sim.geometry import matrix_from_rotvec, transport_vectors
+from sim.geometry.frames import signed_angle
 from sim.scene.model import build_model, planar_nodes
 from sim.scene.spec import SceneError, dump_scene, load_scene
 from sim.scene.validate import BOUNDS
@@ -467,11 +467,6 @@ def _turned_rod(r, R: np.ndarray, pivot: np.ndarray):
                                rest_points=tuple(tuple(float(v) for v in p) for p in pts))
 
 
-def _transport(u, ta, tb) -> tuple:
-    """:func:`sim.geometry.frames.transport` of three 3-vectors given as arrays."""
-    return transport(tuple(map(float, u)), tuple(map(float, ta)), tuple(map(float, tb)))
-
-
 def _bound_text(u: "Unknown") -> str:
     key = {"youngs_modulus": "rod.youngs_modulus", "density": "rod.density", "radius": "rod.radius",
            "damping": "sim.damping",
@@ -708,7 +703,7 @@ class Problem:
             dof = st.dof[0].copy()
             if not self.planar:  # θ: from the base's first directors carried to the turned tangents, to the scene's
                 for e in range(dof.shape[0] - 1):
-                    d1 = _transport(base.edge_ref_d1[0, e], base.edge_tangent[0, e], st.edge_tangent[0, e])
+                    d1 = transport_vectors(base.edge_ref_d1[0, e], base.edge_tangent[0, e], st.edge_tangent[0, e])
                     dof[e, 3] = signed_angle(d1, tuple(map(float, st.edge_ref_d1[0, e])),
                                              tuple(map(float, st.edge_tangent[0, e])))
             rows.append(dof.reshape(-1))
@@ -808,20 +803,7 @@ class Problem:
         return np.array(lo), np.array(hi)
 
     def rollout(self, z: np.ndarray) -> G.Tape:
-        spec = self.spec_at(z)
-        try:
-            model = build_model(spec)
-        except (SceneError, ValueError) as exc:
-            raise FitError(f"parameters {self.describe(z)} make no valid scene: {exc}") from None
-        sim = Simulator(model, 1)
-        kb, tb = self.controls_at(z)
-        ctrls = []
-        for k in range(self.steps):
-            c = sim.make_control()
-            c.kappa_bar[0] = kb[k]
-            c.tau_bar[0] = tb[k]
-            ctrls.append(c)
-        return G.rollout(sim, sim.reset(), ctrls)
+        return self.rollouts(np.asarray(z, dtype=np.float64)[None, :])
 
     def rollouts(self, Z: np.ndarray) -> G.Tape:
         """One rollout of as many envs as rows of ``Z`` (K, P), env e at the unknowns Z[e]: each env with its own
@@ -1032,7 +1014,7 @@ class FitResult:
     track: "FitTrack | None" = None  # the fitted motion beside the measured points (for drawing them together)
     at_bound: list = dataclasses.field(default_factory=list)  # unknowns that ended on a bound of Problem.bounds
     # with several starts (fit(starts=K)): each start's values where it began and ended and its RMS residual [m]
-    # there, the best first polished (its index ``best``)
+    # there, best first (the one then fitted alone)
     starts: list = dataclasses.field(default_factory=list)
 
     def summary(self) -> dict:

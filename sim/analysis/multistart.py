@@ -38,8 +38,7 @@ def _spread(prob: Any, name: str) -> float:
             "rest_kappa": 0.5,                   # integrated curvature
             "base_position": 0.05 * length,      # [m]
             "base_orientation": 0.1,             # [rad]
-            "obstacle_position": 0.05 * length,  # [m]
-            "friction": 0.5}.get(name, 0.0)
+            "obstacle_position": 0.05 * length}.get(name, 0.0)  # [m]
 
 
 def start_points(prob: Any, K: int, rng: np.random.Generator) -> np.ndarray:

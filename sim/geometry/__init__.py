@@ -17,6 +17,7 @@ _LAZY = {
     "quat_yaw": "sim.geometry.rotations",
     "quat_z_to": "sim.geometry.rotations",
     "to_xyzw": "sim.geometry.rotations",
+    "transport_vectors": "sim.geometry.frames",
     "yaw_quat": "sim.geometry.rotations",
 }
 

@@ -13,7 +13,7 @@ from numba import njit
 from sim.geometry.vec3 import vaxpy, vcross, vdot, vmul, vnorm
 from sim.numba_options import OPT
 
-__all__ = ["transport", "rotate_about", "signed_angle", "initial_reference_frames",
+__all__ = ["transport", "transport_vectors", "rotate_about", "signed_angle", "initial_reference_frames",
            "update_frames", "reference_twist"]
 
 _TWO_PI = 2.0 * math.pi
@@ -37,6 +37,11 @@ def transport(u, ta, tb):
         out = u
     out = vaxpy(-vdot(out, tb), tb, out)
     return vmul(1.0 / vnorm(out), out)
+
+
+def transport_vectors(u, ta, tb) -> tuple:
+    """:func:`transport` of three 3-vectors given as arrays (outside the kernels)."""
+    return transport(tuple(map(float, u)), tuple(map(float, ta)), tuple(map(float, tb)))
 
 
 @njit(**OPT)

@@ -23,7 +23,7 @@ from sim.scene.model import planar_nodes
 __all__ = ["LineSearch", "Params", "PARAMS_DTYPE", "RodData", "StateArrays", "ControlArrays", "StepOutput",
            "ContactReport", "OK", "NON_FINITE", "RESIDUAL_GROWTH", "BAD_PIVOT", "UNCONVERGED", "STRAIN",
            "MIDPOINT_GAINED", "KL_3D", "KL_2D", "MIDPOINT_ENERGY_TOL", "MIDPOINT_ENERGY_FLOOR", "RETRY_LEVELS",
-           "MAX_STRAIN", "env_rod"]
+           "MAX_STRAIN", "env_rod", "alike"]
 
 # (sub)step status codes of sim.kernels.newton
 OK, NON_FINITE, RESIDUAL_GROWTH, BAD_PIVOT, UNCONVERGED, STRAIN, MIDPOINT_GAINED = range(7)
@@ -205,15 +205,21 @@ class RodData(NamedTuple):
         for name in cls._fields:
             if name in cls.PER_ENV:
                 continue
-            for r in rods[1:]:
-                a, b = getattr(first, name), getattr(r, name)
-                same = a.shape == b.shape and (np.allclose(a, b, rtol=1e-12, atol=0.0) if a.dtype.kind == "f"
-                                               else np.array_equal(a, b))
-                if not same:  # (floats to rounding: a rest shape moved as a whole keeps its lengths to the last bits)
-                    raise ValueError(f"the envs' rods differ in {name}, which every env shares")
+            if not all(alike(getattr(first, name), getattr(r, name)) for r in rods[1:]):
+                raise ValueError(f"the envs' rods differ in {name}, which every env shares")
         per = {name: np.ascontiguousarray(np.concatenate([getattr(r, name)[:1] for r in rods], axis=0))
                for name in cls.PER_ENV}
         return first._replace(**per)
+
+
+def alike(a, b) -> bool:
+    """Equal, or for floats equal to rounding (a rest shape moved as a whole keeps its lengths to the last bits)."""
+    a, b = np.asarray(a), np.asarray(b)
+    if a.shape != b.shape:
+        return False
+    if a.dtype.kind == "f":
+        return bool(np.allclose(a, b, rtol=1e-12, atol=0.0))
+    return bool(np.array_equal(a, b))
 
 
 def _edge_link(m: Any) -> np.ndarray:
