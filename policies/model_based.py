@@ -37,6 +37,15 @@ MODEL_BASED = ("inverse-statics", "trajectory")  # controller names `rodlab eval
 PLAN_NEWTON_TOL, PLAN_NEWTON_DTOL, PLAN_NEWTON_ITER = 1e-9, 1e-9, 20
 
 
+def _obs_slices(core) -> dict[str, slice]:
+    """Each observed field's columns in the observation (the core's ``obs_fields``, in concatenation order)."""
+    out, off = {}, 0
+    for name, size in core.obs_fields:
+        out[name] = slice(off, off + int(size))
+        off += int(size)
+    return out
+
+
 def _core_of(env):
     core = getattr(getattr(env, "venv", None), "core", None)
     if core is None:
@@ -68,11 +77,7 @@ class InverseStaticsController:
         self.planar = core.planar
         self.plane_y = float(core.model.plane_y) if core.planar else 0.0
         self.basis = smoothing_basis(cfg)
-        off = 0
-        self.slices = {}
-        for name, size in core.obs_fields:
-            self.slices[name] = slice(off, off + int(size))
-            off += int(size)
+        self.slices = _obs_slices(core)
         self.iterations = int(iterations)
         # the tip frame too where the task asks for one and commands twist (4D IK)
         self.oriented = cfg.has_twist and "target_quat" in self.slices and "curr_twist_bar" in self.slices
@@ -126,10 +131,7 @@ class TrajectoryController:
             raise ValueError("trajectory controller: need horizon >= 1, iterations >= 1, effort >= 0")
         self.core, self.cfg = core, core.converter.cfg
         self.horizon, self.iterations, self.effort = int(horizon), int(iterations), float(effort)
-        self.slices, off = {}, 0
-        for name, size in core.obs_fields:
-            self.slices[name] = slice(off, off + int(size))
-            off += int(size)
+        self.slices = _obs_slices(core)
         spec = core.model.spec
         self.spec = dataclasses.replace(spec, sim=dataclasses.replace(
             spec.sim, newton_tol=PLAN_NEWTON_TOL, newton_dtol=PLAN_NEWTON_DTOL, newton_max_iter=PLAN_NEWTON_ITER))
@@ -139,6 +141,10 @@ class TrajectoryController:
         self.W = np.zeros((self.cfg.n_points, self.cfg.n_nodes))  # control point -> node weights
         nodes = np.flatnonzero(owner >= 0)
         self.W[owner[nodes], nodes] = weight[nodes]
+        # the share of a control step's increment held at each of its sim steps (the converter's linear ramp)
+        S = self.cfg.substeps
+        steps = S if self.cfg.temporal_interpolation else 1
+        self.ramp = np.minimum(np.arange(1, S + 1), steps) / steps
         self._sim = None
         self._plan = None
 
@@ -153,14 +159,12 @@ class TrajectoryController:
 
     def _schedule(self, A: np.ndarray) -> np.ndarray:
         """(T, B, N, C) the natural curvature's change from now at every sim step for the plan A (H, B, P, C)."""
-        S = self.cfg.substeps
-        steps = S if self.cfg.temporal_interpolation else 1
         dK = self.cfg.kappa_scale * A
         before = np.cumsum(dK, axis=0) - dK  # Σ_{i<k} of the increments
         out = []
         for k in range(self.horizon):
-            for j in range(S):
-                out.append(before[k] + min(j + 1, steps) / steps * dK[k])
+            for share in self.ramp:
+                out.append(before[k] + share * dK[k])
         return np.einsum("tbpc,pn->tbnc", np.stack(out), self.W)
 
     def objective(self, x: np.ndarray, state, kappa0: np.ndarray, targets: np.ndarray) -> tuple[float, np.ndarray]:
@@ -189,13 +193,12 @@ class TrajectoryController:
         cot[np.ix_(ends, np.arange(B), axes)] = 2.0 * r
         g_kb = tape.vjp({"dof": cot}, params=("kappa_bar",))["kappa_bar"][..., :C]  # (T, B, N, C)
         g_pts = np.einsum("tbnc,pn->tbpc", g_kb, self.W) * self.cfg.kappa_scale
-        steps = S if self.cfg.temporal_interpolation else 1
         gA = np.zeros_like(A)
         for k in range(H):
-            for j in range(S):
+            for j, share in enumerate(self.ramp):
                 t = k * S + j
                 gA[:k] += g_pts[t]  # every earlier increment is held by now
-                gA[k] += min(j + 1, steps) / steps * g_pts[t]
+                gA[k] += share * g_pts[t]
         return cost, (gA + 2.0 * self.effort * A).reshape(-1)
 
     def predict(self, obs, deterministic: bool = True):
