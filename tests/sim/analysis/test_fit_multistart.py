@@ -19,6 +19,17 @@ from tests.helpers.fit import NOISE_M, commanded_scene, rod_on_a_sphere, synthet
 from tests.helpers.rodspec import make_spec
 
 
+def _each_env_as_alone(prob, Z):
+    """The batched rollout's residuals and Jacobian of every env at Z equal its own one-env problem's."""
+    tape = prob.rollouts(Z)
+    J = prob.jacobians(tape, Z)
+    for e, z in enumerate(Z):
+        alone = prob.rollout(z)
+        np.testing.assert_allclose(prob.residuals(tape, e), prob.residuals(alone), rtol=0, atol=1e-12)
+        want = prob.jacobian(alone, z)
+        assert np.abs(J[e] - want).max() <= 1e-9 * np.abs(want).max(), e
+
+
 @pytest.mark.parametrize("mode", ["2d", "3d"])
 def test_each_start_of_a_batch_has_the_residuals_and_jacobian_it_has_alone(tmp_path, mode):
     """Material factors, damping, gravity, the base and the actuation map differ per env: the batched rollout's
@@ -30,13 +41,18 @@ def test_each_start_of_a_batch_has_the_residuals_and_jacobian_it_has_alone(tmp_p
     prob = F.Problem(spec, meas, cmds, params)
     Z = start_points(prob, 3, np.random.default_rng(1))
     assert np.all(np.abs(np.diff(Z, axis=0)).max(axis=0) > 0.0)  # every unknown differs between starts
-    tape = prob.rollouts(Z)
-    J = prob.jacobians(tape, Z)
-    for e, z in enumerate(Z):
-        alone = prob.rollout(z)
-        np.testing.assert_allclose(prob.residuals(tape, e), prob.residuals(alone), rtol=0, atol=1e-12)
-        want = prob.jacobian(alone, z)
-        assert np.abs(J[e] - want).max() <= 1e-9 * np.abs(want).max(), e
+    _each_env_as_alone(prob, Z)
+
+
+@pytest.mark.parametrize("mode", ["2d", "3d"])
+def test_each_start_may_place_the_obstacles_elsewhere(mode):
+    """obstacle_position (and the stiffness) per env: a rod resting on a sphere placed differently in each start; the
+    batched residuals and Jacobian of each env equal its own problem's (the obstacles' poses are per env)."""
+    spec = rod_on_a_sphere((0.45, 0.0, -0.12), mode)
+    meas, _ = synthetic(spec, ["damping"], [2.0], seconds=0.3)
+    prob = F.Problem(spec, meas, None, ["obstacle_position", "youngs_modulus"])
+    Z = start_points(prob, 3, np.random.default_rng(1))
+    _each_env_as_alone(prob, Z)
 
 
 def test_start_points_begin_at_the_scene_and_stay_in_bounds(tmp_path):
