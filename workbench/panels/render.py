@@ -100,9 +100,10 @@ class RenderPanel:
             return None
         self._cancel.clear()
         self.last_error = None
-        self.thread = threading.Thread(target=self._record, args=(client, rs), name="rodlab-video", daemon=True)
-        self.thread.start()
-        return self.thread
+        t = threading.Thread(target=self._record, args=(client, rs), name="rodlab-video", daemon=True)
+        t.start()  # started before it is published: a watcher never sees a thread that is not alive yet
+        self.thread = t
+        return t
 
     def _connected(self, client) -> bool:
         return getattr(client, "client_id", None) in self.app.server.get_clients()

@@ -54,10 +54,11 @@ def test_browser_screenshot_and_video(wb_page):
     cam = newest_client(app).camera
     view0 = np.concatenate([cam.position, cam.look_at])
     app.render_hooks.append(lambda _fr: notes.append(app.status_note))
+    app.pictures.last_path = None
     try:
         page.get_by_role("button", name="Record video").click()
-        wait_for(lambda: app.pictures.thread is not None and not app.pictures.thread.is_alive(), timeout=120,
-                 what="video written")
+        wait_for(lambda: (app.pictures.last_path is not None or app.pictures.last_error is not None)
+                 and not app.pictures.thread.is_alive(), timeout=120, what="video written")
     finally:
         app.render_hooks.pop()
     assert app.pictures.last_error is None
