@@ -29,21 +29,13 @@ from sim.analysis import reach, rollout
 from sim.geometry import from_xyzw, quat_to_matrix
 
 from .control import smoothing_basis, smoothing_weights
+from .tasks import field_slices
 
 __all__ = ["InverseStaticsController", "TrajectoryController", "MODEL_BASED", "model_based_controller"]
 
 MODEL_BASED = ("inverse-statics", "trajectory")  # controller names `rodlab eval` takes in place of a policy file
 # the plan's steps are converged (its derivatives are those of converged steps): tolerances [N], [m/s], iterations
 PLAN_NEWTON_TOL, PLAN_NEWTON_DTOL, PLAN_NEWTON_ITER = 1e-9, 1e-9, 20
-
-
-def _obs_slices(core) -> dict[str, slice]:
-    """Each observed field's columns in the observation (the core's ``obs_fields``, in concatenation order)."""
-    out, off = {}, 0
-    for name, size in core.obs_fields:
-        out[name] = slice(off, off + int(size))
-        off += int(size)
-    return out
 
 
 def _core_of(env):
@@ -77,7 +69,7 @@ class InverseStaticsController:
         self.planar = core.planar
         self.plane_y = float(core.model.plane_y) if core.planar else 0.0
         self.basis = smoothing_basis(cfg)
-        self.slices = _obs_slices(core)
+        self.slices = field_slices(core.obs_fields)
         self.iterations = int(iterations)
         # the tip frame too where the task asks for one and commands twist (4D IK)
         self.oriented = cfg.has_twist and "target_quat" in self.slices and "curr_twist_bar" in self.slices
@@ -131,7 +123,7 @@ class TrajectoryController:
             raise ValueError("trajectory controller: need horizon >= 1, iterations >= 1, effort >= 0")
         self.core, self.cfg = core, core.converter.cfg
         self.horizon, self.iterations, self.effort = int(horizon), int(iterations), float(effort)
-        self.slices = _obs_slices(core)
+        self.slices = field_slices(core.obs_fields)
         spec = core.model.spec
         self.spec = dataclasses.replace(spec, sim=dataclasses.replace(
             spec.sim, newton_tol=PLAN_NEWTON_TOL, newton_dtol=PLAN_NEWTON_DTOL, newton_max_iter=PLAN_NEWTON_ITER))

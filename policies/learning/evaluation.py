@@ -34,6 +34,7 @@ from policies.elastica import make_elastica_vec_env
 from policies.learning.sac import PolicyLoadError, load_policy
 from policies.learning.sb3_env import make_sb3_env, task_short_name
 from policies.model_based import MODEL_BASED, model_based_controller
+from policies.tasks import field_slices
 from policies.vec_env import SB3VecEnvAdapter
 
 # Slices into the flat observation (fields concatenated alphabetically, docs/tasks.md §4.3-7.3):
@@ -76,11 +77,8 @@ def _quat_xyzw_to_yaw(q: np.ndarray) -> np.ndarray:
 
 def layout_from_fields(fields) -> dict[str, Any]:
     """Slices (tip, target, ...) from a task core's ``obs_fields`` ((name, size), ... in concat order)."""
-    off, sl = 0, {}
-    for name, n in fields:
-        sl[name] = slice(off, off + int(n))
-        off += int(n)
-    lay: dict[str, Any] = {"obs_dim": off}
+    sl = field_slices(fields)
+    lay: dict[str, Any] = {"obs_dim": max((s.stop for s in sl.values()), default=0)}
     if "state_pos" in sl and "target_pos" in sl:
         sp, tp = sl["state_pos"], sl["target_pos"]
         d = tp.stop - tp.start

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from .registry import TASK_SPECS, TASKS, TaskEntry, gym_task_id
+from .registry import TASK_SPECS, TASKS, TaskEntry, field_slices, gym_task_id
 
-__all__ = ["TASKS", "TASK_SPECS", "TaskEntry", "register_tasks", "gym_task_id"]
+__all__ = ["TASKS", "TASK_SPECS", "TaskEntry", "register_tasks", "gym_task_id", "field_slices"]
 
 
 def register_tasks() -> None:

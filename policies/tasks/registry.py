@@ -7,7 +7,7 @@ import importlib
 from dataclasses import dataclass
 from typing import Any, Callable
 
-__all__ = ["TASKS", "TASK_SPECS", "TaskEntry", "gym_task_id"]
+__all__ = ["TASKS", "TASK_SPECS", "TaskEntry", "gym_task_id", "field_slices"]
 
 TASKS: dict[str, str] = {
     "follow_target": "rodlab/FollowTarget-v0",
@@ -51,3 +51,13 @@ def gym_task_id(task: str) -> str:
     if task in TASKS:
         return TASKS[task]
     raise ValueError(f"unknown task {task!r}; expected one of {sorted(TASKS)} or {sorted(TASK_SPECS)}")
+
+
+def field_slices(fields) -> dict[str, slice]:
+    """Each field's columns in an observation that concatenates ``fields`` ((name, size), … in order: a task
+    core's ``obs_fields``)."""
+    out, off = {}, 0
+    for name, size in fields:
+        out[name] = slice(off, off + int(size))
+        off += int(size)
+    return out
