@@ -20,6 +20,7 @@ damping), so the fitted values are those of the rodlab rod that moves most like 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -38,6 +39,7 @@ RELEASE_AT, KAPPA = 1.5, 0.04
 ACTUATED = {5: ((0.06, 0.5, 0.0), (0.04, 0.8, 1.0)), 10: ((0.05, 0.7, 2.0), (0.03, 0.4, 0.5)),
             15: ((0.04, 0.9, 1.0), (0.05, 0.6, 2.5))}  # node -> per direction (amplitude, frequency [Hz], phase)
 GOAL = 0.01  # held-out RMS ≤ 1 % of the rod's length
+SECONDS = 4.0  # measured motion per case
 
 
 def commands(case: str, seconds: float) -> Commands:
@@ -90,7 +92,7 @@ def rodlab_scene(dt: float = 1.0 / 120.0) -> SceneSpec:
                                  poisson_ratio=0.5, start=(0.0, 0.0, 0.0), direction=(0.0, 0.0, 1.0)))
 
 
-def run_case(case: str, *, seconds: float = 4.0, dt: float = 1.0 / 120.0) -> dict[str, Any]:
+def run_case(case: str, *, seconds: float = SECONDS, dt: float = 1.0 / 120.0) -> dict[str, Any]:
     """Measure ``case`` with PyElastica, fit rodlab's arm to the first 75 % and return the figures."""
     cmds = commands(case, seconds)
     meas, el_wall = elastica_measurements(cmds, seconds)
@@ -112,7 +114,10 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog=COMMAND, description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, help="write the figures to this JSON file")
     ap.add_argument("--cases", default="release,actuated", help="comma-separated subset of release, actuated")
+    ap.add_argument("--seconds", type=float, default=SECONDS, help="seconds of measured motion per case")
     a = ap.parse_args(argv)
+    if not (math.isfinite(a.seconds) and 1.0 <= a.seconds <= 60.0):
+        ap.error(f"--seconds must be between 1 and 60 (got {a.seconds:g})")
     cases = a.cases.split(",")
     bad = [c for c in cases if c not in ("release", "actuated")]
     if bad:
@@ -120,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     info = machine_info()
     rows = []
     for case in cases:
-        r = run_case(case)
+        r = run_case(case, seconds=a.seconds)
         rows.append(r)
         fitted = ", ".join(f"{k} = {v:.4g} ± {r['stderr'][k]:.2g}" for k, v in r["params"].items())
         print(f"{case}: {fitted}; RMS {r['rms_m'] * 1e3:.2f} mm, held-out RMS {r['holdout_rms_m'] * 1e3:.2f} mm "
@@ -128,7 +133,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{r['tip_travel_m']:.2f} m, E {100 * r['youngs_error']:+.1f} % from PyElastica's; fit "
               f"{r['fit_seconds']:.1f} s ({r['iterations']} evaluations), PyElastica {r['elastica_seconds']:.1f} s")
     if a.out:
-        cmd = COMMAND + (f" --cases {a.cases}" if a.cases != "release,actuated" else "") + f" --out {a.out}"
+        cmd = (COMMAND + (f" --cases {a.cases}" if a.cases != "release,actuated" else "")
+               + (f" --seconds {a.seconds:g}" if a.seconds != SECONDS else "") + f" --out {a.out}")
         write_json(a.out.parent, a.out.name, {"command": cmd, "machine": info, "rows": rows})
     return 0 if all(r["within_goal"] for r in rows) else 1
 

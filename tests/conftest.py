@@ -33,6 +33,26 @@ def process_group(nodeid: str) -> str:
     return path
 
 
+def pytest_collection_modifyitems(config, items) -> None:
+    """The longest groups first (longest processing time first: the processes end together): tests/workbench,
+    then the groups holding a test marked ``long(seconds=…)``, longest first, then the rest in their order. The
+    processes take the groups in this order (``pytest_xdist_make_scheduler``)."""
+    longest: dict[str, float] = {}
+    for item in items:
+        mark = item.get_closest_marker("long")
+        if mark is not None:
+            group = process_group(item.nodeid)
+            longest[group] = max(longest.get(group, 0.0), float(mark.kwargs["seconds"]))
+
+    def rank(item) -> tuple[int, float]:
+        group = process_group(item.nodeid)
+        if group == "tests/workbench":
+            return 0, 0.0
+        return (1, -longest[group]) if group in longest else (2, 0.0)
+
+    items.sort(key=rank)  # stable: each group keeps its order
+
+
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
     from xdist.scheduler import LoadScopeScheduling
@@ -41,4 +61,5 @@ def pytest_xdist_make_scheduler(config, log):
         def _split_scope(self, nodeid: str) -> str:
             return process_group(nodeid)
 
+    config.option.loadscopereorder = False  # the groups in the collection's order (pytest_collection_modifyitems)
     return ByGroup(config, log)

@@ -75,9 +75,10 @@ def test_the_trajectory_plans_gradient_matches_central_differences(task):
         env.close()
 
 
+@pytest.mark.long(seconds=25)
 def test_the_trajectory_controller_follows_the_moving_target_closer_than_inverse_statics():
-    ours = tip_errors("trajectory", "follow_target", 40)
-    statics = tip_errors("inverse-statics", "follow_target", 40)
-    assert np.mean(ours[20:]) < 0.8 * np.mean(statics[20:]), (ours, statics)
+    ours = tip_errors("trajectory", "follow_target", 24)
+    statics = tip_errors("inverse-statics", "follow_target", 24)
+    assert np.mean(ours[10:]) < 0.8 * np.mean(statics[10:]), (ours, statics)  # measured 0.41
     with pytest.raises(ValueError, match="follows a moving target"):
         evaluate("trajectory", "ik4d", episodes=1, num_envs=1)

@@ -82,6 +82,7 @@ def test_finished_trial_continues_under_a_larger_budget(tmp_path):
         is_done(t)
 
 
+@pytest.mark.long(seconds=50)
 def test_two_trial_local_sweep_end_to_end(tmp_path):
     out = tmp_path / "sweep"
     log = _finish(_sweep(out, 48))

@@ -77,6 +77,7 @@ def _adam_moments(model):
     return torch.cat(parts)
 
 
+@pytest.mark.long(seconds=70)
 def test_compiled_updates_match_eager_updates(fresh_dynamo):
     """``compile_updates`` computes the same SAC update as the eager code (autograd + torch.optim.Adam): the
     policy's noise is drawn from torch's generator in the eager order (a ~ pi(s), then the TD target's a'), so

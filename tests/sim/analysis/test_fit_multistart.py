@@ -79,7 +79,7 @@ def _swinging(tmp_path):
 def test_several_starts_find_the_minimum_one_start_misses(tmp_path):
     spec, cmds = _swinging(tmp_path)
     truth = math.log(3.5)  # the data's stiffness: 3.5 times the scene's
-    meas, _ = synthetic(spec, ["youngs_modulus"], [truth], cmds=cmds)
+    meas, _ = synthetic(spec, ["youngs_modulus"], [truth], cmds=cmds, seconds=0.75)  # several periods
     one = F.fit(spec, meas, ["youngs_modulus"], cmds=cmds)
     assert one.rms_m > 10 * NOISE_M, one.rms_m  # a wrong minimum: the premise of the test
     many = F.fit(spec, meas, ["youngs_modulus"], cmds=cmds, starts=8, seed=0)

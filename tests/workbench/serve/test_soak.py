@@ -45,6 +45,7 @@ def tombstones(app) -> int:
         return sum(m.lifecycle_phase == "remove" for m in buf.message_from_id.values())
 
 
+@pytest.mark.long(seconds=160)
 def test_hostile_session_stays_bounded_and_answers(app):
     gui = app.server.gui
     n_callbacks = sum(len(h._impl.update_cb) for h in gui._gui_input_handle_from_uuid.values())
