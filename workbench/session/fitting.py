@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+import traceback
 from pathlib import Path
 from typing import Any
 
@@ -83,12 +84,19 @@ class FitJob:
             res = fit(self.spec, self.meas, self.params, cmds=self.cmds, max_iterations=self.max_evaluations,
                         on_eval=self._on_eval)
         except (FitError, ValueError, ArithmeticError) as exc:
-            self.error = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            self.state = "failed"
-            self._tell()
+            self._failed(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+            return
+        except Exception as exc:  # noqa: BLE001 - a defect: the panel says so (never "running" for ever), stderr has it
+            traceback.print_exc()
+            self._failed(f"{type(exc).__name__}: {exc}".splitlines()[0])
             return
         self.result = res
         self.state = "stopped" if res.interrupted else "done"
+        self._tell()
+
+    def _failed(self, message: str) -> None:
+        self.error = message
+        self.state = "failed"
         self._tell()
 
     def stop(self) -> None:

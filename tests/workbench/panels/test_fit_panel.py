@@ -85,6 +85,24 @@ def test_stop_keeps_the_best_so_far(data):
     assert job.progress().startswith("stopped: best so far kept")
 
 
+def test_a_fit_that_breaks_ends_failed_with_the_reason(data, capfd):
+    """An error the fit does not expect (a defect) ends the job "failed" with its type and message, and its traceback
+    on stderr: the panel never shows "running" for ever."""
+    path, folder = data
+    seen = []
+    job = FitJob(load_scene(path), folder / "measured.csv", PARAMS, notify=lambda: seen.append(job.state))
+
+    def broken(k, rms, values):
+        raise RuntimeError("kernel said no")
+
+    job._on_eval = broken
+    job.start()
+    assert job.join(600)
+    assert job.state == "failed" and job.error == "RuntimeError: kernel said no" and job.result is None
+    assert seen[-1] == "failed" and job.progress() == "⚠ fit failed: RuntimeError: kernel said no"
+    assert "Traceback" in capfd.readouterr().err
+
+
 def test_bad_requests_and_bad_data_are_refused_by_name(data, tmp_path):
     path, folder = data
     spec = load_scene(path)
