@@ -41,6 +41,8 @@ def pytest_collection_modifyitems(config, items) -> None:
     for item in items:
         mark = item.get_closest_marker("long")
         if mark is not None:
+            if "seconds" not in mark.kwargs:
+                raise pytest.UsageError(f"{item.nodeid}: write @pytest.mark.long(seconds=…) (about how long it takes)")
             group = process_group(item.nodeid)
             longest[group] = max(longest.get(group, 0.0), float(mark.kwargs["seconds"]))
 
