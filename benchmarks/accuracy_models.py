@@ -154,19 +154,15 @@ def incline(iters: int, steps: int = 200) -> list[dict[str, Any]]:
                  friction_N=float(np.mean(f[-50:])), w_sin_alpha_N=W * math.sin(a))]
 
 
-def capstan(seconds: float = 5.0) -> list[dict[str, Any]]:
-    """A light rope (r = 2 mm, ρ = 100) draped over a capsule drum (R = 5 cm, wrap π, μ = 0.3), end loads
-    T1 = 0.1 N and T2 = 0.8 e^{μπ} T1 (below the capstan limit), 30 Newton iterations, unconverged iterates
-    accepted: how far the heavy end slips over ``seconds`` (the regularised stick law's creep, about 1 mm/s; the
-    test's bound is 5 mm over 3 s, scaled here with the time), the largest slip in one step (an isolated kick would
-    show there: 1–5 cm before friction entered the first iterate), and how far the rope's top node is off the
-    drum."""
+def capstan_scene() -> tuple[Simulator, float]:
+    """The capstan case's simulator (one env) and the radius the rope's centre line is draped at [m]: a light rope
+    (r = 2 mm, ρ = 100) over a capsule drum (R = 5 cm, wrap π, μ = 0.3), end loads T1 = 0.1 N and
+    T2 = 0.8 e^{μπ} T1, 30 Newton iterations, unconverged iterates accepted."""
     mu, Rd, r, H = 0.3, 0.05, 0.002, 0.2
     rc = Rd + r + 1e-3
     pts = [(-rc, 0.0, z) for z in np.linspace(-H, 0.0, 21)[:-1]]
     pts += [(rc * math.cos(t), 0.0, rc * math.sin(t)) for t in np.linspace(math.pi, 0.0, 17)[:-1]]
     pts += [(rc, 0.0, z) for z in np.linspace(0.0, -H, 21)]
-    N = len(pts)
     t1 = 0.1
     t2 = 0.8 * math.exp(mu * math.pi) * t1
     doc = {"sim": dict(dt=0.01, gravity=[0.0, 0.0, -9.8], newton_tol=1e-6, newton_max_iter=30,
@@ -175,8 +171,19 @@ def capstan(seconds: float = 5.0) -> list[dict[str, Any]]:
                        poisson_ratio=0.5, clamp="none"),
            "obstacle": [dict(type="capsule", start=[0, -0.1, 0], end=[0, 0.1, 0], radius=Rd)],
            "contact": dict(friction=mu),
-           "load": [dict(node=0, force=[0, 0, -t1]), dict(node=N - 1, force=[0, 0, -t2])]}
-    sim = Simulator(build_model(parse_scene(doc, None)), envs=1)
+           "load": [dict(node=0, force=[0, 0, -t1]), dict(node=len(pts) - 1, force=[0, 0, -t2])]}
+    return Simulator(build_model(parse_scene(doc, None)), envs=1), rc
+
+
+def capstan(seconds: float = 5.0) -> list[dict[str, Any]]:
+    """A light rope (r = 2 mm, ρ = 100) draped over a capsule drum (R = 5 cm, wrap π, μ = 0.3), end loads
+    T1 = 0.1 N and T2 = 0.8 e^{μπ} T1 (below the capstan limit), 30 Newton iterations, unconverged iterates
+    accepted: how far the heavy end slips over ``seconds`` (the regularised stick law's creep, about 1 mm/s; the
+    test's bound is 5 mm over 3 s, scaled here with the time), the largest slip in one step (an isolated kick would
+    show there: 1–5 cm before friction entered the first iterate), and how far the rope's top node is off the
+    drum."""
+    sim, rc = capstan_scene()
+    N = sim.model.node_count
     st, ctrl = sim.reset(), sim.make_control()
     z0 = st.node_pos[0, -1, 2]
     finite, step_slip, z = True, 0.0, z0

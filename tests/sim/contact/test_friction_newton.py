@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from benchmarks.accuracy_models import capstan_scene
 from sim import Simulator, build_model, parse_scene
 
 R = 0.01
@@ -185,22 +186,7 @@ def test_rope_over_a_drum_holds_under_the_capstan_limit():
     over 3 s the heavy end creeps at most the regularised stick law's few mm, it stays on the drum and nothing is
     non-finite (with friction left out of each first iterate, isolated steps slipped it by centimetres and it was
     thrown off the drum at t ≈ 5 s)."""
-    mu, Rd, r, H = 0.3, 0.05, 0.002, 0.2
-    rc = Rd + r + 1e-3
-    pts = [(-rc, 0.0, z) for z in np.linspace(-H, 0.0, 21)[:-1]]
-    pts += [(rc * math.cos(t), 0.0, rc * math.sin(t)) for t in np.linspace(math.pi, 0.0, 17)[:-1]]
-    pts += [(rc, 0.0, z) for z in np.linspace(0.0, -H, 21)]
-    N = len(pts)
-    t1 = 0.1
-    t2 = 0.8 * math.exp(mu * math.pi) * t1
-    doc = {"sim": dict(dt=0.01, gravity=[0.0, 0.0, -9.8], newton_tol=1e-6, newton_max_iter=30,
-                       accept_unconverged=True),
-           "rod": dict(rest_points=[list(p) for p in pts], radius=r, density=100.0, youngs_modulus=1e7,
-                       poisson_ratio=0.5, clamp="none"),
-           "obstacle": [dict(type="capsule", start=[0, -0.1, 0], end=[0, 0.1, 0], radius=Rd)],
-           "contact": dict(friction=mu),
-           "load": [dict(node=0, force=[0, 0, -t1]), dict(node=N - 1, force=[0, 0, -t2])]}
-    sim = Simulator(build_model(parse_scene(doc, None)), envs=1)
+    sim, rc = capstan_scene()
     st, ctrl = sim.reset(), sim.make_control()
     z0 = st.node_pos[0, -1, 2]
     for _ in range(300):
@@ -208,5 +194,5 @@ def test_rope_over_a_drum_holds_under_the_capstan_limit():
         assert np.all(np.isfinite(st.dof))
     slip = z0 - st.node_pos[0, -1, 2]
     assert 0.0 <= slip < 5e-3, slip
-    top = st.node_pos[0, N // 2]
+    top = st.node_pos[0, sim.model.node_count // 2]
     assert abs(math.hypot(top[0], top[2]) - rc) < 2e-3      # still on the drum
