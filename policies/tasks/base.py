@@ -38,7 +38,7 @@ from policies.control import (
     control_config,
 )
 
-from .rewards import FAILURE_REWARD
+from .rewards import FAILURE_REWARD, reach_reward
 
 __all__ = ["TaskConfig", "BatchedTask", "StepObserver", "RewardTermsObserver", "child_generator", "spawn_generators",
            "check_field_value"]
@@ -429,6 +429,13 @@ class BatchedTask:
 
     def _reward(self, fields) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]]:
         raise NotImplementedError  # pragma: no cover
+
+    def reach_terms(self, fields: dict[str, np.ndarray], target: np.ndarray):
+        """The reaching tasks' ``_reward`` (docs/tasks.md): the reward of the tip's distance to ``target`` (B, D),
+        its terms and the distance."""
+        d = self.obs_tip_distance(fields, target)
+        r, terms = reach_reward(d)
+        return r, terms, {"tip_distance": d}
 
     # ---------------------------------------------------------------- misc
     def obs_tip_distance(self, fields: dict[str, np.ndarray], target: np.ndarray) -> np.ndarray:

@@ -7,7 +7,6 @@ import numpy as np
 
 from .base import BatchedTask, TaskConfig
 from .env import RodTaskEnv
-from .rewards import reach_reward
 from .targets import FollowTargetMotion
 
 __all__ = ["FollowTargetConfig", "FollowTargetCore", "FollowTargetEnv", "FollowTarget2DEnv",
@@ -74,9 +73,7 @@ class FollowTargetCore(BatchedTask):
         return f
 
     def _reward(self, fields):
-        d = self.obs_tip_distance(fields, self.target.pos)
-        r, terms = reach_reward(d)
-        return r, terms, {"tip_distance": d}
+        return self.reach_terms(fields, self.target.pos)
 
 
 class FollowTargetEnv(RodTaskEnv):

@@ -9,7 +9,6 @@ from . import scenes
 from .base import BatchedTask, TaskConfig
 from .env import RodTaskEnv
 from .obstacles3d import FenceSampler, FenceSpec
-from .rewards import reach_reward
 
 __all__ = ["RandomObstacles3DConfig", "RandomObstacles3DCore", "RandomObstacles3DEnv", "default_config"]
 
@@ -69,9 +68,7 @@ class RandomObstacles3DCore(BatchedTask):
         return f
 
     def _reward(self, fields):
-        d = self.obs_tip_distance(fields, self.target)
-        r, terms = reach_reward(d)
-        return r, terms, {"tip_distance": d}
+        return self.reach_terms(fields, self.target)
 
 
 class RandomObstacles3DEnv(RodTaskEnv):

@@ -7,7 +7,6 @@ import numpy as np
 
 from .base import BatchedTask, TaskConfig
 from .env import RodTaskEnv
-from .rewards import reach_reward
 
 __all__ = ["TightObstacles2DConfig", "TightObstacles2DCore", "TightObstacles2DEnv", "default_config",
            "CREVICE"]
@@ -69,9 +68,7 @@ class TightObstacles2DCore(BatchedTask):
         return f
 
     def _reward(self, fields):
-        d = self.obs_tip_distance(fields, self.target)
-        r, terms = reach_reward(d)
-        return r, terms, {"tip_distance": d}
+        return self.reach_terms(fields, self.target)
 
 
 class TightObstacles2DEnv(RodTaskEnv):
