@@ -27,3 +27,12 @@ def test_fitted_rod_reproduces_the_held_out_pyelastica_motion(tmp_path, capsys):
         assert r["unconverged_steps"] == 0
     gains = {k: v for k, v in rows["actuated"]["params"].items() if k.startswith("actuation_gain")}
     assert len(gains) == 3 and all(v == pytest.approx(1.0, abs=0.02) for v in gains.values()), gains
+
+
+def test_bad_arguments_are_refused_by_name(capsys):
+    for argv, says in ((["--seconds", "0.5"], "--seconds must be between 1 and 60 (got 0.5)"),
+                       (["--seconds", "nan"], "--seconds must be between 1 and 60 (got nan)"),
+                       (["--cases", "release,bent"], "unknown case 'bent'")):
+        with pytest.raises(SystemExit) as exc:
+            fe.main(argv)
+        assert exc.value.code == 2 and says in capsys.readouterr().err, argv
