@@ -28,7 +28,7 @@ from sim import Simulator, build_model
 from sim.analysis import reach, rollout
 from sim.geometry import from_xyzw, quat_to_matrix
 
-from .control import smoothing_basis, smoothing_weights
+from .control import smoothing_basis
 from .tasks import field_slices
 
 __all__ = ["InverseStaticsController", "TrajectoryController", "MODEL_BASED", "model_based_controller"]
@@ -129,10 +129,7 @@ class TrajectoryController:
             spec.sim, newton_tol=PLAN_NEWTON_TOL, newton_dtol=PLAN_NEWTON_DTOL, newton_max_iter=PLAN_NEWTON_ITER))
         self.lo, self.hi = np.asarray(cfg.target_lo, float), np.asarray(cfg.target_hi, float)
         self.period = float(core.config.substeps) * float(core.model.dt)
-        owner, weight = smoothing_weights(self.cfg.n_nodes, self.cfg.control_points, self.cfg.smoothing)
-        self.W = np.zeros((self.cfg.n_points, self.cfg.n_nodes))  # control point -> node weights
-        nodes = np.flatnonzero(owner >= 0)
-        self.W[owner[nodes], nodes] = weight[nodes]
+        self.W = smoothing_basis(self.cfg).T  # (P, N) control point -> node weights (the converter's)
         # the share of a control step's increment held at each of its sim steps (the converter's linear ramp)
         S = self.cfg.substeps
         steps = S if self.cfg.temporal_interpolation else 1
