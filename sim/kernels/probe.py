@@ -75,13 +75,14 @@ def _pairs_at(prm, rod, x, x0, h, f_out):
 
 @njit(**OPT_ALLOC)
 def pair_linearisation(prm_arr, rod, x, x0, h, step, richardson, of_start, dofs, cols, start_cols):
-    """The derivatives of the residual of the edge pairs alone at the DOFs ``x`` (n,) of a step of size h from ``x0``
-    (its slip velocity (x − x0)/h), over the candidate pairs at ``x`` (a fresh list: with the contact margin ≥ δ
-    every pair the step's solution felt, and each pair's terms as there), with respect to the position DOFs of the nodes of the pairs within reach (gap < δ), constrained ones too (a change of them is
-    carried: the caller sets their columns apart): their indices into ``dofs`` (returns their count s), the columns
-    ∂f/∂x' into ``cols[:, :s]`` (n, ≥ s) and with ``of_start``
-    ∂f/∂x (the start's positions) into ``start_cols[:, :s]``. Central differences of step ε = ``step`` times the
-    largest coordinate (at least 1 m); with ``richardson`` also at ε/2, combined as (4 D(ε/2) − D(ε))/3."""
+    """The derivatives of the residual of the edge pairs alone at the DOFs ``x`` (n,) of a step of size h from
+    ``x0`` (its slip velocity (x − x0)/h), over the candidate pairs at ``x`` (a fresh list: with the contact margin
+    ≥ δ every pair the step's solution felt, and each pair's terms as there), with respect to the position DOFs of
+    the nodes of the pairs within reach (gap < δ), constrained ones too (a change of them is carried: the caller
+    sets their columns apart): their indices into ``dofs`` (returns their count s), the columns ∂f/∂x' into
+    ``cols[:, :s]`` (n, ≥ s) and with ``of_start`` ∂f/∂x (the start's positions) into ``start_cols[:, :s]``.
+    Central differences of step ε = ``step`` times the largest coordinate (at least 1 m); with ``richardson`` also
+    at ε/2, combined as (4 D(ε/2) − D(ε))/3."""
     prm = prm_arr[0]
     planar = prm.planar
     dpn = 2 if planar else 4
