@@ -2,10 +2,10 @@
 in one parallel call.
 
 Per env: the full band of ∂f/∂x' at the step's solution with no DOF constrained. In 3-D the Newton Jacobian of the
-bend–twist elements leaves out how the time-parallel transported frames and the reference twist turn with the new
-positions, so each element's block in its 9 position columns is replaced by central differences of that element's
-force alone (its frames transported afresh from the step start, as the step does): 18 evaluations of one element
-per element, not of the whole residual. The natural curvature and twist enter each element's force affinely, so
+bend–twist elements treats the reference directors as moved by zero-twist transport; the step transports them from
+the step start, so each element's block in its 9 position columns gains two exact terms per edge (the director's
+turn about its tangent, and the curl of zero-twist transport times the element's torque; docs/physics.md §3.9).
+The natural curvature and twist enter each element's force affinely, so
 their columns are the element's own curvature and twist gradients times −EI/l, −GJ/l (exact). With friction
 (``Wanted.start``) the position columns come from central differences of the whole residual instead, grouped so that
 one pair of residual evaluations gives 2·kl + 1 columns at once (columns 2·kl + 1 apart touch disjoint rows of the
@@ -158,23 +158,59 @@ def _element_force(xm, xi, xp, te, d1e, tf, d1f, i, trig, x1, kb, tb, rod, w, wi
                     rod.EI1[i], rod.EI2[i], rod.GJ[i], rod.vor_len[i], w.g11, w.H11, w.wk, with_hess, False)
 
 
+@njit(inline="always", **OPT_ALLOC)
+def _holonomy_rate(w, j, t, length):
+    """s with dφ = s·(δx_b − δx_a): the rate at which edge j (from node a to b; unit tangent t, length ``length``)
+    turns its time-parallel transported reference director about t as its nodes move. Transported from the start
+    tangent t₀, d = P(t₀ → t) d₀ turns, beyond the zero-twist transport the Newton Jacobian assumes, by
+    dφ = −(t₀ × t)·δt / (1 + t₀·t) with δt = (I − t tᵀ) δe / |e|, and (t₀ × t) ⟂ t. Zero where the transport keeps
+    the director (1 + t₀·t ≤ 1e-12, :func:`sim.geometry.frames.transport`)."""
+    t0 = (w.sub_t[j, 0], w.sub_t[j, 1], w.sub_t[j, 2])
+    c = vdot(t0, t)
+    if 1.0 + c <= 1e-12:
+        return (0.0, 0.0, 0.0)
+    return vmul(-1.0 / ((1.0 + c) * length), vcross(t0, t))
+
+
+@njit(inline="always", **OPT_ALLOC)
+def _add_edge_turn(band, kl, o, a, b, col, t, length, rate, H, g):
+    """Into the element's rows of ``band`` (first DOF o), the position columns of its edge from local node a to b
+    (θ column ``col`` of the element's H and g): H[:, col] ∂φ/∂x for the director's turn (``rate``:
+    :func:`_holonomy_rate`), and g[col] [t]× / (2 |e|²) on the edge's node blocks, + on (a, a), (b, b), − across:
+    the zero-twist transport is not integrable (its turn round a small loop of tangents is the enclosed area), so
+    the derivative of the force the frames feed differs from the element's symmetric Hessian by that curl times
+    the element's torque g[col]."""
+    k = g[col] / (2.0 * length * length)
+    for side in range(2):
+        node = a if side == 0 else b
+        sign = -1.0 if side == 0 else 1.0
+        for q in range(3):
+            c = 4 * node + q
+            dphi = sign * rate[q]
+            for r in range(11):
+                band[o + r, kl + c - r] += H[r, col] * dphi
+            for rn in (a, b):  # (k [t]×)[p, q] on the edge's node blocks
+                s = k if rn == node else -k
+                for p in range(3):
+                    skew = 0.0
+                    if p != q:
+                        m = 3 - p - q
+                        skew = t[m] if (q - p) % 3 == 2 else -t[m]
+                    band[o + 4 * rn + p, kl + c - 4 * rn - p] += s * skew
+
+
 @njit(**OPT_ALLOC)
-def _bend_twist_columns(x1, kb, tb, rod, w, step, positions_too, want_kb, want_tb, band, kb_out, tb_out):
-    """Per interior node of a 3-D rod, from its bend–twist element alone: with ``positions_too`` the element's
-    Newton block in its 9 position columns of ``band`` replaced by central differences of its force (step ε relative
-    to the largest coordinate, at least 1 m; a coordinate of an end node moves one edge's frame, the middle node's
-    both); the columns of ∂f/∂κ̄ (``kb_out`` (n, N, 2)) and ∂f/∂τ̄ (``tb_out`` (n, N)) if wanted (exact: the force is
-    affine in both)."""
+def _bend_twist_columns(x1, kb, tb, rod, w, positions_too, want_kb, want_tb, band, kb_out, tb_out):
+    """Per interior node of a 3-D rod, from its bend–twist element alone: with ``positions_too`` its Newton block in
+    its 9 position columns of ``band`` made the exact derivative of its force (:func:`_add_edge_turn` per edge:
+    the Newton Jacobian treats the reference directors as moved by zero-twist transport; the step transports them
+    from the step start, so they also turn about their tangents, which moves the force as the same change of θ_e,
+    θ_f does — the material directors rotate and the reference twist changes by dφ_f − dφ_e); the columns of
+    ∂f/∂κ̄ (``kb_out`` (n, N, 2)) and ∂f/∂τ̄ (``tb_out`` (n, N)) if wanted (exact: the force is affine in both)."""
     kl = KL_3D
-    n = x1.shape[0]
     N = w.sub_beta.shape[0]
     link = rod.link
-    scale = 1.0
-    for c in range(n):
-        if c % 4 != 3:
-            scale = max(scale, abs(x1[c]))
-    eps = step * scale
-    g, H, wk = w.g11, w.H11, w.wk
+    H, wk = w.H11, w.wk
     for i in range(1, N - 1):
         if link[i - 1] == 0 or link[i] == 0:
             continue
@@ -183,9 +219,9 @@ def _bend_twist_columns(x1, kb, tb, rod, w, step, positions_too, want_kb, want_t
         xi = (x1[o + 4], x1[o + 5], x1[o + 6])
         xp = (x1[o + 8], x1[o + 9], x1[o + 10])
         trig = (math.cos(x1[o + 3]), math.sin(x1[o + 3]), math.cos(x1[o + 7]), math.sin(x1[o + 7]))
-        te0, d1e0 = _edge_frame(w, i - 1, xm, xi)
-        tf0, d1f0 = _edge_frame(w, i, xi, xp)
-        _element_force(xm, xi, xp, te0, d1e0, tf0, d1f0, i, trig, x1, kb, tb, rod, w, positions_too)
+        te, d1e = _edge_frame(w, i - 1, xm, xi)
+        tf, d1f = _edge_frame(w, i, xi, xp)
+        _element_force(xm, xi, xp, te, d1e, tf, d1f, i, trig, x1, kb, tb, rod, w, positions_too)
         s1 = rod.EI1[i] / rod.vor_len[i]
         s2 = rod.EI2[i] / rod.vor_len[i]
         s3 = rod.GJ[i] / rod.vor_len[i]
@@ -197,33 +233,10 @@ def _bend_twist_columns(x1, kb, tb, rod, w, step, positions_too, want_kb, want_t
                 tb_out[o + a, i] = -s3 * wk[2, a]
         if not positions_too:
             continue
-        for b in range(11):
-            if b % 4 == 3:
-                continue
-            for a in range(11):
-                band[o + a, kl + b - a] -= H[a, b]
-        for b in range(11):
-            if b % 4 == 3:
-                continue
-            node = b // 4
-            comp = b % 4
-            for sign in (1.0, -1.0):
-                d = sign * eps
-                pm = (xm[0] + d if node == 0 and comp == 0 else xm[0], xm[1] + d if node == 0 and comp == 1 else xm[1],
-                      xm[2] + d if node == 0 and comp == 2 else xm[2])
-                pi = (xi[0] + d if node == 1 and comp == 0 else xi[0], xi[1] + d if node == 1 and comp == 1 else xi[1],
-                      xi[2] + d if node == 1 and comp == 2 else xi[2])
-                pp = (xp[0] + d if node == 2 and comp == 0 else xp[0], xp[1] + d if node == 2 and comp == 1 else xp[1],
-                      xp[2] + d if node == 2 and comp == 2 else xp[2])
-                te, d1e = (te0, d1e0) if node == 2 else _edge_frame(w, i - 1, pm, pi)
-                tf, d1f = (tf0, d1f0) if node == 0 else _edge_frame(w, i, pi, pp)
-                _element_force(pm, pi, pp, te, d1e, tf, d1f, i, trig, x1, kb, tb, rod, w, False)
-                if sign > 0:
-                    for a in range(11):
-                        H[a, 0] = g[a]  # H is free now (its block was taken): the + evaluation's force
-                else:
-                    for a in range(11):
-                        band[o + a, kl + b - a] += (H[a, 0] - g[a]) / (2.0 * eps)
+        le = vnorm(vsub(xi, xm))
+        lf = vnorm(vsub(xp, xi))
+        _add_edge_turn(band, kl, o, 0, 1, 3, te, le, _holonomy_rate(w, i - 1, te, le), H, w.g11)
+        _add_edge_turn(band, kl, o, 1, 2, 7, tf, lf, _holonomy_rate(w, i, tf, lf), H, w.g11)
 
 
 @njit(**OPT_ALLOC)
@@ -294,7 +307,7 @@ def _linearise_env(e, x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g
         _position_columns(e, x1, kb, tb, h, rod, prm, cs, w, False, fd_step, True, ab, xp, fp, fm)
         _position_columns(e, x1, kb, tb, h, rod, prm, cs, w, True, fd_step, True, start_out[e], xp, fp, fm)
     if not planar:
-        _bend_twist_columns(x1, kb, tb, rod, w, fd_step, not want_start, want_kb, want_tb, ab,
+        _bend_twist_columns(x1, kb, tb, rod, w, not want_start, want_kb, want_tb, ab,
                             kb_out[min(e, kb_out.shape[0] - 1)], tb_out[min(e, tb_out.shape[0] - 1)])
     elif want_kb:  # 2-D: a unit change of κ̄ at nodes three apart per evaluation (their elements share no row)
         for color in range(3):
