@@ -18,7 +18,7 @@ _SOURCES = ["numba_options.py", "geometry/frames.py", "kernels/banded.py", "kern
             "geometry/distance.py", "geometry/vec3.py", "scene/kinds.py",
             "energies/stretch.py", "energies/bend_twist.py", "energies/planar.py", "analysis/hessian.py", "kernels/probe.py", "kernels/linearise.py"]
 # modules whose numba functions call no numba function of another module (their own cache check suffices)
-SELF_CONTAINED = ["contact/mesh.py"]
+SELF_CONTAINED = ["contact/mesh.py", "analysis/local_maps.py"]
 
 
 def _cache_dirs() -> list[Path]:

@@ -80,9 +80,18 @@ import dataclasses
 
 import numpy as np
 
+from sim.analysis.local_maps import EdgeTurns, LocalColumns, band_columns
 from sim.contact.world import ObstacleWorld, contact_data, contact_scratch, spec_contact_data, world_arrays
 from sim.kernels.data import KL_2D, KL_3D, ControlArrays, StateArrays
-from sim.kernels.linearise import Linearisation, RodFactors, Wanted, factor_bands, linearise_step, solve_bands
+from sim.kernels.linearise import (
+    ELEMENT_ROWS,
+    Linearisation,
+    RodFactors,
+    Wanted,
+    factor_bands,
+    linearise_step,
+    solve_bands,
+)
 from sim.kernels.probe import assemble_at, pair_linearisation, pair_residual, substeps_at
 from sim.state import STATE_ARRAYS, Control
 
@@ -421,8 +430,9 @@ class Tape:
         want_kb, want_tb = "kappa_bar" in names, "tau_bar" in names
         want_sc = any(nm in _SCALARS[:3] for nm in names)
         ab = np.zeros((B, n + kl, 2 * kl + 1))
-        kbc = np.zeros((B, n, N, 2) if want_kb or want_tb else (1, 1, 1, 2))
-        tbc = np.zeros((B, n, N) if want_tb else (1, 1, 1))
+        rows = ELEMENT_ROWS[planar]
+        kbc = np.zeros((B, N, rows, 2) if want_kb else (1, 1, 1, 2))
+        tbc = np.zeros((B, N, rows) if want_tb else (1, 1, 1))
         sc = np.zeros((B, n, 3) if want_sc else (1, 1, 3))
         prm = sim.kernel_params[0]
         # friction (slip velocity) and drag (velocity, and the tangent lagged at the start): ∂f/∂x is not diagonal
@@ -447,18 +457,15 @@ class Tape:
         G = None
         if not planar:  # ∂f/∂θ's columns before the constraints: the elastic part is ∂f/∂φ
             th = 4 * np.arange(E) + 3
-            G = np.zeros((B, n, E))
-            for d in range(2 * kl + 1):
-                r = th + kl - d  # band entry (r, d) is J[r, r + d − kl]: column th where r = th + kl − d
-                ok = (r >= 0) & (r < n)
-                G[:, r[ok], np.arange(E)[ok]] = ab[:, r[ok], d]
-            G[:, th, np.arange(E)] -= mass[:, th] / hc**2
-            G[:, fixed, :] = 0.0
+            g = band_columns(ab, kl, th)[..., None]
+            g[:, :, kl, 0] -= mass[:, th] / hc**2
+            G = LocalColumns(g, 3 - kl, 4, n)
+            G.zero_rows(fixed)
         held = np.flatnonzero(fixed)
         Jc = np.zeros((B, n, held.size))  # the constrained DOFs' columns: a change of a held DOF moves the others
-        for j, col in enumerate(held):
-            rows = np.arange(max(0, col - kl), min(n, col + kl + 1))
-            Jc[:, rows, j] = ab[:, rows, kl + col - rows]
+        rows = held[:, None] - kl + np.arange(2 * kl + 1)[None, :]
+        ok = (rows >= 0) & (rows < n)
+        Jc[:, rows[ok], np.nonzero(ok)[0]] = band_columns(ab, kl, held)[:, ok]
         Jc[:, fixed, :] = 0.0
         _constrain(ab, fixed, kl)  # constrained DOFs: identity rows and columns (residual 0, they do not move)
         damp = sim.kernel_rod.damping  # (R, 1)
@@ -474,10 +481,13 @@ class Tape:
         if pairs:
             low, Fx = self._pair_terms(part, y, Fx, Jc)
         P: dict = {}
+        dpn = 2 if planar else 4  # node i's element starts at DOF dpn (i − 1)
         if want_kb:
-            P["kappa_bar"] = kbc.reshape(B, n, 2 * N) * ~fixed[None, :, None]
+            P["kappa_bar"] = LocalColumns(kbc, -dpn, dpn, n)
         if want_tb:
-            P["tau_bar"] = tbc * ~fixed[None, :, None]
+            P["tau_bar"] = LocalColumns(tbc[..., None], -dpn, dpn, n)
+        for cols in P.values():
+            cols.zero_rows(fixed)
         for j, nm in enumerate(_SCALARS[:3]):
             if want_sc and nm in names:
                 P[nm] = sc[:, :, j:j + 1] * ~fixed[None, :, None]
@@ -498,16 +508,14 @@ class Tape:
         # before the step moves them as the positions before the motion (the motion is held: it moves no frame of a
         # free DOF)
         t0, t1 = part.t0, part.t1
-        kvec = np.cross(t1, t0) / (1.0 + np.einsum("bij,bij->bi", t0, t1))[..., None]
-        a = _turn_map(kvec, part.pre, t0, link)
-        b = _turn_map(kvec, part.x1, t1, link)
-        a[rule.identity], b[rule.identity] = 0.0, 0.0  # an env the part leaves: its frames stay
+        a = EdgeTurns.of_transport(t0, t1, part.pre, t0, link)
+        b = EdgeTurns.of_transport(t0, t1, part.x1, t1, link)
+        a.w[rule.identity], b.w[rule.identity] = 0.0, 0.0  # an env the part leaves: its frames stay
         if not rule.any_midpoint:
             return _Lin(k, ab, kl, Fx, Fu, G, a, b, P, rule, low=low, Jc=Jc)
         ty = _tangents(y, link, t1)  # the residual's frames are transported to y's tangents; the end's to x''s
-        ky = np.cross(ty, t0) / (1.0 + np.einsum("bij,bij->bi", t0, ty))[..., None]
-        ay, by = _turn_map(ky, part.pre, t0, link), _turn_map(ky, y, ty, link)
-        ay[rule.identity], by[rule.identity] = 0.0, 0.0
+        ay, by = EdgeTurns.of_transport(t0, ty, part.pre, t0, link), EdgeTurns.of_transport(t0, ty, y, ty, link)
+        ay.w[rule.identity], by.w[rule.identity] = 0.0, 0.0
         return _Lin(k, ab, kl, Fx, Fu, G, ay, by, P, rule, a_end=a, b_end=b, low=low, Jc=Jc)
 
     def _pair_terms(self, part: _Part, y: np.ndarray, Fx: np.ndarray, Jc: np.ndarray) -> tuple[dict, np.ndarray]:
@@ -713,7 +721,7 @@ class Tape:
             v = tan[k]
         else:
             v = tan[:, None]
-        return np.einsum("bnk,bk->bn", lin.P[name], v)
+        return _columns_times(lin.P[name], v)
 
     # ------------------------------------------------------------------ forward mode
     def jvp(self, tangents: dict | list[dict]) -> dict:
@@ -744,7 +752,7 @@ class Tape:
                 lin = self._linear(k, names, j)
                 rhs = lin.start_term(dx) + lin.Fu[:, :, None] * du
                 if not planar:
-                    rhs += lin.G @ (phi + lin.a @ dx)
+                    rhs += lin.G.apply(phi + lin.a.apply(dx))
                 for q, t in enumerate(tans):
                     for nm in names:
                         if nm in t:
@@ -759,7 +767,7 @@ class Tape:
                 du[np.ix_(r.delta > 0.0, fixed)] = 0.0  # the midpoint rule sets the constrained DOFs' velocities to 0
                 if not planar:
                     a_end, b_end = lin.end_maps()
-                    phi = phi + a_end @ dx + b_end @ dx1
+                    phi = phi + a_end.apply(dx) + b_end.apply(dx1)
                 dx = dx1
             ddof[:, k + 1], dvel[:, k + 1] = dx.transpose(2, 0, 1), du.transpose(2, 0, 1)
         if many:
@@ -800,19 +808,19 @@ class Tape:
                 gx_end = gx
                 if not planar:
                     a_end, b_end = lin.end_maps()
-                    gx_end = gx + np.einsum("ben,be->bn", b_end, gphi)
+                    gx_end = gx + b_end.adjoint(gphi)
                 al, be, ga, de = (v[:, None] for v in (r.alpha, r.beta, r.gamma, r.delta))
                 gy = al * gx_end + ga * gu
                 gx_prev = be * gx_end - ga * gu + (cx[k] if j == 0 else 0.0)
                 gu_prev = -de * gu + (cu[k] if j == 0 else 0.0)
                 if not planar:
-                    gx_prev = gx_prev + np.einsum("ben,be->bn", a_end, gphi)
+                    gx_prev = gx_prev + a_end.adjoint(gphi)
                 lam = lin.solve(gy[:, :, None], transpose=True)[:, :, 0]  # y = −J⁻¹ rhs ⇒ ∂/∂rhs = −λ
                 for nm in names:
                     if nm == "gravity":
                         out[nm] += -np.einsum("bn,bnc->bc", lam, self._gravity_columns(B))
                         continue
-                    g = -np.einsum("bnk,bn->bk", lin.P[nm], lam)
+                    g = -_columns_adjoint(lin.P[nm], lam)
                     if nm in _POSE_FIELDS:
                         out[nm] += g.reshape(out[nm].shape)
                     elif nm == "kappa_bar":
@@ -826,8 +834,8 @@ class Tape:
                     gx_prev[:, held] += lam[:, held] - np.einsum("bnc,bn->bc", lin.Jc, lam)
                 gu_prev = gu_prev - lin.Fu * lam
                 if not planar:
-                    Gl = -np.einsum("bne,bn->be", lin.G, lam)
-                    gx_prev = gx_prev + np.einsum("ben,be->bn", lin.a, Gl)
+                    Gl = -lin.G.adjoint(lam)
+                    gx_prev = gx_prev + lin.a.adjoint(Gl)
                     gphi = gphi + Gl
                 gx, gu = gx_prev, gu_prev
         if "dof0" in out:
@@ -869,21 +877,14 @@ def _tangents(x: np.ndarray, link: np.ndarray, held: np.ndarray) -> np.ndarray:
     return t
 
 
-def _turn_map(kvec: np.ndarray, x: np.ndarray, t: np.ndarray, link: np.ndarray) -> np.ndarray:
-    """(B, E, n) map of a change δx of the 3-D DOFs x (B, n) to kvec_j · δt_j per edge, δt = (I − t tᵀ) δe / |e|
-    (a joint edge keeps its frame: 0)."""
-    B, E = t.shape[0], t.shape[1]
-    n = x.shape[1]
-    pos = x.reshape(B, E + 1, 4)[:, :, :3]
-    le = np.linalg.norm(pos[:, 1:] - pos[:, :-1], axis=2)
-    w = (kvec - np.einsum("bij,bij->bi", t, kvec)[..., None] * t) / le[..., None]  # (B, E, 3)
-    w[:, ~link] = 0.0
-    out = np.zeros((B, E, n))
-    j = np.arange(E)
-    for c in range(3):
-        out[:, j, 4 * (j + 1) + c] = w[:, :, c]
-        out[:, j, 4 * j + c] = -w[:, :, c]
-    return out
+def _columns_times(P, v: np.ndarray) -> np.ndarray:
+    """∂f/∂p · v for every env: P dense (B, n, k) or :class:`LocalColumns`, v (B, k)."""
+    return P.apply(v) if isinstance(P, LocalColumns) else np.einsum("bnk,bk->bn", P, v)
+
+
+def _columns_adjoint(P, lam: np.ndarray) -> np.ndarray:
+    """(∂f/∂p)ᵀ λ for every env: λ (B, n) → (B, k)."""
+    return P.adjoint(lam) if isinstance(P, LocalColumns) else np.einsum("bnk,bn->bk", P, lam)
 
 
 def _param_shape(name, T, B, n, N, M=0):

@@ -1,20 +1,19 @@
-"""The linearisation of recorded steps for their derivatives (sim.analysis.gradients; docs/physics.md §3.9), all envs of a step
-in one parallel call.
+"""The linearisation of recorded steps for their derivatives (sim.analysis.gradients; docs/physics.md §3.9), all
+envs of a step in one parallel call.
 
 Per env: the full band of ∂f/∂x' at the step's solution with no DOF constrained. In 3-D the Newton Jacobian of the
 bend–twist elements treats the reference directors as moved by zero-twist transport; the step transports them from
 the step start, so each element's block in its 9 position columns gains two exact terms per edge (the director's
 turn about its tangent, and the curl of zero-twist transport times the element's torque; docs/physics.md §3.9).
-The natural curvature and twist enter each element's force affinely, so
-their columns are the element's own curvature and twist gradients times −EI/l, −GJ/l (exact). With friction
-(``Wanted.start``) the position columns come from central differences of the whole residual instead, grouped so that
-one pair of residual evaluations gives 2·kl + 1 columns at once (columns 2·kl + 1 apart touch disjoint rows of the
-band): the lagged normal and closest point turn with them too. In 2-D the band is exact and the curvature columns are
-residual differences (a unit change, nodes three apart in one evaluation: their elements share no row). The stiffness
-and mass factors' columns: a second rod record with the factor doubled. With
-obstacle contact, the candidates of each env over its step's motion (start to solution) are listed first, so its
-residual and band carry the contact the step's solution felt. A workspace per env: an analysis path, not the
-step's.
+The natural curvature and twist enter each element's force affinely, so their columns are the element's own
+curvature and twist gradients times −EI/l, −GJ/l (exact), kept by element. With friction (``Wanted.start``) the
+position columns come from central differences of the whole residual instead, grouped so that one pair of
+residual evaluations gives 2·kl + 1 columns at once (columns 2·kl + 1 apart touch disjoint rows of the band): the
+lagged normal and closest point turn with them too. In 2-D the band is exact and the curvature columns are
+residual differences (a unit change, nodes three apart in one evaluation: their elements share no row). The
+stiffness and mass factors' columns: a second rod record with the factor doubled. With obstacle contact, the
+candidates of each env over its step's motion (start to solution) are listed first, so its residual and band
+carry the contact the step's solution felt. A workspace per chunk of envs: an analysis path, not the step's.
 """
 from __future__ import annotations
 
@@ -34,7 +33,10 @@ from sim.kernels.newton import assemble, positions
 from sim.kernels.workspace import alloc_workspace, copy_into
 from sim.numba_options import OPT_ALLOC
 
-__all__ = ["RodFactors", "Wanted", "Linearisation", "linearise_step", "factor_bands", "solve_bands"]
+__all__ = ["ELEMENT_ROWS", "RodFactors", "Wanted", "Linearisation", "linearise_step", "factor_bands", "solve_bands"]
+
+
+ELEMENT_ROWS = {False: 11, True: 6}  # rows of one element's curvature columns, 3-D (False) and 2-D (True) by planar
 
 
 class RodFactors(NamedTuple):
@@ -62,7 +64,9 @@ class Wanted(NamedTuple):
 
 class Linearisation(NamedTuple):
     """What :func:`linearise_step` writes, per env (leading axis B): ``band`` (B, n + kl, 2 kl + 1) of ∂f/∂x';
-    ``kappa_bar`` (B, n, N, 2) ∂f/∂κ̄; ``tau_bar`` (B, n, N) ∂f/∂τ̄; ``factors`` (B, n, 3) the columns of the
+    ``kappa_bar`` (B, N, L, 2) ∂f/∂κ̄ by element: entry (i, l, c) is row dpn (i − 1) + l of κ̄_c at node i's column
+    (:data:`ELEMENT_ROWS` L rows from the element's first DOF, dpn DOFs per node; the columns of the end nodes 0);
+    ``tau_bar`` (B, N, L) ∂f/∂τ̄ alike; ``factors`` (B, n, 3) the columns of the
     doubled stiffness, twisting stiffness and mass; ``start`` (B, n + kl, 2 kl + 1) the band of ∂f/∂x of the
     start's position DOFs (its other columns 0). An array whose columns are not wanted may be a placeholder."""
 
@@ -206,7 +210,8 @@ def _bend_twist_columns(x1, kb, tb, rod, w, positions_too, want_kb, want_tb, ban
     the Newton Jacobian treats the reference directors as moved by zero-twist transport; the step transports them
     from the step start, so they also turn about their tangents, which moves the force as the same change of θ_e,
     θ_f does — the material directors rotate and the reference twist changes by dφ_f − dφ_e); the columns of
-    ∂f/∂κ̄ (``kb_out`` (n, N, 2)) and ∂f/∂τ̄ (``tb_out`` (n, N)) if wanted (exact: the force is affine in both)."""
+    ∂f/∂κ̄ (``kb_out`` (N, 11, 2)) and ∂f/∂τ̄ (``tb_out`` (N, 11)) by element (:class:`Linearisation`) if wanted
+    (exact: the force is affine in both)."""
     kl = KL_3D
     N = w.sub_beta.shape[0]
     link = rod.link
@@ -227,10 +232,10 @@ def _bend_twist_columns(x1, kb, tb, rod, w, positions_too, want_kb, want_tb, ban
         s3 = rod.GJ[i] / rod.vor_len[i]
         for a in range(11):
             if want_kb:
-                kb_out[o + a, i, 0] = -s1 * wk[0, a]
-                kb_out[o + a, i, 1] = -s2 * wk[1, a]
+                kb_out[i, a, 0] = -s1 * wk[0, a]
+                kb_out[i, a, 1] = -s2 * wk[1, a]
             if want_tb:
-                tb_out[o + a, i] = -s3 * wk[2, a]
+                tb_out[i, a] = -s3 * wk[2, a]
         if not positions_too:
             continue
         le = vnorm(vsub(xi, xm))
@@ -251,11 +256,11 @@ def _residual(e, x, kb, tb, h, rod, prm, cs, w, out):
 def _linearise_envs(x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, hs, threads, rod, rod_e, rod_g, rod_m, prm_arr, cd,
                     want_kb, want_tb, want_scalars, want_start, fd_step, ab_out, kb_out, tb_out, sc_out, start_out):
     """For every env e of one recorded step: ab_out[e] (n + kl, 2 kl + 1) the band of ∂f/∂x' at x1s[e];
-    kb_out[e] (n, N, 2) ∂f/∂κ̄, tb_out[e] (n, N) ∂f/∂τ̄ (if wanted); sc_out[e] (n, 3) the columns of the
-    factors on stiffness (rod_e), twisting stiffness (rod_g) and mass (rod_m), each doubled, if wanted (damping's
-    column is m (x' − x)/h: the caller's); with ``want_start`` start_out[e] the band of ∂f/∂x (start positions)
-    and the band's position columns by differences in 2-D too. ``rod``'s fixed flags must be all 0 (the caller
-    constrains afterwards)."""
+    kb_out[e] (N, L, 2) ∂f/∂κ̄, tb_out[e] (N, L) ∂f/∂τ̄ by element (:class:`Linearisation`; if wanted); sc_out[e]
+    (n, 3) the columns of the factors on stiffness (rod_e), twisting stiffness (rod_g) and mass (rod_m), each
+    doubled, if wanted (damping's column is m (x' − x)/h: the caller's); with ``want_start`` start_out[e] the band
+    of ∂f/∂x (start positions) and the band's position columns by differences in 2-D too. ``rod``'s fixed flags
+    must be all 0 (the caller constrains afterwards)."""
     B = x1s.shape[0]
     n = x1s.shape[1]
     N = bs.shape[1]
@@ -317,7 +322,7 @@ def _linearise_env(e, x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g
             _residual(e, x1, kb1, tb, h, rod, prm, cs, w, fp)
             for i in range(1 + color, N - 1, 3):
                 for r in range(2 * (i - 1), min(n, 2 * (i + 2))):
-                    kb_out[e, r, i, 0] = fp[r] - f0[r]
+                    kb_out[e, i, r - 2 * (i - 1), 0] = fp[r] - f0[r]
     if want_scalars:
         _residual(e, x1, kb, tb, h, rod_e, prm, cs, w, fp)
         for r in range(n):
