@@ -67,7 +67,7 @@ def bench_step(envs: int, repeats: int) -> dict:
     N = sim.model.node_count
     # what a recorded step adds to a tape (Tape.nbytes: the state after it, its controls and external forces)
     rec = (rollout(sim, state.copy(), [ctrl, ctrl]).nbytes - rollout(sim, state.copy(), [ctrl]).nbytes) // envs
-    lin_bytes = tape._lin[(0, 0)].nbytes // envs  # J's band and its factor, F, G, a, b, ∂f/∂κ̄ as kept after a pass
+    lin_bytes = tape._lin[(0, 0)].nbytes // envs  # J's band (factored in place), F, G, a, b, ∂f/∂κ̄ as kept after a pass
     f, b, li = (float(np.median(v)) for v in (fwd, bwd, lin))
     return {"envs": envs, "nodes": N, "dofs": n, "forward_ms_per_env": 1e3 * f / envs,
             "backward_ms_per_env": 1e3 * (b + li) / envs, "linearise_ms_per_env": 1e3 * li / envs,

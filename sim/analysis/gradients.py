@@ -191,9 +191,10 @@ class _Part:
 class _Lin:
     """All envs' step ``step`` linearised at its solution: J as padded bands (B, n + kl, 2 kl + 1) (the storage of
     :mod:`sim.kernels.banded`; constrained DOFs: identity rows and columns); the start-state columns Fx (B, n)
-    (diagonal; with friction or drag a matrix (B, n, n)), Fu (B, n) (diagonal); frame maps G (B, n, E) (∂f/∂φ), a, b
-    (B, E, n) (φ' = φ + a δx + b δx'); parameter columns P (name -> (B, n, k)). J and Jᵀ are factored (banded LU)
-    on their first solve and the factors kept."""
+    (diagonal; with friction or drag a matrix (B, n, n)), Fu (B, n) (diagonal); frame maps G (n × E per env, ∂f/∂φ:
+    :class:`LocalColumns`), a, b (E × n per env, φ' = φ + a δx + b δx': :class:`EdgeTurns`); parameter columns P
+    (name -> (B, n, k) or :class:`LocalColumns`). J is factored (banded LU, in place) on the first solve; its
+    factors serve solves with J and with Jᵀ."""
 
     step: int
     J: np.ndarray
@@ -209,7 +210,8 @@ class _Lin:
     b_end: np.ndarray | None = None
     low: dict = dataclasses.field(default_factory=dict)  # env -> (S, U): edge pairs in touch, J = band + U E_Sᵀ
     Jc: np.ndarray | None = None  # (B, n, nc) J's columns of the constrained DOFs (before they were made identity)
-    _lu: dict = dataclasses.field(default_factory=dict, repr=False)
+    factored: bool = False  # J holds its LU factors (made on the first solve)
+    _lu: dict = dataclasses.field(default_factory=dict, repr=False)  # the edge pairs' Woodbury terms per env
 
     def end_maps(self):
         """(a, b) of the step's end frames: φ' = φ + a δx + b δx'."""
@@ -223,18 +225,17 @@ class _Lin:
         """Fxᵀ λ for every env: lam (B, n)."""
         return np.einsum("bnm,bn->bm", self.Fx, lam) if self.Fx.ndim == 3 else self.Fx * lam
 
-    def _factor(self, transpose: bool) -> np.ndarray:
-        lu = self._lu.get(transpose)
-        if lu is None:
-            lu = np.empty_like(self.J)
+    def _factor(self) -> np.ndarray:
+        """J's LU factors, made in place on the first solve (they serve J and Jᵀ)."""
+        if not self.factored:
             status = np.zeros(self.J.shape[0], np.int64)
-            factor_bands(self.J, self.kl, transpose, lu, status)
+            factor_bands(self.J, self.kl, status)
+            self.factored = True
             bad = np.flatnonzero(status)
             if bad.size:
                 raise GradientError(f"step {self.step}: env {int(bad[0])}'s Jacobian is singular (pivot "
                                     f"{int(status[bad[0]]) - 1}); its derivative is not defined")
-            self._lu[transpose] = lu
-        return lu
+        return self.J
 
     def _woodbury(self, e: int, transpose: bool) -> tuple[np.ndarray, np.ndarray]:
         """For env e's edge-pair term J = A + U E_Sᵀ (A the band): (W, C) with W = A⁻¹ U and C = I + W[S] (or, for
@@ -250,16 +251,16 @@ class _Lin:
             else:
                 rhs = U[None]
             W = np.empty((1, n, s))
-            solve_bands(np.ascontiguousarray(self._factor(transpose)[e:e + 1]), self.kl, np.ascontiguousarray(rhs), W)
+            solve_bands(np.ascontiguousarray(self._factor()[e:e + 1]), self.kl, transpose, np.ascontiguousarray(rhs), W)
             W = W[0]
             self._lu[key] = (W, np.eye(s) + (U.T @ W if transpose else W[S]))
         return self._lu[key]
 
     def solve(self, rhs: np.ndarray, *, transpose: bool = False) -> np.ndarray:
         """J⁻¹ rhs or J⁻ᵀ rhs for every env: rhs (B, n, P)."""
-        lu = self._factor(transpose)
+        lu = self._factor()
         out = np.empty(rhs.shape)
-        solve_bands(lu, self.kl, np.ascontiguousarray(rhs, dtype=np.float64), out)
+        solve_bands(lu, self.kl, transpose, np.ascontiguousarray(rhs, dtype=np.float64), out)
         for e, (S, U) in self.low.items():
             W, C = self._woodbury(e, transpose)
             z = out[e]
@@ -357,7 +358,7 @@ class Tape:
         if lin is None or any(nm not in lin.P for nm in names if nm != "gravity"):
             lin = self._linearise(self._part(k, j), names)
             kept = sum(v.nbytes for key, v in self._lin.items() if isinstance(key, tuple))
-            if self._replay is None and kept + 3 * lin.nbytes < _CACHE_BYTES:  # room for it and its two factors
+            if self._replay is None and kept + 2 * lin.nbytes < _CACHE_BYTES:  # room for it and its Woodbury terms
                 self._lin[(k, j)] = lin
         return lin
 

@@ -23,6 +23,7 @@ from numba import njit
 from sim.numba_options import OPT_CONTACT
 
 __all__ = ["band_ldl_solve", "band_lu_solve", "band_ldl_factor", "band_ldl_apply", "band_lu_factor", "band_lu_apply",
+           "band_lu_apply_transposed",
            "dense_to_band", "solve_dense_banded", "dense_lu_solve"]
 
 
@@ -81,6 +82,25 @@ def band_lu_apply(ab, n, kl, b):
         b[k] = 0.0
     for i in range(n - 1, -1, -1):
         b[i] = _upper_dot_residual(ab, kl, b, i) / ab[i, kl]
+
+
+@njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"}, inline="always")
+def band_lu_apply_transposed(ab, n, kl, b):
+    """Overwrite ``b`` (length n + kl) with A⁻ᵀ b from the factors :func:`band_lu_factor` left in ``ab``:
+    Aᵀ = Uᵀ Lᵀ, so Uᵀ z = b forward (column form: U[k, k + j] = ab[k, kl + j]), then Lᵀ x = z backward
+    (Lᵀ[k, k + i] = L[k + i, k] = ab[k + i, kl − i]; the padding rows' multipliers are 0)."""
+    for k in range(n):
+        zk = b[k] / ab[k, kl]
+        b[k] = zk
+        for j in range(1, kl + 1):
+            b[k + j] -= ab[k, kl + j] * zk
+    for k in range(n, n + kl):
+        b[k] = 0.0
+    for k in range(n - 1, -1, -1):
+        s = b[k]
+        for i in range(1, kl + 1):
+            s -= ab[k + i, kl - i] * b[k + i]
+        b[k] = s
 
 
 @njit(cache=True, error_model="numpy", fastmath={"contract", "arcp", "nsz"}, inline="always")

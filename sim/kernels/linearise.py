@@ -27,7 +27,7 @@ from sim.contact import stages as contact
 from sim.energies.bend_twist import bend_twist_core
 from sim.geometry.frames import transport
 from sim.geometry.vec3 import vcross, vdot, vmul, vnorm, vsub
-from sim.kernels.banded import band_lu_apply, band_lu_factor
+from sim.kernels.banded import band_lu_apply, band_lu_apply_transposed, band_lu_factor
 from sim.kernels.data import KL_2D, KL_3D, env_rod
 from sim.kernels.newton import assemble, positions
 from sim.kernels.workspace import alloc_workspace, copy_into
@@ -336,28 +336,24 @@ def _linearise_env(e, x0s, u0s, d1s, ts, bs, x1s, kbs, tbs, h, rod, rod_e, rod_g
 
 
 @njit(parallel=True, **OPT_ALLOC)
-def factor_bands(ab, kl, transpose, lu, status):
+def factor_bands(ab, kl, status):
     """LU (no pivoting, :func:`sim.kernels.banded.band_lu_factor`) of every env's padded band ``ab`` (B, n + kl,
-    2 kl + 1), or of its transpose, into ``lu`` (same shape); ``status`` (B,) 0 or 1 + the first bad pivot."""
-    B = ab.shape[0]
+    2 kl + 1) in place; ``status`` (B,) 0 or 1 + the first bad pivot. The factors serve solves with A and with Aᵀ
+    (:func:`solve_bands`)."""
     n = ab.shape[1] - kl
-    for e in prange(B):
-        if transpose:  # (Aᵀ)[r, c] = A[c, r]: band entry (r, kl + c − r) from (c, kl + r − c)
-            for r in range(n + kl):
-                for d in range(2 * kl + 1):
-                    c = r + d - kl
-                    lu[e, r, d] = ab[e, c, 2 * kl - d] if (r < n and 0 <= c < n) else (1.0 if (r >= n and d == kl)
-                                                                                       else 0.0)
+    for e in prange(ab.shape[0]):
+        if kl == KL_3D:  # the width as a constant: the inner loops unroll (sim.kernels.banded)
+            status[e] = band_lu_factor(ab[e], n, KL_3D)
+        elif kl == KL_2D:
+            status[e] = band_lu_factor(ab[e], n, KL_2D)
         else:
-            for r in range(n + kl):
-                for d in range(2 * kl + 1):
-                    lu[e, r, d] = ab[e, r, d]
-        status[e] = band_lu_factor(lu[e], n, kl)
+            status[e] = band_lu_factor(ab[e], n, kl)
 
 
 @njit(parallel=True, **OPT_ALLOC)
-def solve_bands(lu, kl, rhs, out):
-    """out[e] = A_e⁻¹ rhs[e] for every env from the factors :func:`factor_bands` left in ``lu``; rhs, out (B, n, Q)."""
+def solve_bands(lu, kl, transpose, rhs, out):
+    """out[e] = A_e⁻¹ rhs[e] (or A_e⁻ᵀ rhs[e] if ``transpose``) for every env from the factors :func:`factor_bands`
+    left in ``lu``; rhs, out (B, n, Q)."""
     B, n, Q = rhs.shape
     for e in prange(B):
         b = np.empty(n + kl)
@@ -366,6 +362,31 @@ def solve_bands(lu, kl, rhs, out):
                 b[i] = rhs[e, i, q]
             for i in range(n, n + kl):
                 b[i] = 0.0
-            band_lu_apply(lu[e], n, kl, b)
+            if transpose:
+                _apply_transposed(lu[e], n, kl, b)
+            else:
+                _apply(lu[e], n, kl, b)
             for i in range(n):
                 out[e, i, q] = b[i]
+
+
+@njit(inline="always", **OPT_ALLOC)
+def _apply(lu, n, kl, b):
+    """:func:`sim.kernels.banded.band_lu_apply` with the usual widths as constants (its loops unroll)."""
+    if kl == KL_3D:
+        band_lu_apply(lu, n, KL_3D, b)
+    elif kl == KL_2D:
+        band_lu_apply(lu, n, KL_2D, b)
+    else:
+        band_lu_apply(lu, n, kl, b)
+
+
+@njit(inline="always", **OPT_ALLOC)
+def _apply_transposed(lu, n, kl, b):
+    """:func:`sim.kernels.banded.band_lu_apply_transposed` with the usual widths as constants."""
+    if kl == KL_3D:
+        band_lu_apply_transposed(lu, n, KL_3D, b)
+    elif kl == KL_2D:
+        band_lu_apply_transposed(lu, n, KL_2D, b)
+    else:
+        band_lu_apply_transposed(lu, n, kl, b)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.kernels.banded import solve_dense_banded
+from sim.kernels.banded import dense_to_band, solve_dense_banded
 
 
 def _random_banded(rng, n, kl, symmetric):
@@ -106,3 +106,22 @@ def test_banded_ldl_reports_bad_pivots():
             Ab[3, 3] = np.nan if bad == "nan" else np.inf
         _, st = solve_dense_banded(Ab, 5, np.ones(30), symmetric=True)
         assert st != 0, bad
+
+
+@pytest.mark.parametrize("n, kl", [(84, 11), (42, 5), (12, 10)])
+def test_one_factorisation_solves_with_the_matrix_and_its_transpose(n, kl):
+    from sim.kernels.linearise import factor_bands, solve_bands
+
+    rng = np.random.default_rng(n * kl)
+    B = 3
+    A = np.stack([_random_banded(rng, n, kl, False) for _ in range(B)])
+    ab = np.stack([dense_to_band(a, kl) for a in A])
+    status = np.zeros(B, np.int64)
+    factor_bands(ab, kl, status)
+    assert np.all(status == 0)
+    rhs = rng.standard_normal((B, n, 2))
+    for transpose in (False, True):
+        out = np.empty_like(rhs)
+        solve_bands(ab, kl, transpose, rhs, out)
+        ref = np.linalg.solve(A.transpose(0, 2, 1) if transpose else A, rhs)
+        assert np.abs(out - ref).max() <= 1e-12 * np.abs(ref).max()
