@@ -12,9 +12,9 @@ transposed, the adjoint (reverse) mode :meth:`Tape.vjp`.
   reference director about its tangent is the same as turning the material frame, i.e. adding to θ). The state
   carried through the steps is (x, u, φ): φ the angle by which each edge's reference director is turned. Time-
   parallel transport adds φ' = φ + k·(δt + δt') per edge, k = (t' × t)/(1 + t·t') (the holonomy of the transport).
-* J: exact in 2-D. In 3-D the Newton Jacobian leaves out how the transported frames and the reference twist turn
-  with the new positions; its θ columns are kept and each bend–twist element's position block is replaced by
-  central differences of that element's force (~1e-10). J and Jᵀ stay banded and are solved by banded LU.
+* J: exact in 2-D. In 3-D the Newton Jacobian moves the reference directors by zero-twist transport; its θ columns
+  are kept and each bend–twist element's position block gains the exact terms of the transported directors' turn
+  (sim.kernels.linearise). J stays banded; one banded LU, made in place, solves with J and with Jᵀ.
 
 * Obstacle contact: its normal residual E'(g) ∇g depends on the new positions alone, so it enters J (the band,
   with each env's candidates over its step's motion); friction also depends on the start positions through the
