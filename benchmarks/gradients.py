@@ -9,8 +9,8 @@
   approach), in the same run;
 * multi-start: one batched iteration of K starts against the starts one by one, and a fit a single start misses;
 * open-loop trajectory optimisation: the arm's tip made to follow a path from rest controls (L-BFGS-B, adjoint);
-* the model-based baselines (inverse statics; on Follow Target the receding-horizon trajectory controller too)
-  against the shipped SAC policy on Follow Target and 4D IK (same seeds).
+* the model-based baselines (inverse statics and the receding-horizon trajectory controller) against the shipped
+  SAC policy on Follow Target and 4D IK (same seeds).
 
 Writes ``gradients.json`` into ``--out`` and prints a table.
 """
@@ -291,9 +291,7 @@ def bench_baseline(episodes: int) -> dict:
     root = Path(policies.__file__).parent / "pretrained"
     for task, zip_name in (("follow_target", "follow_target.zip"), ("ik4d", "ik4d.zip")):
         row = {}
-        pols = [("inverse_statics", "inverse-statics"), ("sac", str(root / zip_name))]
-        if task == "follow_target":  # the receding-horizon plan follows a moving target
-            pols.insert(1, ("trajectory", "trajectory"))
+        pols = [("inverse_statics", "inverse-statics"), ("trajectory", "trajectory"), ("sac", str(root / zip_name))]
         for name, pol in pols:
             r = evaluate(pol, task, episodes=episodes, num_envs=min(episodes, 10), seed=0)
             row[name] = {k: r.get(k) for k in ("avg_discounted_return_mean", "avg_discounted_return_std",

@@ -724,6 +724,49 @@ class Tape:
             v = tan[:, None]
         return _columns_times(lin.P[name], v)
 
+    # ------------------------------------------------------------------ material frames (3-D)
+    def material_frame(self, k: int, edge: int = -1) -> np.ndarray:
+        """(B, 3, 3) the material frame of edge ``edge`` in state k (after k steps), columns (m1, m2, t)
+        (docs/physics.md §1.3)."""
+        e = self._edge(edge)
+        t, d1 = np.asarray(self.tangent[k])[:, e], np.asarray(self.ref_d1[k])[:, e]
+        th = np.asarray(self.dof[k])[:, 4 * e + 3]
+        d2 = np.cross(t, d1)
+        c, s = np.cos(th)[:, None], np.sin(th)[:, None]
+        return np.stack([c * d1 + s * d2, c * d2 - s * d1, t], axis=2)
+
+    def frame_cotangents(self, k: int, edge: int, dL_dR: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The cotangents ("dof" (B, n), "phi" (B, E)) of state k for an objective L whose derivative with respect to
+        the :meth:`material_frame` R of ``edge`` is ``dL_dR`` (B, 3, 3). The frame turns as δR = [ω]× R with
+        ω = (δθ + δφ) t + t × δt, δt = (I − t tᵀ) δe/|e| (the director parallel-transported with its tangent, turned by
+        φ beyond it), so with g = Σ_j R_j × (dL/dR)_j: ∂L/∂θ = ∂L/∂φ = g·t and ∂L/∂x_b = −∂L/∂x_a = (g × t)/|e|."""
+        e = self._edge(edge)
+        R = self.material_frame(k, e)
+        G = np.asarray(dL_dR, dtype=np.float64)
+        B, n = self.dof.shape[1], self.dof.shape[2]
+        if G.shape != (B, 3, 3) or not np.all(np.isfinite(G)):
+            raise GradientError(f"dL_dR: expected finite ({B}, 3, 3), got shape {G.shape}")
+        g = np.cross(R, G, axis=1).sum(axis=2)  # Σ_j R[:, :, j] × G[:, :, j]
+        t = R[:, :, 2]
+        x = np.asarray(self.dof[k])
+        length = np.linalg.norm(x[:, 4 * e + 4:4 * e + 7] - x[:, 4 * e:4 * e + 3], axis=1)
+        dof, phi = np.zeros((B, n)), np.zeros((B, self.ref_d1.shape[2]))
+        turn = np.einsum("bi,bi->b", g, t)
+        dof[:, 4 * e + 3] = turn
+        phi[:, e] = turn
+        u = np.cross(g, t) / length[:, None]
+        dof[:, 4 * e + 4:4 * e + 7] = u
+        dof[:, 4 * e:4 * e + 3] = -u
+        return dof, phi
+
+    def _edge(self, edge: int) -> int:
+        if self.sim.model.mode == "2d":
+            raise GradientError("material frames: a planar rod has none")
+        E = self.ref_d1.shape[2]
+        if not -E <= edge < E:
+            raise GradientError(f"edge {edge} is not an edge of the rod (0 … {E - 1})")
+        return edge % E
+
     # ------------------------------------------------------------------ forward mode
     def jvp(self, tangents: dict | list[dict]) -> dict:
         """Tangents of every state of the rollout for the parameter tangents ``tangents`` (name -> array shaped as
@@ -778,18 +821,25 @@ class Tape:
     # ------------------------------------------------------------------ reverse mode
     def vjp(self, cotangents: dict, params=PARAMETERS) -> dict:
         """Gradients of the scalar Σ ⟨cotangent, state⟩ with respect to ``params``; ``cotangents``: "dof" and/or
-        "vel", each (T + 1, B, n) (every state of the rollout) or (B, n) (the final state). One backward pass:
-        transposed solves with the steps' Jacobians."""
+        "vel", each (T + 1, B, n) (every state of the rollout) or (B, n) (the final state), and in 3-D "phi",
+        (T + 1, B, E) or (B, E): the turn of each edge's reference director about its tangent (an objective on a
+        material frame: :meth:`frame_cotangents`). One backward pass: transposed solves with the steps' Jacobians."""
         T, B, n = self.steps, self.dof.shape[1], self.dof.shape[2]
         cx = _cotangent(cotangents.get("dof"), T, B, n)
         cu = _cotangent(cotangents.get("vel"), T, B, n)
+        unknown = set(cotangents) - {"dof", "vel", "phi"}
+        if unknown:
+            raise GradientError(f"unknown cotangent {sorted(unknown)[0]!r}; known: dof, vel, phi")
+        if "phi" in cotangents and self.sim.model.mode == "2d":
+            raise GradientError("cotangent 'phi': a planar rod has no reference directors to turn")
+        E = self.ref_d1.shape[2]
+        cphi = _cotangent(cotangents.get("phi"), T, B, E)
         for nm in params:
             if nm not in PARAMETERS:
                 raise GradientError(f"unknown parameter {nm!r}; known: {', '.join(PARAMETERS)}")
         planar = self.sim.model.mode == "2d"
         fixed = self.sim.kernel_rod.fixed.astype(bool)
         N = self.tau_bar.shape[2]
-        E = self.ref_d1.shape[2]
         M = self.sim.model.obstacles.count
         out = {nm: np.zeros(_param_shape(nm, T, B, n, N, M)) for nm in params}
         kept = self._held_ok()  # a turned clamp does not keep a change (jvp refuses one): its DOFs' gradient is 0
@@ -797,7 +847,7 @@ class Tape:
         names = tuple(nm for nm in params if nm not in ("dof0", "vel0"))
         gx = cx[T].copy()  # (B, n) adjoint of x_k (total, including the later steps' dependence)
         gu = cu[T].copy()
-        gphi = np.zeros((B, E))
+        gphi = cphi[T].copy()  # (B, E) adjoint of φ_k
         for k in range(T - 1, -1, -1):
             for j in range(self.parts(k) - 1, -1, -1):  # a step the retry ladder split: sub-step by sub-step
                 lin = self._linear(k, names, j)
@@ -839,6 +889,7 @@ class Tape:
                     gx_prev = gx_prev + lin.a.adjoint(Gl)
                     gphi = gphi + Gl
                 gx, gu = gx_prev, gu_prev
+            gphi = gphi + cphi[k]
         if "dof0" in out:
             out["dof0"][:] = gx
             if not kept:

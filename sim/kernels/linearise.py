@@ -362,31 +362,26 @@ def solve_bands(lu, kl, transpose, rhs, out):
                 b[i] = rhs[e, i, q]
             for i in range(n, n + kl):
                 b[i] = 0.0
-            if transpose:
-                _apply_transposed(lu[e], n, kl, b)
-            else:
-                _apply(lu[e], n, kl, b)
+            _apply(lu[e], n, kl, b, transpose)
             for i in range(n):
                 out[e, i, q] = b[i]
 
 
 @njit(inline="always", **OPT_ALLOC)
-def _apply(lu, n, kl, b):
-    """:func:`sim.kernels.banded.band_lu_apply` with the usual widths as constants (its loops unroll)."""
+def _apply(lu, n, kl, b, transpose):
+    """b = A⁻¹ b or A⁻ᵀ b from the factors in ``lu`` (:mod:`sim.kernels.banded`), the usual widths passed as
+    constants (their loops unroll)."""
     if kl == KL_3D:
-        band_lu_apply(lu, n, KL_3D, b)
+        _apply_width(lu, n, KL_3D, b, transpose)
     elif kl == KL_2D:
-        band_lu_apply(lu, n, KL_2D, b)
+        _apply_width(lu, n, KL_2D, b, transpose)
     else:
-        band_lu_apply(lu, n, kl, b)
+        _apply_width(lu, n, kl, b, transpose)
 
 
 @njit(inline="always", **OPT_ALLOC)
-def _apply_transposed(lu, n, kl, b):
-    """:func:`sim.kernels.banded.band_lu_apply_transposed` with the usual widths as constants."""
-    if kl == KL_3D:
-        band_lu_apply_transposed(lu, n, KL_3D, b)
-    elif kl == KL_2D:
-        band_lu_apply_transposed(lu, n, KL_2D, b)
-    else:
+def _apply_width(lu, n, kl, b, transpose):
+    if transpose:
         band_lu_apply_transposed(lu, n, kl, b)
+    else:
+        band_lu_apply(lu, n, kl, b)

@@ -652,3 +652,49 @@ def test_a_checkpointed_rollout_keeps_a_fraction_of_the_states():
     assert kept.nbytes - controls_bytes < 0.25 * (full.nbytes - controls_bytes)
     with pytest.raises(G.GradientError, match="checkpoint must be"):
         G.rollout(sim, start(sim), ctrls, checkpoint=0)
+
+
+def test_an_objective_on_a_material_frame_has_the_gradient_of_central_differences():
+    """L = Σ W ∘ R over the last edge's material frame of the final state and of a middle state: its gradient with
+    respect to the natural curvature and twist, by one adjoint pass with the frame's "dof" and "phi" cotangents,
+    against central differences of whole rollouts (the twist and the directors' transport both move R)."""
+    rng = np.random.default_rng(7)
+    sim = simulator("3d")
+    N = sim.model.node_count
+    kb, tb = random_controls("3d", N, rng)
+    tb *= 4.0  # twisted, so the directors turn about the tangents as well as with them
+    W = {T: rng.normal(size=(B, 3, 3)), 2: rng.normal(size=(B, 3, 3))}
+
+    def objective(kb, tb):
+        tape = G.rollout(sim, start(sim), controls(sim, kb, tb))
+        return tape, sum(np.sum(w * tape.material_frame(k, -1), axis=(1, 2)) for k, w in W.items())
+
+    tape, _ = objective(kb, tb)
+    E = tape.ref_d1.shape[2]
+    cot = {"dof": np.zeros(tape.dof.shape), "phi": np.zeros((T + 1, B, E))}
+    for k, w in W.items():
+        dof, phi = tape.frame_cotangents(k, -1, w)
+        cot["dof"][k] += dof
+        cot["phi"][k] += phi
+    grads = tape.vjp(cot, params=("kappa_bar", "tau_bar"))
+    dk, dt = rng.normal(size=kb.shape), rng.normal(size=tb.shape)
+    want = np.einsum("tbnc,tbnc->b", grads["kappa_bar"], dk) + np.einsum("tbn,tbn->b", grads["tau_bar"], dt)
+    errors = {}
+    for eps in (1e-4, 1e-5):
+        fd = (objective(kb + eps * dk, tb + eps * dt)[1] - objective(kb - eps * dk, tb - eps * dt)[1]) / (2 * eps)
+        errors[eps] = np.abs(fd - want).max() / np.abs(fd).max()
+    assert min(errors.values()) <= 1e-6, errors
+    without = tape.vjp({"dof": cot["dof"]}, params=("tau_bar",))["tau_bar"]  # the directors' turn left out
+    assert np.abs(np.einsum("tbn,tbn->b", without - grads["tau_bar"], dt)).max() > 1e-4 * np.abs(fd).max()
+
+
+def test_a_frame_cotangent_is_refused_for_a_planar_rod_and_an_unknown_one_by_name():
+    sim = simulator("2d")
+    tape = G.rollout(sim, start(sim), controls(sim, *random_controls("2d", sim.model.node_count,
+                                                                      np.random.default_rng(0))))
+    with pytest.raises(G.GradientError, match="planar"):
+        tape.vjp({"phi": np.zeros((B, sim.model.node_count - 1))})
+    with pytest.raises(G.GradientError, match="planar"):
+        tape.material_frame(T)
+    with pytest.raises(G.GradientError, match="unknown cotangent 'theta'"):
+        tape.vjp({"theta": np.zeros(1)})
