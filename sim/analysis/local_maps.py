@@ -9,8 +9,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from sim.numba_options import OPT_ALLOC
-
 __all__ = ["LocalColumns", "EdgeTurns", "band_columns"]
 
 
@@ -55,7 +53,7 @@ class LocalColumns:
         return out.reshape(B, K * C)
 
 
-@njit(**OPT_ALLOC)
+@njit(cache=True)
 def _apply(values, first, stride, v, out):
     """out[b, r, q] += Σ_c values[b, k, l, c] v[b, k, c, q] over the sites k and rows l with r = first + stride k + l
     inside 0 … n − 1."""
@@ -74,7 +72,7 @@ def _apply(values, first, stride, v, out):
                     out[b, r, q] += acc
 
 
-@njit(**OPT_ALLOC)
+@njit(cache=True)
 def _adjoint(values, first, stride, lam, out):
     """out[b, k, c] = Σ_l values[b, k, l, c] lam[b, first + stride k + l] (rows inside 0 … n − 1)."""
     B, K, L, C = values.shape
@@ -98,7 +96,7 @@ def band_columns(ab: np.ndarray, kl: int, cols: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(**OPT_ALLOC)
+@njit(cache=True)
 def _band_columns(ab, kl, cols, out):
     n = ab.shape[1] - kl
     for b in range(ab.shape[0]):
@@ -109,7 +107,7 @@ def _band_columns(ab, kl, cols, out):
                 out[b, j, l] = ab[b, r, 2 * kl - l] if 0 <= r < n else 0.0  # band entry (r, kl + c − r)
 
 
-@njit(**OPT_ALLOC)
+@njit(cache=True)
 def _transport_turns(t_from, t_to, x, t, link, w):
     B, E = t.shape[0], t.shape[1]
     for b in range(B):
