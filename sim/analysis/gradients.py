@@ -49,6 +49,8 @@ Parameters (keys of the tangent / gradient dicts):
                                       and their velocities
     kappa_bar           (T, B, N, 2)  the natural curvature of every step (2-D: column 0)
     tau_bar             (T, B, N)     the natural twist of every step (3-D)
+    force               (T, B, N, 3)  the point forces on the nodes of every step [N] (``Control.force``; 2-D: the
+                                      y component does nothing): ∂f/∂F = −1 on the free position DOFs
     log_youngs_modulus  (B,)          ln of a factor on every stretching and bending stiffness
     log_shear_modulus   (B,)          ln of a factor on every twisting stiffness
     log_density         (B,)          ln of a factor on every mass (and weight)
@@ -97,7 +99,7 @@ from sim.state import STATE_ARRAYS, Control
 
 __all__ = ["GradientError", "Tape", "rollout", "PARAMETERS"]
 
-PARAMETERS = ("dof0", "vel0", "kappa_bar", "tau_bar", "log_youngs_modulus", "log_shear_modulus", "log_density",
+PARAMETERS = ("dof0", "vel0", "kappa_bar", "tau_bar", "force", "log_youngs_modulus", "log_shear_modulus", "log_density",
               "log_radius", "damping", "gravity", "log_contact_stiffness", "friction", "log_contact_delta", "obstacle_position",
               "obstacle_rotation")
 _POSE_FIELDS = ("obstacle_position", "obstacle_rotation")
@@ -355,7 +357,7 @@ class Tape:
     def _linear(self, k: int, names: tuple[str, ...], j: int = 0) -> _Lin:
         """Part j of step k linearised (:class:`_Part`), kept for further passes while they fit."""
         lin = self._lin.get((k, j))
-        if lin is None or any(nm not in lin.P for nm in names if nm != "gravity"):
+        if lin is None or any(nm not in lin.P for nm in names if nm not in ("gravity", "force")):
             lin = self._linearise(self._part(k, j), names)
             kept = sum(v.nbytes for key, v in self._lin.items() if isinstance(key, tuple))
             if self._replay is None and kept + 2 * lin.nbytes < _CACHE_BYTES:  # room for it and its Woodbury terms
@@ -710,10 +712,26 @@ class Tape:
         out[:, rod.fixed.astype(bool)] = 0.0
         return out
 
+    def _force_dofs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(nodes, components, DOFs) of the point forces' entries that act: each free node's x, y, z (2-D: x, z)."""
+        N = self.tau_bar.shape[2]
+        planar = self.sim.model.mode == "2d"
+        comps = np.array([0, 2] if planar else [0, 1, 2])
+        nodes = np.repeat(np.arange(N), comps.size)
+        comp = np.tile(comps, N)
+        dofs = 2 * nodes + comp // 2 if planar else 4 * nodes + comp
+        free = ~self.sim.kernel_rod.fixed.astype(bool)[dofs]
+        return nodes[free], comp[free], dofs[free]
+
     def _rhs_params(self, lin: _Lin, name: str, tan: np.ndarray, k: int) -> np.ndarray:
         """(B, n) ∂f/∂p · δp of step k for the tangent ``tan`` of parameter ``name``."""
         if name == "gravity":
             return np.einsum("bnc,bc->bn", self._gravity_columns(tan.shape[0]), tan)
+        if name == "force":
+            nodes, comps, dofs = self._force_dofs()
+            out = np.zeros((tan.shape[1], self.dof.shape[2]))
+            out[:, dofs] = -tan[k][:, nodes, comps]
+            return out
         if name in _POSE_FIELDS:
             v = tan.reshape(tan.shape[0], -1)
         elif name == "kappa_bar":
@@ -871,6 +889,10 @@ class Tape:
                     if nm == "gravity":
                         out[nm] += -np.einsum("bn,bnc->bc", lam, self._gravity_columns(B))
                         continue
+                    if nm == "force":
+                        nodes, comps, dofs = self._force_dofs()
+                        out[nm][k][:, nodes, comps] += lam[:, dofs]
+                        continue
                     g = -_columns_adjoint(lin.P[nm], lam)
                     if nm in _POSE_FIELDS:
                         out[nm] += g.reshape(out[nm].shape)
@@ -942,7 +964,7 @@ def _columns_adjoint(P, lam: np.ndarray) -> np.ndarray:
 def _param_shape(name, T, B, n, N, M=0):
     if name in _POSE_FIELDS:
         return (B, M, 3)
-    return {"dof0": (B, n), "vel0": (B, n), "kappa_bar": (T, B, N, 2), "tau_bar": (T, B, N),
+    return {"dof0": (B, n), "vel0": (B, n), "kappa_bar": (T, B, N, 2), "tau_bar": (T, B, N), "force": (T, B, N, 3),
             "log_youngs_modulus": (B,), "log_shear_modulus": (B,), "log_density": (B,), "log_radius": (B,),
             "damping": (B,),
             "gravity": (B, 3), "log_contact_stiffness": (B,), "friction": (B,), "log_contact_delta": (B,)}[name]

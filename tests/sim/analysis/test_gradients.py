@@ -30,12 +30,14 @@ def simulator(mode: str, **kw) -> Simulator:
     return Simulator(build_model(make_spec(**{**ROD, "mode": mode, **kw})), envs=B)
 
 
-def controls(sim, kb, tb):
+def controls(sim, kb, tb, force=None):
     out = []
     for k in range(T):
         c = sim.make_control()
         c.kappa_bar += kb[k]
         c.tau_bar += tb[k]
+        if force is not None:
+            c.force = force[k].copy()
         out.append(c)
     return out
 
@@ -83,9 +85,9 @@ def _check_adjoint(tape, checked, rng, *, velocities=False) -> dict:
     return grads
 
 
-def final_dof(sim, kb, tb, **kw) -> np.ndarray:
+def final_dof(sim, kb, tb, force=None, **kw) -> np.ndarray:
     st = start(sim, **kw)
-    for c in controls(sim, kb, tb):
+    for c in controls(sim, kb, tb, force):
         sim.step(st, c)
     return st.dof.reshape(B, -1).copy()
 
@@ -115,6 +117,8 @@ def perturbations(mode, sim, kb, tb, tape, rng, make=simulator):
     if mode == "2d":
         dk[..., 1] = 0.0
     g = np.array([0.3, -0.2 if mode == "3d" else 0.0, 0.5])
+    # point forces [N] on every node and step (their own stream: the callers' draws after this stay as they were)
+    df = np.random.default_rng(11).normal(0.0, 0.5, (T, B, sim.model.node_count, 3))
     v0 = rng.normal(0.0, 0.1, (B, n)) * free
     x0 = rng.normal(0.0, 0.01, (B, n)) * free
     one = np.ones(B)
@@ -130,6 +134,7 @@ def perturbations(mode, sim, kb, tb, tape, rng, make=simulator):
         "gravity": ({"gravity": np.tile(g, (B, 1))}, lambda eps: final_dof(
             make(mode, gravity=tuple(np.array([0.0, 0.0, -9.8]) + eps * g)), kb, tb)),
         "kappa_bar": ({"kappa_bar": dk}, lambda eps: final_dof(sim, kb + eps * dk, tb)),
+        "force": ({"force": df}, lambda eps: final_dof(sim, kb, tb, eps * df)),
         "vel0": ({"vel0": v0}, lambda eps: final_dof(sim, kb, tb, vel0=tape.vel[0] + eps * v0)),
         "dof0": ({"dof0": x0}, lambda eps: final_dof(sim, kb, tb, dof0=tape.dof[0] + eps * x0)),
     }
