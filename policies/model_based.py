@@ -131,6 +131,9 @@ class TrajectoryController:
         self.horizon, self.iterations, self.effort = int(horizon), int(iterations), float(effort)
         self.slices = field_slices(core.obs_fields)
         self.oriented = self.cfg.has_twist and "target_quat" in self.slices  # the tip frame, by the twist too
+        # each planned component's natural-curvature (or twist) change per unit action
+        self.scales = np.array([self.cfg.kappa_scale] * self.cfg.n_components
+                               + [self.cfg.twist_scale] * (1 if self.oriented else 0))
         spec = core.model.spec
         self.spec = dataclasses.replace(spec, sim=dataclasses.replace(
             spec.sim, newton_tol=PLAN_NEWTON_TOL, newton_dtol=PLAN_NEWTON_DTOL, newton_max_iter=PLAN_NEWTON_ITER))
@@ -148,7 +151,7 @@ class TrajectoryController:
     @property
     def components(self) -> int:
         """Planned actions per control point: the curvature's components, and the twist when the tip frame counts."""
-        return self.cfg.n_components + (1 if self.oriented else 0)
+        return self.scales.size
 
     def _targets(self, pos: np.ndarray, vel: np.ndarray | None) -> np.ndarray:
         """(H, B, D) the target at the end of each of the next H control steps: reflected at the box, no turns."""
@@ -164,9 +167,7 @@ class TrajectoryController:
     def _schedule(self, A: np.ndarray) -> np.ndarray:
         """(T, B, N, K) the change from now of the natural curvature's components (and twist, the last when
         oriented) at every sim step for the plan A (H, B, P, K)."""
-        C = self.cfg.n_components
-        scale = np.array([self.cfg.kappa_scale] * C + [self.cfg.twist_scale] * (A.shape[3] - C))
-        dK = A * scale
+        dK = A * self.scales
         before = np.cumsum(dK, axis=0) - dK  # Σ_{i<k} of the increments
         out = []
         for k in range(self.horizon):
@@ -215,8 +216,7 @@ class TrajectoryController:
         g = grads["kappa_bar"][..., :C]  # (T, B, N, C)
         if self.oriented:
             g = np.concatenate([g, grads["tau_bar"][..., None]], axis=3)
-        scale = np.array([self.cfg.kappa_scale] * C + [self.cfg.twist_scale] * (K - C))
-        g_pts = np.einsum("tbnc,pn->tbpc", g, self.W) * scale
+        g_pts = np.einsum("tbnc,pn->tbpc", g, self.W) * self.scales
         gA = np.zeros_like(A)
         for k in range(H):
             for j, share in enumerate(self.ramp):

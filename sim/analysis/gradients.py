@@ -276,7 +276,7 @@ class _Lin:
     @property
     def nbytes(self) -> int:
         arrays = [self.J, self.Fx, self.G, self.a, self.b, self.a_end, self.b_end, *self.P.values(),
-                  *(a for v in self._lu.values() for a in (v if isinstance(v, tuple) else (v,))),
+                  *(a for v in self._lu.values() for a in v),
                   *(a for v in self.low.values() for a in v)]
         return sum(a.nbytes for a in arrays if a is not None)
 
